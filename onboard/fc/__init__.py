@@ -1,0 +1,1 @@
+"""Flight Controller Interface: one driver per flight-controller protocol, one interface."""
