@@ -1,0 +1,1042 @@
+"""The wire contract of PROTOCOL.md, in one place: message schemas and strict parsers.
+
+Both sides import this module (the ground too), so it depends on the standard library
+only. Every parser takes a decoded JSON object, accepts unknown extra fields, and raises
+`ProtocolError` naming the first bad field; nothing here touches MQTT or a socket.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import json
+import math
+import re
+import secrets
+import time
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+DRONE_ID_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+REQUEST_ID_RE = re.compile(r"^[0-9a-f]{32}$")
+OBJECT_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,63}$")
+MAX_ID_LENGTH = 128
+
+# Control commands (PROTOCOL.md "Control") and the extra commands a mission step may use.
+CONTROL_COMMANDS = (
+    "arm",
+    "disarm",
+    "takeoff",
+    "land",
+    "changeN",
+    "changeE",
+    "altitude",
+    "navigate",
+    "takepic",
+    "objrequest",
+    "resetfc",
+    "rebuildtelemetry",
+)
+MISSION_ONLY_COMMANDS = ("wait_for_flight", "sleep", "virtualalarm", "sense")
+STEP_COMMANDS = CONTROL_COMMANDS + MISSION_ONLY_COMMANDS
+# Commands that set a new navigation target (the Navigation Processor's inputs).
+NAVIGATION_COMMANDS = ("takeoff", "land", "changeN", "changeE", "altitude", "navigate")
+
+ALARM_LEVELS = ("CRITICAL", "OUT_MEASURE")
+MISSION_STATUSES = ("accepted", "rejected", "completed", "stopped")
+STEP_STATUSES = ("started", "completed", "failed")
+GEAR_QUERIES = ("specs", "sensors", "reading")
+MISSION_ACTIONS = ("start", "stop")
+
+DEFAULT_TAKEOFF_ALTITUDE = 10.0
+DEFAULT_TOLERANCE = 2.0
+MAX_ALTITUDE = 1000.0
+
+# Topic channels, each with the direction it flows (PROTOCOL.md "Topics").
+IN_CHANNELS = ("control", "mission", "gear")
+OUT_CHANNELS = (
+    "control",
+    "mission",
+    "gear",
+    "heartbeats",
+    "alarms",
+    "telemetry",
+    "camera",
+    "pictures",
+)
+QOS = {
+    "control": 1,
+    "mission": 1,
+    "gear": 1,
+    "alarms": 1,
+    "pictures": 1,
+    "telemetry": 0,
+    "heartbeats": 0,
+    "camera": 0,
+}
+
+
+class ProtocolError(ValueError):
+    """A message that breaks PROTOCOL.md; `field` names the offending field (dotted path)."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+        self.message = message
+
+
+def new_request_id() -> str:
+    """32 lower-case hex characters from 16 cryptographically strong random bytes."""
+    return secrets.token_hex(16)
+
+
+def now() -> float:
+    return time.time()
+
+
+def is_drone_id(value: object) -> bool:
+    return isinstance(value, str) and DRONE_ID_RE.match(value) is not None
+
+
+def topic(drone_id: str, channel: str, direction: str) -> str:
+    """`<id>/<channel>/<in|out>`, refusing a channel the contract does not have."""
+    if not is_drone_id(drone_id):
+        raise ProtocolError("drone_id", f"{drone_id!r} is not a valid drone id")
+    channels = IN_CHANNELS if direction == "in" else OUT_CHANNELS if direction == "out" else ()
+    if channel not in channels:
+        raise ProtocolError("topic", f"no {channel}/{direction} topic in the contract")
+    return f"{drone_id}/{channel}/{direction}"
+
+
+def split_topic(value: str) -> tuple[str, str, str]:
+    """`<id>/<channel>/<direction>` → (drone id, channel, direction), or ProtocolError."""
+    parts = value.split("/")
+    if len(parts) != 3:
+        raise ProtocolError("topic", f"{value!r} is not <id>/<channel>/<in|out>")
+    drone_id, channel, direction = parts
+    topic(drone_id, channel, direction)
+    return drone_id, channel, direction
+
+
+# ---------------------------------------------------------------------------------------
+# Field checks. Each names the field it checks, so errors say exactly what is wrong.
+
+
+def _require(obj: Mapping[str, Any], name: str, prefix: str = "") -> Any:
+    if name not in obj:
+        raise ProtocolError(prefix + name, "is required")
+    return obj[name]
+
+
+def _object(value: Any, name: str) -> dict:
+    if not isinstance(value, dict):
+        raise ProtocolError(name, f"must be a JSON object, got {_type_name(value)}")
+    return value
+
+
+def _type_name(value: Any) -> str:
+    return {
+        type(None): "null",
+        bool: "a boolean",
+        str: "a string",
+        list: "a list",
+        dict: "an object",
+    }.get(type(value), "a number" if isinstance(value, int | float) else type(value).__name__)
+
+
+def number(value: Any, name: str, *, lo: float | None = None, hi: float | None = None) -> float:
+    """A finite number (numeric strings accepted, as the HTTP endpoint sends them)."""
+    if isinstance(value, bool) or value is None:
+        raise ProtocolError(name, f"must be a number, got {_type_name(value)}")
+    if isinstance(value, str):
+        try:
+            result = float(value.strip())
+        except ValueError:
+            raise ProtocolError(name, f"must be a number, got {value!r}") from None
+    elif isinstance(value, int | float):
+        result = float(value)
+    else:
+        raise ProtocolError(name, f"must be a number, got {_type_name(value)}")
+    if not math.isfinite(result):
+        raise ProtocolError(name, "must be a finite number")
+    if lo is not None and result < lo:
+        raise ProtocolError(name, f"must be at least {lo:g}, got {result:g}")
+    if hi is not None and result > hi:
+        raise ProtocolError(name, f"must be at most {hi:g}, got {result:g}")
+    return result
+
+
+def _optional_number(value: Any, name: str, **bounds: float) -> float | None:
+    return None if value is None else number(value, name, **bounds)
+
+
+def _integer(value: Any, name: str, *, lo: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ProtocolError(name, f"must be an integer, got {_type_name(value)}")
+    if lo is not None and value < lo:
+        raise ProtocolError(name, f"must be at least {lo}, got {value}")
+    return value
+
+
+def _string(value: Any, name: str, *, empty: bool = False, max_length: int = 10_000) -> str:
+    if not isinstance(value, str):
+        raise ProtocolError(name, f"must be a string, got {_type_name(value)}")
+    if not empty and not value:
+        raise ProtocolError(name, "must not be empty")
+    if len(value) > max_length:
+        raise ProtocolError(name, f"must be at most {max_length} characters")
+    return value
+
+
+def _optional_string(value: Any, name: str) -> str | None:
+    return None if value is None else _string(value, name, empty=True)
+
+
+def _boolean(value: Any, name: str) -> bool:
+    """A boolean; the HTTP endpoint's "true"/"false"/"1"/"0" strings are accepted too."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.strip().lower() in ("true", "1", "yes", "on"):
+        return True
+    if isinstance(value, str) and value.strip().lower() in ("false", "0", "no", "off", ""):
+        return False
+    if isinstance(value, int) and value in (0, 1):
+        return bool(value)
+    raise ProtocolError(name, f"must be true or false, got {value!r}")
+
+
+def _choice(value: Any, name: str, choices: Iterable[str]) -> str:
+    choices = tuple(choices)
+    if value not in choices:
+        raise ProtocolError(name, f"must be one of {', '.join(choices)}, got {value!r}")
+    return value
+
+
+def _request_id(value: Any, name: str = "request_id") -> str:
+    if not isinstance(value, str) or not REQUEST_ID_RE.match(value):
+        raise ProtocolError(name, "must be 32 lower-case hex characters")
+    return value
+
+
+def _identifier(value: Any, name: str) -> str:
+    """A mission or assignment id: a non-empty string (ints are accepted and stringified)."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        value = str(value)
+    return _string(value, name, max_length=MAX_ID_LENGTH)
+
+
+def _ts(obj: Mapping[str, Any], prefix: str = "") -> float:
+    return number(_require(obj, "ts", prefix), prefix + "ts", lo=0)
+
+
+def _drop_none(data: dict) -> dict:
+    return {k: v for k, v in data.items() if v is not None}
+
+
+# ---------------------------------------------------------------------------------------
+# Shared value types.
+
+
+@dataclass(frozen=True)
+class Position:
+    """WGS84 lat/lon in degrees; alt in metres above the home point."""
+
+    lat: float
+    lon: float
+    alt: float
+
+    def to_dict(self) -> dict:
+        return {"lat": self.lat, "lon": self.lon, "alt": self.alt}
+
+
+def latitude(value: Any, name: str = "lat") -> float:
+    return number(value, name, lo=-90.0, hi=90.0)
+
+
+def longitude(value: Any, name: str = "lon") -> float:
+    return number(value, name, lo=-180.0, hi=180.0)
+
+
+def parse_position(obj: Any, name: str = "position") -> Position:
+    obj = _object(obj, name)
+    return Position(
+        lat=latitude(_require(obj, "lat", f"{name}."), f"{name}.lat"),
+        lon=longitude(_require(obj, "lon", f"{name}."), f"{name}.lon"),
+        alt=number(_require(obj, "alt", f"{name}."), f"{name}.alt"),
+    )
+
+
+def _optional_position(obj: Any, name: str = "position") -> Position | None:
+    return None if obj is None else parse_position(obj, name)
+
+
+def _position_dict(position: Position | None) -> dict | None:
+    return None if position is None else position.to_dict()
+
+
+# ---------------------------------------------------------------------------------------
+# Commands and their parameters (control requests and mission steps share them).
+
+
+def _no_params(params: dict, prefix: str) -> dict:
+    return {}
+
+
+def _force_param(params: dict, prefix: str) -> dict:
+    return {"force": _boolean(params.get("force", False), prefix + "force")}
+
+
+def _takeoff_params(params: dict, prefix: str) -> dict:
+    altitude = params.get("altitude")
+    if altitude is None:
+        altitude = DEFAULT_TAKEOFF_ALTITUDE
+    return {"altitude": number(altitude, prefix + "altitude", lo=0.5, hi=MAX_ALTITUDE)}
+
+
+def _value_param(params: dict, prefix: str) -> dict:
+    return {"value": number(_require(params, "value", prefix), prefix + "value")}
+
+
+def _navigate_params(params: dict, prefix: str) -> dict:
+    delta = params.get("altitude_delta")
+    return {
+        "lat": latitude(_require(params, "lat", prefix), prefix + "lat"),
+        "lon": longitude(_require(params, "lon", prefix), prefix + "lon"),
+        "altitude_delta": 0.0 if delta is None else number(delta, prefix + "altitude_delta"),
+    }
+
+
+def _objrequest_params(params: dict, prefix: str) -> dict:
+    value = _string(_require(params, "value", prefix), prefix + "value")
+    if not OBJECT_NAME_RE.match(value):
+        raise ProtocolError(prefix + "value", f"{value!r} is not a flight-controller object name")
+    return {"value": value}
+
+
+def _tolerance_params(params: dict, prefix: str) -> dict:
+    result = {}
+    for name in ("horizontal_tolerance", "vertical_tolerance"):
+        value = params.get(name)
+        result[name] = (
+            DEFAULT_TOLERANCE if value is None else number(value, prefix + name, lo=0.01, hi=1e4)
+        )
+    return result
+
+
+def _sleep_params(params: dict, prefix: str) -> dict:
+    return {"value": number(_require(params, "value", prefix), prefix + "value", lo=0, hi=86400)}
+
+
+def _virtualalarm_params(params: dict, prefix: str) -> dict:
+    return {
+        "level": _choice(_require(params, "level", prefix), prefix + "level", ALARM_LEVELS),
+        "message": _string(params.get("message", ""), prefix + "message", empty=True),
+    }
+
+
+def _sense_params(params: dict, prefix: str) -> dict:
+    return {"sensor": _string(_require(params, "sensor", prefix), prefix + "sensor")}
+
+
+_PARAMS: dict[str, Callable[[dict, str], dict]] = {
+    "arm": _no_params,
+    "disarm": _force_param,
+    "takeoff": _takeoff_params,
+    "land": _no_params,
+    "changeN": _value_param,
+    "changeE": _value_param,
+    "altitude": _value_param,
+    "navigate": _navigate_params,
+    "takepic": _no_params,
+    "objrequest": _objrequest_params,
+    "resetfc": _force_param,
+    "rebuildtelemetry": _no_params,
+    "wait_for_flight": _tolerance_params,
+    "sleep": _sleep_params,
+    "virtualalarm": _virtualalarm_params,
+    "sense": _sense_params,
+}
+
+
+def validate_command(
+    command: Any, params: Any = None, *, mission: bool = False, prefix: str = ""
+) -> dict:
+    """Check a command and its params; return the params normalised (floats, defaults).
+
+    `mission=True` also allows the mission-only commands (wait_for_flight, sleep, ...).
+    Unknown extra params are dropped. Raises ProtocolError naming the bad field.
+    """
+    allowed = STEP_COMMANDS if mission else CONTROL_COMMANDS
+    if command not in allowed:
+        where = "in a mission" if mission else "as a control command"
+        raise ProtocolError(prefix + "command", f"unknown command {command!r} {where}")
+    if params is None:
+        params = {}
+    params = _object(params, prefix + "params")
+    return _PARAMS[command](params, prefix + "params.")
+
+
+# ---------------------------------------------------------------------------------------
+# Control.
+
+
+@dataclass(frozen=True)
+class ControlRequest:
+    request_id: str
+    command: str
+    params: dict
+    ts: float = field(default_factory=now)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class ControlResponse:
+    request_id: str
+    command: str
+    ok: bool
+    result: dict | None = None
+    error: str | None = None
+    ts: float = field(default_factory=now)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def control_request(command: str, params: dict | None = None) -> ControlRequest:
+    """A new, validated control request with a fresh request id (for the ground)."""
+    return ControlRequest(new_request_id(), command, validate_command(command, params or {}))
+
+
+def parse_control_request(obj: Any) -> ControlRequest:
+    obj = _object(obj, "message")
+    request_id = _request_id(_require(obj, "request_id"))
+    command = _require(obj, "command")
+    params = validate_command(command, obj.get("params"))
+    ts = number(obj["ts"], "ts", lo=0) if obj.get("ts") is not None else now()
+    return ControlRequest(request_id, command, params, ts)
+
+
+def parse_control_response(obj: Any) -> ControlResponse:
+    obj = _object(obj, "message")
+    ok = _require(obj, "ok")
+    if not isinstance(ok, bool):
+        raise ProtocolError("ok", "must be true or false")
+    result = obj.get("result")
+    if result is not None:
+        _object(result, "result")
+    error = _optional_string(obj.get("error"), "error")
+    if not ok and not error:
+        raise ProtocolError("error", "a failed response must say why")
+    return ControlResponse(
+        request_id=_request_id(_require(obj, "request_id")),
+        command=_string(_require(obj, "command"), "command"),
+        ok=ok,
+        result=result,
+        error=error,
+        ts=_ts(obj),
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Missions.
+
+
+@dataclass(frozen=True)
+class Step:
+    index: int
+    command: str
+    params: dict
+
+    def to_dict(self) -> dict:
+        return {"index": self.index, "command": self.command, "params": self.params}
+
+
+@dataclass(frozen=True)
+class MissionPayload:
+    mission_id: str
+    assignment_id: str
+    steps: tuple[Step, ...]
+
+    def to_dict(self) -> dict:
+        return {
+            "mission_id": self.mission_id,
+            "assignment_id": self.assignment_id,
+            "steps": [step.to_dict() for step in self.steps],
+        }
+
+
+@dataclass(frozen=True)
+class MissionStart:
+    request_id: str
+    mission_id: str
+    assignment_id: str
+    payload: str  # base64, decoded by the mission worker (it times the decode)
+    action: str = "start"
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class MissionStop:
+    request_id: str
+    mission_id: str
+    action: str = "stop"
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def parse_step(obj: Any, name: str = "step") -> Step:
+    obj = _object(obj, name)
+    index = _integer(_require(obj, "index", f"{name}."), f"{name}.index", lo=0)
+    command = _require(obj, "command", f"{name}.")
+    params = validate_command(command, obj.get("params"), mission=True, prefix=f"{name}.")
+    return Step(index, command, params)
+
+
+def parse_mission_payload(obj: Any) -> MissionPayload:
+    """The decoded JSON of a mission payload → MissionPayload (every step validated)."""
+    obj = _object(obj, "payload")
+    mission_id = _identifier(_require(obj, "mission_id", "payload."), "payload.mission_id")
+    assignment_id = _identifier(_require(obj, "assignment_id", "payload."), "payload.assignment_id")
+    raw_steps = _require(obj, "steps", "payload.")
+    if not isinstance(raw_steps, list):
+        raise ProtocolError("payload.steps", f"must be a list, got {_type_name(raw_steps)}")
+    if not raw_steps:
+        raise ProtocolError("payload.steps", "must hold at least one step")
+    steps = []
+    seen: set[int] = set()
+    for position, raw in enumerate(raw_steps):
+        step = parse_step(raw, f"payload.steps[{position}]")
+        if step.index in seen:
+            raise ProtocolError(
+                f"payload.steps[{position}].index", f"index {step.index} appears twice"
+            )
+        seen.add(step.index)
+        steps.append(step)
+    return MissionPayload(mission_id, assignment_id, tuple(steps))
+
+
+def encode_mission_payload(
+    mission_id: str | int, assignment_id: str | int, steps: Iterable[Step | Mapping]
+) -> str:
+    """Validate and encode a mission payload: standard base64 of its UTF-8 JSON."""
+    raw_steps = [s.to_dict() if isinstance(s, Step) else dict(s) for s in steps]
+    payload = parse_mission_payload(
+        {"mission_id": str(mission_id), "assignment_id": str(assignment_id), "steps": raw_steps}
+    )
+    text = json.dumps(payload.to_dict(), separators=(",", ":"), ensure_ascii=False)
+    return base64.b64encode(text.encode("utf-8")).decode("ascii")
+
+
+def decode_mission_payload(b64: Any) -> MissionPayload:
+    """Standard base64 → UTF-8 JSON → validated MissionPayload, or ProtocolError."""
+    if isinstance(b64, str):
+        try:
+            b64 = b64.encode("ascii")
+        except UnicodeEncodeError:
+            raise ProtocolError("payload", "base64 must be ASCII") from None
+    if not isinstance(b64, bytes):
+        raise ProtocolError("payload", f"must be a base64 string, got {_type_name(b64)}")
+    try:
+        raw = base64.b64decode(b64, validate=True)
+    except (binascii.Error, ValueError) as exc:
+        raise ProtocolError("payload", f"is not valid base64 ({exc})") from None
+    try:
+        data = json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise ProtocolError("payload", "is not UTF-8") from None
+    except json.JSONDecodeError as exc:
+        raise ProtocolError("payload", f"is not JSON ({exc.msg} at {exc.pos})") from None
+    return parse_mission_payload(data)
+
+
+def mission_start(
+    mission_id: str | int, assignment_id: str | int, steps: Iterable[Step | Mapping]
+) -> MissionStart:
+    """A ready-to-send start message for the ground (payload encoded, fresh request id)."""
+    return MissionStart(
+        request_id=new_request_id(),
+        mission_id=str(mission_id),
+        assignment_id=str(assignment_id),
+        payload=encode_mission_payload(mission_id, assignment_id, steps),
+    )
+
+
+def parse_mission_request(obj: Any) -> MissionStart | MissionStop:
+    """A `<id>/mission/in` message. The start payload is checked later, when decoded."""
+    obj = _object(obj, "message")
+    request_id = _request_id(_require(obj, "request_id"))
+    action = _choice(_require(obj, "action"), "action", MISSION_ACTIONS)
+    mission_id = _identifier(_require(obj, "mission_id"), "mission_id")
+    if action == "stop":
+        return MissionStop(request_id, mission_id)
+    assignment_id = _identifier(_require(obj, "assignment_id"), "assignment_id")
+    payload = _string(_require(obj, "payload"), "payload", max_length=50_000_000)
+    return MissionStart(request_id, mission_id, assignment_id, payload)
+
+
+@dataclass(frozen=True)
+class MissionProgress:
+    mission_id: str
+    assignment_id: str | None
+    status: str
+    decode_ms: float | None = None
+    error: str | None = None
+    ts: float = field(default_factory=now)
+    request_id: str | None = None  # optional addition: the start/stop request answered
+    type: str = "mission"
+
+    def to_dict(self) -> dict:
+        data = asdict(self)
+        if self.request_id is None:
+            del data["request_id"]
+        return data
+
+
+@dataclass(frozen=True)
+class StepProgress:
+    mission_id: str
+    assignment_id: str | None
+    index: int
+    command: str
+    status: str
+    position: Position | None = None
+    duration_s: float | None = None
+    result: dict = field(default_factory=dict)
+    error: str | None = None  # optional addition: why a step failed
+    ts: float = field(default_factory=now)
+    type: str = "step"
+
+    def to_dict(self) -> dict:
+        data = asdict(self)
+        data["position"] = _position_dict(self.position)
+        return data
+
+
+def parse_mission_progress(obj: Any) -> MissionProgress | StepProgress:
+    """A `<id>/mission/out` message (mission status or step progress)."""
+    obj = _object(obj, "message")
+    kind = _choice(_require(obj, "type"), "type", ("mission", "step"))
+    mission_id = _identifier(_require(obj, "mission_id"), "mission_id")
+    assignment_id = obj.get("assignment_id")
+    if assignment_id is not None:
+        assignment_id = _identifier(assignment_id, "assignment_id")
+    ts = _ts(obj)
+    if kind == "mission":
+        request_id = obj.get("request_id")
+        return MissionProgress(
+            mission_id=mission_id,
+            assignment_id=assignment_id,
+            status=_choice(_require(obj, "status"), "status", MISSION_STATUSES),
+            decode_ms=_optional_number(obj.get("decode_ms"), "decode_ms", lo=0),
+            error=_optional_string(obj.get("error"), "error"),
+            ts=ts,
+            request_id=None if request_id is None else _request_id(request_id),
+        )
+    result = obj.get("result")
+    return StepProgress(
+        mission_id=mission_id,
+        assignment_id=assignment_id,
+        index=_integer(_require(obj, "index"), "index", lo=0),
+        command=_choice(_require(obj, "command"), "command", STEP_COMMANDS),
+        status=_choice(_require(obj, "status"), "status", STEP_STATUSES),
+        position=_optional_position(obj.get("position")),
+        duration_s=_optional_number(obj.get("duration_s"), "duration_s", lo=0),
+        result={} if result is None else _object(result, "result"),
+        error=_optional_string(obj.get("error"), "error"),
+        ts=ts,
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Heartbeats and alarms.
+
+
+@dataclass(frozen=True)
+class MissionRef:
+    mission_id: str
+    assignment_id: str | None
+    index: int | None
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Heartbeat:
+    drone_id: str
+    ts: float
+    position: Position | None
+    battery_voltage: float | None
+    battery_remaining: float | None
+    armed: bool
+    airborne: bool
+    flight_mode: str
+    mission: MissionRef | None
+    fc_protocol: str
+    fc_connected: bool
+    type: str = "heartbeat"
+
+    def to_dict(self) -> dict:
+        return {
+            "type": "heartbeat",
+            "drone_id": self.drone_id,
+            "ts": self.ts,
+            "position": _position_dict(self.position),
+            "battery": {"voltage": self.battery_voltage, "remaining": self.battery_remaining},
+            "armed": self.armed,
+            "airborne": self.airborne,
+            "flight_mode": self.flight_mode,
+            "mission": None if self.mission is None else self.mission.to_dict(),
+            "fc": {"protocol": self.fc_protocol, "connected": self.fc_connected},
+        }
+
+
+def _mission_ref(obj: Any, name: str = "mission") -> MissionRef | None:
+    if obj is None:
+        return None
+    obj = _object(obj, name)
+    assignment_id = obj.get("assignment_id")
+    index = obj.get("index")
+    return MissionRef(
+        mission_id=_identifier(_require(obj, "mission_id", f"{name}."), f"{name}.mission_id"),
+        assignment_id=None
+        if assignment_id is None
+        else _identifier(assignment_id, f"{name}.assignment_id"),
+        index=None if index is None else _integer(index, f"{name}.index", lo=0),
+    )
+
+
+def parse_heartbeat(obj: Any) -> Heartbeat:
+    obj = _object(obj, "message")
+    _choice(_require(obj, "type"), "type", ("heartbeat",))
+    drone_id = _require(obj, "drone_id")
+    if not is_drone_id(drone_id):
+        raise ProtocolError("drone_id", f"{drone_id!r} is not a valid drone id")
+    battery = obj.get("battery") or {}
+    battery = _object(battery, "battery")
+    fc = _object(obj.get("fc") or {}, "fc")
+    return Heartbeat(
+        drone_id=drone_id,
+        ts=_ts(obj),
+        position=_optional_position(obj.get("position")),
+        battery_voltage=_optional_number(battery.get("voltage"), "battery.voltage", lo=0),
+        battery_remaining=_optional_number(
+            battery.get("remaining"), "battery.remaining", lo=0, hi=1
+        ),
+        armed=_boolean(obj.get("armed", False), "armed"),
+        airborne=_boolean(obj.get("airborne", False), "airborne"),
+        flight_mode=_string(obj.get("flight_mode") or "UNKNOWN", "flight_mode"),
+        mission=_mission_ref(obj.get("mission")),
+        fc_protocol=_string(fc.get("protocol") or "unknown", "fc.protocol"),
+        fc_connected=_boolean(fc.get("connected", False), "fc.connected"),
+    )
+
+
+@dataclass(frozen=True)
+class Alarm:
+    level: str
+    message: str
+    position: Position | None = None
+    mission_id: str | None = None
+    assignment_id: str | None = None
+    index: int | None = None
+    sensor: str | None = None
+    value: float | None = None
+    ts: float = field(default_factory=now)
+    type: str = "alarm"
+
+    def to_dict(self) -> dict:
+        data = asdict(self)
+        data["position"] = _position_dict(self.position)
+        return data
+
+
+def parse_alarm(obj: Any) -> Alarm:
+    obj = _object(obj, "message")
+    _choice(_require(obj, "type"), "type", ("alarm",))
+    mission_id = obj.get("mission_id")
+    assignment_id = obj.get("assignment_id")
+    index = obj.get("index")
+    return Alarm(
+        level=_choice(_require(obj, "level"), "level", ALARM_LEVELS),
+        message=_string(obj.get("message") or "", "message", empty=True),
+        position=_optional_position(obj.get("position")),
+        mission_id=None if mission_id is None else _identifier(mission_id, "mission_id"),
+        assignment_id=None
+        if assignment_id is None
+        else _identifier(assignment_id, "assignment_id"),
+        index=None if index is None else _integer(index, "index", lo=0),
+        sensor=_optional_string(obj.get("sensor"), "sensor"),
+        value=_optional_number(obj.get("value"), "value"),
+        ts=_ts(obj),
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Gear.
+
+
+@dataclass(frozen=True)
+class GearQuery:
+    request_id: str
+    query: str
+    sensor: str | None = None
+
+    def to_dict(self) -> dict:
+        return _drop_none(asdict(self))
+
+
+@dataclass(frozen=True)
+class GearReply:
+    request_id: str
+    ok: bool
+    specs: dict | None = None
+    sensors: dict | None = None
+    reading: dict | None = None
+    error: str | None = None
+    ts: float = field(default_factory=now)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class GearAnnouncement:
+    specs: dict
+    sensors: dict
+    ts: float = field(default_factory=now)
+    type: str = "gear"
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def parse_gear_query(obj: Any) -> GearQuery:
+    obj = _object(obj, "message")
+    request_id = _request_id(_require(obj, "request_id"))
+    query = _choice(_require(obj, "query"), "query", GEAR_QUERIES)
+    sensor = obj.get("sensor")
+    if query == "reading":
+        sensor = _string(_require(obj, "sensor"), "sensor")
+    elif sensor is not None:
+        sensor = _string(sensor, "sensor")
+    return GearQuery(request_id, query, sensor)
+
+
+def parse_gear_message(obj: Any) -> GearReply | GearAnnouncement:
+    """A `<id>/gear/out` message: a reply (has request_id) or an announcement."""
+    obj = _object(obj, "message")
+    if obj.get("request_id") is None:
+        _choice(_require(obj, "type"), "type", ("gear",))
+        return GearAnnouncement(
+            specs=_object(_require(obj, "specs"), "specs"),
+            sensors=_object(_require(obj, "sensors"), "sensors"),
+            ts=_ts(obj),
+        )
+    ok = _require(obj, "ok")
+    if not isinstance(ok, bool):
+        raise ProtocolError("ok", "must be true or false")
+    parts = {}
+    for name in ("specs", "sensors", "reading"):
+        value = obj.get(name)
+        parts[name] = None if value is None else _object(value, name)
+    return GearReply(
+        request_id=_request_id(obj["request_id"]),
+        ok=ok,
+        error=_optional_string(obj.get("error"), "error"),
+        ts=_ts(obj),
+        **parts,
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Telemetry, pictures and camera frames.
+
+
+@dataclass(frozen=True)
+class TelemetryObject:
+    name: str
+    ts: float
+    fields: dict
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    objects: tuple[TelemetryObject, ...]
+    ts: float = field(default_factory=now)
+
+    def to_dict(self) -> dict:
+        return {"ts": self.ts, "objects": [o.to_dict() for o in self.objects]}
+
+
+def parse_telemetry(obj: Any) -> Telemetry:
+    obj = _object(obj, "message")
+    raw = _require(obj, "objects")
+    if not isinstance(raw, list):
+        raise ProtocolError("objects", "must be a list")
+    objects = []
+    for i, item in enumerate(raw):
+        name = f"objects[{i}]"
+        item = _object(item, name)
+        objects.append(
+            TelemetryObject(
+                name=_string(_require(item, "name", f"{name}."), f"{name}.name", max_length=64),
+                ts=_ts(item, f"{name}."),
+                fields=_object(_require(item, "fields", f"{name}."), f"{name}.fields"),
+            )
+        )
+    return Telemetry(tuple(objects), _ts(obj))
+
+
+def _jpeg(value: Any, name: str = "jpeg") -> bytes:
+    value = _string(value, name, max_length=50_000_000)
+    try:
+        data = base64.b64decode(value, validate=True)
+    except (binascii.Error, ValueError):
+        raise ProtocolError(name, "is not valid base64") from None
+    if not data.startswith(b"\xff\xd8"):
+        raise ProtocolError(name, "is not a JPEG image")
+    return data
+
+
+@dataclass(frozen=True)
+class Picture:
+    name: str
+    position: Position | None
+    attitude: dict | None
+    mission_id: str | None
+    index: int | None
+    jpeg: bytes
+    ts: float = field(default_factory=now)
+    assignment_id: str | None = None  # optional addition
+
+    def to_dict(self) -> dict:
+        return {
+            "ts": self.ts,
+            "name": self.name,
+            "position": _position_dict(self.position),
+            "attitude": self.attitude,
+            "mission_id": self.mission_id,
+            "assignment_id": self.assignment_id,
+            "index": self.index,
+            "jpeg": base64.b64encode(self.jpeg).decode("ascii"),
+        }
+
+
+def parse_picture(obj: Any) -> Picture:
+    obj = _object(obj, "message")
+    attitude = obj.get("attitude")
+    if attitude is not None:
+        attitude = _object(attitude, "attitude")
+        attitude = {
+            axis: _optional_number(attitude.get(axis), f"attitude.{axis}")
+            for axis in ("roll", "pitch", "yaw")
+        }
+    mission_id = obj.get("mission_id")
+    assignment_id = obj.get("assignment_id")
+    index = obj.get("index")
+    return Picture(
+        name=_string(_require(obj, "name"), "name", max_length=255),
+        position=_optional_position(obj.get("position")),
+        attitude=attitude,
+        mission_id=None if mission_id is None else _identifier(mission_id, "mission_id"),
+        index=None if index is None else _integer(index, "index", lo=0),
+        jpeg=_jpeg(_require(obj, "jpeg")),
+        ts=_ts(obj),
+        assignment_id=None
+        if assignment_id is None
+        else _identifier(assignment_id, "assignment_id"),
+    )
+
+
+@dataclass(frozen=True)
+class CameraFrame:
+    position: tuple[float, float, float]  # NED metres from home
+    orientation: tuple[float, float, float, float]  # qx, qy, qz, qw
+    jpeg: bytes
+    ts: float = field(default_factory=now)
+
+    def to_dict(self) -> dict:
+        return {
+            "ts": self.ts,
+            "pose": {"position": list(self.position), "orientation": list(self.orientation)},
+            "jpeg": base64.b64encode(self.jpeg).decode("ascii"),
+        }
+
+
+def _vector(value: Any, name: str, size: int) -> tuple[float, ...]:
+    if not isinstance(value, list) or len(value) != size:
+        raise ProtocolError(name, f"must be a list of {size} numbers")
+    return tuple(number(v, f"{name}[{i}]") for i, v in enumerate(value))
+
+
+def parse_camera_frame(obj: Any) -> CameraFrame:
+    obj = _object(obj, "message")
+    pose = _object(_require(obj, "pose"), "pose")
+    return CameraFrame(
+        position=_vector(_require(pose, "position", "pose."), "pose.position", 3),  # type: ignore[arg-type]
+        orientation=_vector(_require(pose, "orientation", "pose."), "pose.orientation", 4),  # type: ignore[arg-type]
+        jpeg=_jpeg(_require(obj, "jpeg")),
+        ts=_ts(obj),
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Bytes on the wire.
+
+
+def encode(message: Any) -> bytes:
+    """A message dataclass (or plain dict) → compact UTF-8 JSON bytes."""
+    data = message.to_dict() if hasattr(message, "to_dict") else message
+    return json.dumps(data, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+
+
+def decode_json(payload: bytes | str) -> Any:
+    """UTF-8 JSON bytes → Python value, or ProtocolError("message", ...)."""
+    try:
+        text = payload.decode("utf-8") if isinstance(payload, bytes | bytearray) else payload
+        return json.loads(text)
+    except UnicodeDecodeError:
+        raise ProtocolError("message", "is not UTF-8") from None
+    except json.JSONDecodeError as exc:
+        raise ProtocolError("message", f"is not JSON ({exc.msg} at {exc.pos})") from None
+
+
+def request_id_of(obj: Any) -> str | None:
+    """The request id of a (possibly malformed) message, when it has a valid one."""
+    if isinstance(obj, dict):
+        value = obj.get("request_id")
+        if isinstance(value, str) and REQUEST_ID_RE.match(value):
+            return value
+    return None
+
+
+# Parser per (channel, direction) of a topic, for the gateway and the agent.
+PARSERS: dict[tuple[str, str], Callable[[Any], Any]] = {
+    ("control", "in"): parse_control_request,
+    ("mission", "in"): parse_mission_request,
+    ("gear", "in"): parse_gear_query,
+    ("control", "out"): parse_control_response,
+    ("mission", "out"): parse_mission_progress,
+    ("gear", "out"): parse_gear_message,
+    ("heartbeats", "out"): parse_heartbeat,
+    ("alarms", "out"): parse_alarm,
+    ("telemetry", "out"): parse_telemetry,
+    ("pictures", "out"): parse_picture,
+    ("camera", "out"): parse_camera_frame,
+}
+
+
+def parse_message(topic_name: str, payload: bytes | str) -> tuple[str, str, Any]:
+    """Raw MQTT topic + payload → (drone id, channel, parsed message), or ProtocolError."""
+    drone_id, channel, direction = split_topic(topic_name)
+    return drone_id, channel, PARSERS[(channel, direction)](decode_json(payload))
