@@ -1,0 +1,443 @@
+"""Mission Worker: decode a base64 mission, queue its steps, run them one by one.
+
+Seed 001, 4.1.2.3: the mission arrives as one base64 message; it is decoded (and the decode
+timed), its steps go into a FIFO task queue, each step is handed to the component that
+executes it, and progress goes back to the ground for every step. The worker runs on its
+own thread and never waits for the ground: when the link drops the mission goes on and
+progress piles up in the agent's outbox.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from . import protocol
+from .controller import CommandError, Controller
+from .fc.base import FlightController, VehicleState
+from .navigation import NavigationProcessor, current_ned, inside_cylinder
+
+log = logging.getLogger(__name__)
+
+Publish = Callable[[Any], None]
+# (level, message, sensor, value) → raise an alarm with the current mission context.
+RaiseAlarm = Callable[..., None]
+EventSink = Callable[[str, dict], None]
+
+
+class StepFailed(Exception):
+    """A step that did not complete; str() is the reason sent in its progress."""
+
+
+class MissionStopped(Exception):
+    """Raised inside a waiting step when the mission is stopped."""
+
+
+@dataclass
+class RunningMission:
+    payload: protocol.MissionPayload
+    request_id: str | None
+    decode_ms: float
+    steps: queue.Queue = field(default_factory=queue.Queue)
+    index: int | None = None
+    stop: threading.Event = field(default_factory=threading.Event)
+    stop_reason: str | None = None
+
+
+def position_of(state: VehicleState) -> protocol.Position | None:
+    if state.lat is None or state.lon is None:
+        return None
+    return protocol.Position(state.lat, state.lon, state.alt or 0.0)
+
+
+def decode_mission(start: protocol.MissionStart) -> tuple[protocol.MissionPayload, float]:
+    """Decode and check a start message's payload; return it and the decode time in ms."""
+    began = time.perf_counter()
+    payload = protocol.decode_mission_payload(start.payload)
+    decode_ms = (time.perf_counter() - began) * 1000.0
+    if payload.mission_id != start.mission_id:
+        raise protocol.ProtocolError(
+            "payload.mission_id",
+            f"{payload.mission_id!r} does not match the message's {start.mission_id!r}",
+        )
+    if payload.assignment_id != start.assignment_id:
+        raise protocol.ProtocolError(
+            "payload.assignment_id",
+            f"{payload.assignment_id!r} does not match the message's {start.assignment_id!r}",
+        )
+    return payload, decode_ms
+
+
+def queue_steps(payload: protocol.MissionPayload) -> queue.Queue:
+    """The FIFO task queue of seed 001 Figure 4.14, filled in mission order."""
+    steps: queue.Queue = queue.Queue()
+    for step in payload.steps:
+        steps.put_nowait(step)
+    return steps
+
+
+class MissionWorker:
+    def __init__(
+        self,
+        fc: FlightController,
+        controller: Controller,
+        navigation: NavigationProcessor,
+        publish: Publish,
+        *,
+        raise_alarm: RaiseAlarm | None = None,
+        gear: Any = None,
+        on_reading: Callable[[str, dict], None] | None = None,
+        time_scale: float = 1.0,
+        poll_interval: float = 0.05,
+        flight_timeout: float = 600.0,
+        events: EventSink | None = None,
+    ) -> None:
+        self.fc = fc
+        self.controller = controller
+        self.navigation = navigation
+        self.publish = publish
+        self.raise_alarm = raise_alarm or (lambda *args, **kwargs: None)
+        self.gear = gear
+        self.on_reading = on_reading or (lambda sensor, reading: None)
+        self.time_scale = time_scale
+        self.poll_interval = poll_interval
+        # In flight seconds: a wait_for_flight that takes longer than this fails.
+        self.flight_timeout = flight_timeout
+        self.events = events or (lambda kind, details: None)
+        self._lock = threading.Lock()
+        self._mission: RunningMission | None = None
+        self._wake = threading.Event()
+        self._closing = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # -- lifecycle ------------------------------------------------------------------------
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="mission-worker", daemon=True)
+        self._thread.start()
+
+    def close(self, timeout: float = 5.0) -> None:
+        self.stop_current("the agent is shutting down")
+        self._closing.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+    @property
+    def current(self) -> protocol.MissionRef | None:
+        """The executing mission and step, for heartbeats and alarms."""
+        with self._lock:
+            mission = self._mission
+        if mission is None:
+            return None
+        return protocol.MissionRef(
+            mission.payload.mission_id, mission.payload.assignment_id, mission.index
+        )
+
+    @property
+    def busy(self) -> bool:
+        with self._lock:
+            return self._mission is not None
+
+    # -- requests from the ground ---------------------------------------------------------
+
+    def submit(self, request: protocol.MissionStart | protocol.MissionStop) -> None:
+        """Handle a parsed `<id>/mission/in` message (called from the MQTT thread)."""
+        if isinstance(request, protocol.MissionStop):
+            self._handle_stop(request)
+        else:
+            self._handle_start(request)
+
+    def _handle_start(self, start: protocol.MissionStart) -> None:
+        try:
+            payload, decode_ms = decode_mission(start)
+        except protocol.ProtocolError as exc:
+            self._mission_status(
+                start.mission_id,
+                start.assignment_id,
+                "rejected",
+                error=str(exc),
+                request_id=start.request_id,
+            )
+            return
+        self.events(
+            "mission",
+            {
+                "event": "decoded",
+                "mission_id": payload.mission_id,
+                "steps": len(payload.steps),
+                "decode_ms": decode_ms,
+            },
+        )
+        with self._lock:
+            running = self._mission
+            if running is None:
+                self._mission = RunningMission(
+                    payload, start.request_id, decode_ms, queue_steps(payload)
+                )
+        if running is not None:
+            self._mission_status(
+                start.mission_id,
+                start.assignment_id,
+                "rejected",
+                error=f"Mission {running.payload.mission_id} is still running; stop it first.",
+                request_id=start.request_id,
+            )
+            return
+        self._mission_status(
+            payload.mission_id,
+            payload.assignment_id,
+            "accepted",
+            decode_ms=decode_ms,
+            request_id=start.request_id,
+        )
+        self._wake.set()
+
+    def _handle_stop(self, stop: protocol.MissionStop) -> None:
+        with self._lock:
+            running = self._mission
+        if running is None or running.payload.mission_id != stop.mission_id:
+            self._mission_status(
+                stop.mission_id,
+                None,
+                "stopped",
+                error="The mission is not running on this drone.",
+                request_id=stop.request_id,
+            )
+            return
+        self.stop_current("stopped by the ground", request_id=stop.request_id)
+
+    def stop_current(self, reason: str, *, request_id: str | None = None) -> bool:
+        """Stop the running mission (from the ground or the fail-safe); False if none."""
+        with self._lock:
+            mission = self._mission
+        if mission is None:
+            return False
+        mission.stop_reason = reason
+        if request_id is not None:
+            mission.request_id = request_id
+        mission.stop.set()
+        return True
+
+    # -- the worker thread ----------------------------------------------------------------
+
+    def _run(self) -> None:
+        while not self._closing.is_set():
+            self._wake.wait(0.5)
+            self._wake.clear()
+            with self._lock:
+                mission = self._mission
+            if mission is None:
+                continue
+            try:
+                self._execute(mission)
+            except Exception:  # never let one mission kill the worker
+                log.exception("mission %s crashed", mission.payload.mission_id)
+                mission.stop_reason = mission.stop_reason or "the mission worker failed"
+                self._finish(mission, "stopped", mission.stop_reason)
+            finally:
+                with self._lock:
+                    if self._mission is mission:
+                        self._mission = None
+
+    def _execute(self, mission: RunningMission) -> None:
+        while True:
+            if mission.stop.is_set():
+                self._finish(mission, "stopped", mission.stop_reason)
+                return
+            try:
+                step = mission.steps.get_nowait()
+            except queue.Empty:
+                self._finish(mission, "completed", None)
+                return
+            mission.index = step.index
+            ok, error = self._run_step(mission, step)
+            if not ok:
+                if mission.stop.is_set():
+                    self._finish(mission, "stopped", mission.stop_reason)
+                else:
+                    self._finish(
+                        mission,
+                        "stopped",
+                        f"Step {step.index} ({step.command}) failed: {error}",
+                    )
+                return
+
+    def _finish(self, mission: RunningMission, status: str, error: str | None) -> None:
+        payload = mission.payload
+        # Drain what is left so a stopped mission never runs another step.
+        while not mission.steps.empty():
+            mission.steps.get_nowait()
+        self.events("mission", {"event": status, "mission_id": payload.mission_id, "error": error})
+        self._mission_status(
+            payload.mission_id,
+            payload.assignment_id,
+            status,
+            error=error,
+            request_id=mission.request_id if status == "stopped" else None,
+        )
+
+    def _run_step(self, mission: RunningMission, step: protocol.Step) -> tuple[bool, str | None]:
+        payload = mission.payload
+        started = time.monotonic()
+        self._step_status(mission, step, "started")
+        self.events(
+            "step",
+            {
+                "event": "started",
+                "mission_id": payload.mission_id,
+                "index": step.index,
+                "command": step.command,
+                "position": position_of(self.fc.state),
+            },
+        )
+        try:
+            result = self._dispatch(mission, step)
+        except (StepFailed, CommandError, MissionStopped) as exc:
+            error = str(exc) if not isinstance(exc, MissionStopped) else "the mission was stopped"
+            self._record_step(mission, step, "failed", started, {}, error)
+            return False, error
+        except Exception as exc:
+            log.exception("step %s failed", step.index)
+            error = f"{step.command} failed unexpectedly: {exc}"
+            self._record_step(mission, step, "failed", started, {}, error)
+            return False, error
+        self._record_step(mission, step, "completed", started, result, None)
+        return True, None
+
+    def _record_step(
+        self,
+        mission: RunningMission,
+        step: protocol.Step,
+        status: str,
+        started: float,
+        result: dict,
+        error: str | None,
+    ) -> None:
+        duration = (time.monotonic() - started) * self.time_scale
+        position = position_of(self.fc.state)
+        self._step_status(
+            mission,
+            step,
+            status,
+            duration_s=duration,
+            result=result,
+            error=error,
+            position=position,
+        )
+        self.events(
+            "step",
+            {
+                "event": status,
+                "mission_id": mission.payload.mission_id,
+                "index": step.index,
+                "command": step.command,
+                "position": position,
+                "duration_s": duration,
+                "error": error,
+            },
+        )
+
+    def _dispatch(self, mission: RunningMission, step: protocol.Step) -> dict:
+        context = {
+            "mission_id": mission.payload.mission_id,
+            "assignment_id": mission.payload.assignment_id,
+            "index": step.index,
+        }
+        if step.command == "wait_for_flight":
+            return self._wait_for_flight(mission, **step.params)
+        if step.command == "sleep":
+            if mission.stop.wait(step.params["value"] / self.time_scale):
+                raise MissionStopped()
+            return {}
+        if step.command == "virtualalarm":
+            self.raise_alarm(
+                step.params["level"], step.params["message"] or "virtual alarm", context=context
+            )
+            return {"level": step.params["level"]}
+        if step.command == "sense":
+            return self._sense(step.params["sensor"], context)
+        return self.controller.execute(step.command, step.params, context=context)
+
+    def _sense(self, sensor: str, context: dict) -> dict:
+        if self.gear is None:
+            raise StepFailed("This drone has no gear manager, so no sensors.")
+        try:
+            reading = self.gear.read(sensor, self.fc.state)
+        except Exception as exc:
+            raise StepFailed(str(exc)) from exc
+        self.on_reading(sensor, dict(reading, **context))
+        return {"sensor": sensor, "reading": reading}
+
+    def _wait_for_flight(
+        self, mission: RunningMission, *, horizontal_tolerance: float, vertical_tolerance: float
+    ) -> dict:
+        target = self.navigation.last_target
+        if target is None:
+            raise StepFailed("No position has been requested yet, so there is nothing to reach.")
+        deadline = time.monotonic() + self.flight_timeout / self.time_scale
+        while True:
+            actual = current_ned(self.fc.state)
+            if actual is not None and inside_cylinder(
+                actual,
+                target.ned,
+                horizontal_tolerance=horizontal_tolerance,
+                vertical_tolerance=vertical_tolerance,
+            ):
+                return {"target": dict(zip(("north", "east", "down"), target.ned, strict=True))}
+            if time.monotonic() > deadline:
+                raise StepFailed(
+                    f"The drone did not reach the target within {self.flight_timeout:g} s."
+                )
+            if mission.stop.wait(self.poll_interval):
+                raise MissionStopped()
+
+    # -- progress messages ----------------------------------------------------------------
+
+    def _mission_status(
+        self,
+        mission_id: str,
+        assignment_id: str | None,
+        status: str,
+        *,
+        decode_ms: float | None = None,
+        error: str | None = None,
+        request_id: str | None = None,
+    ) -> None:
+        self.publish(
+            protocol.MissionProgress(
+                mission_id, assignment_id, status, decode_ms, error, request_id=request_id
+            )
+        )
+
+    def _step_status(
+        self,
+        mission: RunningMission,
+        step: protocol.Step,
+        status: str,
+        *,
+        duration_s: float | None = None,
+        result: dict | None = None,
+        error: str | None = None,
+        position: protocol.Position | None = None,
+    ) -> None:
+        if position is None:
+            position = position_of(self.fc.state)
+        self.publish(
+            protocol.StepProgress(
+                mission.payload.mission_id,
+                mission.payload.assignment_id,
+                step.index,
+                step.command,
+                status,
+                position,
+                duration_s,
+                result or {},
+                error,
+            )
+        )
