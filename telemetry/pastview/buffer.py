@@ -62,7 +62,7 @@ class Frame:
 
     id: int
     pose: Pose
-    jpeg: bytes
+    jpeg: bytes = field(repr=False)
 
 
 def is_valid_jpeg(data: bytes, *, decode: bool = True) -> bool:

@@ -120,9 +120,13 @@ class EvaluationFunction:
     def scores(self, frames: FrameSet, pose: Pose, current: Pose | None = None) -> np.ndarray:
         raise NotImplementedError
 
-    def select(self, frames: FrameSet, pose: Pose, current: Pose | None = None) -> int:
-        """Index of the lowest-scoring frame; ``frames`` must not be empty."""
-        return int(np.argmin(self.scores(frames, pose, current)))
+    def select(
+        self, frames: FrameSet, pose: Pose, current: Pose | None = None
+    ) -> tuple[int, float]:
+        """Index and score of the lowest-scoring frame; ``frames`` must not be empty."""
+        scores = self.scores(frames, pose, current)
+        index = int(np.argmin(scores))
+        return index, float(scores[index])
 
     def to_dict(self) -> dict[str, Any]:
         return {"function": self.name, **asdict(self)}  # type: ignore[call-overload]
@@ -138,16 +142,20 @@ class ConstantTimeDelay(EvaluationFunction):
     def scores(self, frames: FrameSet, pose: Pose, current: Pose | None = None) -> np.ndarray:
         return np.abs(frames.timestamps - (pose.ts - self.ref_delay_s))
 
-    def select(self, frames: FrameSet, pose: Pose, current: Pose | None = None) -> int:
+    def select(
+        self, frames: FrameSet, pose: Pose, current: Pose | None = None
+    ) -> tuple[int, float]:
         # Frames are chronological: a binary search, as the seed suggests, not a scan.
         target = pose.ts - self.ref_delay_s
         ts = frames.timestamps
         right = int(np.searchsorted(ts, target))
         if right == 0:
-            return 0
-        if right == len(ts):
-            return right - 1
-        return right if ts[right] - target < target - ts[right - 1] else right - 1
+            index = 0
+        elif right == len(ts):
+            index = right - 1
+        else:
+            index = right if ts[right] - target < target - ts[right - 1] else right - 1
+        return index, abs(float(ts[index]) - target)
 
 
 @dataclass(frozen=True, slots=True)
