@@ -1,0 +1,25 @@
+"""Areas built from exact metres, so the seed's sizes reach the planner as clicked vertices."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from missions.geo import LocalFrame
+
+# The seed's experiments flew at the University of Aveiro campus.
+AVEIRO = LocalFrame(40.6303, -8.6575)
+
+
+def rectangle(east_m: float, north_m: float, frame: LocalFrame = AVEIRO) -> list[list[float]]:
+    """Vertices A, B, C of a rectangle: A at the frame origin, A→B east, B→C north."""
+    lat, lon = frame.to_latlon([0.0, 0.0, north_m], [0.0, east_m, east_m])
+    return np.column_stack((lat, lon)).tolist()
+
+
+def metres_between(a: list[float], b: list[float], frame: LocalFrame = AVEIRO) -> float:
+    n, e = frame.to_ne([a[0], b[0]], [a[1], b[1]])
+    return float(np.hypot(n[1] - n[0], e[1] - e[0]))
+
+
+def point_at(north_m: float, east_m: float, frame: LocalFrame = AVEIRO) -> tuple[float, float]:
+    return frame.point_to_latlon([north_m, east_m])
