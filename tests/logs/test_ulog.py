@@ -1,0 +1,103 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pyulog import ULog
+
+from telemetry.logs import LogFormatError, find_special, import_log
+from telemetry.logs.synth import synthetic_ulog, write_ulog
+
+REAL_LOGS = sorted(Path("/work/shared/testdata/ulog").glob("*.ulg"))
+
+
+def _assert_equal_to_pyulog(path: Path) -> None:
+    log = import_log(path)
+    reference = ULog(str(path))
+    counts: dict[str, int] = {}
+    for d in reference.data_list:
+        counts[d.name] = counts.get(d.name, 0) + 1
+    checked = 0
+    for d in reference.data_list:
+        layer = d.name if counts[d.name] == 1 else f"{d.name}_{d.multi_id}"
+        for field, values in d.data.items():
+            if field == "timestamp":
+                continue
+            series = log.series[f"{layer}/{field}"]
+            np.testing.assert_array_equal(series.values, values)
+            np.testing.assert_array_equal(series.times, d.data["timestamp"].astype(np.int64) * 1000)
+            assert series.time_source == "board"
+            checked += 1
+    assert checked == len([s for s in log.series if not s.startswith("logging/")])
+
+
+@pytest.mark.parametrize("path", REAL_LOGS, ids=lambda p: p.name)
+def test_real_px4_logs_read_the_same_values_as_pyulog(path):
+    assert len(REAL_LOGS) == 2
+    _assert_equal_to_pyulog(path)
+
+
+def test_real_px4_log_messages_become_a_text_layer():
+    log = import_log(REAL_LOGS[1])
+    reference = ULog(str(REAL_LOGS[1]))
+    assert log.series["logging/message"].values.tolist() == [
+        m.message for m in reference.logged_messages
+    ]
+    level = log.series["logging/level"]
+    assert (
+        level.labels[int(level.values[0])] == reference.logged_messages[0].log_level_str().lower()
+    )
+
+
+def test_generated_ulog_is_read_by_pyulog_and_by_us_alike(tmp_path):
+    path = tmp_path / "synthetic.ulg"
+    synthetic_ulog(path, seconds=3)
+    _assert_equal_to_pyulog(path)
+    log = import_log(path)
+    assert log.series["logging/message"].values.tolist() == ["Takeoff detected", "Low battery"]
+    assert len(log.series["sensor_combined/gyro_rad[2]"].values) == 750
+    assert find_special(log)["gps"] == [
+        "vehicle_gps_position/lat",
+        "vehicle_gps_position/lon",
+        "vehicle_gps_position/alt",
+    ]
+
+
+def test_ulog_writer_round_trips_exact_values(tmp_path):
+    arr = np.zeros(
+        3, dtype=[("timestamp", "<u8"), ("alt", "<f8"), ("flags", "u1"), ("q", "(4,)<f4")]
+    )
+    arr["timestamp"] = [10, 20, 30]
+    arr["alt"] = [1.5, 2.5, -3.25]
+    arr["flags"] = [1, 2, 255]
+    arr["q"] = [[1, 0, 0, 0]] * 3
+    path = tmp_path / "tiny.ulg"
+    write_ulog(path, {"altitude_probe": arr})
+    log = import_log(path)
+    assert log.series["altitude_probe/alt"].values.tolist() == [1.5, 2.5, -3.25]
+    assert log.series["altitude_probe/flags"].values.tolist() == [1, 2, 255]
+    assert log.series["altitude_probe/q[0]"].values.tolist() == [1, 1, 1]
+    assert log.series["altitude_probe/alt"].times.tolist() == [10_000, 20_000, 30_000]
+
+
+def test_ulog_truncated_in_its_header_is_rejected(tmp_path):
+    path = tmp_path / "cut.ulg"
+    path.write_bytes(REAL_LOGS[0].read_bytes()[:12])
+    with pytest.raises(LogFormatError, match="not a valid PX4 ULog"):
+        import_log(path)
+
+
+def test_ulog_truncated_before_any_data_is_rejected(tmp_path):
+    path = tmp_path / "cut.ulg"
+    path.write_bytes(REAL_LOGS[0].read_bytes()[:2000])
+    with pytest.raises(LogFormatError, match="contains no data"):
+        import_log(path)
+
+
+def test_ulog_cut_mid_flight_keeps_the_data_before_the_cut(tmp_path):
+    # A log cut short by a crash is exactly what the viewer is for: keep what is there.
+    data = REAL_LOGS[0].read_bytes()
+    path = tmp_path / "crash.ulg"
+    path.write_bytes(data[: len(data) // 2])
+    full, cut = import_log(REAL_LOGS[0]), import_log(path)
+    series = cut.series["sensor_combined/gyro_rad[0]"]
+    assert 0 < len(series.values) < len(full.series["sensor_combined/gyro_rad[0]"].values)
