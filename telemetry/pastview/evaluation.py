@@ -240,8 +240,10 @@ class Spirit(EvaluationFunction):
         """The five unweighted terms, each (N,)."""
         rel = frames.relative_positions(pose.position)
         squared = np.einsum("ij,ij->i", rel, rel)
-        along = np.maximum(rel @ self.camera_axis(), 0.0)
-        lateral = np.sqrt(np.maximum(squared - along * along, 0.0))
+        axis = self.camera_axis()
+        # The offset from the camera axis (not sqrt(|d|^2 - along^2): that cancels badly).
+        across = rel - np.maximum(rel @ axis, 0.0)[:, None] * axis
+        lateral = np.sqrt(np.einsum("ij,ij->i", across, across))
         direction = _yaw_of(frames.relative_orientations(pose.orientation))
         terms = {
             "centrality": lateral / self.ref_distance,
@@ -341,7 +343,9 @@ def spirit_scores_loop(
         rx, ry, rz, _ = _quat_mul(_quat_mul(conj_frame, offset), (qx, qy, qz, qw))
         distance = math.sqrt(rx * rx + ry * ry + rz * rz)
         along = max(rx * axis[0] + ry * axis[1] + rz * axis[2], 0.0)
-        lateral = math.sqrt(max(distance * distance - along * along, 0.0))
+        lateral = math.sqrt(
+            (rx - along * axis[0]) ** 2 + (ry - along * axis[1]) ** 2 + (rz - along * axis[2]) ** 2
+        )
         direction = _quat_yaw(_quat_mul(conj_frame, q_drone))
         score = (
             spirit.coeff_centrality * lateral / ref
