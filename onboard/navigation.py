@@ -122,6 +122,14 @@ class NavigationProcessor:
             return Target("goto", (target_n, target_e, down - params.get("altitude_delta", 0.0)))
         raise NavigationError(f"{command} is not a navigation command.")
 
+    def hold_at(self, ned: NED) -> Target:
+        """Fly to and hold an explicit NED point (fail-safe hold / return home)."""
+        self.fc.goto_ned(*ned)
+        target = Target("goto", ned)
+        with self._lock:
+            self._target = target
+        return target
+
     def execute(self, command: str, params: dict) -> Target:
         """Plan the target, send it to the flight controller and remember it."""
         target = self.plan(command, params, self.fc.state)
