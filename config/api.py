@@ -1,0 +1,72 @@
+"""One JSON error shape for the whole API, and strict request bodies.
+
+Every error answers `{"error": "<sentence>", "code": "<code>", "fields": {name: [messages]}}`.
+"""
+
+from __future__ import annotations
+
+from django.core.exceptions import PermissionDenied
+from django.http import Http404
+from rest_framework import exceptions, serializers
+from rest_framework.response import Response
+from rest_framework.views import exception_handler as drf_exception_handler
+
+
+def _flatten(detail: object) -> dict[str, list[str]]:
+    if isinstance(detail, dict):
+        out: dict[str, list[str]] = {}
+        for key, value in detail.items():
+            if isinstance(value, dict):
+                for sub, messages in _flatten(value).items():
+                    out[f"{key}.{sub}"] = messages
+            elif isinstance(value, list):
+                out[str(key)] = [str(v) for v in value]
+            else:
+                out[str(key)] = [str(value)]
+        return out
+    return {}
+
+
+def exception_handler(exc: Exception, context: dict) -> Response | None:
+    if isinstance(exc, Http404):
+        exc = exceptions.NotFound()
+    elif isinstance(exc, PermissionDenied):
+        exc = exceptions.PermissionDenied()
+    response = drf_exception_handler(exc, context)
+    if response is None:
+        return None
+    detail = getattr(exc, "detail", None)
+    fields = _flatten(detail) if isinstance(detail, dict) else {}
+    if fields:
+        first_field, messages = next(iter(fields.items()))
+        if first_field == "non_field_errors":
+            message = messages[0]
+        else:
+            message = f"{first_field}: {messages[0]}"
+    elif isinstance(detail, list) and detail:
+        message = str(detail[0])
+    else:
+        message = str(detail) if detail is not None else str(exc)
+    code = getattr(exc, "default_code", "error")
+    if isinstance(detail, exceptions.ErrorDetail):
+        code = detail.code or code
+    response.data = {"error": message, "code": code, "fields": fields}
+    return response
+
+
+class StrictSerializer(serializers.Serializer):
+    """Refuses fields it does not know, instead of silently ignoring a typo."""
+
+    def to_internal_value(self, data):  # type: ignore[no-untyped-def]
+        if hasattr(data, "keys"):
+            known = set(self.fields)
+            unknown = sorted(set(data.keys()) - known)
+            if unknown:
+                raise serializers.ValidationError(
+                    {name: ["Unknown field."] for name in unknown}
+                )
+        return super().to_internal_value(data)
+
+
+class StrictModelSerializer(StrictSerializer, serializers.ModelSerializer):
+    pass

@@ -1,0 +1,21 @@
+"""Test settings: the suite's own services on their own ports (.data/test/env)."""
+
+import os
+
+from config.env import BASE_DIR, read_data_env
+
+read_data_env(BASE_DIR / ".data" / "test" / "env")
+os.environ.setdefault("MEDIA_ROOT", str(BASE_DIR / ".data" / "test" / "media"))
+
+from .base import *  # noqa: E402,F403
+from .base import DATABASES  # noqa: E402
+
+DEBUG = False
+PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher"]
+# Parallel runs (helpers, CI shards) each get their own test database.
+DATABASES["default"]["TEST"] = {"NAME": os.environ.get("TEST_DB_NAME", "test_skyhive")}
+ALLOWED_HOSTS = ["*"]
+
+# A Celery worker started by a test must read the database pytest-django created.
+if os.environ.get("TEST_WORKER_DB_NAME"):
+    DATABASES["default"]["NAME"] = os.environ["TEST_WORKER_DB_NAME"]

@@ -1,0 +1,43 @@
+from django.contrib import admin
+from django.contrib.auth import views as auth_views
+from django.urls import include, path
+from drf_spectacular.views import SpectacularAPIView, SpectacularSwaggerView
+from rest_framework.routers import DefaultRouter
+
+from fleet import api as fleet_api
+from missions import api as missions_api
+
+from .health import health
+
+router = DefaultRouter()
+router.register("drones", fleet_api.DroneViewSet, basename="drone")
+router.register("missions", missions_api.MissionViewSet, basename="mission")
+
+api_v1 = [
+    path("me/", fleet_api.me, name="me"),
+    path("token/", fleet_api.obtain_token, name="token"),
+    path("", include(router.urls)),
+]
+
+urlpatterns = [
+    path("health", health, name="health"),
+    path("admin/", admin.site.urls),
+    path("accounts/login/", auth_views.LoginView.as_view(), name="login"),
+    path("accounts/logout/", auth_views.LogoutView.as_view(), name="logout"),
+    path(
+        "accounts/password/",
+        auth_views.PasswordChangeView.as_view(),
+        name="password_change",
+    ),
+    path(
+        "accounts/password/done/",
+        auth_views.PasswordChangeDoneView.as_view(),
+        name="password_change_done",
+    ),
+    path("api/v1/", include((api_v1, "api"), namespace="api")),
+    path("api/schema/", SpectacularAPIView.as_view(), name="schema"),
+    path("api/docs/", SpectacularSwaggerView.as_view(url_name="schema"), name="api-docs"),
+    path("missions/", include("missions.urls")),
+    path("telemetry/", include("telemetry.urls")),
+    path("", include("fleet.urls")),
+]

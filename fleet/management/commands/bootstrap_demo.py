@@ -1,0 +1,48 @@
+"""Create the demo organisation and its admin user once; print how to log in."""
+
+from __future__ import annotations
+
+import secrets
+from pathlib import Path
+
+from django.conf import settings
+from django.contrib.auth import get_user_model
+from django.core.management.base import BaseCommand
+from django.db import transaction
+
+from fleet.models import Membership, Organisation, Role
+
+
+class Command(BaseCommand):
+    help = "Create organisation 'demo' and user 'admin' (password generated on first run)."
+
+    def add_arguments(self, parser):  # type: ignore[no-untyped-def]
+        parser.add_argument("--url", default="http://127.0.0.1:8000/")
+
+    @transaction.atomic
+    def handle(self, *args, **options):  # type: ignore[no-untyped-def]
+        password_file = Path(settings.DATA_DIR) / "admin_password"
+        organisation, _ = Organisation.objects.get_or_create(
+            slug="demo", defaults={"name": "Demo"}
+        )
+        User = get_user_model()
+        user = User.objects.filter(username="admin").first()
+        if user is None or not password_file.exists():
+            password = secrets.token_urlsafe(12)
+            password_file.parent.mkdir(parents=True, exist_ok=True)
+            password_file.write_text(password + "\n")
+            password_file.chmod(0o600)
+            if user is None:
+                user = User.objects.create_superuser("admin", "", password)
+            else:
+                user.set_password(password)
+                user.save()
+        else:
+            password = password_file.read_text().strip()
+        Membership.objects.get_or_create(
+            user=user, organisation=organisation, defaults={"role": Role.ADMIN}
+        )
+        self.stdout.write(
+            f"Portal: {options['url']}  user: admin  password: {password}  "
+            f"(kept in {password_file})"
+        )

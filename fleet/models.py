@@ -1,0 +1,178 @@
+"""Organisations, their members and roles, and their drones."""
+
+from __future__ import annotations
+
+import re
+
+from django.conf import settings
+from django.core.validators import RegexValidator
+from django.db import models
+
+DRONE_ID_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+
+
+class Organisation(models.Model):
+    name = models.CharField(max_length=120)
+    slug = models.SlugField(unique=True)
+    created_at = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["name"]
+
+    def __str__(self) -> str:
+        return self.name
+
+    @property
+    def group_name(self) -> str:
+        """The Channels group every page of this organisation listens on."""
+        return f"org-{self.pk}"
+
+
+class Role(models.TextChoices):
+    VIEWER = "viewer", "Viewer"
+    OPERATOR = "operator", "Operator"
+    ADMIN = "admin", "Admin"
+
+
+ROLE_RANK = {Role.VIEWER: 0, Role.OPERATOR: 1, Role.ADMIN: 2}
+
+
+class MembershipQuerySet(models.QuerySet):
+    def for_user(self, user) -> MembershipQuerySet:  # type: ignore[no-untyped-def]
+        if not user.is_authenticated:
+            return self.none()
+        return self.filter(user=user).select_related("organisation")
+
+
+class Membership(models.Model):
+    user = models.ForeignKey(
+        settings.AUTH_USER_MODEL, on_delete=models.CASCADE, related_name="memberships"
+    )
+    organisation = models.ForeignKey(
+        Organisation, on_delete=models.CASCADE, related_name="memberships"
+    )
+    role = models.CharField(max_length=16, choices=Role.choices, default=Role.VIEWER)
+    created_at = models.DateTimeField(auto_now_add=True)
+
+    objects = MembershipQuerySet.as_manager()
+
+    class Meta:
+        constraints = [
+            models.UniqueConstraint(fields=["user", "organisation"], name="one_membership_per_org")
+        ]
+        ordering = ["organisation__name"]
+
+    def __str__(self) -> str:
+        return f"{self.user} @ {self.organisation} ({self.role})"
+
+    def allows(self, role: str) -> bool:
+        return ROLE_RANK[Role(self.role)] >= ROLE_RANK[Role(role)]
+
+
+class DroneQuerySet(models.QuerySet):
+    def for_user(self, user) -> DroneQuerySet:  # type: ignore[no-untyped-def]
+        """Only drones of organisations the user belongs to: the isolation rule."""
+        if not user.is_authenticated:
+            return self.none()
+        return self.filter(organisation__memberships__user=user)
+
+
+class Drone(models.Model):
+    organisation = models.ForeignKey(
+        Organisation, on_delete=models.CASCADE, related_name="drones"
+    )
+    # Topic trees are global on the broker, so the id is unique across organisations.
+    drone_id = models.CharField(
+        max_length=64, unique=True, validators=[RegexValidator(DRONE_ID_RE.pattern)]
+    )
+    name = models.CharField(max_length=120, blank=True)
+
+    online = models.BooleanField(default=False)
+    last_seen = models.DateTimeField(null=True, blank=True)
+    lat = models.FloatField(null=True, blank=True)
+    lon = models.FloatField(null=True, blank=True)
+    alt = models.FloatField(null=True, blank=True)
+    battery_voltage = models.FloatField(null=True, blank=True)
+    battery_remaining = models.FloatField(null=True, blank=True)
+    armed = models.BooleanField(default=False)
+    airborne = models.BooleanField(default=False)
+    flight_mode = models.CharField(max_length=40, blank=True)
+    mission = models.JSONField(null=True, blank=True)
+    fc = models.JSONField(null=True, blank=True)
+    specs = models.JSONField(default=dict, blank=True)
+    sensors = models.JSONField(default=dict, blank=True)
+
+    # Broker credentials: the username is the drone id; only a hash is kept.
+    mqtt_password_hash = models.CharField(max_length=255, blank=True)
+    credentials_revoked = models.BooleanField(default=False)
+
+    created_at = models.DateTimeField(auto_now_add=True)
+
+    objects = DroneQuerySet.as_manager()
+
+    class Meta:
+        ordering = ["drone_id"]
+        indexes = [models.Index(fields=["organisation", "online"])]
+
+    def __str__(self) -> str:
+        return self.drone_id
+
+    @property
+    def position(self) -> dict | None:
+        if self.lat is None or self.lon is None:
+            return None
+        return {"lat": self.lat, "lon": self.lon, "alt": self.alt}
+
+    @property
+    def battery(self) -> dict | None:
+        if self.battery_voltage is None and self.battery_remaining is None:
+            return None
+        return {"voltage": self.battery_voltage, "remaining": self.battery_remaining}
+
+
+class ConnectionEvent(models.Model):
+    class Kind(models.TextChoices):
+        ONLINE = "online", "Online"
+        OFFLINE = "offline", "Offline"
+
+    drone = models.ForeignKey(Drone, on_delete=models.CASCADE, related_name="connection_events")
+    kind = models.CharField(max_length=8, choices=Kind.choices)
+    at = models.DateTimeField()
+    reason = models.CharField(max_length=200, blank=True)
+
+    class Meta:
+        ordering = ["-at"]
+        indexes = [models.Index(fields=["drone", "-at"])]
+
+    def __str__(self) -> str:
+        return f"{self.drone} {self.kind} at {self.at:%Y-%m-%d %H:%M:%S}"
+
+
+class CommandLog(models.Model):
+    """Every command sent to a drone, who sent it, and how it ended."""
+
+    class Outcome(models.TextChoices):
+        PENDING = "pending", "Pending"
+        OK = "ok", "OK"
+        FAILED = "failed", "Failed"
+        TIMEOUT = "timeout", "Timed out"
+        REJECTED = "rejected", "Rejected before sending"
+
+    drone = models.ForeignKey(Drone, on_delete=models.CASCADE, related_name="commands")
+    user = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL
+    )
+    request_id = models.CharField(max_length=32, db_index=True)
+    command = models.CharField(max_length=40)
+    params = models.JSONField(default=dict, blank=True)
+    outcome = models.CharField(max_length=10, choices=Outcome.choices, default=Outcome.PENDING)
+    response = models.JSONField(null=True, blank=True)
+    error = models.TextField(blank=True)
+    sent_at = models.DateTimeField(auto_now_add=True)
+    answered_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["-sent_at"]
+
+    def __str__(self) -> str:
+        return f"{self.command} → {self.drone} ({self.outcome})"

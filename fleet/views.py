@@ -1,0 +1,47 @@
+"""Portal pages of the fleet. Each page acts for the request's current organisation."""
+
+from __future__ import annotations
+
+from django.contrib.auth.decorators import login_required
+from django.http import Http404, HttpRequest, HttpResponse
+from django.shortcuts import get_object_or_404, redirect, render
+from django.views.decorators.http import require_POST
+
+from .models import Drone, Membership
+from .tenancy import SESSION_KEY
+
+
+def _organisation_or_404(request: HttpRequest):  # type: ignore[no-untyped-def]
+    if request.organisation is None:  # type: ignore[attr-defined]
+        raise Http404("You are not a member of any organisation.")
+    return request.organisation  # type: ignore[attr-defined]
+
+
+@login_required
+def index(request: HttpRequest) -> HttpResponse:
+    organisation = _organisation_or_404(request)
+    drones = Drone.objects.filter(organisation=organisation)
+    return render(request, "fleet/index.html", {"drones": drones})
+
+
+@login_required
+def drone_detail(request: HttpRequest, drone_id: str) -> HttpResponse:
+    organisation = _organisation_or_404(request)
+    drone = get_object_or_404(Drone, organisation=organisation, drone_id=drone_id)
+    events = drone.connection_events.all()[:50]
+    commands = drone.commands.select_related("user")[:20]
+    return render(
+        request,
+        "fleet/drone.html",
+        {"drone": drone, "connection_events": events, "commands": commands},
+    )
+
+
+@login_required
+@require_POST
+def switch_organisation(request: HttpRequest) -> HttpResponse:
+    slug = request.POST.get("organisation", "")
+    if not Membership.objects.for_user(request.user).filter(organisation__slug=slug).exists():
+        raise Http404("No such organisation.")
+    request.session[SESSION_KEY] = slug
+    return redirect("fleet:index")

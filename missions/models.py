@@ -1,0 +1,190 @@
+"""Missions, their steps, which drone was given which steps, and everything that happened."""
+
+from __future__ import annotations
+
+import uuid
+
+from django.conf import settings
+from django.db import models
+from django.utils import timezone
+
+from fleet.models import Drone, Organisation
+
+
+class IllegalTransition(Exception):
+    pass
+
+
+class MissionStatus(models.TextChoices):
+    DRAFT = "draft", "Draft"
+    RUNNING = "running", "Running"
+    PAUSED = "paused", "Paused (waiting for a drone)"
+    COMPLETED = "completed", "Completed"
+    STOPPED = "stopped", "Stopped"
+    FAILED = "failed", "Failed"
+
+
+MISSION_TRANSITIONS: dict[str, set[str]] = {
+    MissionStatus.DRAFT: {MissionStatus.RUNNING, MissionStatus.STOPPED},
+    MissionStatus.RUNNING: {
+        MissionStatus.PAUSED,
+        MissionStatus.COMPLETED,
+        MissionStatus.STOPPED,
+        MissionStatus.FAILED,
+    },
+    MissionStatus.PAUSED: {MissionStatus.RUNNING, MissionStatus.STOPPED, MissionStatus.FAILED},
+    MissionStatus.COMPLETED: set(),
+    MissionStatus.STOPPED: set(),
+    MissionStatus.FAILED: set(),
+}
+
+
+class StepStatus(models.TextChoices):
+    PENDING = "pending", "Pending"
+    STARTED = "started", "Started"
+    COMPLETED = "completed", "Completed"
+    FAILED = "failed", "Failed"
+
+
+STEP_TRANSITIONS: dict[str, set[str]] = {
+    StepStatus.PENDING: {StepStatus.STARTED, StepStatus.COMPLETED, StepStatus.FAILED},
+    StepStatus.STARTED: {StepStatus.COMPLETED, StepStatus.FAILED, StepStatus.PENDING},
+    StepStatus.FAILED: {StepStatus.PENDING, StepStatus.STARTED, StepStatus.COMPLETED},
+    StepStatus.COMPLETED: set(),
+}
+
+
+class MissionQuerySet(models.QuerySet):
+    def for_user(self, user) -> MissionQuerySet:  # type: ignore[no-untyped-def]
+        if not user.is_authenticated:
+            return self.none()
+        return self.filter(organisation__memberships__user=user)
+
+
+class Mission(models.Model):
+    id = models.UUIDField(primary_key=True, default=uuid.uuid4, editable=False)
+    organisation = models.ForeignKey(
+        Organisation, on_delete=models.CASCADE, related_name="missions"
+    )
+    name = models.CharField(max_length=200)
+    status = models.CharField(
+        max_length=12, choices=MissionStatus.choices, default=MissionStatus.DRAFT
+    )
+    altitude = models.FloatField(default=10.0)
+    # Extensibility parameters (seed 4.2.4): the area and step a collaboration rebuilds.
+    extensibility = models.JSONField(null=True, blank=True)
+    created_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL
+    )
+    created_at = models.DateTimeField(auto_now_add=True)
+    started_at = models.DateTimeField(null=True, blank=True)
+    ended_at = models.DateTimeField(null=True, blank=True)
+
+    objects = MissionQuerySet.as_manager()
+
+    class Meta:
+        ordering = ["-created_at"]
+        indexes = [models.Index(fields=["organisation", "status"])]
+
+    def __str__(self) -> str:
+        return self.name
+
+    def transition(self, new: str) -> None:
+        """The one place mission states change; refuses illegal moves."""
+        if new not in MISSION_TRANSITIONS[MissionStatus(self.status)]:
+            raise IllegalTransition(f"mission cannot go from {self.status} to {new}")
+        self.status = new
+        now = timezone.now()
+        if new == MissionStatus.RUNNING and self.started_at is None:
+            self.started_at = now
+        if new in {MissionStatus.COMPLETED, MissionStatus.STOPPED, MissionStatus.FAILED}:
+            self.ended_at = now
+
+
+class Step(models.Model):
+    mission = models.ForeignKey(Mission, on_delete=models.CASCADE, related_name="steps")
+    index = models.PositiveIntegerField()
+    command = models.CharField(max_length=40)
+    params = models.JSONField(default=dict, blank=True)
+    status = models.CharField(max_length=10, choices=StepStatus.choices, default=StepStatus.PENDING)
+    drone = models.ForeignKey(
+        Drone, null=True, blank=True, on_delete=models.SET_NULL, related_name="steps_done"
+    )
+    started_at = models.DateTimeField(null=True, blank=True)
+    ended_at = models.DateTimeField(null=True, blank=True)
+    position = models.JSONField(null=True, blank=True)
+    duration_s = models.FloatField(null=True, blank=True)
+    result = models.JSONField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["mission", "index"]
+        constraints = [
+            models.UniqueConstraint(fields=["mission", "index"], name="one_step_per_index")
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.mission} #{self.index} {self.command}"
+
+    def transition(self, new: str) -> None:
+        if new == self.status:
+            return
+        if new not in STEP_TRANSITIONS[StepStatus(self.status)]:
+            raise IllegalTransition(f"step cannot go from {self.status} to {new}")
+        self.status = new
+
+
+class Assignment(models.Model):
+    class Reason(models.TextChoices):
+        INITIAL = "initial", "Initial"
+        REPLACEMENT = "replacement", "Replacement"
+        COLLABORATION = "collaboration", "Collaboration"
+
+    class Status(models.TextChoices):
+        SENT = "sent", "Sent"
+        ACCEPTED = "accepted", "Accepted"
+        REJECTED = "rejected", "Rejected"
+        COMPLETED = "completed", "Completed"
+        STOPPED = "stopped", "Stopped"
+
+    id = models.UUIDField(primary_key=True, default=uuid.uuid4, editable=False)
+    mission = models.ForeignKey(Mission, on_delete=models.CASCADE, related_name="assignments")
+    drone = models.ForeignKey(Drone, on_delete=models.CASCADE, related_name="assignments")
+    step_indexes = models.JSONField(default=list)
+    # Steps sent in this assignment that are not part of the mission (preparation).
+    preparation = models.JSONField(default=list, blank=True)
+    reason = models.CharField(max_length=14, choices=Reason.choices, default=Reason.INITIAL)
+    status = models.CharField(max_length=10, choices=Status.choices, default=Status.SENT)
+    created_at = models.DateTimeField(auto_now_add=True)
+    decode_ms = models.FloatField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["created_at"]
+
+    def __str__(self) -> str:
+        return f"{self.mission} → {self.drone} ({self.reason})"
+
+
+class Event(models.Model):
+    """Every progress message, alarm, handover and decision of a mission."""
+
+    class Kind(models.TextChoices):
+        MISSION = "mission", "Mission progress"
+        STEP = "step", "Step progress"
+        ALARM = "alarm", "Alarm"
+        HANDOVER = "handover", "Handover"
+        DECISION = "decision", "Decision"
+        OPERATOR = "operator", "Operator action"
+
+    mission = models.ForeignKey(Mission, on_delete=models.CASCADE, related_name="events")
+    drone = models.ForeignKey(Drone, null=True, blank=True, on_delete=models.SET_NULL)
+    kind = models.CharField(max_length=10, choices=Kind.choices)
+    at = models.DateTimeField(default=timezone.now)
+    message = models.CharField(max_length=300, blank=True)
+    data = models.JSONField(default=dict, blank=True)
+
+    class Meta:
+        ordering = ["at", "id"]
+        indexes = [models.Index(fields=["mission", "at"])]
+
+    def __str__(self) -> str:
+        return f"{self.mission} {self.kind} {self.message}"

@@ -1,0 +1,207 @@
+#!/usr/bin/env bash
+# Start, stop and describe the project's own PostgreSQL, Redis and Mosquitto instances.
+#
+#   scripts/services.sh start|stop|status|env  run|test
+#
+# Each profile keeps everything in .data/<profile>/ and listens on its own ports, so the
+# test suite never collides with a running `make run`. Nothing here touches the system's
+# own service instances.
+set -euo pipefail
+
+ACTION=${1:?usage: services.sh start|stop|status|env run|test}
+PROFILE=${2:-run}
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+DATA=${DATA_DIR:-$ROOT/.data/$PROFILE}
+
+if [ "$PROFILE" = test ]; then
+  PG_PORT=${TEST_PG_PORT:-54331}; REDIS_PORT=${TEST_REDIS_PORT:-63791}; MQTT_PORT=${TEST_MQTT_PORT:-18831}
+else
+  PG_PORT=${PG_PORT:-54330}; REDIS_PORT=${REDIS_PORT:-63790}; MQTT_PORT=${MQTT_PORT:-1883}
+fi
+
+PG_BIN=$(ls -d /usr/lib/postgresql/*/bin 2>/dev/null | sort -V | tail -n 1)
+[ -n "$PG_BIN" ] || PG_BIN=$(dirname "$(command -v initdb 2>/dev/null || echo /usr/bin/initdb)")
+REDIS_SERVER=$(command -v redis-server || echo /usr/bin/redis-server)
+REDIS_CLI=$(command -v redis-cli || echo /usr/bin/redis-cli)
+MOSQUITTO=$(command -v mosquitto || echo /usr/sbin/mosquitto)
+MOSQUITTO_PASSWD=$(command -v mosquitto_passwd || echo /usr/bin/mosquitto_passwd)
+
+log() { echo "[services:$PROFILE] $*" >&2; }
+
+# PostgreSQL refuses to run as root: run its tools as the postgres user then.
+as_pg() {
+  if [ "$(id -u)" = 0 ]; then runuser -u postgres -- "$@"; else "$@"; fi
+}
+
+secret() { # secret NAME: a random value generated once and kept in the data directory
+  local file="$DATA/secrets/$1"
+  if [ ! -s "$file" ]; then
+    mkdir -p "$DATA/secrets"; chmod 700 "$DATA/secrets"
+    head -c 24 /dev/urandom | base64 | tr -dc 'A-Za-z0-9' | head -c 32 >"$file"
+    chmod 600 "$file"
+  fi
+  cat "$file"
+}
+
+wait_port() { # wait_port PORT NAME
+  for _ in $(seq 1 100); do
+    if (exec 3<>"/dev/tcp/127.0.0.1/$1") 2>/dev/null; then return 0; fi
+    sleep 0.1
+  done
+  log "$2 did not start on port $1"; return 1
+}
+
+port_open() { (exec 3<>"/dev/tcp/127.0.0.1/$1") 2>/dev/null; }
+
+pg_start() {
+  local dir="$DATA/postgres"
+  mkdir -p "$DATA"
+  if [ ! -s "$dir/PG_VERSION" ]; then
+    log "initialising PostgreSQL in $dir"
+    mkdir -p "$dir"
+    [ "$(id -u)" = 0 ] && chown postgres:postgres "$dir"
+    chmod 700 "$dir"
+    local pwfile; pwfile=$(mktemp); secret pg_password >"$pwfile"; chmod 644 "$pwfile"
+    as_pg "$PG_BIN/initdb" -D "$dir" -U postgres --pwfile="$pwfile" -A scram-sha-256 \
+      --auth-local=peer -E UTF8 --locale=C.UTF-8 >/dev/null
+    rm -f "$pwfile"
+    {
+      echo "listen_addresses = '127.0.0.1'"
+      echo "unix_socket_directories = '$dir'"
+      echo "max_connections = 200"
+      echo "shared_buffers = 256MB"
+      if [ "$PROFILE" = test ]; then
+        # A throw-away test cluster: durability buys nothing and costs a lot of time.
+        echo "fsync = off"; echo "synchronous_commit = off"; echo "full_page_writes = off"
+      fi
+    } | as_pg tee -a "$dir/postgresql.conf" >/dev/null
+    # peer auth for the local superuser when we run as root via runuser
+    echo "local all postgres peer map=root_as_postgres" | as_pg tee "$dir/pg_hba.local" >/dev/null
+    cat "$dir/pg_hba.local" "$dir/pg_hba.conf" | as_pg tee "$dir/pg_hba.new" >/dev/null
+    as_pg mv "$dir/pg_hba.new" "$dir/pg_hba.conf"
+    printf 'root_as_postgres root postgres\nroot_as_postgres postgres postgres\nroot_as_postgres %s postgres\n' "$(id -un)" \
+      | as_pg tee "$dir/pg_ident.conf" >/dev/null
+  fi
+  if port_open "$PG_PORT"; then log "PostgreSQL already up on $PG_PORT"; return 0; fi
+  log "starting PostgreSQL on 127.0.0.1:$PG_PORT"
+  as_pg "$PG_BIN/pg_ctl" -D "$dir" -l "$dir/server.log" -o "-p $PG_PORT" -w -t 60 start >/dev/null
+  touch "$DATA/.started.postgres"
+  local pw; pw=$(secret pg_password)
+  local appw; appw=$(secret db_password)
+  # The application role and database; idempotent.
+  as_pg psql -h "$dir" -p "$PG_PORT" -U postgres -d postgres -qAt -v ON_ERROR_STOP=1 <<SQL >/dev/null
+DO \$\$BEGIN
+  IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = 'skyhive') THEN
+    CREATE ROLE skyhive LOGIN CREATEDB PASSWORD '$appw';
+  ELSE
+    ALTER ROLE skyhive PASSWORD '$appw';
+  END IF;
+END\$\$;
+SQL
+  if ! as_pg psql -h "$dir" -p "$PG_PORT" -U postgres -d postgres -qAt -c "SELECT 1 FROM pg_database WHERE datname='skyhive'" | grep -q 1; then
+    as_pg psql -h "$dir" -p "$PG_PORT" -U postgres -d postgres -q -c "CREATE DATABASE skyhive OWNER skyhive" >/dev/null
+  fi
+  : "$pw"
+}
+
+pg_stop() {
+  local dir="$DATA/postgres"
+  [ -s "$dir/postmaster.pid" ] || return 0
+  log "stopping PostgreSQL"
+  as_pg "$PG_BIN/pg_ctl" -D "$dir" -m fast -w stop >/dev/null || true
+}
+
+redis_start() {
+  local dir="$DATA/redis"; mkdir -p "$dir"
+  if port_open "$REDIS_PORT"; then log "Redis already up on $REDIS_PORT"; return 0; fi
+  log "starting Redis on 127.0.0.1:$REDIS_PORT"
+  local persist=(--save "60 1000" --appendonly no)
+  [ "$PROFILE" = test ] && persist=(--save "" --appendonly no)
+  "$REDIS_SERVER" --bind 127.0.0.1 --port "$REDIS_PORT" --dir "$dir" --daemonize yes \
+    --pidfile "$dir/redis.pid" --logfile "$dir/redis.log" --requirepass "$(secret redis_password)" \
+    "${persist[@]}" >/dev/null
+  wait_port "$REDIS_PORT" Redis
+}
+
+redis_stop() {
+  local dir="$DATA/redis"
+  [ -s "$dir/redis.pid" ] || return 0
+  log "stopping Redis"
+  kill "$(cat "$dir/redis.pid")" 2>/dev/null || true
+  for _ in $(seq 1 50); do port_open "$REDIS_PORT" || break; sleep 0.1; done
+  rm -f "$dir/redis.pid"
+}
+
+mosquitto_start() {
+  local dir="$DATA/mosquitto"; mkdir -p "$dir"
+  # The ground's own credentials; drone entries are added by `manage.py provision_drone`,
+  # which regenerates these files from the database and sends SIGHUP.
+  [ -f "$dir/passwd" ] || : >"$dir/passwd"
+  if ! grep -q '^ground:' "$dir/passwd"; then
+    "$MOSQUITTO_PASSWD" -b "$dir/passwd" ground "$(secret mqtt_ground_password)"
+  fi
+  [ -f "$dir/acl" ] || printf 'user ground\ntopic readwrite #\n\npattern write %%u/+/out\npattern read %%u/+/in\n' >"$dir/acl"
+  cat >"$dir/mosquitto.conf" <<CONF
+# Generated by scripts/services.sh; edits are overwritten.
+listener $MQTT_PORT 127.0.0.1
+allow_anonymous false
+set_tcp_nodelay true
+password_file $dir/passwd
+acl_file $dir/acl
+pid_file $dir/mosquitto.pid
+persistence $([ "$PROFILE" = test ] && echo false || echo true)
+persistence_location $dir/
+log_dest file $dir/mosquitto.log
+log_type error
+log_type warning
+log_type notice
+max_queued_messages 100000
+$([ "$(id -u)" = 0 ] && echo "user root")
+CONF
+  if port_open "$MQTT_PORT"; then log "Mosquitto already up on $MQTT_PORT"; return 0; fi
+  log "starting Mosquitto on 127.0.0.1:$MQTT_PORT"
+  "$MOSQUITTO" -c "$dir/mosquitto.conf" -d
+  wait_port "$MQTT_PORT" Mosquitto
+}
+
+mosquitto_stop() {
+  local dir="$DATA/mosquitto"
+  [ -s "$dir/mosquitto.pid" ] || return 0
+  log "stopping Mosquitto"
+  kill "$(cat "$dir/mosquitto.pid")" 2>/dev/null || true
+  for _ in $(seq 1 50); do port_open "$MQTT_PORT" || break; sleep 0.1; done
+  rm -f "$dir/mosquitto.pid"
+}
+
+write_env() {
+  mkdir -p "$DATA"
+  local envfile="$DATA/env"
+  cat >"$envfile" <<ENV
+DATA_DIR=$DATA
+DATABASE_URL=postgresql://skyhive:$(secret db_password)@127.0.0.1:$PG_PORT/skyhive
+REDIS_URL=redis://:$(secret redis_password)@127.0.0.1:$REDIS_PORT/0
+MQTT_URL=mqtt://ground:$(secret mqtt_ground_password)@127.0.0.1:$MQTT_PORT
+MOSQUITTO_DIR=$DATA/mosquitto
+SECRET_KEY=$(secret django_secret_key)$(secret django_secret_key_2)
+PG_ADMIN_SOCKET=$DATA/postgres
+PG_PORT=$PG_PORT
+REDIS_PORT=$REDIS_PORT
+MQTT_PORT=$MQTT_PORT
+ENV
+  chmod 600 "$envfile"
+  echo "$envfile"
+}
+
+case "$ACTION" in
+  start) pg_start; redis_start; mosquitto_start; write_env >/dev/null ;;
+  stop) mosquitto_stop; redis_stop; pg_stop ;;
+  env) write_env ;;
+  status)
+    for p in "$PG_PORT:PostgreSQL" "$REDIS_PORT:Redis" "$MQTT_PORT:Mosquitto"; do
+      if port_open "${p%%:*}"; then echo "${p#*:} up on ${p%%:*}"; else echo "${p#*:} down (${p%%:*})"; fi
+    done ;;
+  pg-start) pg_start ;; pg-stop) pg_stop ;;
+  redis-start) redis_start ;; redis-stop) redis_stop ;;
+  mosquitto-start) mosquitto_start ;; mosquitto-stop) mosquitto_stop ;;
+  *) echo "unknown action $ACTION" >&2; exit 2 ;;
+esac

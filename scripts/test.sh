@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# The whole suite against the test profile's own services (never the ones `make run` uses).
+set -uo pipefail
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+cd "$ROOT"
+PY=.venv/bin/python
+
+started=""
+if ! scripts/services.sh status test | grep -q "down"; then
+  echo "[test] reusing the test services already running"
+else
+  scripts/services.sh start test || exit 1
+  started=yes
+fi
+cleanup() { [ -n "$started" ] && scripts/services.sh stop test; }
+trap cleanup EXIT
+
+set -e
+export DJANGO_SETTINGS_MODULE=config.settings.test
+echo "[test] ruff"
+$PY -m ruff check .
+echo "[test] migrations are up to date"
+$PY manage.py makemigrations --check --dry-run >/dev/null
+if [ -f firmware/arming_switch/Makefile ]; then
+  echo "[test] arming-switch firmware host tests"
+  make -s -C firmware/arming_switch test
+fi
+set +e
+echo "[test] pytest"
+$PY -m pytest "$@"
+rc=$?
+# pytest exit 5 means no tests ran: that is a failure for us.
+if [ $rc -eq 5 ]; then echo "[test] no tests ran"; exit 1; fi
+exit $rc

@@ -1,0 +1,71 @@
+"""Personas shared by the suite: an owner, a viewer of the same organisation, an outsider.
+
+Django is imported inside fixtures only, so pure-Python tests run without it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import pytest
+
+
+@dataclass
+class World:
+    org: object
+    other_org: object
+    owner: object
+    operator: object
+    viewer: object
+    outsider: object
+    drone: object
+    other_drone: object
+
+
+def build_world() -> World:
+    from fleet.models import Role
+
+    from . import factories
+
+    org = factories.organisation("acme")
+    other = factories.organisation("globex")
+    return World(
+        org=org,
+        other_org=other,
+        owner=factories.person(org, Role.ADMIN, "owner"),
+        operator=factories.person(org, Role.OPERATOR, "operator"),
+        viewer=factories.person(org, Role.VIEWER, "viewer"),
+        outsider=factories.person(other, Role.ADMIN, "outsider"),
+        drone=factories.drone(org, "ACME_1"),
+        other_drone=factories.drone(other, "GLOBEX_1"),
+    )
+
+
+@pytest.fixture
+def world(db) -> World:  # type: ignore[no-untyped-def]
+    return build_world()
+
+
+@pytest.fixture
+def world_tx(transactional_db) -> World:  # type: ignore[no-untyped-def]
+    """The same personas, committed, for tests where other threads or processes read them."""
+    return build_world()
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _close_stray_database_sessions(request):  # type: ignore[no-untyped-def]
+    """Worker threads (Channels, gateway) keep connections open; end them before the test
+    database is dropped, or the drop fails."""
+    if not request.config.pluginmanager.hasplugin("django"):
+        yield
+        return
+    request.getfixturevalue("django_db_setup")
+    blocker = request.getfixturevalue("django_db_blocker")
+    yield
+    from django.db import connection
+
+    with blocker.unblock(), connection.cursor() as cursor:
+        cursor.execute(
+            "SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
+            "WHERE datname = current_database() AND pid <> pg_backend_pid()"
+        )

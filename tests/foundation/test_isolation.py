@@ -1,0 +1,135 @@
+"""A user of one organisation cannot see another's drones or missions: pages, API, websocket."""
+
+import pytest
+from channels.testing import WebsocketCommunicator
+from rest_framework.test import APIClient
+
+from missions.models import Mission
+
+
+@pytest.fixture
+def missions(world):
+    return (
+        Mission.objects.create(organisation=world.org, name="Survey north field"),
+        Mission.objects.create(organisation=world.other_org, name="Secret globex survey"),
+    )
+
+
+def api(user) -> APIClient:
+    client = APIClient()
+    client.force_authenticate(user)
+    return client
+
+
+def test_the_drone_page_of_another_organisation_is_not_found(client, world):
+    client.force_login(world.owner)
+    assert client.get("/drones/ACME_1/").status_code == 200
+    assert client.get("/drones/GLOBEX_1/").status_code == 404
+
+
+def test_the_drone_list_api_shows_only_the_users_organisation(world):
+    body = api(world.viewer).get("/api/v1/drones/").json()
+    assert [d["drone_id"] for d in body["results"]] == ["ACME_1"]
+
+
+def test_another_organisations_drone_answers_404_in_the_api(world):
+    response = api(world.owner).get("/api/v1/drones/GLOBEX_1/")
+    assert response.status_code == 404
+    assert response.json()["error"]
+
+
+def test_missions_of_another_organisation_are_invisible(client, world, missions):
+    mine, theirs = missions
+    assert [m["name"] for m in api(world.owner).get("/api/v1/missions/").json()["results"]] == [
+        "Survey north field"
+    ]
+    assert api(world.owner).get(f"/api/v1/missions/{theirs.pk}/").status_code == 404
+    client.force_login(world.owner)
+    assert client.get(f"/missions/{mine.pk}/").status_code == 200
+    assert client.get(f"/missions/{theirs.pk}/").status_code == 404
+    assert "Secret globex" not in client.get("/missions/").content.decode()
+
+
+def test_a_user_without_organisation_sees_nothing(world):
+    from tests.factories import person
+
+    loner = person(None)
+    assert api(loner).get("/api/v1/drones/").json()["results"] == []
+
+
+def test_the_api_requires_authentication(world):
+    response = APIClient().get("/api/v1/drones/")
+    assert response.status_code in (401, 403)
+    assert response.json()["error"]
+
+
+@pytest.mark.django_db(transaction=True)
+async def test_the_fleet_websocket_joins_only_the_users_organisation(world_tx):
+    from channels.layers import get_channel_layer
+
+    from config.asgi import application
+
+    world = world_tx
+    mine = await _connect(application, world.owner)
+    theirs = await _connect(application, world.outsider)
+    try:
+        snapshot = await mine.receive_json_from(timeout=5)
+        assert [d["drone_id"] for d in snapshot["drones"]] == ["ACME_1"]
+        other_snapshot = await theirs.receive_json_from(timeout=5)
+        assert [d["drone_id"] for d in other_snapshot["drones"]] == ["GLOBEX_1"]
+
+        layer = get_channel_layer()
+        await layer.group_send(
+            world.org.group_name,
+            {"type": "fleet.event", "payload": {"type": "drone", "drone_id": "ACME_1"}},
+        )
+        assert (await mine.receive_json_from(timeout=5))["drone_id"] == "ACME_1"
+        assert await theirs.receive_nothing(timeout=0.5)
+    finally:
+        await mine.disconnect()
+        await theirs.disconnect()
+
+
+@pytest.mark.django_db(transaction=True)
+async def test_the_fleet_websocket_refuses_anonymous_visitors():
+    from config.asgi import application
+
+    communicator = WebsocketCommunicator(
+        application, "/ws/fleet/", headers=[(b"origin", b"http://127.0.0.1")]
+    )
+    connected, code = await communicator.connect()
+    assert not connected
+    await communicator.disconnect()
+
+
+@pytest.mark.django_db(transaction=True)
+async def test_the_fleet_websocket_refuses_an_organisation_the_user_is_not_in(world_tx):
+    from config.asgi import application
+
+    communicator = await _connect(application, world_tx.owner, query="?org=globex",
+                                  expect=False)
+    await communicator.disconnect()
+
+
+async def _connect(application, user, query: str = "", expect: bool = True):
+    from asgiref.sync import sync_to_async
+    from django.contrib.auth import BACKEND_SESSION_KEY, HASH_SESSION_KEY, SESSION_KEY
+    from django.contrib.sessions.backends.db import SessionStore
+
+    def make_session() -> str:
+        session = SessionStore()
+        session[SESSION_KEY] = str(user.pk)
+        session[BACKEND_SESSION_KEY] = "django.contrib.auth.backends.ModelBackend"
+        session[HASH_SESSION_KEY] = user.get_session_auth_hash()
+        session.save()
+        return session.session_key
+
+    key = await sync_to_async(make_session)()
+    communicator = WebsocketCommunicator(
+        application,
+        f"/ws/fleet/{query}",
+        headers=[(b"origin", b"http://127.0.0.1"), (b"cookie", f"sessionid={key}".encode())],
+    )
+    connected, _ = await communicator.connect(timeout=5)
+    assert connected is expect
+    return communicator

@@ -1,0 +1,75 @@
+"""Health, Celery and settings, on the real services started for the suite."""
+
+import os
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import pytest
+from django.test import Client
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_health_is_ok_when_every_service_answers(db):
+    response = Client().get("/health")
+    assert response.status_code == 200
+    assert response.json()["checks"] == {"database": "ok", "redis": "ok", "broker": "ok"}
+
+
+def test_health_is_503_and_names_the_broker_when_it_is_down(db, settings):
+    settings.MQTT_URL = "mqtt://ground:x@127.0.0.1:1"
+    response = Client().get("/health")
+    assert response.status_code == 503
+    checks = response.json()["checks"]
+    assert checks["database"] == "ok" and checks["redis"] == "ok"
+    assert checks["broker"] != "ok"
+
+
+def test_health_is_503_and_names_redis_when_it_is_down(db, settings):
+    settings.REDIS_URL = "redis://127.0.0.1:1/0"
+    response = Client().get("/health")
+    assert response.status_code == 503
+    assert response.json()["checks"]["redis"] != "ok"
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_real_celery_worker_runs_a_task():
+    from workers.tasks import ping
+
+    env = dict(os.environ, DJANGO_SETTINGS_MODULE="config.settings.test")
+    # The worker must use the test database that pytest-django created.
+    from django.db import connection
+
+    env["TEST_WORKER_DB_NAME"] = connection.settings_dict["NAME"]
+    worker = subprocess.Popen(
+        [sys.executable, "-m", "celery", "-A", "config", "worker", "--pool", "solo",
+         "-l", "warning", "-n", f"test-{uuid.uuid4().hex[:6]}@%h"],
+        cwd=ROOT, env=env,
+    )
+    try:
+        token = uuid.uuid4().hex
+        result = ping.delay(token)
+        assert result.get(timeout=30)["pong"] == token
+    finally:
+        worker.terminate()
+        worker.wait(10)
+
+
+def test_deploy_checks_pass_with_production_values():
+    env = dict(
+        os.environ,
+        DJANGO_SETTINGS_MODULE="config.settings.production",
+        SECRET_KEY="x" * 20 + uuid.uuid4().hex + "y" * 20,
+        ALLOWED_HOSTS="drones.example.org",
+        DEBUG="false",
+    )
+    started = time.monotonic()
+    out = subprocess.run(
+        [sys.executable, "manage.py", "check", "--deploy", "--fail-level", "WARNING"],
+        cwd=ROOT, env=env, capture_output=True, text=True,
+    )
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert time.monotonic() - started < 60
