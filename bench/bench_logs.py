@@ -1,0 +1,144 @@
+"""Flight-log import and level-of-detail benchmarks (issue 7).
+
+Run: .venv/bin/python -m bench.bench_logs [--bin-slice-mb N]
+
+- logs.import_ulog_100mb: our import_log of a generated ~100 MB ULog vs pyulog's own parse.
+- logs.import_bin_100mb: our import_log of a generated ~100 MB ArduPilot .bin vs pymavlink's
+  full decode (mavlink_connection + recv_match loop). pymavlink takes tens of seconds per
+  100 MB, so with --bin-slice-mb both sides are timed on the first N MB of the same
+  generated log and scaled to 100 MB by the same factor.
+- logs.bytes_hour_series: JSON bytes of a one-hour 50 Hz series downsampled for a
+  1 500-pixel plot vs the JSON of every point.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from pymavlink import mavutil
+from pyulog import ULog
+
+from bench.common import record
+from telemetry.logs import import_log
+from telemetry.logs.lod import downsample
+from telemetry.logs.synth import synthetic_dataflash, synthetic_ulog
+
+MB = 1 << 20
+TARGET = 100 * MB
+# Bytes per second of flight of the synthetic logs (measured once, see _seconds_for).
+ULOG_PROBE_S = 20.0
+
+
+def _seconds_for(writer, directory: Path, target: int) -> float:
+    probe = directory / "probe"
+    writer(probe, seconds=ULOG_PROBE_S)
+    rate = probe.stat().st_size / ULOG_PROBE_S
+    probe.unlink()
+    return target / rate
+
+
+def _timed(fn) -> float:
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
+def _pymavlink_decode(path: Path) -> int:
+    # pymavlink prints a line per message it cannot file; keep the benchmark output readable.
+    with contextlib.redirect_stdout(io.StringIO()):
+        conn = mavutil.mavlink_connection(str(path))
+        count = 0
+        while conn.recv_match() is not None:
+            count += 1
+    return count
+
+
+def bench_ulog(directory: Path) -> None:
+    path = directory / "big.ulg"
+    synthetic_ulog(path, seconds=_seconds_for(synthetic_ulog, directory, TARGET))
+    size_mb = path.stat().st_size / MB
+    ours = min(_timed(lambda: import_log(path)) for _ in range(2))
+    theirs = min(_timed(lambda: ULog(str(path))) for _ in range(2))
+    record(
+        "logs.import_ulog_100mb",
+        value=ours,
+        unit="s",
+        baseline_name="pyulog ULog(path) parse of the same file",
+        baseline_value=theirs,
+        higher_is_better=False,
+        goal="< 1.5x pyulog",
+        file_mb=round(size_mb, 1),
+    )
+
+
+def bench_bin(directory: Path, slice_mb: float | None) -> None:
+    path = directory / "big.bin"
+    synthetic_dataflash(path, seconds=_seconds_for(synthetic_dataflash, directory, TARGET))
+    size = path.stat().st_size
+    extra = {"file_mb": round(size / MB, 1)}
+    measured = path
+    if slice_mb:
+        # A cut at an arbitrary byte ends in a truncated record, which both readers drop.
+        measured = directory / "slice.bin"
+        measured.write_bytes(path.read_bytes()[: int(slice_mb * MB)])
+        extra["timed_on_mb"] = slice_mb
+        extra["note"] = (
+            f"both sides timed on the first {slice_mb} MB and scaled by {size / (slice_mb * MB):.2f}"
+        )
+    scale = size / measured.stat().st_size
+    ours = _timed(lambda: import_log(measured)) * scale
+    theirs = _timed(lambda: _pymavlink_decode(measured)) * scale
+    record(
+        "logs.import_bin_100mb",
+        value=ours,
+        unit="s",
+        baseline_name="pymavlink full decode (mavlink_connection + recv_match loop)",
+        baseline_value=theirs,
+        higher_is_better=False,
+        goal=">= 2x faster",
+        **extra,
+    )
+
+
+def bench_hour_series() -> None:
+    n = 3600 * 50
+    t = np.arange(n, dtype=np.int64) * 20_000_000
+    rng = np.random.default_rng(3)
+    v = np.cumsum(rng.normal(size=n)) * 0.01 + 100.0
+
+    def payload(ts: np.ndarray, vs: np.ndarray) -> int:
+        return len(json.dumps({"t": (ts / 1e9).tolist(), "v": vs.tolist()}).encode())
+
+    small_t, small_v = downsample(t, v, 1500)
+    record(
+        "logs.bytes_hour_series",
+        value=payload(small_t, small_v),
+        unit="bytes",
+        baseline_name="JSON of all 180 000 points",
+        baseline_value=payload(t, v),
+        higher_is_better=False,
+        goal="a few thousand points at most (min/max per pixel: <= 3000)",
+        points=len(small_t),
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--bin-slice-mb", type=float, default=None)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="bench_logs_") as tmp:
+        directory = Path(tmp)
+        bench_hour_series()
+        bench_ulog(directory)
+        bench_bin(directory, args.bin_slice_mb)
+
+
+if __name__ == "__main__":
+    main()
