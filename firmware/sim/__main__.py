@@ -1,0 +1,106 @@
+"""`python -m firmware.sim`: a software dRonin flight controller on a pty (or TCP port).
+
+Prints exactly one line, `pty: /dev/pts/N` (or `tcp: HOST:PORT`), then serves UAVTalk
+until SIGTERM/SIGINT.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+from pathlib import Path
+
+from firmware.arming_switch.frames import load_frames
+from firmware.sim.receiver import ReceiverArming
+from firmware.sim.server import PtyTransport, TcpTransport, serve
+from firmware.sim.telemetry import BoardSession
+from firmware.sim.vehicle import Vehicle, VehicleConfig
+from onboard.uavtalk import ObjectRegistry
+
+
+def _home(text: str) -> tuple[float, float, float]:
+    try:
+        lat, lon, alt = (float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError("home must be LAT,LON,ALT") from None
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise argparse.ArgumentTypeError("latitude or longitude out of range")
+    return lat, lon, alt
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m firmware.sim", description=__doc__)
+    p.add_argument("--home", type=_home, default=(38.736946, -9.142685, 100.0), help="LAT,LON,ALT")
+    p.add_argument("--time-scale", type=float, default=1.0, help="simulated seconds per second")
+    p.add_argument("--battery-capacity-mah", type=float, default=5500.0)
+    p.add_argument(
+        "--drain", type=float, default=15_000 / 3600, help="mAh per simulated second hovering"
+    )
+    p.add_argument("--cells", type=int, default=4)
+    p.add_argument("--max-horizontal-speed", type=float, default=10.0, help="m/s")
+    p.add_argument("--max-climb-rate", type=float, default=2.0, help="m/s, climb and descent")
+    p.add_argument("--arming-line", type=Path, help="two-character file: request pin, mode pin")
+    p.add_argument("--arming-time", type=float, help="seconds (simulated); default frames.json")
+    p.add_argument("--tcp", type=int, metavar="PORT", help="serve on TCP instead of a pty (0: any)")
+    p.add_argument("--tcp-host", default="127.0.0.1")
+    p.add_argument("--pty-link", type=Path, help="keep a symlink to the pty at this path")
+    p.add_argument("--objects-dir", type=Path, help="UAVObject XML folder")
+    p.add_argument("--link-timeout", type=float, default=8.0, help="wall-clock seconds")
+    p.add_argument("-v", "--verbose", action="store_true")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.time_scale <= 0:
+        print("--time-scale must be positive", file=sys.stderr)
+        return 2
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.INFO,
+        stream=sys.stderr,
+        format="sim %(levelname)s %(message)s",
+    )
+    frames = load_frames()
+    config = VehicleConfig(
+        home=args.home,
+        max_horizontal=args.max_horizontal_speed,
+        max_climb=args.max_climb_rate,
+        max_descent=args.max_climb_rate,
+        battery_capacity_mah=args.battery_capacity_mah,
+        hover_drain_mah_s=args.drain,
+        cells=args.cells,
+    )
+    receiver = ReceiverArming(frames, arming_time_s=args.arming_time)
+    session = BoardSession(
+        vehicle=Vehicle(config=config, receiver=receiver),
+        registry=ObjectRegistry.load(args.objects_dir),
+        frames=frames,
+        time_scale=args.time_scale,
+        arming_line=args.arming_line,
+        link_timeout_s=args.link_timeout,
+    )
+    if args.tcp is not None:
+        transport: PtyTransport | TcpTransport = TcpTransport(args.tcp_host, args.tcp)
+    else:
+        transport = PtyTransport(args.pty_link)
+    stopping = False
+
+    def _stop(signum, frame) -> None:
+        nonlocal stopping
+        stopping = True
+
+    signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGINT, _stop)
+    print(transport.announce(), flush=True)
+    try:
+        serve(session, transport, lambda: stopping)
+    finally:
+        transport.close()
+        logging.info("stopped: %s; decoder %s", session.stats, session.decoder.stats.as_dict())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

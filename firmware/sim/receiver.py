@@ -1,0 +1,97 @@
+"""The flight controller's arming decision from receiver input (seed 001, 4.1.2.4).
+
+dRonin arms only from stick positions: throttle low with yaw right held for the arming
+time arms, throttle low with yaw left held for the disarming time disarms. Thresholds and
+times come from firmware/arming_switch/frames.json, the one definition of the frames.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from firmware.arming_switch.frames import Frames, load_frames
+
+DISARMED, ARMING, ARMED = "Disarmed", "Arming", "Armed"
+
+
+class ReceiverArming:
+    """Feed it receiver frames (pulse HIGH times, µs, in frames.json channel order).
+
+    `now` is the flight controller's clock in seconds (simulated time in the simulator),
+    so the arming time scales with the simulation. Set `airborne` to refuse disarming in
+    flight; a frame with a channel out of the accepted range counts as no input.
+    """
+
+    def __init__(
+        self,
+        frames: Frames | None = None,
+        *,
+        arming_time_s: float | None = None,
+        disarming_time_s: float | None = None,
+    ) -> None:
+        self.frames = frames or load_frames()
+        self.arming_time_s = self.frames.arming_time_s if arming_time_s is None else arming_time_s
+        self.disarming_time_s = (
+            self.frames.disarming_time_s if disarming_time_s is None else disarming_time_s
+        )
+        self._throttle = self.frames.channel_index("throttle")
+        self._yaw = self.frames.channel_index("yaw")
+        self._lo = self.frames.pulse_min_us - self.frames.pulse_margin_us
+        self._hi = self.frames.pulse_max_us + self.frames.pulse_margin_us
+        self.state = DISARMED
+        self.airborne = False
+        self.refused_disarms = 0
+        self._held_since: float | None = None
+        self._holding: str | None = None
+
+    def reset(self) -> None:
+        """Back to Disarmed, as after a reboot."""
+        self.state = DISARMED
+        self._held_since = None
+        self._holding = None
+
+    def _gesture(self, pulses_us: Sequence[int]) -> str | None:
+        needed = max(self._throttle, self._yaw) + 1
+        if len(pulses_us) < needed or any(
+            not self._lo <= p <= self._hi for p in pulses_us[:needed]
+        ):
+            return None
+        throttle, yaw = pulses_us[self._throttle], pulses_us[self._yaw]
+        if throttle > self.frames.throttle_low_max_us:
+            return None
+        if yaw >= self.frames.yaw_arm_min_us:
+            return "arm"
+        if yaw <= self.frames.yaw_disarm_max_us:
+            return "disarm"
+        return None
+
+    def feed(self, pulses_us: Sequence[int], now: float) -> str:
+        """Apply one receiver frame seen at time `now`; return the arming state after it."""
+        gesture = self._gesture(pulses_us)
+        wanted = {"arm": DISARMED, "disarm": ARMED}
+        if gesture is None or not (
+            self.state == wanted[gesture] or (self.state == ARMING and gesture == "arm")
+        ):
+            self._holding = None
+            self._held_since = None
+            if self.state == ARMING:
+                self.state = DISARMED  # sticks released before the arming time
+            return self.state
+        if self._holding != gesture:
+            self._holding = gesture
+            self._held_since = now
+        held = now - (self._held_since if self._held_since is not None else now)
+        if gesture == "arm":
+            if held >= self.arming_time_s:
+                self.state = ARMED
+                self._holding = None
+            else:
+                self.state = ARMING
+        elif held >= self.disarming_time_s:
+            if self.airborne:
+                self.refused_disarms += 1
+                self._held_since = now  # keep refusing until landed
+            else:
+                self.state = DISARMED
+                self._holding = None
+        return self.state
