@@ -23,6 +23,10 @@ from telemetry.pastview.geometry import Pose, conjugate, rotation_matrices
 def left_matrix(q: np.ndarray) -> np.ndarray:
     """Matrix L(q) with L(q) @ b == q * b, for (4,) -> (4, 4) or (N, 4) -> (N, 4, 4)."""
     q = np.asarray(q, dtype=float)
+    if q.ndim == 1:
+        # One quaternion per pose evaluation: plain floats beat stacking 16 tiny arrays.
+        x, y, z, w = q.tolist()
+        return np.array([[w, -z, y, x], [z, w, -x, y], [-y, x, w, z], [-x, -y, -z, w]])
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.stack(
         [
