@@ -1,0 +1,334 @@
+"""The onboard agent: wires the flight controller to the broker (seed 001, 3.3.2.2 and 4.1.2).
+
+Inputs arrive on `<id>/control/in`, `<id>/mission/in` and `<id>/gear/in`; everything the
+drone says goes out on the `<id>/<channel>/out` topics of PROTOCOL.md. Malformed input is
+answered with an error when it carries a request_id, otherwise dropped and counted; no
+input can stop the agent.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from . import protocol
+from .controller import Controller
+from .failsafe import FailSafe
+from .fc.base import FlightController
+from .gear import GearManager
+from .heartbeat import Heartbeater, build_heartbeat
+from .logger import FlightLogger
+from .mission import MissionWorker, position_of
+from .mqtt import MqttLink
+from .navigation import NavigationProcessor
+from .sensors import SensorField
+
+log = logging.getLogger(__name__)
+
+TELEMETRY_BATCH_MAX = 200
+
+
+@dataclass
+class AgentConfig:
+    drone_id: str
+    broker_url: str
+    gear_dir: Path | None = None
+    log_dir: Path | None = None
+    pictures_dir: Path | None = None
+    time_scale: float = 1.0
+    heartbeat_interval: float = 5.0
+    telemetry_interval: float = 0.1
+    battery_critical: float = 0.25
+    bounds: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)
+    link_loss_timeout: float = 30.0
+    link_loss_action: str = "continue"
+    sensor_field: SensorField | None = None
+    gear_reread_interval: float = 5.0
+    arm_timeout: float = 20.0
+    flight_timeout: float = 600.0
+    camera: str = "sim"
+    mqtt_keepalive: int = 10
+
+
+class Agent:
+    def __init__(self, config: AgentConfig, fc: FlightController) -> None:
+        if not protocol.is_drone_id(config.drone_id):
+            raise ValueError(f"{config.drone_id!r} is not a valid drone id")
+        self.config = config
+        self.drone_id = config.drone_id
+        self.fc = fc
+        self.dropped: Counter[str] = Counter()
+        self.sent: Counter[str] = Counter()
+        self.logger = FlightLogger(config.log_dir, self.drone_id) if config.log_dir else None
+        events = self._event
+        self.gear = GearManager(
+            config.gear_dir,
+            self.send,
+            reread_interval=config.gear_reread_interval,
+            sensor_field=config.sensor_field,
+            pictures_dir=config.pictures_dir,
+            camera=config.camera,
+        )
+        self.navigation = NavigationProcessor(fc)
+        self.controller = Controller(
+            fc, self.navigation, gear=self.gear, arm_timeout=config.arm_timeout, events=events
+        )
+        self.worker = MissionWorker(
+            fc,
+            self.controller,
+            self.navigation,
+            lambda message: self.send("mission", message),
+            raise_alarm=self.raise_alarm,
+            gear=self.gear,
+            on_reading=self._on_reading,
+            time_scale=config.time_scale,
+            flight_timeout=config.flight_timeout,
+            events=events,
+        )
+        self.failsafe = FailSafe(
+            fc,
+            self.raise_alarm,
+            navigation=self.navigation,
+            stop_mission=self.worker.stop_current,
+            battery_critical=config.battery_critical,
+            bounds=config.bounds,
+            link_loss_timeout=config.link_loss_timeout,
+            link_loss_action=config.link_loss_action,
+        )
+        self.mqtt = MqttLink(
+            config.broker_url,
+            client_id=f"skyhive-agent-{self.drone_id}",
+            subscriptions=[protocol.topic(self.drone_id, c, "in") for c in protocol.IN_CHANNELS],
+            on_message=self._on_message,
+            on_connection=self._on_connection,
+            keepalive=config.mqtt_keepalive,
+        )
+        self.heartbeater = Heartbeater(config.heartbeat_interval, self._beat)
+        self._control_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="control")
+        self._telemetry: list[protocol.TelemetryObject] = []
+        self._telemetry_lock = threading.Lock()
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+
+    # -- lifecycle ------------------------------------------------------------------------
+
+    def start(self) -> None:
+        self.fc.add_listener(self._on_object)
+        self.fc.start()
+        self.worker.start()
+        self.gear.start()
+        self.mqtt.start()
+        self.heartbeater.start()
+        for target, name in ((self._telemetry_loop, "telemetry"), (self._supervise, "supervisor")):
+            thread = threading.Thread(target=target, name=name, daemon=True)
+            thread.start()
+            self._threads.append(thread)
+
+    def stop(self) -> None:
+        """Stop cleanly: the running mission is reported stopped and the outbox flushed."""
+        self.worker.close()
+        self._stop.set()
+        self.heartbeater.stop()
+        self.gear.stop()
+        self._control_pool.shutdown(wait=False, cancel_futures=True)
+        for thread in self._threads:
+            thread.join(2)
+        self._flush_telemetry()
+        self.mqtt.stop(flush_timeout=3.0)
+        if self.logger is not None:
+            self.logger.close()
+        self.fc.stop()
+
+    # -- outgoing -------------------------------------------------------------------------
+
+    def send(self, channel: str, message: Any) -> None:
+        """Publish a message on `<id>/<channel>/out` with the contract's QoS."""
+        self.mqtt.publish(
+            protocol.topic(self.drone_id, channel, "out"),
+            protocol.encode(message),
+            qos=protocol.QOS[channel],
+        )
+        self.sent[channel] += 1
+
+    def raise_alarm(
+        self,
+        level: str,
+        message: str,
+        *,
+        sensor: str | None = None,
+        value: float | None = None,
+        context: dict | None = None,
+    ) -> None:
+        """Publish an alarm with the drone's position and the mission it is flying."""
+        if context is None:
+            ref = self.worker.current
+            context = {} if ref is None else ref.to_dict()
+        alarm = protocol.Alarm(
+            level=level,
+            message=message,
+            position=position_of(self.fc.state),
+            mission_id=context.get("mission_id"),
+            assignment_id=context.get("assignment_id"),
+            index=context.get("index"),
+            sensor=sensor,
+            value=value,
+        )
+        self.send("alarms", alarm)
+        self._event(
+            "alarm", {"level": level, "sensor": sensor, "value": value, "position": alarm.position}
+        )
+
+    def _beat(self) -> None:
+        self.send("heartbeats", build_heartbeat(self.drone_id, self.fc.state, self.worker.current))
+
+    def _event(self, kind: str, details: dict) -> None:
+        if self.logger is not None:
+            self.logger.event(kind, details)
+
+    # -- flight-controller objects --------------------------------------------------------
+
+    def _on_object(self, name: str, ts: float, fields: dict) -> None:
+        with self._telemetry_lock:
+            self._telemetry.append(protocol.TelemetryObject(name, ts, fields))
+        if self.logger is not None:
+            self.logger.telemetry(name, ts, fields)
+
+    def _flush_telemetry(self) -> None:
+        with self._telemetry_lock:
+            batch, self._telemetry = self._telemetry, []
+        for start in range(0, len(batch), TELEMETRY_BATCH_MAX):
+            chunk = tuple(batch[start : start + TELEMETRY_BATCH_MAX])
+            self.send("telemetry", protocol.Telemetry(chunk))
+
+    def _telemetry_loop(self) -> None:
+        while not self._stop.wait(self.config.telemetry_interval):
+            try:
+                self._flush_telemetry()
+            except Exception:
+                log.exception("telemetry publish failed")
+
+    def _supervise(self) -> None:
+        while not self._stop.wait(0.2):
+            try:
+                self.failsafe.tick()
+                if self.logger is not None:
+                    self.logger.on_state(self.fc.state.armed)
+            except Exception:
+                log.exception("supervisor tick failed")
+
+    def _on_reading(self, sensor: str, reading: dict) -> None:
+        self.failsafe.check_reading(sensor, reading)
+
+    def _on_connection(self, connected: bool) -> None:
+        self.failsafe.link_changed(connected)
+        if connected:
+            self.gear.announce()
+
+    # -- incoming -------------------------------------------------------------------------
+
+    def _drop(self, reason: str, topic: str, detail: object) -> None:
+        self.dropped[reason] += 1
+        log.warning("dropped message on %s (%s): %s", topic, reason, detail)
+
+    def _on_message(self, topic: str, payload: bytes) -> None:
+        try:
+            drone_id, channel, direction = protocol.split_topic(topic)
+        except protocol.ProtocolError as exc:
+            self._drop("topic", topic, exc)
+            return
+        if drone_id != self.drone_id or direction != "in":
+            self._drop("topic", topic, "not one of this drone's input topics")
+            return
+        try:
+            obj = protocol.decode_json(payload)
+        except protocol.ProtocolError as exc:
+            self._drop("json", topic, exc)
+            return
+        handler = {"control": self._control, "mission": self._mission, "gear": self._gear_query}
+        handler[channel](topic, obj)
+
+    def _control(self, topic: str, obj: Any) -> None:
+        try:
+            request = protocol.parse_control_request(obj)
+        except protocol.ProtocolError as exc:
+            request_id = protocol.request_id_of(obj)
+            if request_id is None:
+                self._drop("control", topic, exc)
+                return
+            command = obj.get("command") if isinstance(obj.get("command"), str) else "unknown"
+            self.dropped["control_refused"] += 1
+            self.send(
+                "control",
+                protocol.ControlResponse(
+                    request_id, command or "unknown", False, None, _sentence(exc)
+                ),
+            )
+            return
+        self._control_pool.submit(self._run_control, request)
+
+    def _run_control(self, request: protocol.ControlRequest) -> None:
+        try:
+            response = self.controller.handle(request)
+        except Exception as exc:  # Controller.handle should not raise; belt and braces
+            log.exception("control %s crashed", request.command)
+            response = protocol.ControlResponse(
+                request.request_id, request.command, False, None, f"The agent failed: {exc}."
+            )
+        self.send("control", response)
+
+    def _mission(self, topic: str, obj: Any) -> None:
+        try:
+            request = protocol.parse_mission_request(obj)
+        except protocol.ProtocolError as exc:
+            request_id = protocol.request_id_of(obj)
+            if request_id is None:
+                self._drop("mission", topic, exc)
+                return
+            mission_id = obj.get("mission_id")
+            if not isinstance(mission_id, str) or not mission_id:
+                mission_id = "unknown"
+            self.dropped["mission_refused"] += 1
+            self.send(
+                "mission",
+                protocol.MissionProgress(
+                    mission_id,
+                    obj.get("assignment_id") if isinstance(obj.get("assignment_id"), str) else None,
+                    "rejected",
+                    error=_sentence(exc),
+                    request_id=request_id,
+                ),
+            )
+            return
+        self.worker.submit(request)
+
+    def _gear_query(self, topic: str, obj: Any) -> None:
+        try:
+            query = protocol.parse_gear_query(obj)
+        except protocol.ProtocolError as exc:
+            request_id = protocol.request_id_of(obj)
+            if request_id is None:
+                self._drop("gear", topic, exc)
+                return
+            self.send("gear", protocol.GearReply(request_id, False, error=_sentence(exc)))
+            return
+        self.send("gear", self.gear.handle_query(query, self.fc.state))
+
+
+def _sentence(exc: protocol.ProtocolError) -> str:
+    return f"Bad {exc.field}: {exc.message}."
+
+
+def wait_until(predicate: Any, timeout: float, interval: float = 0.05) -> bool:
+    """Poll `predicate` until it is true or `timeout` passes (for tools and tests)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(interval)
+    return bool(predicate())
