@@ -1,0 +1,556 @@
+"""QGroundControl `.plan` files (JSON, fileType "Plan", version 1) ↔ our mission steps.
+
+Mission items map onto PROTOCOL.md steps, altitudes relative to home (frame 3):
+
+| item | steps |
+|---|---|
+| 22 NAV_TAKEOFF | arm, takeoff(altitude) — QGC missions start disarmed on the ground |
+| 16 NAV_WAYPOINT | navigate(lat, lon, altitude_delta), wait_for_flight(acceptance radius), sleep(hold) if hold > 0 |
+| 19 NAV_LOITER_TIME | navigate, wait_for_flight, sleep(time) |
+| 21 NAV_LAND | land, preceded by navigate + wait_for_flight when it is not where the drone already is |
+| 20 NAV_RETURN_TO_LAUNCH | navigate(home), wait_for_flight, land |
+| 2000 IMAGE_START_CAPTURE, 203 DO_DIGICAM_CONTROL | takepic |
+
+Where the step list cannot tell two items apart (a hold waypoint from a loiter, RTL from
+a land at home, the two camera commands) or has no place for a value (takeoff
+coordinate, pass radius, yaw), the first step of the item carries `params["qgc"]`: the
+command, its non-derived params and frame. The onboard agent ignores unknown params
+(onboard.protocol.validate_command drops them), so these hints never change a flight;
+they let a plan made in QGroundControl import and re-export with equal mission items.
+Steps without hints (our own missions) export canonically. The geofence and the rally
+points have no step form: they come back as plain dicts to store beside the mission.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from missions.planning import PlanningError
+from onboard.protocol import ProtocolError, validate_command
+
+NAV_WAYPOINT = 16
+NAV_LOITER_TIME = 19
+NAV_RETURN_TO_LAUNCH = 20
+NAV_LAND = 21
+NAV_TAKEOFF = 22
+DO_DIGICAM_CONTROL = 203
+IMAGE_START_CAPTURE = 2000
+
+FRAME_GLOBAL = 0  # altitude above mean sea level
+FRAME_MISSION = 2  # the item has no coordinate
+FRAME_GLOBAL_RELATIVE_ALT = 3
+ALTITUDE_MODE_RELATIVE = 1
+
+COORDINATE_COMMANDS = (NAV_WAYPOINT, NAV_LOITER_TIME, NAV_LAND, NAV_TAKEOFF)
+CAMERA_COMMANDS = (IMAGE_START_CAPTURE, DO_DIGICAM_CONTROL)
+SUPPORTED_COMMANDS = COORDINATE_COMMANDS + (NAV_RETURN_TO_LAUNCH,) + CAMERA_COMMANDS
+
+# params 1-4 as QGroundControl writes them for a new item (yaw NaN is written as null).
+_DEFAULT_P = {
+    NAV_WAYPOINT: [0, 0, 0, None],
+    NAV_LOITER_TIME: [0, 0, 0, None],
+    NAV_LAND: [0, 0, 0, None],
+    NAV_TAKEOFF: [0, 0, 0, None],
+}
+# Camera items have no coordinate: all seven params are theirs (CameraSection "Take photo").
+_DEFAULT_CAMERA = {
+    IMAGE_START_CAPTURE: [0, 0, 1, 0, None, None, None],
+    DO_DIGICAM_CONTROL: [0, 0, 0, 0, 1, 0, 0],
+}
+DEFAULT_ALTITUDE = 10.0
+
+
+class QgcPlanError(PlanningError):
+    """A .plan file we cannot read or a step list we cannot write; `field` locates it."""
+
+
+@dataclass(frozen=True)
+class QgcPlan:
+    steps: list[dict]
+    home: list[float] | None = None  # [lat, lon, AMSL altitude]
+    geofence: dict = field(default_factory=lambda: {"polygons": [], "circles": []})
+    rally_points: list[list[float]] = field(default_factory=list)  # [[lat, lon, alt]]
+    cruise_speed: float | None = None
+    hover_speed: float | None = None
+    firmware_type: int = 12  # MAV_AUTOPILOT_PX4, QGroundControl's default
+    vehicle_type: int = 2  # MAV_TYPE_QUADROTOR
+
+    def to_dict(self) -> dict:
+        return {
+            "steps": self.steps,
+            "home": self.home,
+            "geofence": self.geofence,
+            "rally_points": self.rally_points,
+            "cruise_speed": self.cruise_speed,
+            "hover_speed": self.hover_speed,
+            "firmware_type": self.firmware_type,
+            "vehicle_type": self.vehicle_type,
+        }
+
+
+def _command_name(command: int) -> str:
+    try:
+        from pymavlink.dialects.v20 import common
+
+        return common.enums["MAV_CMD"][command].name
+    except (ImportError, KeyError):
+        return f"MAV_CMD {command}"
+
+
+# ---------------------------------------------------------------------------------------
+# Reading.
+
+
+def _num(value: Any, where: str, *, allow_null: bool = False) -> float | None:
+    if value is None and allow_null:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise QgcPlanError(where, f"must be a number, got {value!r}")
+    return value
+
+
+def _obj(value: Any, where: str) -> Mapping:
+    if not isinstance(value, Mapping):
+        raise QgcPlanError(where, "must be a JSON object")
+    return value
+
+
+def _list(value: Any, where: str) -> list:
+    if not isinstance(value, list):
+        raise QgcPlanError(where, "must be a list")
+    return value
+
+
+def _latlon(lat: Any, lon: Any, where: str) -> tuple[float, float]:
+    lat = _num(lat, f"{where}.lat")
+    lon = _num(lon, f"{where}.lon")
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise QgcPlanError(where, f"({lat}, {lon}) is not a WGS84 coordinate")
+    return lat, lon
+
+
+class _Reader:
+    """Turns mission items into steps, tracking the altitude and where the drone is."""
+
+    def __init__(self, home: list[float] | None) -> None:
+        self.home = home
+        self.altitude: float | None = None
+        self.position: tuple[float, float] | None = None
+        self.armed = False
+        self.body: list[tuple[str, dict]] = []
+        self.sources: list[str] = []  # the item each step came from, for error messages
+        self.where = ""
+
+    def add(self, command: str, params: dict) -> None:
+        self.body.append((command, params))
+        self.sources.append(self.where)
+
+    def relative_altitude(self, item: Mapping, alt: float, where: str) -> float:
+        frame = item.get("frame")
+        if frame == FRAME_GLOBAL_RELATIVE_ALT:
+            return alt
+        if frame == FRAME_GLOBAL:
+            if self.home is None:
+                raise QgcPlanError(where, "an AMSL altitude needs plannedHomePosition")
+            return alt - self.home[2]
+        raise QgcPlanError(where, f"frame {frame!r} is not supported (use relative altitude)")
+
+    def navigate(self, lat: float, lon: float, alt: float | None, hint: dict | None) -> None:
+        params: dict = {"lat": lat, "lon": lon}
+        if alt is not None:
+            if self.altitude is not None and alt != self.altitude:
+                params["altitude_delta"] = alt - self.altitude
+            self.altitude = alt
+        if hint:
+            params["qgc"] = hint
+        self.add("navigate", params)
+        self.position = (lat, lon)
+
+    def item(self, item: Mapping, where: str) -> None:
+        self.where = where
+        kind = item.get("type")
+        if kind == "ComplexItem":
+            raise QgcPlanError(
+                where,
+                f"complex item {item.get('complexItemType')!r} is not supported; "
+                "convert it to waypoints in QGroundControl first",
+            )
+        if kind != "SimpleItem":
+            raise QgcPlanError(where, f"unknown item type {kind!r}")
+        command = item.get("command")
+        if command not in SUPPORTED_COMMANDS:
+            raise QgcPlanError(
+                where,
+                f"{_command_name(command) if isinstance(command, int) else repr(command)} "
+                f"(doJumpId {item.get('doJumpId')}) is not supported",
+            )
+        params = _list(item.get("params"), f"{where}.params")
+        if len(params) != 7:
+            raise QgcPlanError(f"{where}.params", "must hold 7 values")
+        p = [_num(v, f"{where}.params[{i}]", allow_null=True) for i, v in enumerate(params)]
+        hint: dict = {"command": command}
+        if item.get("autoContinue", True) is not True:
+            hint["autoContinue"] = item.get("autoContinue")
+        if "AltitudeMode" in item and item["AltitudeMode"] != ALTITUDE_MODE_RELATIVE:
+            hint["AltitudeMode"] = item["AltitudeMode"]
+
+        if command not in COORDINATE_COMMANDS and item.get("frame") != FRAME_MISSION:
+            hint["frame"] = item.get("frame")
+        if command in CAMERA_COMMANDS:
+            if p != _DEFAULT_CAMERA[IMAGE_START_CAPTURE] or command != IMAGE_START_CAPTURE:
+                hint["p"] = p
+            self.add("takepic", {"qgc": hint} if len(hint) > 1 else {})
+            return
+        if command == NAV_RETURN_TO_LAUNCH:
+            if self.home is None:
+                raise QgcPlanError(where, "return to launch needs plannedHomePosition")
+            if p != [0] * 7:
+                hint["p"] = p
+            self.navigate(self.home[0], self.home[1], None, hint)
+            self.add("wait_for_flight", {})
+            self.add("land", {})
+            return
+
+        lat, lon = (None, None) if p[4] is None and p[5] is None else _latlon(p[4], p[5], where)
+        alt = self.relative_altitude(item, _num(p[6], f"{where}.params[6]"), where)
+        if command == NAV_TAKEOFF:
+            if alt < 0.5:
+                raise QgcPlanError(f"{where}.params[6]", "takeoff altitude must be at least 0.5 m")
+            if p[:4] != _DEFAULT_P[NAV_TAKEOFF]:
+                hint["p"] = p[:4]
+            if lat is not None and (self.home is None or [lat, lon] != self.home[:2]):
+                hint["coordinate"] = [lat, lon]
+            if not self.armed:
+                self.add("arm", {})
+                self.armed = True
+            self.add("takeoff", {"altitude": alt, "qgc": hint})
+            self.altitude = alt
+            return
+        if lat is None:
+            raise QgcPlanError(where, "needs a latitude and longitude")
+        if command == NAV_LAND:
+            if p[:4] != _DEFAULT_P[NAV_LAND]:
+                hint["p"] = p[:4]
+            hint["coordinate"] = [lat, lon, alt]
+            if (lat, lon) == self.position or (lat, lon) == (0, 0):
+                self.add("land", {"qgc": hint})
+            else:
+                self.navigate(lat, lon, None, hint)
+                self.add("wait_for_flight", {})
+                self.add("land", {})
+            self.altitude = 0.0
+            return
+        # Waypoint or loiter: the hold/loiter time becomes a sleep after arrival.
+        derived = (0, 1) if command == NAV_WAYPOINT else (0,)
+        extra = [None if i in derived else value for i, value in enumerate(p[:4])]
+        default = [None if i in derived else v for i, v in enumerate(_DEFAULT_P[command])]
+        if extra != default:
+            hint["p"] = extra
+        self.navigate(lat, lon, alt, hint if len(hint) > 1 or command != NAV_WAYPOINT else None)
+        accept = p[1] if command == NAV_WAYPOINT else 0
+        self.add("wait_for_flight", {"horizontal_tolerance": accept} if accept else {})
+        if p[0]:
+            if p[0] < 0:
+                raise QgcPlanError(f"{where}.params[0]", "hold time must not be negative")
+            self.add("sleep", {"value": p[0]})
+
+
+def _read_geofence(data: Any) -> dict:
+    if data is None:
+        return {"polygons": [], "circles": []}
+    fence = _obj(data, "geoFence")
+    polygons = []
+    for i, raw in enumerate(_list(fence.get("polygons", []), "geoFence.polygons")):
+        where = f"geoFence.polygons[{i}]"
+        raw = _obj(raw, where)
+        vertices = _list(raw.get("polygon"), f"{where}.polygon")
+        if len(vertices) < 3:
+            raise QgcPlanError(f"{where}.polygon", "needs at least three vertices")
+        points = [
+            list(_latlon(*_list(v, f"{where}.polygon[{j}]")[:2], f"{where}.polygon[{j}]"))
+            for j, v in enumerate(vertices)
+        ]
+        polygons.append({"inclusion": bool(raw.get("inclusion", True)), "polygon": points})
+    circles = []
+    for i, raw in enumerate(_list(fence.get("circles", []), "geoFence.circles")):
+        where = f"geoFence.circles[{i}]"
+        circle = _obj(_obj(raw, where).get("circle"), f"{where}.circle")
+        center = _list(circle.get("center"), f"{where}.circle.center")
+        radius = _num(circle.get("radius"), f"{where}.circle.radius")
+        if radius <= 0:
+            raise QgcPlanError(f"{where}.circle.radius", "must be greater than 0")
+        circles.append(
+            {
+                "inclusion": bool(raw.get("inclusion", True)),
+                "center": list(_latlon(*center[:2], f"{where}.circle.center")),
+                "radius": radius,
+            }
+        )
+    return {"polygons": polygons, "circles": circles}
+
+
+def _read_rally(data: Any) -> list[list[float]]:
+    if data is None:
+        return []
+    points = []
+    for i, raw in enumerate(_list(_obj(data, "rallyPoints").get("points", []), "rallyPoints")):
+        where = f"rallyPoints.points[{i}]"
+        raw = _list(raw, where)
+        if len(raw) != 3:
+            raise QgcPlanError(where, "must be [lat, lon, altitude]")
+        lat, lon = _latlon(raw[0], raw[1], where)
+        points.append([lat, lon, _num(raw[2], f"{where}[2]")])
+    return points
+
+
+def import_plan(source: str | bytes | Mapping) -> QgcPlan:
+    """A .plan file (text, bytes or parsed JSON) → QgcPlan, or QgcPlanError saying where."""
+    if isinstance(source, bytes | str):
+        try:
+            source = json.loads(source)
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise QgcPlanError("file", f"is not JSON ({exc})") from None
+    plan = _obj(source, "file")
+    if plan.get("fileType") != "Plan":
+        raise QgcPlanError("fileType", f"must be 'Plan', got {plan.get('fileType')!r}")
+    if plan.get("version") != 1:
+        raise QgcPlanError("version", f"only version 1 is supported, got {plan.get('version')!r}")
+    mission = _obj(plan.get("mission"), "mission")
+    if mission.get("version") != 2:
+        raise QgcPlanError(
+            "mission.version", "only mission version 2 (QGroundControl 3.3+) is supported"
+        )
+    home = mission.get("plannedHomePosition")
+    if home is not None:
+        home = _list(home, "mission.plannedHomePosition")
+        if len(home) != 3:
+            raise QgcPlanError("mission.plannedHomePosition", "must be [lat, lon, altitude]")
+        home = [
+            *_latlon(home[0], home[1], "mission.plannedHomePosition"),
+            _num(home[2], "mission.plannedHomePosition[2]"),
+        ]
+    reader = _Reader(home)
+    items = _list(mission.get("items"), "mission.items")
+    for i, raw in enumerate(items):
+        reader.item(_obj(raw, f"mission.items[{i}]"), f"mission.items[{i}]")
+    if not reader.body:
+        raise QgcPlanError("mission.items", "holds no mission item")
+    steps = []
+    for i, (command, params) in enumerate(reader.body):
+        # The same checks a drone makes, so an imported plan is a startable mission.
+        try:
+            validate_command(command, params, mission=True)
+        except ProtocolError as exc:
+            raise QgcPlanError(reader.sources[i], exc.message) from None
+        steps.append({"index": i, "command": command, "params": params})
+    return QgcPlan(
+        steps=steps,
+        home=home,
+        geofence=_read_geofence(plan.get("geoFence")),
+        rally_points=_read_rally(plan.get("rallyPoints")),
+        cruise_speed=_num(mission.get("cruiseSpeed"), "mission.cruiseSpeed", allow_null=True),
+        hover_speed=_num(mission.get("hoverSpeed"), "mission.hoverSpeed", allow_null=True),
+        firmware_type=int(_num(mission.get("firmwareType", 12), "mission.firmwareType")),
+        vehicle_type=int(_num(mission.get("vehicleType", 2), "mission.vehicleType")),
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Writing.
+
+
+def _coordinate_item(
+    command: int, p4: list, lat: float, lon: float, alt: float, hint: Mapping
+) -> dict:
+    return {
+        "AMSLAltAboveTerrain": None,
+        "Altitude": alt,
+        "AltitudeMode": hint.get("AltitudeMode", ALTITUDE_MODE_RELATIVE),
+        "autoContinue": hint.get("autoContinue", True),
+        "command": command,
+        "frame": FRAME_GLOBAL_RELATIVE_ALT,
+        "params": [*p4, lat, lon, alt],
+        "type": "SimpleItem",
+    }
+
+
+def _plain_item(command: int, params: list, hint: Mapping) -> dict:
+    return {
+        "autoContinue": hint.get("autoContinue", True),
+        "command": command,
+        "frame": hint.get("frame", FRAME_MISSION),
+        "params": params,
+        "type": "SimpleItem",
+    }
+
+
+class _Writer:
+    def __init__(
+        self, steps: Sequence[Mapping], home: Sequence[float] | None, altitude: float
+    ) -> None:
+        self.steps = [dict(s) for s in steps]
+        self.home = home
+        self.altitude = altitude
+        self.position: tuple[float, float] | None = None
+        self.items: list[dict] = []
+
+    def _at(self, i: int, command: str) -> bool:
+        return i < len(self.steps) and self.steps[i]["command"] == command
+
+    def run(self) -> list[dict]:
+        i = 0
+        while i < len(self.steps):
+            i = self.step(i)
+        for n, item in enumerate(self.items, start=1):
+            item["doJumpId"] = n
+        return [dict(sorted(item.items())) for item in self.items]
+
+    def step(self, i: int) -> int:
+        step = self.steps[i]
+        command = step["command"]
+        params = dict(step.get("params") or {})
+        hint = params.get("qgc") or {}
+        where = f"steps[{i}] (index {step.get('index')})"
+        if command in ("arm", "wait_for_flight"):
+            # A QGC mission arms with its takeoff, and every nav item waits for arrival.
+            return i + 1
+        if command == "takeoff":
+            self.altitude = float(params.get("altitude", DEFAULT_ALTITUDE))
+            lat, lon = hint.get("coordinate") or (self.home[:2] if self.home else (0, 0))
+            p4 = hint.get("p", _DEFAULT_P[NAV_TAKEOFF])
+            self.items.append(_coordinate_item(NAV_TAKEOFF, p4, lat, lon, self.altitude, hint))
+            return i + 1
+        if command == "takepic":
+            code = hint.get("command", IMAGE_START_CAPTURE)
+            p = hint.get("p", _DEFAULT_CAMERA[code])
+            self.items.append(_plain_item(code, list(p), hint))
+            return i + 1
+        if command == "land":
+            lat, lon, alt = hint.get("coordinate") or (*(self.position or (0, 0)), 0)
+            p4 = hint.get("p", _DEFAULT_P[NAV_LAND])
+            self.items.append(_coordinate_item(NAV_LAND, p4, lat, lon, alt, hint))
+            self.altitude = 0.0
+            return i + 1
+        if command == "navigate":
+            return self.navigate(i, params, hint)
+        if command == "sleep":
+            if self.position is None:
+                raise QgcPlanError(where, "a sleep before any waypoint has no QGroundControl item")
+            lat, lon = self.position
+            p4 = [float(params["value"]), 0, 0, None]
+            self.items.append(_coordinate_item(NAV_LOITER_TIME, p4, lat, lon, self.altitude, {}))
+            return i + 1
+        raise QgcPlanError(where, f"the {command!r} step has no QGroundControl mission item")
+
+    def navigate(self, i: int, params: dict, hint: Mapping) -> int:
+        lat, lon = float(params["lat"]), float(params["lon"])
+        code = hint.get("command", NAV_WAYPOINT)
+        j = i + 1
+        wait = {}
+        if self._at(j, "wait_for_flight"):
+            wait = self.steps[j].get("params") or {}
+            j += 1
+        if code in (NAV_RETURN_TO_LAUNCH, NAV_LAND) and self._at(j, "land"):
+            if code == NAV_RETURN_TO_LAUNCH:
+                self.items.append(_plain_item(NAV_RETURN_TO_LAUNCH, hint.get("p", [0] * 7), hint))
+            else:
+                _, _, alt = hint.get("coordinate", (lat, lon, 0))
+                p4 = hint.get("p", _DEFAULT_P[NAV_LAND])
+                self.items.append(_coordinate_item(NAV_LAND, p4, lat, lon, alt, hint))
+            self.position, self.altitude = (lat, lon), 0.0
+            return j + 1
+        self.altitude += float(params.get("altitude_delta") or 0.0)
+        hold = 0.0
+        if self._at(j, "sleep"):
+            hold = float(self.steps[j]["params"]["value"])
+            j += 1
+        if code == NAV_LOITER_TIME:
+            p4 = list(hint.get("p", _DEFAULT_P[NAV_LOITER_TIME]))
+            p4[0] = hold
+        else:
+            code = NAV_WAYPOINT
+            p4 = list(hint.get("p", _DEFAULT_P[NAV_WAYPOINT]))
+            p4[0] = hold
+            p4[1] = wait.get("horizontal_tolerance", 0)
+        self.items.append(_coordinate_item(code, p4, lat, lon, self.altitude, hint))
+        self.position = (lat, lon)
+        return j
+
+
+def export_plan(
+    steps: Sequence[Mapping],
+    *,
+    home: Sequence[float] | None = None,
+    geofence: Mapping | None = None,
+    rally_points: Sequence[Sequence[float]] = (),
+    cruise_speed: float | None = 15,
+    hover_speed: float | None = 5,
+    firmware_type: int = 12,
+    vehicle_type: int = 2,
+    altitude: float = DEFAULT_ALTITUDE,
+) -> dict:
+    """Our steps (in flying order) → a .plan document (a dict; `dumps` writes the file).
+
+    `altitude` is the height the drone is at if the steps do not start with a takeoff.
+    Steps with no QGroundControl item (sense, changeN, virtualalarm, …) raise QgcPlanError.
+    """
+    items = _Writer(steps, home, altitude).run()
+    fence = geofence or {}
+    return {
+        "fileType": "Plan",
+        "geoFence": {
+            "circles": [
+                {
+                    "circle": {"center": list(c["center"]), "radius": c["radius"]},
+                    "inclusion": c.get("inclusion", True),
+                    "version": 1,
+                }
+                for c in fence.get("circles", [])
+            ],
+            "polygons": [
+                {
+                    "inclusion": p.get("inclusion", True),
+                    "polygon": [list(v) for v in p["polygon"]],
+                    "version": 1,
+                }
+                for p in fence.get("polygons", [])
+            ],
+            "version": 2,
+        },
+        "groundStation": "Skyhive",
+        "mission": {
+            "cruiseSpeed": cruise_speed,
+            "firmwareType": firmware_type,
+            "globalPlanAltitudeMode": ALTITUDE_MODE_RELATIVE,
+            "hoverSpeed": hover_speed,
+            "items": items,
+            "plannedHomePosition": list(home) if home is not None else None,
+            "vehicleType": vehicle_type,
+            "version": 2,
+        },
+        "rallyPoints": {"points": [list(p) for p in rally_points], "version": 2},
+        "version": 1,
+    }
+
+
+def export_qgc_plan(plan: QgcPlan) -> dict:
+    """Re-export an imported plan with its home, geofence, rally points and speeds."""
+    return export_plan(
+        plan.steps,
+        home=plan.home,
+        geofence=plan.geofence,
+        rally_points=plan.rally_points,
+        cruise_speed=plan.cruise_speed,
+        hover_speed=plan.hover_speed,
+        firmware_type=plan.firmware_type,
+        vehicle_type=plan.vehicle_type,
+    )
+
+
+def dumps(document: Mapping) -> str:
+    """The file text, indented as QGroundControl writes it."""
+    return json.dumps(document, indent=4, sort_keys=True) + "\n"
