@@ -11,6 +11,8 @@
 //   D3          REQUEST from the Raspberry Pi (high = send the command frame).
 //   D4          MODE from the Raspberry Pi (low = arm, high = disarm; latched on REQUEST rise).
 //   D13 (LED)   on while a command frame is sent, blinking while the safe frame is sent.
+//   USB serial  115200 baud, one status line a second: mode and received frames by verdict,
+//               so dropped frames are counted and visible, never silent.
 // Run `make -C firmware/arming_switch header` first: generated_frames.h comes from frames.json.
 
 #include "arming.h"
@@ -84,6 +86,7 @@ void setup() {
   pinMode(frames::kPinMode, INPUT);
   pinMode(frames::kPinOutput, OUTPUT);
   pinMode(LED_BUILTIN, OUTPUT);
+  Serial.begin(115200);
 
   noInterrupts();
   // Take Timer1 over from the Arduino core's PWM setup: normal mode, prescaler 8.
@@ -108,9 +111,38 @@ void setup() {
   interrupts();
 }
 
+namespace {
+
+void printStatus(arming::Mode mode) {
+  // The counters are written by INT0: copy them with interrupts off, print with them on.
+  noInterrupts();
+  const ppm::DecoderStats stats = emulator.decoder().stats();
+  const bool stuck = emulator.armingSwitch().requestStuck();
+  interrupts();
+  Serial.print(F("mode="));
+  Serial.print(arming::modeName(mode));
+  Serial.print(F(" stuck_request="));
+  Serial.print(stuck ? 1 : 0);
+  for (uint8_t i = 0; i < ppm::kVerdictCount; ++i) {
+    Serial.print(F(" ["));
+    Serial.print(ppm::verdictName(static_cast<ppm::Verdict>(i)));
+    Serial.print(F("]="));
+    Serial.print(stats.verdicts[i]);
+  }
+  Serial.print(F(" [missed edges]="));
+  Serial.println(stats.missed_edges);
+}
+
+}  // namespace
+
 void loop() {
+  static uint32_t last_status_ms = 0;
   const arming::Mode mode = static_cast<arming::Mode>(led_mode);
   const bool command = mode == arming::Mode::Arming || mode == arming::Mode::Disarming;
   const bool blink = mode == arming::Mode::Failsafe && (millis() / 250) % 2 == 0;
   digitalWrite(LED_BUILTIN, command || blink ? HIGH : LOW);
+  if (millis() - last_status_ms >= 1000) {
+    last_status_ms = millis();
+    printStatus(mode);
+  }
 }
