@@ -20,6 +20,11 @@ from PIL import Image
 
 EARTH_RADIUS_M = 6_378_137.0
 
+# The forward camera's defaults: the past-image view must use the same mount tilt and
+# field of view to place the drone in these pictures.
+VIEW_FOV_DEG = 90.0
+VIEW_PITCH_DOWN_DEG = 30.0
+
 SKY_TOP = np.array([70.0, 120.0, 200.0], dtype=np.float32)
 SKY_HORIZON = np.array([185.0, 210.0, 235.0], dtype=np.float32)
 HAZE = np.array([170.0, 180.0, 175.0], dtype=np.float32)
@@ -182,8 +187,8 @@ def render_view(
     *,
     width: int = 320,
     height: int = 240,
-    fov_deg: float = 90.0,
-    pitch_down_deg: float = 30.0,
+    fov_deg: float = VIEW_FOV_DEG,
+    pitch_down_deg: float = VIEW_PITCH_DOWN_DEG,
     quality: int = 80,
 ) -> bytes:
     """JPEG seen by a body-mounted camera looking forward, tilted down by pitch_down_deg.

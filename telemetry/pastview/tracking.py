@@ -30,16 +30,14 @@ class PoseTracker:
         """Record one pose; returns LOST or FOUND when the state changes, else None."""
         position = np.array(position, dtype=float)
         orientation = np.array(orientation, dtype=float)
-        first = self._position is None
-        same = (
-            not first
-            and np.array_equal(position, self._position)
-            and np.array_equal(orientation, self._orientation)
-        )
+        last_position, last_orientation = self._position, self._orientation
         self._position, self._orientation = position, orientation
-        if first:
+        if last_position is None or last_orientation is None:
             self.tracked = True  # the first pose is news, not a recovery: no transition
             return None
+        same = np.array_equal(position, last_position) and np.array_equal(
+            orientation, last_orientation
+        )
         if same and self.tracked:
             self.tracked = False
             self.lost_count += 1
