@@ -132,10 +132,13 @@ _ROTATION_AXES = ("roll", "pitch", "yaw")
 
 def _members_xyz(group: Group, prefix: str = "") -> list[Series] | None:
     by_norm = {_norm(n): s for n, s in group.series.items()}
-    for axes in (_AXES, _ROTATION_AXES):
-        found = [by_norm.get(prefix + a) for a in axes]
-        if all(found):
-            return found  # type: ignore[return-value]
+    found = [by_norm.get(prefix + a) for a in _ROTATION_AXES]
+    if all(found):
+        return found  # type: ignore[return-value]
+    # A planar (x, y) velocity is still a velocity; z joins when recorded.
+    found = [by_norm.get(prefix + a) for a in _AXES]
+    if found[0] and found[1]:
+        return [s for s in found if s]
     return None
 
 
