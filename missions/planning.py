@@ -12,6 +12,7 @@ parameters: enough to rebuild the same shape around a new centre (`extend_from_v
 
 from __future__ import annotations
 
+import gc
 import itertools
 import math
 from collections.abc import Mapping, Sequence
@@ -205,7 +206,17 @@ def _serpentine_ne(
 
 def _points(frame: LocalFrame, north: NDArray, east: NDArray) -> list[list[float]]:
     lat, lon = frame.to_latlon(north, east)
-    return np.column_stack((lat, lon)).tolist()
+    rows = np.column_stack((lat, lon))
+    # tolist() makes one list per waypoint; the cyclic GC would rescan every live object
+    # several times while tens of thousands are made (3-4x the cost). Lists of floats
+    # cannot form cycles, so pausing it here loses nothing.
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        return rows.tolist()
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def _waypoints_per_side(length: float, step: float) -> int:
@@ -245,36 +256,26 @@ def coverage(
 # Extension.
 
 
-def _round_half_up(x: float) -> int:
-    return math.floor(x + 0.5)
-
-
 def _extended_steps(steps_v: float, steps_w: float, target_steps2: float) -> tuple[int, int]:
     """Whole steps per side for the grid closest in area to the target (see `extend`).
 
     Candidates are the grids reached by scaling both sides by one factor s and rounding
-    each side to whole steps, so the shape keeps its aspect; the candidate set changes
-    only where a·s or b·s crosses a half step, so those crossings are all we evaluate.
+    each side to whole steps (halves up), so the shape keeps its aspect; the candidate
+    changes only where steps·s crosses a half step, so one s between each pair of
+    consecutive crossings visits every candidate.
     """
     s_max = 2.0 * math.sqrt(target_steps2 / (steps_v * steps_w)) + 1.0
-    crossings = {0.0, s_max}
+    crossings = [np.array([0.0, s_max])]
     for steps in (steps_v, steps_w):
-        k = 0
-        while (k + 0.5) / steps < s_max:
-            crossings.add((k + 0.5) / steps)
-            k += 1
-    ordered = sorted(crossings)
-    best: tuple[float, int, int, int] | None = None
-    for lo, hi in itertools.pairwise(ordered):
-        s = (lo + hi) / 2.0
-        m = max(1, _round_half_up(steps_v * s))
-        n = max(1, _round_half_up(steps_w * s))
-        # Closest area first; on a tie the smaller grid (fewer waypoints to fly).
-        key = (abs(m * n - target_steps2), m * n, m, n)
-        if best is None or key < best:
-            best = key
-    assert best is not None
-    return best[2], best[3]
+        halves = (np.arange(math.ceil(s_max * steps + 0.5)) + 0.5) / steps
+        crossings.append(halves[halves < s_max])
+    ordered = np.unique(np.concatenate(crossings))
+    s = (ordered[:-1] + ordered[1:]) / 2.0
+    m = np.maximum(1, np.floor(steps_v * s + 0.5)).astype(np.int64)
+    n = np.maximum(1, np.floor(steps_w * s + 0.5)).astype(np.int64)
+    # Closest area first; on a tie the smaller grid (fewer waypoints to fly).
+    best = np.lexsort((n, m, m * n, np.abs(m * n - target_steps2)))[0]
+    return int(m[best]), int(n[best])
 
 
 def extend_from_vectors(
