@@ -39,7 +39,7 @@ BLOB_CELL_M = 4
 NORTH_LINE = np.array([220.0, 40.0, 40.0])  # lines of constant north: red
 EAST_LINE = np.array([40.0, 70.0, 220.0])  # lines of constant east: blue
 HOME_RADIUS_M = 0.5  # a white disc marks home (0, 0)
-HOME_COLOUR = np.array([255.0, 255.0, 255.0], dtype=np.float32)
+HOME_PIXEL = np.uint32(0xFFFFFFFF)
 
 # The rendered ground samples a precomputed tile of the pattern: 0.2 m texels, repeating
 # every 204.8 m, larger than any test flight (4 MB of RGBX).
@@ -127,12 +127,32 @@ def ground_colour(n: np.ndarray, e: np.ndarray) -> np.ndarray:
     return colour
 
 
+def _pack(rgb: np.ndarray) -> np.ndarray:
+    """Float RGB (N, 3) to RGBX pixels packed one per uint32, so gathers move one word."""
+    rgbx = np.full((len(rgb), 4), 255, dtype=np.uint8)
+    rgbx[:, :3] = np.clip(rgb, 0, 255)
+    return rgbx.view(np.uint32).ravel()
+
+
+def _unpack(pixels: np.ndarray) -> np.ndarray:
+    return pixels.view(np.uint8).reshape(-1, 4)[:, :3].astype(np.float32)
+
+
 @lru_cache(maxsize=1)
 def _texture() -> np.ndarray:
-    """One period of the ground pattern at texel centres, RGB uint8, (SIZE*SIZE, 3)."""
+    """One period of the ground pattern at texel centres, packed RGBX (SIZE*SIZE,)."""
     centres = (np.arange(TEXTURE_SIZE) + 0.5) / TEXELS_PER_M
     n, e = np.meshgrid(centres, centres, indexing="ij")
-    table = np.clip(ground_colour(n, e), 0, 255).astype(np.float32)
+    table = _pack(ground_colour(n, e))
+    table.setflags(write=False)
+    return table
+
+
+@lru_cache(maxsize=1)
+def _sky() -> np.ndarray:
+    """Packed sky colour for 256 steps of the ray's upward component, horizon to zenith."""
+    up = np.linspace(0.0, 1.0, 256, dtype=np.float32)[:, None]
+    table = _pack(SKY_HORIZON + (SKY_TOP - SKY_HORIZON) * up)
     table.setflags(write=False)
     return table
 
@@ -159,25 +179,31 @@ def _render(
     )
     down = rays[:, 2]
     height_above = -p[2]
-    hits = np.flatnonzero((down > 1e-4) & (height_above > 0))
+    ground = (down > 1e-4) & (height_above > 0)
+    hits = np.flatnonzero(ground)
+    out = np.empty(len(rays), dtype=np.uint32)
 
-    # Sky everywhere first: a gradient in the world "up" component, so roll tilts it.
-    up = np.clip(-down, 0.0, 1.0)[:, None]
-    out = SKY_HORIZON + (SKY_TOP - SKY_HORIZON) * up
+    # Sky: a gradient in the world "up" component of the ray, so roll tilts the horizon.
+    sky = np.flatnonzero(~ground)
+    out[sky] = _sky()[(np.clip(-down[sky], 0.0, 1.0) * 255).astype(np.intp)]
 
     rng = np.float32(height_above) / down[hits]  # rays are unit: t is the range
     gn = np.float32(p[0]) + rng * rays[hits, 0]
     ge = np.float32(p[1]) + rng * rays[hits, 1]
-    i = np.floor(gn * TEXELS_PER_M).astype(np.int64) & (TEXTURE_SIZE - 1)
-    j = np.floor(ge * TEXELS_PER_M).astype(np.int64) & (TEXTURE_SIZE - 1)
+    i = np.floor(gn * TEXELS_PER_M).astype(np.intp) & (TEXTURE_SIZE - 1)
+    j = np.floor(ge * TEXELS_PER_M).astype(np.intp) & (TEXTURE_SIZE - 1)
     colour = _texture()[i * TEXTURE_SIZE + j]
-    colour[gn * gn + ge * ge < HOME_RADIUS_M**2] = HOME_COLOUR
-    fog = np.clip((rng - HAZE_START_M) / (HAZE_FULL_M - HAZE_START_M), 0.0, 1.0)[:, None]
-    out[hits] = colour + (HAZE - colour) * fog
+    colour[gn * gn + ge * ge < HOME_RADIUS_M**2] = HOME_PIXEL
+    hazy = np.flatnonzero(rng > HAZE_START_M)
+    if len(hazy):
+        fog = np.minimum((rng[hazy] - HAZE_START_M) / (HAZE_FULL_M - HAZE_START_M), 1.0)
+        near = _unpack(colour[hazy])
+        colour[hazy] = _pack(near + (HAZE - near) * fog[:, None])
+    out[hits] = colour
 
-    pixels = out.astype(np.uint8).reshape(height, width, 3)
+    image = Image.frombuffer("RGBX", (width, height), out, "raw", "RGBX", 0, 1)
     buffer = io.BytesIO()
-    Image.fromarray(pixels, "RGB").save(buffer, format="JPEG", quality=int(quality))
+    image.save(buffer, format="JPEG", quality=int(quality))
     return buffer.getvalue()
 
 

@@ -230,7 +230,8 @@ class BoardSession:
             self.link_status = "Connected"
         elif gcs_status == "Disconnected":
             self.link_status = "Disconnected"
-        if self.link_status != before or gcs_status == "HandshakeReq":
+        if self.link_status != before or self.link_status != "Connected":
+            # Tell a ground station that thinks it is connected that it is not, at once.
             self._send_object("FlightTelemetryStats")
         if self.link_status == "Connected" and before != "Connected":
             self.stats.handshakes += 1
