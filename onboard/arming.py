@@ -18,6 +18,7 @@ import logging
 import os
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -132,6 +133,33 @@ class GpiodLine:
         self._set(0, 0)
 
 
+@dataclass(frozen=True)
+class StickFrames:
+    """The arm/disarm/safe stick pulses, when firmware/arming_switch is not installed.
+
+    Same values as firmware/arming_switch/frames.json (seed 001 Figure 4.16): pulse HIGH
+    times in microseconds, channel order pitch, roll, throttle, yaw, switch3, switch2.
+    """
+
+    arm_frame_us: tuple[int, ...] = (1000, 1000, 500, 1500, 1000, 1000)
+    disarm_frame_us: tuple[int, ...] = (1000, 1000, 500, 500, 1000, 1000)
+    safe_frame_us: tuple[int, ...] = (1000, 1000, 500, 1000, 1000, 1000)
+    separator_us: int = 500
+    pulse_neutral_us: int = 1000
+
+    def to_channel_period_us(self, pulse_us: int) -> int:
+        return pulse_us + self.separator_us
+
+
+def default_frames() -> Any:
+    """frames.json through H1's loader when the repository is there, else StickFrames."""
+    try:
+        from firmware.arming_switch.frames import load_frames
+    except ImportError:  # the onboard package installed on its own
+        return StickFrames()
+    return load_frames()
+
+
 class UAVTalkReceiverSwitch:
     """Sends the arming stick positions as UAVTalkReceiver channels at 10 Hz until released.
 
@@ -144,9 +172,7 @@ class UAVTalkReceiverSwitch:
 
     def __init__(self, fc: Any = None, *, rate_hz: float = 10.0, frames: Any = None) -> None:
         if frames is None:
-            from firmware.arming_switch.frames import load_frames
-
-            frames = load_frames()
+            frames = default_frames()
         self.fc = fc
         self.frames = frames
         self.period = 1.0 / rate_hz

@@ -1,0 +1,194 @@
+"""`python -m onboard`: run the onboard agent for one drone until SIGTERM/SIGINT."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+from pathlib import Path
+from typing import Any
+
+from .agent import Agent, AgentConfig
+from .arming import ArmingError, GpiodLine, SimulatedLine, UAVTalkReceiverSwitch
+from .failsafe import LINK_LOSS_ACTIONS, parse_bounds
+from .heartbeat import DEFAULT_PREFIX, derive_drone_id
+from .protocol import is_drone_id
+from .sensors import SensorConfigError, SensorField, load_field, parse_plume_option
+
+log = logging.getLogger("onboard")
+
+
+def _positive(text: str) -> float:
+    value = float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError("must be positive")
+    return value
+
+
+def _fraction(text: str) -> float:
+    value = float(text)
+    if not 0 <= value <= 1:
+        raise argparse.ArgumentTypeError("must be between 0 and 1")
+    return value
+
+
+def _drone_id(text: str) -> str:
+    if not is_drone_id(text):
+        raise argparse.ArgumentTypeError("must match ^[A-Za-z0-9_-]{1,64}$")
+    return text
+
+
+def _bounds(text: str) -> tuple[str, tuple[float | None, float | None]]:
+    try:
+        return parse_bounds(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _plume(text: str) -> Any:
+    try:
+        return parse_plume_option(text)
+    except SensorConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m onboard", description=__doc__)
+    p.add_argument("--drone-id", type=_drone_id, help="default: <PREFIX>_<last 3 MAC bytes>")
+    p.add_argument("--id-prefix", default=DEFAULT_PREFIX, help="prefix of a MAC-derived id")
+    p.add_argument(
+        "--link",
+        required=True,
+        help="flight-controller link: serial:/dev/ttyACM0?baud=115200, tcp://host:9000, /dev/pts/N",
+    )
+    p.add_argument("--broker", required=True, help="mqtt://user:pass@host:port")
+    p.add_argument(
+        "--fc", default="uavtalk", choices=["uavtalk"], help="flight-controller protocol"
+    )
+    p.add_argument(
+        "--arming",
+        default="none",
+        help="sim-line:PATH | gpiod:CHIP:REQUEST_LINE:MODE_LINE | uavtalk-receiver | none",
+    )
+    p.add_argument("--gear-dir", type=Path, help="folder with specs.json and sensors.json")
+    p.add_argument("--log-dir", type=Path, help="folder for DFI flight logs")
+    p.add_argument("--pictures-dir", type=Path, help="default: <log-dir>/pictures")
+    p.add_argument("--time-scale", type=_positive, default=1.0, help="simulation speed-up")
+    p.add_argument("--heartbeat-interval", type=_positive, default=5.0, help="seconds")
+    p.add_argument("--telemetry-interval", type=_positive, default=0.1, help="batch period, s")
+    p.add_argument("--battery-critical", type=_fraction, default=0.25, help="0..1")
+    p.add_argument(
+        "--bounds",
+        type=_bounds,
+        action="append",
+        default=[],
+        help="SENSOR:LO:HI reading bounds for OUT_MEASURE (repeatable)",
+    )
+    p.add_argument("--link-loss-timeout", type=_positive, default=30.0, help="seconds")
+    p.add_argument("--link-loss-action", choices=LINK_LOSS_ACTIONS, default="continue")
+    p.add_argument("--sensor-field", type=Path, help="JSON file of simulated plumes")
+    p.add_argument(
+        "--plume",
+        type=_plume,
+        action="append",
+        default=[],
+        help="LAT,LON,RADIUS_M,PEAK[,SENSOR] simulated plume (repeatable)",
+    )
+    p.add_argument("--gear-reread-interval", type=_positive, default=5.0, help="seconds")
+    p.add_argument("--arm-timeout", type=_positive, default=20.0, help="seconds")
+    p.add_argument("--log-level", default="INFO")
+    return p
+
+
+def build_arming(spec: str) -> Any:
+    """The arming switch named on the command line (None for `none`)."""
+    if spec == "none":
+        return None
+    if spec.startswith("sim-line:"):
+        return SimulatedLine(spec.removeprefix("sim-line:"))
+    if spec.startswith("gpiod:"):
+        parts = spec.split(":")
+        if len(parts) != 4:
+            raise ArmingError("gpiod arming is gpiod:CHIP:REQUEST_LINE:MODE_LINE")
+        return GpiodLine(parts[1], int(parts[2]), int(parts[3]))
+    if spec == "uavtalk-receiver":
+        return UAVTalkReceiverSwitch()
+    raise ArmingError(f"unknown arming switch {spec!r}")
+
+
+def build_flight_controller(kind: str, link: str, arming: Any, time_scale: float) -> Any:
+    if kind == "uavtalk":
+        from .fc.uavtalk import UAVTalkFlightController
+
+        fc = UAVTalkFlightController(link, arming_switch=arming, time_scale=time_scale)
+        if isinstance(arming, UAVTalkReceiverSwitch):
+            arming.attach(fc)
+        return fc
+    raise ValueError(f"unknown flight controller protocol {kind!r}")
+
+
+def config_from_args(args: argparse.Namespace) -> AgentConfig:
+    sensor_field = None
+    if args.sensor_field is not None:
+        sensor_field = load_field(args.sensor_field)
+    if args.plume:
+        sensor_field = sensor_field or SensorField()
+        sensor_field.plumes.extend(args.plume)
+    pictures = args.pictures_dir or (args.log_dir / "pictures" if args.log_dir else None)
+    return AgentConfig(
+        drone_id=args.drone_id or derive_drone_id(args.id_prefix),
+        broker_url=args.broker,
+        gear_dir=args.gear_dir,
+        log_dir=args.log_dir,
+        pictures_dir=pictures,
+        time_scale=args.time_scale,
+        heartbeat_interval=args.heartbeat_interval,
+        telemetry_interval=args.telemetry_interval,
+        battery_critical=args.battery_critical,
+        bounds=dict(args.bounds),
+        link_loss_timeout=args.link_loss_timeout,
+        link_loss_action=args.link_loss_action,
+        sensor_field=sensor_field,
+        gear_reread_interval=args.gear_reread_interval,
+        arm_timeout=args.arm_timeout,
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(
+        level=args.log_level.upper(),
+        stream=sys.stderr,
+        format="%(asctime)s agent %(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        config = config_from_args(args)
+        arming = build_arming(args.arming)
+        fc = build_flight_controller(args.fc, args.link, arming, args.time_scale)
+        agent = Agent(config, fc)
+    except (ArmingError, SensorConfigError, ValueError, OSError) as exc:
+        print(f"onboard: {exc}", file=sys.stderr)
+        return 2
+    stopping = threading.Event()
+
+    def _stop(signum: int, frame: object) -> None:
+        stopping.set()
+
+    signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGINT, _stop)
+    agent.start()
+    log.info(
+        "agent %s running (link %s, broker %s)", config.drone_id, args.link, agent.mqtt.broker.host
+    )
+    print(f"agent: {config.drone_id}", flush=True)
+    while not stopping.wait(1.0):
+        pass
+    log.info("stopping")
+    agent.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

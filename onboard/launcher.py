@@ -1,0 +1,356 @@
+"""Start N simulated drones: a flight-controller simulator and an onboard agent each.
+
+    python -m onboard.launcher --count 3 --home 40.6303,-8.6575 \\
+        --broker-url mqtt://127.0.0.1:1883 --credentials-file creds.json
+
+Drones are spread around the home point on a spiral, each with its own folder (gear
+files, flight logs, pictures, arming line, process logs). Broker credentials come from:
+
+- `--credentials-file FILE`: JSON, one of
+  * a list of `manage.py provision_drone` outputs:
+    `[{"drone_id": "SIM_001", "mqtt": {"host": "127.0.0.1", "port": 1883,
+       "username": "SIM_001", "password": "..."}}, ...]`
+  * the same objects one per line (JSON Lines), or
+  * a mapping `{"SIM_001": {"username": "SIM_001", "password": "..."}, ...}`
+    (a value may also be a whole provision output);
+  the drone ids are the file's, in order.
+- `--provision CMD`: a command run once per drone id that prints a provision output, e.g.
+  `--provision ".venv/bin/python manage.py provision_drone"` (the id is appended, or
+  substituted for `{drone_id}`).
+- neither: every agent uses `--broker-url` as given.
+
+`--broker-url` host and port, when given, override the ones in the credentials.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shlex
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from urllib.parse import quote
+
+from . import protocol
+from .mqtt import parse_broker_url
+from .navigation import ned_to_lla
+
+PACKAGE_DIR = Path(__file__).resolve().parent
+REPO_ROOT = PACKAGE_DIR.parent
+GEAR_EXAMPLE = PACKAGE_DIR / "gear_example"
+
+
+class LaunchError(RuntimeError):
+    pass
+
+
+@dataclass(frozen=True)
+class Credentials:
+    drone_id: str
+    username: str | None
+    password: str | None
+    host: str | None = None
+    port: int | None = None
+
+
+def _credentials_from(obj: object, drone_id: str | None = None) -> Credentials:
+    if not isinstance(obj, dict):
+        raise LaunchError("each credentials entry must be a JSON object")
+    mqtt = obj.get("mqtt", obj)
+    if not isinstance(mqtt, dict):
+        raise LaunchError("'mqtt' must be an object")
+    drone_id = obj.get("drone_id", drone_id)
+    if not protocol.is_drone_id(drone_id):
+        raise LaunchError(f"invalid drone id {drone_id!r} in the credentials")
+    port = mqtt.get("port")
+    return Credentials(
+        drone_id=drone_id,
+        username=mqtt.get("username"),
+        password=mqtt.get("password"),
+        host=mqtt.get("host"),
+        port=int(port) if port is not None else None,
+    )
+
+
+def parse_credentials(text: str) -> list[Credentials]:
+    """Credentials in any of the accepted shapes (see the module docstring)."""
+    text = text.strip()
+    if not text:
+        return []
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError:
+        try:
+            data = [json.loads(line) for line in text.splitlines() if line.strip()]
+        except json.JSONDecodeError as exc:
+            raise LaunchError(f"credentials are not JSON or JSON Lines: {exc}") from None
+    if isinstance(data, list):
+        return [_credentials_from(item) for item in data]
+    if isinstance(data, dict) and "drone_id" in data:
+        return [_credentials_from(data)]
+    if isinstance(data, dict):
+        return [_credentials_from(value, key) for key, value in data.items()]
+    raise LaunchError("credentials must be a list or an object")
+
+
+def provision(command: str, drone_id: str) -> Credentials:
+    """Run the provisioning command for one drone and parse what it prints."""
+    parts = shlex.split(command)
+    if any("{drone_id}" in p for p in parts):
+        parts = [p.replace("{drone_id}", drone_id) for p in parts]
+    else:
+        parts.append(drone_id)
+    result = subprocess.run(parts, capture_output=True, text=True, cwd=REPO_ROOT, timeout=120)
+    if result.returncode != 0:
+        raise LaunchError(f"provisioning {drone_id} failed: {result.stderr.strip()[-500:]}")
+    # The command may log before its JSON: take the last line that parses.
+    for line in reversed(result.stdout.strip().splitlines()):
+        try:
+            return _credentials_from(json.loads(line), drone_id)
+        except (json.JSONDecodeError, LaunchError):
+            continue
+    raise LaunchError(f"provisioning {drone_id} printed no credentials JSON")
+
+
+def broker_url_for(credentials: Credentials, default_url: str | None) -> str:
+    """mqtt://user:pass@host:port from credentials, host/port overridden by default_url."""
+    host, port = credentials.host, credentials.port
+    if default_url:
+        base = parse_broker_url(default_url)
+        host, port = base.host, base.port
+        if credentials.username is None:
+            return default_url
+    if host is None:
+        raise LaunchError(f"no broker host for {credentials.drone_id}: give --broker-url")
+    auth = ""
+    if credentials.username:
+        auth = quote(credentials.username, safe="")
+        if credentials.password is not None:
+            auth += ":" + quote(credentials.password, safe="")
+        auth += "@"
+    return f"mqtt://{auth}{host}:{port or 1883}"
+
+
+def spread(home: tuple[float, float, float], count: int, spacing: float) -> list[tuple]:
+    """Positions on a sunflower spiral around home, about `spacing` metres apart."""
+    golden = math.pi * (3 - math.sqrt(5))
+    points = []
+    for i in range(count):
+        r = spacing * math.sqrt(i)
+        north, east = r * math.cos(i * golden), r * math.sin(i * golden)
+        lat, lon, _ = ned_to_lla(north, east, 0.0, home)
+        points.append((round(lat, 7), round(lon, 7), home[2]))
+    return points
+
+
+@dataclass
+class Drone:
+    drone_id: str
+    folder: Path
+    home: tuple[float, float, float]
+    broker_url: str
+    sim: object = None  # firmware.sim.SimulatorProcess
+    agent: subprocess.Popen | None = None
+    restarts: int = 0
+
+    @property
+    def arming_line(self) -> Path:
+        return self.folder / "arming_line"
+
+
+@dataclass
+class Fleet:
+    drones: list[Drone]
+    time_scale: float
+    agent_args: list[str] = field(default_factory=list)
+    _stopping: threading.Event = field(default_factory=threading.Event)
+
+    def start(self) -> None:
+        from firmware.sim import start_simulator
+
+        for drone in self.drones:
+            drone.folder.mkdir(parents=True, exist_ok=True)
+            drone.sim = start_simulator(
+                home=drone.home,
+                time_scale=self.time_scale,
+                arming_line=drone.arming_line,
+                log_file=drone.folder / "sim.log",
+            )
+            self._start_agent(drone)
+
+    def _start_agent(self, drone: Drone) -> None:
+        args = [
+            sys.executable,
+            "-m",
+            "onboard",
+            "--drone-id",
+            drone.drone_id,
+            "--link",
+            drone.sim.url,  # type: ignore[attr-defined]
+            "--broker",
+            drone.broker_url,
+            "--arming",
+            f"sim-line:{drone.arming_line}",
+            "--gear-dir",
+            str(drone.folder / "gear"),
+            "--log-dir",
+            str(drone.folder / "logs"),
+            "--time-scale",
+            str(self.time_scale),
+            *self.agent_args,
+        ]
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT), env.get("PYTHONPATH")]))
+        with open(drone.folder / "agent.log", "ab") as log_file:
+            drone.agent = subprocess.Popen(
+                args, stdout=subprocess.DEVNULL, stderr=log_file, cwd=REPO_ROOT, env=env
+            )
+
+    def watch(self) -> None:
+        """Restart agents that exit on their own, until stop() (one second backoff)."""
+        while not self._stopping.wait(1.0):
+            for drone in self.drones:
+                if drone.agent is not None and drone.agent.poll() is not None:
+                    drone.restarts += 1
+                    print(
+                        f"agent {drone.drone_id} exited ({drone.agent.returncode}); restarting",
+                        file=sys.stderr,
+                        flush=True,
+                    )
+                    self._start_agent(drone)
+
+    def stop(self) -> None:
+        self._stopping.set()
+        for drone in self.drones:
+            if drone.agent is not None and drone.agent.poll() is None:
+                drone.agent.send_signal(signal.SIGTERM)
+        for drone in self.drones:
+            if drone.agent is not None:
+                try:
+                    drone.agent.wait(10)
+                except subprocess.TimeoutExpired:
+                    drone.agent.kill()
+                    drone.agent.wait()
+            if drone.sim is not None:
+                drone.sim.stop()  # type: ignore[attr-defined]
+
+
+def plan_fleet(
+    *,
+    count: int,
+    home: tuple[float, float, float],
+    workdir: Path,
+    credentials: list[Credentials],
+    broker_url: str | None,
+    provision_command: str | None = None,
+    prefix: str = "SIM",
+    spacing: float = 15.0,
+    time_scale: float = 1.0,
+    gear_template: Path = GEAR_EXAMPLE,
+    agent_args: list[str] | None = None,
+) -> Fleet:
+    """Decide ids, credentials, homes and folders (no process is started)."""
+    if count < 1:
+        raise LaunchError("--count must be at least 1")
+    if credentials:
+        if len(credentials) < count:
+            raise LaunchError(f"{count} drones asked for, {len(credentials)} credentials given")
+        chosen = credentials[:count]
+    else:
+        ids = [f"{prefix}_{i + 1:03d}" for i in range(count)]
+        if provision_command:
+            chosen = [provision(provision_command, drone_id) for drone_id in ids]
+        elif broker_url:
+            chosen = [Credentials(drone_id, None, None) for drone_id in ids]
+        else:
+            raise LaunchError("give --credentials-file, --provision or --broker-url")
+    drones = []
+    for creds, position in zip(chosen, spread(home, count, spacing), strict=True):
+        folder = workdir / creds.drone_id
+        gear = folder / "gear"
+        if not gear.exists():
+            shutil.copytree(gear_template, gear)
+        drones.append(Drone(creds.drone_id, folder, position, broker_url_for(creds, broker_url)))
+    return Fleet(drones, time_scale, list(agent_args or []))
+
+
+def _home(text: str) -> tuple[float, float, float]:
+    parts = [float(p) for p in text.split(",")]
+    if len(parts) == 2:
+        parts.append(0.0)
+    if len(parts) != 3 or not (-90 <= parts[0] <= 90 and -180 <= parts[1] <= 180):
+        raise argparse.ArgumentTypeError("home is LAT,LON[,ALT]")
+    return parts[0], parts[1], parts[2]
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(
+        prog="python -m onboard.launcher",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--count", type=int, required=True)
+    p.add_argument("--home", type=_home, required=True, help="LAT,LON[,ALT]")
+    p.add_argument("--broker-url", help="mqtt://host:port (credentials may be included)")
+    source = p.add_mutually_exclusive_group()
+    source.add_argument("--credentials-file", type=Path)
+    source.add_argument("--provision", help="command printing provision_drone JSON for an id")
+    p.add_argument("--prefix", default="SIM", help="drone id prefix when ids are generated")
+    p.add_argument("--spacing", type=float, default=15.0, help="metres between drones")
+    p.add_argument("--time-scale", type=float, default=1.0)
+    p.add_argument("--workdir", type=Path, default=Path(".data/fleet"))
+    p.add_argument("--gear-template", type=Path, default=GEAR_EXAMPLE)
+    p.add_argument("agent_args", nargs="*", help="extra agent flags, after --")
+    args = p.parse_args(argv)
+    try:
+        credentials = []
+        if args.credentials_file is not None:
+            credentials = parse_credentials(args.credentials_file.read_text())
+        fleet = plan_fleet(
+            count=args.count,
+            home=args.home,
+            workdir=args.workdir.resolve(),
+            credentials=credentials,
+            broker_url=args.broker_url,
+            provision_command=args.provision,
+            prefix=args.prefix,
+            spacing=args.spacing,
+            time_scale=args.time_scale,
+            gear_template=args.gear_template,
+            agent_args=args.agent_args,
+        )
+    except (LaunchError, OSError, ValueError) as exc:
+        print(f"onboard.launcher: {exc}", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    try:
+        fleet.start()
+    except Exception as exc:
+        print(f"onboard.launcher: {exc}", file=sys.stderr)
+        fleet.stop()
+        return 1
+    for drone in fleet.drones:
+        print(
+            f"drone: {drone.drone_id} link={drone.sim.url} "  # type: ignore[attr-defined]
+            f"agent_pid={drone.agent.pid} folder={drone.folder}",
+            flush=True,
+        )
+    watcher = threading.Thread(target=fleet.watch, daemon=True)
+    watcher.start()
+    while not stop.wait(1.0):
+        pass
+    fleet.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
