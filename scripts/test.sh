@@ -23,7 +23,7 @@ echo "[test] migrations are up to date"
 $PY manage.py makemigrations --check --dry-run >/dev/null
 if [ -f firmware/arming_switch/Makefile ]; then
   echo "[test] arming-switch firmware host tests"
-  make -s -C firmware/arming_switch test
+  make -s --no-print-directory -C firmware/arming_switch test
 fi
 set +e
 echo "[test] pytest"

@@ -69,3 +69,59 @@ def _close_stray_database_sessions(request):  # type: ignore[no-untyped-def]
             "SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
             "WHERE datname = current_database() AND pid <> pg_backend_pid()"
         )
+
+
+@pytest.fixture(scope="session")
+def live_asgi(request):  # type: ignore[no-untyped-def]
+    """The real ASGI app under uvicorn, reading the test database (commit your data with
+    `world_tx` / `transactional_db`)."""
+    request.getfixturevalue("django_db_setup")
+    from django.db import connection
+
+    from tests.support.live import LiveServer
+
+    server = LiveServer(connection.settings_dict["NAME"])
+    yield server
+    server.stop()
+
+
+@pytest.fixture(scope="session")
+def browser():  # type: ignore[no-untyped-def]
+    """Headless Debian Chromium through Playwright (its own browser download does not work
+    here)."""
+    import os
+
+    from playwright.sync_api import sync_playwright
+
+    from tests.support.live import launch_chromium
+
+    # Playwright's sync API keeps an event loop in this thread; Django would then refuse
+    # the tests' own (synchronous) database work. The server under test is unaffected.
+    previous = os.environ.get("DJANGO_ALLOW_ASYNC_UNSAFE")
+    os.environ["DJANGO_ALLOW_ASYNC_UNSAFE"] = "true"
+    try:
+        with sync_playwright() as playwright:
+            chromium = launch_chromium(playwright)
+            yield chromium
+            chromium.close()
+    finally:
+        if previous is None:
+            os.environ.pop("DJANGO_ALLOW_ASYNC_UNSAFE", None)
+        else:
+            os.environ["DJANGO_ALLOW_ASYNC_UNSAFE"] = previous
+
+
+@pytest.fixture
+def page(browser):  # type: ignore[no-untyped-def]
+    context = browser.new_context(viewport={"width": 1280, "height": 800})
+    page = context.new_page()
+    yield page
+    context.close()
+
+
+def login(page, live_asgi, username: str, password: str = "correct horse battery staple"):  # type: ignore[no-untyped-def]
+    page.goto(f"{live_asgi.url}/accounts/login/")
+    page.fill("input[name=username]", username)
+    page.fill("input[name=password]", password)
+    page.click("button[type=submit]")
+    page.wait_for_load_state()

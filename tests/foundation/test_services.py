@@ -66,6 +66,7 @@ def test_deploy_checks_pass_with_production_values():
         ALLOWED_HOSTS="drones.example.org",
         DEBUG="false",
     )
+    env.pop("DJANGO_ALLOW_ASYNC_UNSAFE", None)  # set by the browser tests' fixture
     started = time.monotonic()
     out = subprocess.run(
         [sys.executable, "manage.py", "check", "--deploy", "--fail-level", "WARNING"],
