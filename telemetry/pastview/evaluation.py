@@ -99,27 +99,31 @@ class FrameSet:
         return (self.inverse_left.reshape(4 * n, 4) @ orientation).reshape(n, 4)
 
 
-def _check_finite(obj: object) -> None:
+def _check_parameters(obj: EvaluationFunction) -> None:
+    """Refuse non-numbers, NaN and out-of-range values; store every value as a float."""
     for f in fields(obj):  # type: ignore[arg-type]
         value = getattr(obj, f.name)
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ValueError(f"{f.name} must be a number, got {value!r}")
         if not math.isfinite(value):
             raise ValueError(f"{f.name} must be finite, got {value!r}")
-        if f.name.startswith("ref_") and f.name != "ref_tilt_deg" and value <= 0:
+        if f.name in obj.POSITIVE and value <= 0:
             raise ValueError(f"{f.name} must be positive, got {value!r}")
-        if f.name.startswith("coeff_") and value < 0:
-            # A negative weight would reward the very thing the term penalises.
+        if (f.name.startswith("coeff_") or f.name in obj.NON_NEGATIVE) and value < 0:
+            # A negative weight would reward the very thing its term penalises.
             raise ValueError(f"{f.name} must not be negative, got {value!r}")
+        object.__setattr__(obj, f.name, float(value))
 
 
 class EvaluationFunction:
     """Common interface: ``scores`` for every frame, ``select`` the best one."""
 
     name: ClassVar[str]
+    POSITIVE: ClassVar[frozenset[str]] = frozenset()
+    NON_NEGATIVE: ClassVar[frozenset[str]] = frozenset()
 
     def __post_init__(self) -> None:
-        _check_finite(self)
+        _check_parameters(self)
 
     def scores(self, frames: FrameSet, pose: Pose, current: Pose | None = None) -> np.ndarray:
         raise NotImplementedError
@@ -141,6 +145,7 @@ class ConstantTimeDelay(EvaluationFunction):
     """Shiroma et al.: the frame whose age is closest to ``ref_delay_s``."""
 
     name: ClassVar[str] = "constant_time_delay"
+    NON_NEGATIVE: ClassVar[frozenset[str]] = frozenset({"ref_delay_s"})
     ref_delay_s: float = 2.0  # our default: the seed gives no value (4 frames at 2 Hz)
 
     def scores(self, frames: FrameSet, pose: Pose, current: Pose | None = None) -> np.ndarray:
@@ -167,6 +172,7 @@ class ConstantDistance(EvaluationFunction):
     """Shiroma et al.: the frame whose distance to the drone is closest to the reference."""
 
     name: ClassVar[str] = "constant_distance"
+    POSITIVE: ClassVar[frozenset[str]] = frozenset({"ref_distance"})
     ref_distance: float = 2.5
 
     def scores(self, frames: FrameSet, pose: Pose, current: Pose | None = None) -> np.ndarray:
@@ -187,6 +193,7 @@ class Murata(EvaluationFunction):
     """
 
     name: ClassVar[str] = "murata"
+    POSITIVE: ClassVar[frozenset[str]] = frozenset({"ref_height", "ref_distance"})
     coeff_height: float = 1.0
     coeff_azimuth: float = 1.0
     coeff_tilt: float = 1.0
@@ -226,6 +233,7 @@ class Spirit(EvaluationFunction):
     """
 
     name: ClassVar[str] = "spirit"
+    POSITIVE: ClassVar[frozenset[str]] = frozenset({"ref_distance"})
     coeff_centrality: float = 4.0
     coeff_direction: float = 2.0
     coeff_distance: float = 8.0

@@ -238,6 +238,14 @@ def test_spirit_defaults_are_the_seed_coefficients():
     }
 
 
+def test_a_zero_time_delay_is_allowed_and_picks_the_newest_frame():
+    frames = frames_of([(np.zeros(3), 0.0)] * 3, timestamps=[1.0, 2.0, 3.0])
+
+    function = evaluation_from_dict({"function": "constant_time_delay", "ref_delay_s": 0})
+
+    assert function.select(frames, pose_at([0, 0, 0], 0.0, ts=3.2))[0] == 2
+
+
 def test_partial_settings_take_defaults_for_the_rest():
     assert evaluation_from_dict({"function": "spirit", "coeff_distance": 3}) == Spirit(
         coeff_distance=3
@@ -253,6 +261,9 @@ def test_partial_settings_take_defaults_for_the_rest():
         ({"function": "spirit", "coeff_distance": -1.0}, "negative"),
         ({"function": "spirit", "ref_distance": 0.0}, "positive"),
         ({"function": "murata", "ref_height": "high"}, "number"),
+        ({"function": "murata", "ref_height": -1.0}, "positive"),
+        ({"function": "constant_time_delay", "ref_delay_s": -0.5}, "negative"),
+        ({"function": "constant_distance", "ref_distance": True}, "number"),
         ("spirit", "object"),
     ],
 )
