@@ -17,7 +17,7 @@ from typing import Any, TypedDict
 
 import numpy as np
 
-from telemetry.pastview.buffer import Frame, FrameBuffer, Outcome
+from telemetry.pastview.buffer import Frame, FrameBuffer, Outcome, is_valid_jpeg
 from telemetry.pastview.evaluation import EvaluationFunction, Spirit, evaluation_from_dict
 from telemetry.pastview.geometry import (
     InvalidPose,
@@ -159,7 +159,8 @@ class PastView:
             self.stats.frames_downsampled += 1
             return False
         self._last_kept_ts = ts
-        self._live = {"ts": ts, "jpeg": jpeg_b64}
+        if is_valid_jpeg(jpeg, decode=False):  # the buffer decodes the ones it keeps
+            self._live = {"ts": ts, "jpeg": jpeg_b64}
         if not self.tracker.tracked and self._last_pose is not None:
             if not self.settings.store_while_lost:
                 self.stats.frames_untracked += 1
@@ -184,7 +185,9 @@ class PastView:
             pose, repaired = Pose.parse(ts, position, orientation)
         except InvalidPose as exc:
             self.stats.poses_bad += 1
-            log.info("pose dropped: %s", exc)
+            # Poses come at up to 200 Hz: the counter tells how many, the log only samples.
+            if self.stats.poses_bad % 1000 == 1:
+                log.info("pose dropped (%d so far): %s", self.stats.poses_bad, exc)
             return None
         if self._last_pose is not None and pose.ts < self._last_pose.ts:
             self.stats.poses_out_of_order += 1

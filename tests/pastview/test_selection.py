@@ -97,6 +97,15 @@ def test_the_live_view_gets_the_latest_downsampled_frame():
     assert view.live_frame()["ts"] == pytest.approx(1.0)
 
 
+def test_a_corrupt_frame_never_reaches_the_live_view(jpeg):
+    view = PastView()
+    view.add_frame(frame_message(0.0, [0, 0, -2], jpeg=jpeg))
+
+    view.add_frame(frame_message(1.0, [5, 0, -2], jpeg=jpeg[: len(jpeg) // 2]))
+
+    assert view.live_frame()["ts"] == 0.0
+
+
 def test_tracking_loss_is_reported_and_keeps_the_displayed_frame_until_found():
     view = PastView()
     fly_north(view, seconds=10)
