@@ -136,7 +136,11 @@ def plan_replacement(
     starts_from_scratch = not done and remaining[0]["command"] == "arm"
     if not starts_from_scratch:
         # mission_steps validates the altitude and the coordinates for us.
-        target = stop_position or _last_navigation_target(done)
+        target = (
+            (float(stop_position[0]), float(stop_position[1]))
+            if stop_position is not None
+            else _last_navigation_target(done)
+        )
         points = [] if target is None else [target]
         body += [
             (s["command"], s["params"])
@@ -149,7 +153,8 @@ def plan_replacement(
         ]
         waypoint = _last_navigation_target(done)
         first = remaining[0]["command"]
-        if waypoint is not None and first not in ("navigate", "land", "takeoff", "arm"):
+        needs_waypoint = first not in ("navigate", "land", "takeoff", "arm")
+        if waypoint is not None and needs_waypoint and waypoint != target:
             body.append(("navigate", {"lat": waypoint[0], "lon": waypoint[1]}))
             if first != "wait_for_flight":
                 body.append(("wait_for_flight", dict(wait)))
