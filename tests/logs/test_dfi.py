@@ -193,3 +193,23 @@ def test_truncated_dfi_is_rejected(tmp_path):
 
 def test_malformed_xml_is_rejected(tmp_path):
     _rejects(tmp_path, "not well-formed XML", description="<recording><toplevelgroup>")
+
+
+def test_dfi_value_files_are_read_in_chunks_with_true_line_numbers(tmp_path, monkeypatch):
+    from telemetry.logs.importers import dfi
+
+    monkeypatch.setattr(dfi, "CHUNK_LINES", 2)
+    log = import_log(write_dfi(tmp_path / "flight.dfi"))
+    np.testing.assert_array_equal(log.series["navdata/Altitude"].values, [0.5, 0.75, 1.25])
+    rows = "1,5,0.5,1,2,3,4,5,2\r\n2,6,0.5,1,2,3,4,5,2\r\n3,7,x,1,2,3,4,5,2\r\n"
+    _rejects(tmp_path, "line 3: value 'x'", {"navdata.csv": rows})
+
+
+def test_dfi_blank_line_between_rows_is_rejected_but_trailing_ones_are_not(tmp_path):
+    _rejects(
+        tmp_path,
+        "line 2: empty line between rows",
+        {"navdata.csv": "1,5,0.5,1,2,3,4,5,2\n\n2,6,0.5,1,2,3,4,5,2\n"},
+    )
+    log = import_log(write_dfi(tmp_path / "ok.dfi", {"navdata.csv": "1,5,0.5,1,2,3,4,5,2\n\n\n"}))
+    assert len(log.series["navdata/Altitude"].values) == 1

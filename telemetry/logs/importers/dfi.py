@@ -4,6 +4,7 @@ description.xml and comma- or tab-separated value files, one per timeline layer.
 from __future__ import annotations
 
 import io
+import itertools
 import posixpath
 import xml.parsers.expat
 import zipfile
@@ -22,6 +23,7 @@ TIME_UNITS_NS = {
     "seconds": 1_000_000_000,
 }
 SEPARATORS = {"comma": ",", "tab": "\t"}
+CHUNK_LINES = 100_000
 COLUMN_TAGS = ("intQuantity", "doubleQuantity", "intEnumeration", "time")
 # A tiny archive may compress far better than any honest large one; judge ratio above this.
 RATIO_FLOOR_BYTES = 1 << 20
@@ -150,43 +152,78 @@ def _check_archive(zf: zipfile.ZipFile, limits: Limits) -> None:
             )
 
 
-def _parse_column(raw: tuple[str, ...], col: Column, file: str) -> np.ndarray:
+def _parse_column(raw: tuple[str, ...], col: Column, file: str, first_line: int) -> np.ndarray:
     dtype = np.float64 if col.tag == "doubleQuantity" else np.int64
     try:
         return np.array(raw, dtype=dtype)
     except (ValueError, OverflowError):
-        for row, text in enumerate(raw, start=1):
+        for row, text in enumerate(raw, start=first_line):
             try:
                 np.array([text], dtype=dtype)
             except (ValueError, OverflowError):
                 kind = "a floating-point number" if dtype is np.float64 else "an integer"
                 raise LogFormatError(
-                    f"{file}, line {row}: value {text!r} of column {'/'.join(col.path)!r} is not {kind}."
+                    f"{file}, line {row}: value {text!r} of column {'/'.join(col.path)!r} "
+                    f"is not {kind}."
                 ) from None
         raise
 
 
-def _read_table(text: str, sep: str, ncols: int, file: str) -> list[tuple[str, ...]]:
-    lines = text.splitlines()
-    while lines and lines[-1] == "":
-        lines.pop()
+def _check_rows(
+    lines: list[str], sep: str, ncols: int, file: str, first_line: int
+) -> list[list[str]]:
     rows = [line.split(sep) for line in lines]
-    for number, row in enumerate(rows, start=1):
+    for number, row in enumerate(rows, start=first_line):
         if len(row) != ncols:
+            line = lines[number - first_line]
             other = "\t" if sep == "," else ","
-            hint = (
-                " (is the separator attribute right?)"
-                if other in lines[number - 1] and len(row) == 1
-                else ""
-            )
+            hint = " (is the separator attribute right?)" if len(row) == 1 and other in line else ""
             raise LogFormatError(
-                f"{file}, line {number}: {len(row)} values where description.xml describes {ncols} columns{hint}."
+                f"{file}, line {number}: {len(row)} values where description.xml describes "
+                f"{ncols} columns{hint}."
             )
         if "" in row:
             raise LogFormatError(
                 f"{file}, line {number}: empty value in column {row.index('') + 1}."
             )
-    return list(zip(*rows, strict=True)) if rows else [() for _ in range(ncols)]
+    return rows
+
+
+def read_table(
+    stream: io.TextIOBase, sep: str, columns: list[Column], file: str
+) -> list[np.ndarray]:
+    """Parse a value file chunk by chunk, so memory holds arrays plus one chunk of text."""
+    ncols = len(columns)
+    parts: list[list[np.ndarray]] = [[] for _ in columns]
+    line_number = 0
+    blank_at = 0  # trailing blank lines are harmless, blank lines between rows are not
+    while True:
+        chunk = list(itertools.islice(stream, CHUNK_LINES))
+        if not chunk:
+            break
+        lines, first = [], line_number + 1
+        for offset, line in enumerate(chunk):
+            line = line.rstrip("\r\n")
+            if line == "":
+                blank_at = blank_at or line_number + offset + 1
+                continue
+            if blank_at:
+                raise LogFormatError(f"{file}, line {blank_at}: empty line between rows.")
+            if not lines:
+                first = line_number + offset + 1
+            lines.append(line)
+        line_number += len(chunk)
+        if not lines:
+            continue
+        rows = _check_rows(lines, sep, ncols, file, first)
+        for i, (col, values) in enumerate(zip(columns, zip(*rows, strict=True), strict=True)):
+            parts[i].append(_parse_column(values, col, file, first))
+    return [
+        np.concatenate(p)
+        if p
+        else np.zeros(0, np.float64 if c.tag == "doubleQuantity" else np.int64)
+        for p, c in zip(parts, columns, strict=True)
+    ]
 
 
 class DfiImporter:
@@ -269,23 +306,22 @@ class DfiImporter:
         if not direct_times:
             raise LogFormatError(f"description.xml: toplevelgroup {layer!r} has no <time> child.")
         try:
-            text = io.TextIOWrapper(io.BytesIO(self._member(zf, member)), encoding="utf-8").read()
+            with zf.open(member) as raw_stream:
+                text = io.TextIOWrapper(raw_stream, encoding="utf-8", newline="")
+                parsed = read_table(text, SEPARATORS[sep_name], columns, file)
         except UnicodeDecodeError as exc:
             raise LogFormatError(f"{file} is not UTF-8 text.") from exc
-        raw = _read_table(text, SEPARATORS[sep_name], len(columns), file)
+        except (zipfile.BadZipFile, EOFError, OSError) as exc:
+            raise LogFormatError(
+                f"The archive member {file!r} is corrupt or truncated: {exc}."
+            ) from exc
         # On-board stamps are the more precise (seed 000, 7.5): they become the layer's clock.
         main = next((c for c in direct_times if c.attrs["source"] == "board"), direct_times[0])
         source = main.attrs["source"]
-        times = None
-        parsed = []
-        for col, values in zip(columns, raw, strict=True):
-            arr = _parse_column(values, col, file)
+        for i, col in enumerate(columns):
             if col.tag == "time":
-                arr = arr * TIME_UNITS_NS[col.attrs["unit"]]
-            if col is main:
-                times = arr
-            parsed.append(arr)
-        assert times is not None
+                parsed[i] = parsed[i] * TIME_UNITS_NS[col.attrs["unit"]]
+        times = parsed[columns.index(main)]
         used: set[str] = set()
         for col, arr in zip(columns, parsed, strict=True):
             if col is main:
