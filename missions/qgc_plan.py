@@ -1,6 +1,8 @@
 """QGroundControl `.plan` files (JSON, fileType "Plan", version 1) ↔ our mission steps.
 
-Mission items map onto PROTOCOL.md steps, altitudes relative to home (frame 3):
+Mission items map onto PROTOCOL.md steps, altitudes relative to home (frame 3). A survey
+or corridor scan is read from the items QGroundControl generated for it and saved inside
+it (TransectStyleComplexItem.Items); it re-exports as those simple items.
 
 | item | steps |
 |---|---|
@@ -62,6 +64,10 @@ _DEFAULT_CAMERA = {
     DO_DIGICAM_CONTROL: [0, 0, 0, 0, 1, 0, 0],
 }
 DEFAULT_ALTITUDE = 10.0
+_ADVICE = {
+    206: "; choose Hover and Capture in the survey's camera settings (a picture per waypoint)",
+    178: "; our drones fly at their configured speed",
+}
 
 
 class QgcPlanError(PlanningError):
@@ -170,23 +176,35 @@ class _Reader:
         self.add("navigate", params)
         self.position = (lat, lon)
 
-    def item(self, item: Mapping, where: str) -> None:
-        self.where = where
-        kind = item.get("type")
-        if kind == "ComplexItem":
+    def complex_item(self, item: Mapping, where: str) -> None:
+        """A survey or corridor scan: QGroundControl saves the items it generated; fly those."""
+        transect = item.get("TransectStyleComplexItem")
+        inner = transect.get("Items") if isinstance(transect, Mapping) else None
+        if not isinstance(inner, list):
             raise QgcPlanError(
                 where,
                 f"complex item {item.get('complexItemType')!r} is not supported; "
                 "convert it to waypoints in QGroundControl first",
             )
+        for j, raw in enumerate(inner):
+            inner_where = f"{where}.TransectStyleComplexItem.Items[{j}]"
+            self.item(_obj(raw, inner_where), inner_where)
+
+    def item(self, item: Mapping, where: str) -> None:
+        self.where = where
+        kind = item.get("type")
+        if kind == "ComplexItem":
+            self.complex_item(item, where)
+            return
         if kind != "SimpleItem":
             raise QgcPlanError(where, f"unknown item type {kind!r}")
         command = item.get("command")
         if command not in SUPPORTED_COMMANDS:
+            advice = _ADVICE.get(command, "")
             raise QgcPlanError(
                 where,
                 f"{_command_name(command) if isinstance(command, int) else repr(command)} "
-                f"(doJumpId {item.get('doJumpId')}) is not supported",
+                f"(doJumpId {item.get('doJumpId')}) is not supported{advice}",
             )
         params = _list(item.get("params"), f"{where}.params")
         if len(params) != 7:

@@ -74,9 +74,9 @@ def test_an_unknown_command_is_refused_naming_the_item():
     assert "doJumpId 4" in caught.value.message
 
 
-def test_a_complex_survey_item_is_refused_with_a_way_out():
+def test_a_complex_item_without_generated_items_is_refused_with_a_way_out():
     plan = load("survey_photos_rtl.plan")
-    plan["mission"]["items"][1] = {"type": "ComplexItem", "complexItemType": "survey"}
+    plan["mission"]["items"][1] = {"type": "ComplexItem", "complexItemType": "StructureScan"}
     with pytest.raises(QgcPlanError, match="convert it to waypoints") as caught:
         import_plan(plan)
     assert caught.value.field == "mission.items[1]"
@@ -138,3 +138,34 @@ def test_steps_without_a_qgroundcontrol_item_are_refused_on_export_naming_the_st
     with pytest.raises(QgcPlanError) as caught:
         export_plan(steps)
     assert caught.value.field == "steps[4] (index 4)"
+
+
+def test_a_hover_and_capture_survey_flies_the_items_qgroundcontrol_generated():
+    plan = import_plan((FIXTURES / "hover_survey.plan").read_text())
+    commands = [s["command"] for s in plan.steps]
+    assert commands[:2] == ["arm", "takeoff"]
+    assert commands[2:14] == ["navigate", "wait_for_flight", "takepic"] * 4
+    assert commands[-3:] == ["navigate", "wait_for_flight", "land"]
+    survey = load("hover_survey.plan")["mission"]["items"][1]["TransectStyleComplexItem"]["Items"]
+    exported = export_qgc_plan(plan)["mission"]["items"]
+    # Re-exported as the simple items the survey stood for, renumbered after the takeoff.
+    for ours, theirs in zip(exported[1:9], survey, strict=True):
+        assert ours["command"] == theirs["command"]
+        assert ours["params"] == theirs["params"]
+        assert ours["doJumpId"] == theirs["doJumpId"]
+
+
+def test_a_survey_triggering_the_camera_by_distance_is_refused_with_advice():
+    plan = load("hover_survey.plan")
+    inner = plan["mission"]["items"][1]["TransectStyleComplexItem"]["Items"]
+    inner[1] = {
+        "autoContinue": True,
+        "command": 206,
+        "doJumpId": 3,
+        "frame": 2,
+        "params": [25, 0, 1, 0, 0, 0, 0],
+        "type": "SimpleItem",
+    }
+    with pytest.raises(QgcPlanError, match="Hover and Capture") as caught:
+        import_plan(plan)
+    assert caught.value.field == "mission.items[1].TransectStyleComplexItem.Items[1]"
