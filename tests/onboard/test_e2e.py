@@ -1,0 +1,246 @@
+"""End to end: the real agent process, the simulator over a real pty, real Mosquitto."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from firmware.sim import start_simulator
+from onboard import protocol
+from onboard.bridge import bridge_config
+from tests.support.mosquitto import start_broker
+
+from .dfi_rules import check_dfi, labels
+from .ground import Ground, start_agent, stop_process
+
+pytestmark = pytest.mark.e2e
+
+HOME = (40.6303, -8.6575, 12.0)
+SCALE = 20.0
+DRONE = "SKY_E2E01"
+
+
+@pytest.fixture
+def broker(tmp_path: Path):
+    # Persistence on, as a production broker has it: a restart keeps the ground's session.
+    store = tmp_path / "store"
+    store.mkdir()
+    b = start_broker(
+        tmp_path / "broker",
+        {"ground": "pw", DRONE: "dpw"},
+        extra_config=f"persistence true\npersistence_location {store}/\n",
+    )
+    yield b
+    b.stop()
+
+
+@pytest.fixture
+def sim(tmp_path: Path):
+    s = start_simulator(
+        home=HOME,
+        time_scale=SCALE,
+        arming_line=tmp_path / "arming_line",
+        log_file=tmp_path / "sim.log",
+    )
+    yield s
+    s.stop()
+
+
+@pytest.fixture
+def agent_for(tmp_path: Path, sim):
+    started = []
+
+    def start(broker_url: str, *extra: str):
+        process = start_agent(
+            tmp_path,
+            drone_id=DRONE,
+            link=sim.url,
+            broker_url=broker_url,
+            arming_line=tmp_path / "arming_line",
+            time_scale=SCALE,
+            extra=list(extra),
+        )
+        started.append(process)
+        return process
+
+    yield start
+    for process in started:
+        stop_process(process)
+
+
+def test_the_drone_arms_takes_off_flies_north_and_lands_on_command(
+    broker, agent_for, tmp_path: Path
+) -> None:
+    agent_for(broker.url_for(DRONE))
+    ground = Ground(broker.port, DRONE)
+    try:
+        beat = ground.wait_for(
+            "heartbeats", lambda m: m["fc"]["connected"] and m["position"] is not None, timeout=15
+        )
+        assert protocol.parse_heartbeat(beat).armed is False
+        announcement = ground.wait_for("gear", lambda m: m.get("type") == "gear")
+        assert announcement["specs"]["TYPE"] == "HEXACOPTER"
+
+        refused = ground.command("takeoff", altitude=10)
+        assert refused["ok"] is False and "not armed" in refused["error"]
+        assert ground.command("arm")["result"] == {"armed": True}
+        assert ground.command("takeoff", altitude=10)["ok"]
+        up = ground.wait_for("heartbeats", lambda m: m["position"]["alt"] > 9.5)
+        assert up["airborne"] is True
+        airborne_disarm = ground.command("disarm")
+        assert airborne_disarm["ok"] is False and "airborne" in airborne_disarm["error"]
+
+        assert ground.command("changeN", value=100)["ok"]
+        north = ground.wait_for("heartbeats", lambda m: m["position"]["lat"] > HOME[0] + 0.00088)
+        assert north["position"]["lat"] == pytest.approx(HOME[0] + 100 / 111_320, abs=2e-5)
+        assert ground.command("land")["ok"]
+        ground.wait_for("heartbeats", lambda m: m["position"]["alt"] < 0.2 and m["armed"])
+        assert ground.command("disarm")["result"] == {"armed": False}
+        status = ground.command("objrequest", value="FlightStatus")
+        assert status["result"]["fields"]["Armed"] == "Disarmed"
+        bad = ground.command("objrequest", value="NoSuchObject")
+        assert bad["ok"] is False and bad["error"]
+
+        telemetry = ground.on("telemetry")
+        names = {o["name"] for m in telemetry for o in m["objects"]}
+        assert {"AttitudeActual", "FlightStatus", "GPSPosition"} <= names
+    finally:
+        ground.close()
+
+
+def test_malformed_input_is_answered_or_dropped_and_the_agent_lives(broker, agent_for) -> None:
+    process = agent_for(broker.url_for(DRONE))
+    ground = Ground(broker.port, DRONE)
+    try:
+        ground.wait_for("heartbeats", lambda m: m["fc"]["connected"], timeout=15)
+        ground.client.publish(f"{DRONE}/control/in", b"\xff\xfe not json", qos=1)
+        ground.client.publish(f"{DRONE}/mission/in", b"[1, 2]", qos=1)
+        rid = protocol.new_request_id()
+        ground.send(
+            "control", {"request_id": rid, "command": "navigate", "params": {"lat": 91, "lon": 0}}
+        )
+        reply = ground.wait_for("control", lambda m: m["request_id"] == rid)
+        assert reply["ok"] is False and "params.lat" in reply["error"]
+        rid = protocol.new_request_id()
+        ground.send(
+            "mission",
+            {
+                "request_id": rid,
+                "action": "start",
+                "mission_id": "m9",
+                "assignment_id": "a9",
+                "payload": "%%%",
+            },
+        )
+        rejected = ground.wait_for("mission", lambda m: m.get("mission_id") == "m9")
+        assert rejected["status"] == "rejected" and "base64" in rejected["error"]
+        rid = protocol.new_request_id()
+        ground.send("gear", {"request_id": rid, "query": "reading", "sensor": "CO2"})
+        reading = ground.wait_for("gear", lambda m: m.get("request_id") == rid)
+        assert reading["ok"] and reading["reading"]["unit"] == "ppm"
+        assert process.poll() is None
+        assert ground.command("objrequest", value="FlightStatus")["ok"]
+    finally:
+        ground.close()
+
+
+MISSION = [
+    {"index": 0, "command": "arm"},
+    {"index": 1, "command": "takeoff", "params": {"altitude": 10}},
+    {"index": 2, "command": "wait_for_flight"},
+    {"index": 3, "command": "changeN", "params": {"value": 100}},
+    {"index": 4, "command": "wait_for_flight", "params": {"horizontal_tolerance": 1.5}},
+    {"index": 5, "command": "takepic"},
+    {"index": 6, "command": "sense", "params": {"sensor": "CO2"}},
+    {"index": 7, "command": "sleep", "params": {"value": 4}},
+    {"index": 8, "command": "changeE", "params": {"value": 50}},
+    {"index": 9, "command": "wait_for_flight"},
+    {"index": 10, "command": "land"},
+    {"index": 11, "command": "wait_for_flight", "params": {"vertical_tolerance": 0.5}},
+    {"index": 12, "command": "disarm"},
+]
+
+
+def test_a_mission_survives_a_broker_restart_and_its_log_holds_every_step(
+    broker, agent_for, tmp_path: Path
+) -> None:
+    process = agent_for(broker.url_for(DRONE))
+    ground = Ground(broker.port, DRONE)
+    try:
+        ground.wait_for("heartbeats", lambda m: m["fc"]["connected"] and m["position"], timeout=15)
+        start = protocol.mission_start("m1", "a1", MISSION)
+        ground.send("mission", start.to_dict())
+        accepted = ground.wait_for("mission", lambda m: m.get("type") == "mission")
+        assert accepted["status"] == "accepted" and accepted["decode_ms"] > 0
+        ground.wait_for("mission", lambda m: m.get("index") == 3 and m["status"] == "started")
+        broker.restart(down_for=1.0)  # the mission goes on while the broker is away
+        done = ground.wait_for(
+            "mission",
+            lambda m: m.get("type") == "mission" and m["status"] != "accepted",
+            timeout=60,
+        )
+        assert done["status"] == "completed", done
+        steps = [m for m in ground.on("mission") if m.get("type") == "step"]
+        seen = {(m["index"], m["status"]) for m in steps}
+        expected = {(s["index"], status) for s in MISSION for status in ("started", "completed")}
+        assert seen == expected
+        completed = {m["index"]: m for m in steps if m["status"] == "completed"}
+        assert completed[4]["position"]["lat"] == pytest.approx(HOME[0] + 100 / 111_320, abs=2e-5)
+        assert completed[6]["result"]["reading"]["unit"] == "ppm"
+        assert completed[7]["duration_s"] == pytest.approx(4.0, abs=2.0)
+        picture = ground.wait_for("pictures", lambda m: True)
+        assert picture["name"] == completed[5]["result"]["name"] and picture["index"] == 5
+    finally:
+        ground.close()
+    assert stop_process(process) == 0
+    archives = sorted((tmp_path / "logs").glob("*.dfi"))
+    assert archives, list((tmp_path / "logs").iterdir())
+    rows = {}
+    for archive in archives:
+        tables = check_dfi(archive)
+        if "steps" in tables:
+            status = labels(archive, "steps", "status")
+            rows.update({(int(r[2]), status[int(r[4])]): r for r in tables["steps"]})
+            assert "AttitudeActual" in tables and "mission" in tables
+    assert {index for index, status in rows if status == "completed"} == set(range(13))
+
+
+def test_a_drone_behind_its_own_broker_is_commanded_through_the_ground_broker(
+    broker, agent_for, tmp_path: Path
+) -> None:
+    internal = start_broker(
+        tmp_path / "internal",
+        {DRONE: "local"},
+        extra_config="\n" + bridge_config(DRONE, broker.url_for(DRONE)),
+    )
+    try:
+        agent_for(internal.url_for(DRONE))
+        ground = Ground(broker.port, DRONE)
+        try:
+            beat = ground.wait_for("heartbeats", lambda m: m["fc"]["connected"], timeout=20)
+            assert beat["drone_id"] == DRONE
+            deadline = time.monotonic() + 10
+            while True:  # the bridge's subscription may lag its first connection a little
+                request_id = protocol.new_request_id()
+                ground.send(
+                    "control",
+                    {
+                        "request_id": request_id,
+                        "command": "objrequest",
+                        "params": {"value": "FlightStatus"},
+                    },
+                )
+                try:
+                    reply = ground.wait_for(
+                        "control", lambda m, rid=request_id: m["request_id"] == rid, timeout=1
+                    )
+                    break
+                except AssertionError:
+                    assert time.monotonic() < deadline, "no reply through the bridge"
+            assert reply["ok"] and reply["result"]["fields"]["Armed"] == "Disarmed"
+        finally:
+            ground.close()
+    finally:
+        internal.stop()
