@@ -96,6 +96,7 @@ class BoardSession:
         self._reset_link_state()
         self._receiver: list[int] | None = None
         self._receiver_at = -math.inf
+        self._line_value: str | None = None
         self._iap_step = 0
         self._iap_at = 0.0
         self._booting_until = 0.0  # board time
@@ -312,9 +313,13 @@ class BoardSession:
         if self.arming_line is None:
             return None
         try:
-            return self.arming_line.read_text()[:2]
+            text = self.arming_line.read_text()[:2]
         except OSError:
-            return None
+            return self._line_value
+        # A half-written or odd file keeps the last level, as a real pin would.
+        if len(text) == 2 and set(text) <= {"0", "1"}:
+            self._line_value = text
+        return self._line_value
 
     def _stream(self) -> None:
         board = self.vehicle.time
