@@ -174,15 +174,15 @@ def _check_count(count: int, max_waypoints: int) -> None:
         )
 
 
-def _shape_of(v: NDArray, w: NDArray) -> tuple[float, float, float]:
+def _shape_of(v: NDArray, w: NDArray, field: str = "vertices") -> tuple[float, float, float]:
     """|v|, |w| and sin of the angle between them, refusing degenerate areas."""
     len_v = float(np.hypot(*v))
     len_w = float(np.hypot(*w))
     if len_v == 0.0 or len_w == 0.0:
-        raise PlanningError("vertices", "two consecutive vertices coincide")
+        raise PlanningError(field, "two consecutive vertices coincide")
     sin_angle = abs(float(v[0] * w[1] - v[1] * w[0])) / (len_v * len_w)
     if sin_angle < MIN_SIN_ANGLE:
-        raise PlanningError("vertices", "the three vertices are collinear: they enclose no area")
+        raise PlanningError(field, "the three vertices are collinear: they enclose no area")
     return len_v, len_w, sin_angle
 
 
@@ -311,10 +311,13 @@ def extend_from_vectors(
         raise PlanningError("joining_drones", "must not be negative")
     v = np.asarray(vectors.v, dtype=float)
     w = np.asarray(vectors.w, dtype=float)
-    len_v, len_w, sin_angle = _shape_of(v, w)
+    len_v, len_w, sin_angle = _shape_of(v, w, "vectors")
     original_area = len_v * len_w * sin_angle
     target_area = original_area * (1.0 + 0.5 * joining_drones)
-    m, n = _extended_steps(len_v / step, len_w / step, target_area / (step * step * sin_angle))
+    target_steps2 = target_area / (step * step * sin_angle)
+    # The chosen grid has about target_steps2 cells, so refuse huge ones before the search.
+    _check_count(math.ceil(target_steps2 / 2), max_waypoints)
+    m, n = _extended_steps(len_v / step, len_w / step, target_steps2)
     _check_count((m + 1) * (n + 1), max_waypoints)
     v_hat, w_hat = v / len_v, w / len_w
     new_v, new_w = v_hat * m * step, w_hat * n * step

@@ -246,3 +246,12 @@ def test_mission_steps_refuse_an_altitude_out_of_range():
     with pytest.raises(PlanningError) as caught:
         mission_steps([[40.0, -8.0]], altitude=0)
     assert caught.value.field == "altitude"
+
+
+def test_an_extension_too_large_for_the_cap_is_refused_before_it_is_built():
+    with pytest.raises(PlanningError, match="limit of 50000"):
+        extend(rectangle(35, 28), 7, center=point_at(0, 0), joining_drones=10**9)
+    with pytest.raises(PlanningError, match="limit of 50000"):
+        extend_from_vectors(
+            {"v": [0, 1000], "w": [1000, 0]}, 0.001, center=(40, -8), joining_drones=1
+        )
