@@ -207,22 +207,51 @@ def synthetic_ulog(path: Path, *, seconds: float, rate_hz: float = 250.0) -> Non
 def synthetic_dataflash(
     path: Path, *, seconds: float, rate_hz: float = 400.0
 ) -> dict[str, tuple[str, np.ndarray]]:
-    """An ArduPilot .bin with IMU, ATT, GPS, BAT, RCOU (scaled types c/C/e/E/L included)."""
+    """An ArduPilot .bin with two IMUs, ATT, GPS, BAT, RCOU, MSG (scaled types c/C/e/E/L
+    included) and the UNIT/FMTU messages that give units and mark instance columns."""
     rng = np.random.default_rng(11)
     spec = {
+        "UNIT": ("QbZ", "TimeUS,Id,Label", None),
+        "FMTU": ("QBNN", "TimeUS,FmtType,UnitIds,MultIds", None),
         "IMU": ("QffffffB", "TimeUS,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,I", rate_hz),
         "ATT": ("QccCcc", "TimeUS,Roll,Pitch,Yaw,DesRoll,DesPitch", rate_hz / 4),
-        "GPS": ("QBILLeEe", "TimeUS,Status,GMS,Lat,Lng,Alt,Spd,VZ", 10),
+        "GPS": ("QBIHLLeEe", "TimeUS,Status,GMS,GWk,Lat,Lng,Alt,Spd,VZ", 10),
         "BAT": ("Qffdb", "TimeUS,Volt,Curr,CurrTot,RemPct", 10),
         "RCOU": ("QHHHH", "TimeUS,C1,C2,C3,C4", rate_hz / 8),
         "MSG": ("QZ", "TimeUS,Message", 0.5),
     }
+    units = {
+        "s": "s",
+        "E": "rad/s",
+        "o": "m/s/s",
+        "d": "deg",
+        "D": "deglatitude",
+        "U": "deglongitude",
+        "m": "m",
+        "n": "m/s",
+        "v": "V",
+        "A": "A",
+        "a": "Ah",
+        "%": "%",
+        "Y": "PWM",
+        "-": "",
+        "#": "instance",
+    }
+    unit_ids = {
+        "IMU": "sEEEooo#",
+        "ATT": "sddddd",
+        "GPS": "s---DUmnn",
+        "BAT": "svAa%",
+        "RCOU": "sYYYY",
+        "MSG": "s-",
+    }
+    type_ids = {name: 129 + number for number, name in enumerate(spec)}
     messages = {}
     for name, (chars, cols, hz) in spec.items():
         columns = cols.split(",")
-        n = max(int(seconds * hz), 1)
+        n = {"UNIT": len(units), "FMTU": len(unit_ids)}.get(name) or max(int(seconds * hz), 1)
         arr = np.zeros(n, dtype=dataflash_dtype(chars, columns))
-        arr["TimeUS"] = (np.arange(n) * (1e6 / hz)).astype(np.uint64) + 500_000
+        arr["TimeUS"] = (np.arange(n) * (1e6 / hz)).astype(np.uint64) + 500_000 if hz else 0
         for c in columns[1:]:
             kind = arr[c].dtype.kind
             if kind == "f":
@@ -233,5 +262,11 @@ def synthetic_dataflash(
                 info = np.iinfo(arr[c].dtype)
                 arr[c] = rng.integers(max(info.min, -30000), min(info.max, 30000), size=n)
         messages[name] = (chars, arr)
+    messages["IMU"][1]["I"] = np.arange(len(messages["IMU"][1])) % 2
+    messages["UNIT"][1]["Id"] = [ord(k) for k in units]
+    messages["UNIT"][1]["Label"] = [v.encode() for v in units.values()]
+    messages["FMTU"][1]["FmtType"] = [type_ids[k] for k in unit_ids]
+    messages["FMTU"][1]["UnitIds"] = [v.encode() for v in unit_ids.values()]
+    messages["FMTU"][1]["MultIds"] = [b"-" * len(v) for v in unit_ids.values()]
     write_dataflash(path, messages)
     return messages

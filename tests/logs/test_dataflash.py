@@ -11,6 +11,8 @@ def _pymavlink_columns(path):
     out: dict[str, dict[str, list]] = {}
     while (msg := conn.recv_match()) is not None:
         kind = msg.get_type()
+        if msg.fmt.instance_field is not None:
+            kind = f"{kind}[{getattr(msg, msg.fmt.instance_field)}]"
         if kind == "FMT":
             continue
         cols = out.setdefault(kind, {})
@@ -60,11 +62,20 @@ def test_dataflash_scaled_types_become_physical_values(tmp_path):
     assert log.series["POS/Lat"].times.tolist() == [1_000_000, 2_000_000]
 
 
+def test_dataflash_units_and_instances_come_from_fmtu(bin_log):
+    log = import_log(bin_log)
+    assert log.series["IMU[1]/AccZ"].unit == "m/s/s"
+    assert log.series["GPS/Lat"].unit == "deglatitude"
+    assert log.series["IMU[0]/I"].values.tolist() == [0] * 50
+    times = log.series["IMU[1]/AccX"].times
+    assert times[0] == 520_000_000 and set(np.diff(times).tolist()) == {40_000_000}
+
+
 def test_dataflash_special_quantities_are_tagged(bin_log):
     special = find_special(import_log(bin_log))
     assert special["rotation"] == ["ATT/Roll", "ATT/Pitch", "ATT/Yaw"]
     assert special["gps"] == ["GPS/Lat", "GPS/Lng", "GPS/Alt"]
-    assert special["acceleration"] == ["IMU/AccX", "IMU/AccY", "IMU/AccZ"]
+    assert special["acceleration"] == ["IMU[0]/AccX", "IMU[0]/AccY", "IMU[0]/AccZ"]
     assert special["motors"] == ["RCOU/C1", "RCOU/C2", "RCOU/C3", "RCOU/C4"]
 
 
@@ -74,16 +85,17 @@ def test_dataflash_truncated_last_record_is_dropped_and_reported(bin_log):
     cut = import_log(bin_log)
     assert "The last record is truncated and was dropped." in cut.warnings
     lost = sum(len(s.values) for s in full) - sum(len(s.values) for s in cut)
-    assert 0 < lost <= 8  # one record's fields
+    assert 0 < lost <= 9  # one record's fields
 
 
 def test_dataflash_garbage_between_records_is_skipped(bin_log):
     data = bytearray(bin_log.read_bytes())
-    data[5000:5000] = b"\x00\x01garbage\xa3"
+    at = data.index(b"\xa3\x95", 5000)  # a record boundary
+    data[at:at] = b"\x00\x01garbage\xa3"
     bin_log.write_bytes(bytes(data))
     log = import_log(bin_log)
     assert any("Skipped" in w for w in log.warnings)
-    assert len(log.series["IMU/GyrX"].values) == 100
+    assert len(log.series["IMU[0]/GyrX"].values) + len(log.series["IMU[1]/GyrX"].values) == 100
 
 
 def test_dataflash_truncated_inside_its_formats_is_rejected(bin_log):

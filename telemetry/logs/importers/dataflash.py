@@ -216,6 +216,7 @@ class DataFlashImporter:
             all_offs, all_ns = all_offs[order], np.concatenate(timed_ns)[order]
         else:
             all_offs = all_ns = np.zeros(0, dtype=np.int64)
+        units, instances = _units_and_instances(formats, decoded)
         for t, (starts, records) in decoded.items():
             fmt = formats[t]
             times = _times_ns(records)
@@ -226,41 +227,105 @@ class DataFlashImporter:
                     times = all_ns[
                         np.maximum(np.searchsorted(all_offs, starts, side="right") - 1, 0)
                     ]
-            for col in fmt.columns:
-                if col in ("TimeUS", "TimeMS"):
-                    continue
-                values = records[col]
+            column_units = units.get(fmt.name, {})
+            instance = instances.get(fmt.name)
+            values_seen = np.unique(records[instance]) if instance else []
+            if len(values_seen) > 1:
+                # Several sensors of one kind (IMU, GPS, BARO...) log under one message
+                # name; one layer per instance, named as pymavlink does: IMU[0], IMU[1].
+                for number, value in enumerate(values_seen.tolist()):
+                    mask = records[instance] == value
+                    self._emit(
+                        log,
+                        fmt,
+                        f"{fmt.name}[{value}]",
+                        records[mask],
+                        times[mask],
+                        column_units,
+                        number == 0,
+                    )
+            else:
+                self._emit(log, fmt, fmt.name, records, times, column_units, True)
+
+    @staticmethod
+    def _emit(
+        log: LogData,
+        fmt: Format,
+        layer: str,
+        records: np.ndarray,
+        times: np.ndarray,
+        units: dict[str, str],
+        hinted: bool,
+    ) -> None:
+        for col in fmt.columns:
+            if col in ("TimeUS", "TimeMS"):
+                continue
+            values = records[col]
+            if values.dtype.kind == "S":
+                values = np.array([_text(v) for v in values.tolist()], dtype=str)
+                kind = "text"
+            elif col in fmt.scales:
+                values = values.astype(np.float64) * fmt.scales[col]
                 kind = "double"
-                if values.dtype.kind == "S":
-                    values = np.array([_text(v) for v in values.tolist()], dtype=str)
-                    kind = "text"
-                elif col in fmt.scales:
-                    values = values.astype(np.float64) * fmt.scales[col]
-                elif values.ndim > 1:
-                    for i in range(values.shape[1]):
-                        log.add(
-                            Series(
-                                join(fmt.name, f"{col}[{i}]"),
-                                values[:, i].copy(),
-                                times,
-                                time_source="board",
-                                kind="int",
-                            )
+            elif values.ndim > 1:
+                for i in range(values.shape[1]):
+                    log.add(
+                        Series(
+                            join(layer, f"{col}[{i}]"),
+                            values[:, i].copy(),
+                            times,
+                            time_source="board",
+                            kind="int",
                         )
-                    continue
-                else:
-                    values = values.copy()  # own the memory so the file's mmap can close
-                    kind = "double" if values.dtype.kind == "f" else "int"
-                log.add(
-                    Series(
-                        join(fmt.name, col),
-                        values,
-                        times,
-                        time_source="board",
-                        kind=kind,
-                        special=SPECIAL.get((fmt.name, col)),
-                    )  # type: ignore[arg-type]
+                    )
+                continue
+            else:
+                values = values.copy()  # own the memory so the file's mmap can close
+                kind = "double" if values.dtype.kind == "f" else "int"
+            log.add(
+                Series(
+                    join(layer, col),
+                    values,
+                    times,
+                    unit=units.get(col, ""),
+                    time_source="board",
+                    kind=kind,  # type: ignore[arg-type]
+                    special=SPECIAL.get((fmt.name, col)) if hinted else None,
                 )
+            )
+
+
+def _units_and_instances(
+    formats: dict[int, Format], decoded: dict[int, tuple[np.ndarray, np.ndarray]]
+) -> tuple[dict[str, dict[str, str]], dict[str, str]]:
+    """Column units and instance columns from the UNIT and FMTU messages (ArduPilot 3.6+):
+    FMTU gives one unit id character per column, '#' marking the instance column."""
+    by_name = {formats[t].name: records for t, (_, records) in decoded.items()}
+    labels: dict[str, str] = {}
+    unit_records = by_name.get("UNIT")
+    if unit_records is not None and {"Id", "Label"} <= set(unit_records.dtype.names or ()):
+        for uid, label in zip(
+            unit_records["Id"].tolist(), unit_records["Label"].tolist(), strict=True
+        ):
+            labels[chr(uid & 0xFF)] = _text(label)
+    units: dict[str, dict[str, str]] = {}
+    instances: dict[str, str] = {}
+    fmtu = by_name.get("FMTU")
+    if fmtu is None or not {"FmtType", "UnitIds"} <= set(fmtu.dtype.names or ()):
+        return units, instances
+    for ftype, ids in zip(fmtu["FmtType"].tolist(), fmtu["UnitIds"].tolist(), strict=True):
+        fmt = formats.get(ftype)
+        if fmt is None:
+            continue
+        ids_text = _text(ids)
+        units[fmt.name] = {
+            col: labels[uid]
+            for col, uid in zip(fmt.columns, ids_text, strict=False)
+            if uid in labels
+        }
+        if "#" in ids_text and ids_text.index("#") < len(fmt.columns):
+            instances[fmt.name] = fmt.columns[ids_text.index("#")]
+    return units, instances
 
 
 def _times_ns(records: np.ndarray) -> np.ndarray | None:
