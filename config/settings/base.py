@@ -202,3 +202,27 @@ CELERY_BEAT_SCHEDULE["telemetry-maintain-partitions"] = {
     "task": "telemetry.maintain_partitions",
     "schedule": 3600.0,
 }
+
+# --- ground link ---
+# Live fleet updates: at most one per drone per this many seconds (state changes always).
+FLEET_PUSH_INTERVAL_S = env_float("FLEET_PUSH_INTERVAL_S", 1.0)
+# The offline sweep (fleet.sweep_offline) runs this often under Celery beat.
+OFFLINE_SWEEP_INTERVAL_S = env_float("OFFLINE_SWEEP_INTERVAL_S", 2.0)
+CELERY_BEAT_SCHEDULE["fleet.sweep_offline"] = {
+    "task": "fleet.sweep_offline",
+    "schedule": OFFLINE_SWEEP_INTERVAL_S,
+    "options": {"expires": OFFLINE_SWEEP_INTERVAL_S},
+}
+# Map tiles for the fleet map; empty shows a plain background (tests, offline sites).
+MAP_TILE_URL = env_str("MAP_TILE_URL", "https://tile.openstreetmap.org/{z}/{x}/{y}.png")
+MAP_TILE_ATTRIBUTION = env_str("MAP_TILE_ATTRIBUTION", "&copy; OpenStreetMap contributors")
+# Broker users kept in Mosquitto's passwd file when it is regenerated from the drones.
+MQTT_SERVICE_USERS = env_list("MQTT_SERVICE_USERS", ["ground"])
+# What provision_drone tells a drone to connect to (default: MQTT_URL's host and port).
+MQTT_PUBLIC_HOST = env_str("MQTT_PUBLIC_HOST", "")
+MQTT_PUBLIC_PORT = env_int("MQTT_PUBLIC_PORT", 0)
+# startchain / stopchain; the missions app points these at its own functions.
+FLEET_CHAIN_HANDLERS = {
+    "startchain": "fleet.chain.start_chain",
+    "stopchain": "fleet.chain.stop_chain",
+}
