@@ -448,6 +448,8 @@ def normalise_actions(intermediate_action: Any) -> list[dict]:
     actions = []
     for i, item in enumerate(raw):
         field = "intermediate_action" if len(raw) == 1 else f"intermediate_action[{i}]"
+        command: Any
+        params: Any
         if isinstance(item, str):
             command, params = item, {}
         elif isinstance(item, Mapping):

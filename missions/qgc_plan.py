@@ -111,12 +111,15 @@ def _command_name(command: int) -> str:
 # Reading.
 
 
-def _num(value: Any, where: str, *, allow_null: bool = False) -> float | None:
-    if value is None and allow_null:
-        return None
+def _num(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         raise QgcPlanError(where, f"must be a number, got {value!r}")
     return value
+
+
+def _optional(value: Any, where: str) -> float | None:
+    """QGroundControl writes NaN (an unset param) as null."""
+    return None if value is None else _num(value, where)
 
 
 def _obj(value: Any, where: str) -> Mapping:
@@ -129,6 +132,14 @@ def _list(value: Any, where: str) -> list:
     if not isinstance(value, list):
         raise QgcPlanError(where, "must be a list")
     return value
+
+
+def _pair(value: Any, where: str) -> tuple[float, float]:
+    """[lat, lon] (a third value, if any, is someone else's)."""
+    value = _list(value, where)
+    if len(value) < 2:
+        raise QgcPlanError(where, "must be [lat, lon]")
+    return _latlon(value[0], value[1], where)
 
 
 def _latlon(lat: Any, lon: Any, where: str) -> tuple[float, float]:
@@ -200,7 +211,7 @@ class _Reader:
             raise QgcPlanError(where, f"unknown item type {kind!r}")
         command = item.get("command")
         if command not in SUPPORTED_COMMANDS:
-            advice = _ADVICE.get(command, "")
+            advice = _ADVICE.get(command, "") if isinstance(command, int) else ""
             raise QgcPlanError(
                 where,
                 f"{_command_name(command) if isinstance(command, int) else repr(command)} "
@@ -209,7 +220,7 @@ class _Reader:
         params = _list(item.get("params"), f"{where}.params")
         if len(params) != 7:
             raise QgcPlanError(f"{where}.params", "must hold 7 values")
-        p = [_num(v, f"{where}.params[{i}]", allow_null=True) for i, v in enumerate(params)]
+        p = [_optional(v, f"{where}.params[{i}]") for i, v in enumerate(params)]
         hint: dict = {"command": command}
         if item.get("autoContinue", True) is not True:
             hint["autoContinue"] = item.get("autoContinue")
@@ -233,23 +244,24 @@ class _Reader:
             self.add("land", {})
             return
 
-        lat, lon = (None, None) if p[4] is None and p[5] is None else _latlon(p[4], p[5], where)
+        coordinate = None if p[4] is None and p[5] is None else _latlon(p[4], p[5], where)
         alt = self.relative_altitude(item, _num(p[6], f"{where}.params[6]"), where)
         if command == NAV_TAKEOFF:
             if alt < 0.5:
                 raise QgcPlanError(f"{where}.params[6]", "takeoff altitude must be at least 0.5 m")
             if p[:4] != _DEFAULT_P[NAV_TAKEOFF]:
                 hint["p"] = p[:4]
-            if lat is not None and (self.home is None or [lat, lon] != self.home[:2]):
-                hint["coordinate"] = [lat, lon]
+            if coordinate is not None and (self.home is None or list(coordinate) != self.home[:2]):
+                hint["coordinate"] = list(coordinate)
             if not self.armed:
                 self.add("arm", {})
                 self.armed = True
             self.add("takeoff", {"altitude": alt, "qgc": hint})
             self.altitude = alt
             return
-        if lat is None:
+        if coordinate is None:
             raise QgcPlanError(where, "needs a latitude and longitude")
+        lat, lon = coordinate
         if command == NAV_LAND:
             if p[:4] != _DEFAULT_P[NAV_LAND]:
                 hint["p"] = p[:4]
@@ -288,23 +300,19 @@ def _read_geofence(data: Any) -> dict:
         vertices = _list(raw.get("polygon"), f"{where}.polygon")
         if len(vertices) < 3:
             raise QgcPlanError(f"{where}.polygon", "needs at least three vertices")
-        points = [
-            list(_latlon(*_list(v, f"{where}.polygon[{j}]")[:2], f"{where}.polygon[{j}]"))
-            for j, v in enumerate(vertices)
-        ]
+        points = [list(_pair(v, f"{where}.polygon[{j}]")) for j, v in enumerate(vertices)]
         polygons.append({"inclusion": bool(raw.get("inclusion", True)), "polygon": points})
     circles = []
     for i, raw in enumerate(_list(fence.get("circles", []), "geoFence.circles")):
         where = f"geoFence.circles[{i}]"
         circle = _obj(_obj(raw, where).get("circle"), f"{where}.circle")
-        center = _list(circle.get("center"), f"{where}.circle.center")
         radius = _num(circle.get("radius"), f"{where}.circle.radius")
         if radius <= 0:
             raise QgcPlanError(f"{where}.circle.radius", "must be greater than 0")
         circles.append(
             {
                 "inclusion": bool(raw.get("inclusion", True)),
-                "center": list(_latlon(*center[:2], f"{where}.circle.center")),
+                "center": list(_pair(circle.get("center"), f"{where}.circle.center")),
                 "radius": radius,
             }
         )
@@ -370,8 +378,8 @@ def import_plan(source: str | bytes | Mapping) -> QgcPlan:
         home=home,
         geofence=_read_geofence(plan.get("geoFence")),
         rally_points=_read_rally(plan.get("rallyPoints")),
-        cruise_speed=_num(mission.get("cruiseSpeed"), "mission.cruiseSpeed", allow_null=True),
-        hover_speed=_num(mission.get("hoverSpeed"), "mission.hoverSpeed", allow_null=True),
+        cruise_speed=_optional(mission.get("cruiseSpeed"), "mission.cruiseSpeed"),
+        hover_speed=_optional(mission.get("hoverSpeed"), "mission.hoverSpeed"),
         firmware_type=int(_num(mission.get("firmwareType", 12), "mission.firmwareType")),
         vehicle_type=int(_num(mission.get("vehicleType", 2), "mission.vehicleType")),
     )
@@ -468,7 +476,7 @@ class _Writer:
         lat, lon = float(params["lat"]), float(params["lon"])
         code = hint.get("command", NAV_WAYPOINT)
         j = i + 1
-        wait = {}
+        wait: Mapping = {}
         if self._at(j, "wait_for_flight"):
             wait = self.steps[j].get("params") or {}
             j += 1
