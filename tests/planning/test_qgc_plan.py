@@ -94,6 +94,10 @@ def test_a_complex_item_without_generated_items_is_refused_with_a_way_out():
         (lambda p: p["mission"].update(items=[]), "mission.items"),
         (lambda p: p["rallyPoints"]["points"].append([1, 2]), "rallyPoints.points[2]"),
         (
+            lambda p: p["geoFence"]["polygons"][0]["polygon"].__setitem__(0, [40.6]),
+            "geoFence.polygons[0].polygon[0]",
+        ),
+        (
             lambda p: p["geoFence"]["circles"][0]["circle"].update(radius=-1),
             "geoFence.circles[0].circle.radius",
         ),
