@@ -139,6 +139,7 @@ class DecoderStats:
 
 
 _VALID_TYPES = {t.value for t in MessageType}
+_TYPES = {t.value: t for t in MessageType}
 
 
 @dataclass
@@ -220,7 +221,7 @@ class FrameDecoder:
         return False
 
     def _parse(self, type_byte: int, object_id: int, rest: bytes) -> Frame | None:
-        msg_type = MessageType(type_byte & ~TIMESTAMPED)
+        msg_type = _TYPES[type_byte & ~TIMESTAMPED]
         ts_len = 2 if type_byte & TIMESTAMPED else 0
         obj = self.registry.by_id.get(object_id)
         is_meta = False

@@ -133,20 +133,42 @@ class ObjectDef:
             values[f.name] = items[0] if f.elements == 1 else items
         return values
 
+    def __post_init__(self) -> None:
+        # Per-field plan compiled once: (name, elements, option -> value, value -> option).
+        plan = tuple(
+            (
+                f.name,
+                f.elements,
+                dict(zip(f.options, f.option_values, strict=True)) if f.is_enum else None,
+                dict(zip(f.option_values, f.options, strict=True)) if f.is_enum else None,
+            )
+            for f in self.fields
+        )
+        object.__setattr__(self, "_plan", plan)
+
     def pack(self, values: Mapping[str, object]) -> bytes:
         """Payload bytes for a complete set of field values (enums by option name)."""
         flat: list[object] = []
-        for f in self.fields:
-            if f.name not in values:
-                raise EncodeError(f"{self.name}: field {f.name} is missing")
-            value = values[f.name]
-            items = [value] if f.elements == 1 else value
-            if not isinstance(items, (list, tuple)) or len(items) != f.elements:
-                raise EncodeError(f"{self.name}.{f.name}: expected {f.elements} elements")
-            if f.is_enum:
-                flat.extend(f.enum_value(item) for item in items)  # type: ignore[arg-type]
+        append, extend = flat.append, flat.extend
+        for name, elements, to_value, _ in self._plan:  # type: ignore[attr-defined]
+            try:
+                value = values[name]
+            except KeyError:
+                raise EncodeError(f"{self.name}: field {name} is missing") from None
+            if elements == 1:
+                if to_value is not None:
+                    value = to_value.get(value) if isinstance(value, str) else None  # type: ignore[assignment]
+                    if value is None:
+                        value = self.field(name).enum_value(values[name])  # type: ignore[arg-type]
+                append(value)
+                continue
+            if not isinstance(value, (list, tuple)) or len(value) != elements:
+                raise EncodeError(f"{self.name}.{name}: expected {elements} elements")
+            if to_value is not None:
+                f = self.field(name)
+                extend(f.enum_value(item) for item in value)
             else:
-                flat.extend(items)
+                extend(value)
         try:
             return self._struct.pack(*flat)
         except struct.error as exc:
@@ -157,12 +179,18 @@ class ObjectDef:
         flat = self._struct.unpack(payload)
         values: dict = {}
         pos = 0
-        for f in self.fields:
-            items = flat[pos : pos + f.elements]
-            pos += f.elements
-            if f.is_enum:
-                items = tuple(f.enum_name(item) for item in items)
-            values[f.name] = items[0] if f.elements == 1 else list(items)
+        for name, elements, _, to_name in self._plan:  # type: ignore[attr-defined]
+            if elements == 1:
+                item = flat[pos]
+                values[name] = to_name.get(item, item) if to_name is not None else item
+                pos += 1
+                continue
+            items = flat[pos : pos + elements]
+            pos += elements
+            if to_name is not None:
+                values[name] = [to_name.get(i, i) for i in items]
+            else:
+                values[name] = list(items)
         return values
 
 
