@@ -10,6 +10,7 @@ from telemetry.logs.importers.base import (
     Limits,
     LogFormatError,
     Progress,
+    describe,
     no_progress,
 )
 from telemetry.logs.importers.dataflash import DataFlashImporter
@@ -80,7 +81,7 @@ def import_log(
         # Library readers (pyulog, pymavlink, rosbags) raise assorted errors on corrupt
         # input; whatever they raise, the worker must get one clear error and survive.
         raise LogFormatError(
-            f"The file {path.name!r} is not a valid {importer.name} log: {exc}."
+            f"The file {path.name!r} is not a valid {importer.name} log: {describe(exc)}."
         ) from exc
     if not log.series:
         raise LogFormatError(f"The file {path.name!r} contains no data we can show.")

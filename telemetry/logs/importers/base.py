@@ -64,3 +64,8 @@ class ProgressTicker:
         if done >= self._next:
             self._next = done + self._step
             self._progress(min(done / self._total, 1.0))
+
+
+def describe(exc: BaseException) -> str:
+    """An exception as the tail of one of our sentences (no doubled full stop)."""
+    return str(exc).strip().rstrip(".") or type(exc).__name__

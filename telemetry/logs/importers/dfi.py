@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from telemetry.logs.importers.base import Limits, LogFormatError, Progress
+from telemetry.logs.importers.base import Limits, LogFormatError, Progress, describe
 from telemetry.logs.model import LogData, Series, join
 
 TIME_UNITS_NS = {
@@ -74,7 +74,7 @@ def parse_xml(data: bytes) -> Element:
     try:
         parser.Parse(data, True)
     except xml.parsers.expat.ExpatError as exc:
-        raise LogFormatError(f"description.xml is not well-formed XML: {exc}.") from exc
+        raise LogFormatError(f"description.xml is not well-formed XML: {describe(exc)}.") from exc
     return root[0]
 
 
@@ -278,7 +278,7 @@ class DfiImporter:
             return zf.read(name)
         except (zipfile.BadZipFile, EOFError, OSError) as exc:
             raise LogFormatError(
-                f"The archive member {name!r} is corrupt or truncated: {exc}."
+                f"The archive member {name!r} is corrupt or truncated: {describe(exc)}."
             ) from exc
 
     def _read_top(
@@ -313,7 +313,7 @@ class DfiImporter:
             raise LogFormatError(f"{file} is not UTF-8 text.") from exc
         except (zipfile.BadZipFile, EOFError, OSError) as exc:
             raise LogFormatError(
-                f"The archive member {file!r} is corrupt or truncated: {exc}."
+                f"The archive member {file!r} is corrupt or truncated: {describe(exc)}."
             ) from exc
         # On-board stamps are the more precise (seed 000, 7.5): they become the layer's clock.
         main = next((c for c in direct_times if c.attrs["source"] == "board"), direct_times[0])

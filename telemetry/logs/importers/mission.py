@@ -8,7 +8,7 @@ import json
 from datetime import datetime
 from pathlib import Path
 
-from telemetry.logs.importers.base import Limits, LogFormatError, Progress
+from telemetry.logs.importers.base import Limits, LogFormatError, Progress, describe
 from telemetry.logs.importers.columns import ColumnCollector
 from telemetry.logs.model import LogData
 
@@ -47,7 +47,9 @@ class MissionLogImporter:
         try:
             doc = json.loads(path.read_bytes())
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise LogFormatError(f"The mission log is not valid JSON (truncated?): {exc}.") from exc
+            raise LogFormatError(
+                f"The mission log is not valid JSON (truncated?): {describe(exc)}."
+            ) from exc
         if not isinstance(doc, dict) or not isinstance(doc.get("events"), list):
             raise LogFormatError('The mission log has no "events" list.')
         progress(0.5)

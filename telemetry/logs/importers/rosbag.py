@@ -10,7 +10,7 @@ import numpy as np
 from rosbags.rosbag1 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from telemetry.logs.importers.base import Limits, LogFormatError, Progress, ProgressTicker
+from telemetry.logs.importers.base import Limits, LogFormatError, Progress, ProgressTicker, describe
 from telemetry.logs.importers.columns import ColumnCollector
 from telemetry.logs.model import LogData, join
 
@@ -100,7 +100,7 @@ class RosbagImporter:
             reader.open()
         except Exception as exc:
             raise LogFormatError(
-                f"The file {path.name!r} is not a readable ROS 1 bag (truncated?): {exc}."
+                f"The file {path.name!r} is not a readable ROS 1 bag (truncated?): {describe(exc)}."
             ) from exc
         undecodable: dict[str, int] = {}
         try:

@@ -12,7 +12,7 @@ import numpy as np
 from pyulog import ULog
 from pyulog.core import ULogException
 
-from telemetry.logs.importers.base import Limits, LogFormatError, Progress
+from telemetry.logs.importers.base import Limits, LogFormatError, Progress, describe
 from telemetry.logs.model import LogData, Series, join
 
 MAGIC = b"ULog\x01\x12\x35"
@@ -54,7 +54,9 @@ class UlogImporter:
         try:
             ulog = ULog(str(path))
         except ULogException as exc:
-            raise LogFormatError(f"The file {path.name!r} is not a valid PX4 ULog: {exc}.") from exc
+            raise LogFormatError(
+                f"The file {path.name!r} is not a valid PX4 ULog: {describe(exc)}."
+            ) from exc
         progress(0.8)
         log = LogData(format="ulog")
         log.metadata = {

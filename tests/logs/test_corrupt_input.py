@@ -1,0 +1,55 @@
+"""Whatever the bytes, import_log returns a log or raises LogFormatError: the worker survives."""
+
+import json
+
+import numpy as np
+import pytest
+
+from telemetry.logs import LogData, LogFormatError, import_log
+from telemetry.logs.synth import synthetic_dataflash, synthetic_ulog
+from tests.logs.dfi_builder import write_dfi
+from tests.logs.test_mission_log import mission_log
+from tests.logs.test_rosbag import write_bag
+from tests.logs.test_tlog import write_tlog
+
+
+def _make(kind, path):
+    if kind == "ulg":
+        synthetic_ulog(path, seconds=1)
+    elif kind == "bin":
+        synthetic_dataflash(path, seconds=1, rate_hz=50)
+    elif kind == "tlog":
+        write_tlog(path, n=10)
+    elif kind == "bag":
+        write_bag(path, n=10)
+    elif kind == "dfi":
+        write_dfi(path)
+    else:
+        path.write_text(mission_log())
+    return path
+
+
+@pytest.mark.parametrize("kind", ["ulg", "bin", "tlog", "bag", "dfi", "json"])
+def test_truncated_or_corrupted_files_never_raise_anything_else(tmp_path, kind):
+    original = _make(kind, tmp_path / f"good.{kind}").read_bytes()
+    rng = np.random.default_rng(len(kind))
+    outcomes = {"read": 0, "rejected": 0}
+    for trial in range(24):
+        data = bytearray(original)
+        if trial % 2:
+            data = data[: int(rng.integers(1, len(data)))]
+        else:
+            for at in rng.integers(0, len(data), size=int(rng.integers(1, 20))):
+                data[at] = int(rng.integers(0, 256))
+        path = tmp_path / f"bad{trial}.{kind}"
+        path.write_bytes(bytes(data))
+        try:
+            log = import_log(path)
+        except LogFormatError as exc:
+            assert str(exc).endswith(".") and len(str(exc)) > 20
+            outcomes["rejected"] += 1
+        else:
+            assert isinstance(log, LogData) and log.series
+            json.dumps(log.warnings)
+            outcomes["read"] += 1
+    assert outcomes["rejected"] + outcomes["read"] == 24
