@@ -16,6 +16,7 @@ router.register("missions", missions_api.MissionViewSet, basename="mission")
 api_v1 = [
     path("me/", fleet_api.me, name="me"),
     path("token/", fleet_api.obtain_token, name="token"),
+    path("telemetry/", include("telemetry.api_urls")),
     path("", include(router.urls)),
 ]
 
