@@ -1,0 +1,497 @@
+"""The broker-to-database connector: MQTT telemetry in, COPY batches out, nothing lost.
+
+Three parts, each usable alone: `parse_message` (bytes → validated objects, or `Rejected`
+with a counter name), `SampleBuffer` (bounded, in memory, in rows) and `Ingestor` (the
+paho client feeding the buffer and a writer thread that COPYs it, retrying through a
+database restart). No Django here: the management command wires settings, the drone map
+and the live publisher in.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import socket
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import UTC, date, datetime
+from urllib.parse import urlsplit
+
+import paho.mqtt.client as mqtt
+import psycopg
+
+from onboard.protocol import OBJECT_NAME_RE, ProtocolError, parse_telemetry
+
+from . import storage
+
+log = logging.getLogger(__name__)
+
+SUBSCRIPTION = "$share/ingest/+/telemetry/out"
+MAX_FIELDS = 64
+MAX_ARRAY = 64
+MAX_STRING = 256
+
+
+class Rejected(ValueError):
+    """A message dropped whole; `reason` is the counter it is counted under."""
+
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(f"{reason}: {detail}")
+        self.reason = reason
+        self.detail = detail
+
+
+@dataclass(frozen=True)
+class Limits:
+    max_bytes: int = 256 * 1024
+    max_past_s: float = 7 * 86400
+    max_future_s: float = 300
+
+
+def _refuse_constant(name: str) -> float:
+    # Python's json accepts NaN and Infinity, which are not JSON; PostgreSQL's jsonb refuses them.
+    raise Rejected("bad_value", f"{name} is not a JSON number")
+
+
+def _check_value(value: object, where: str) -> None:
+    if isinstance(value, bool | str):
+        if isinstance(value, str) and len(value) > MAX_STRING:
+            raise Rejected("bad_value", f"{where}: string longer than {MAX_STRING}")
+        return
+    if isinstance(value, int):
+        return
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise Rejected("bad_value", f"{where}: not a finite number")
+        return
+    if isinstance(value, list) and len(value) <= MAX_ARRAY:
+        for i, item in enumerate(value):
+            if isinstance(item, list):
+                raise Rejected("bad_value", f"{where}[{i}]: nested list")
+            _check_value(item, f"{where}[{i}]")
+        return
+    raise Rejected("bad_value", f"{where}: {type(value).__name__} is not a field value")
+
+
+def parse_message(payload: bytes, *, now: float, limits: Limits) -> list[tuple[str, float, dict]]:
+    """Validate one telemetry message whole; its objects as (name, ts, fields).
+
+    Any bad part rejects the whole message, so nothing partial is ever stored.
+    """
+    if len(payload) > limits.max_bytes:
+        raise Rejected("oversize", f"{len(payload)} bytes > {limits.max_bytes}")
+    try:
+        data = json.loads(payload, parse_constant=_refuse_constant)
+    except Rejected:
+        raise
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise Rejected("not_json", str(exc)) from None
+    try:
+        message = parse_telemetry(data)
+    except ProtocolError as exc:
+        raise Rejected("bad_schema", str(exc)) from None
+    lo, hi = now - limits.max_past_s, now + limits.max_future_s
+    objects = []
+    for i, obj in enumerate(message.objects):
+        if not OBJECT_NAME_RE.match(obj.name):
+            raise Rejected("bad_schema", f"objects[{i}].name {obj.name!r} is not an object name")
+        if not lo <= obj.ts <= hi:
+            raise Rejected("ts_window", f"objects[{i}].ts {obj.ts} outside [{lo:.0f}, {hi:.0f}]")
+        if len(obj.fields) > MAX_FIELDS:
+            raise Rejected("bad_value", f"objects[{i}] has more than {MAX_FIELDS} fields")
+        for name, value in obj.fields.items():
+            if not OBJECT_NAME_RE.match(name):
+                raise Rejected("bad_schema", f"objects[{i}].fields: bad field name {name!r}")
+            _check_value(value, f"objects[{i}].fields.{name}")
+        objects.append((obj.name, obj.ts, obj.fields))
+    return objects
+
+
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class Chunk:
+    """One accepted message, already in COPY text form."""
+
+    received: float  # monotonic
+    rows: int
+    text: str
+    days: frozenset[date]
+
+
+class SampleBuffer:
+    """Accepted messages waiting for the database, bounded in rows."""
+
+    def __init__(self, max_rows: int) -> None:
+        self.max_rows = max_rows
+        self.rows = 0
+        self._chunks: deque[Chunk] = deque()
+        self._cond = threading.Condition()
+
+    def put(self, chunk: Chunk, wait: float) -> bool:
+        """Add a chunk, waiting up to `wait` s for room (back-pressure on the MQTT reader)."""
+        with self._cond:
+            deadline = time.monotonic() + wait
+            while self.rows + chunk.rows > self.max_rows:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                self._cond.wait(remaining)
+            self._chunks.append(chunk)
+            self.rows += chunk.rows
+            self._cond.notify_all()
+            return True
+
+    def take(self, max_rows: int, wait: float, min_rows: int) -> list[Chunk]:
+        """Up to max_rows worth of chunks, once min_rows are there or `wait` s passed."""
+        with self._cond:
+            deadline = time.monotonic() + wait
+            while self.rows < min_rows:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                self._cond.wait(remaining)
+            out: list[Chunk] = []
+            taken = 0
+            while self._chunks and (not out or taken + self._chunks[0].rows <= max_rows):
+                chunk = self._chunks.popleft()
+                out.append(chunk)
+                taken += chunk.rows
+            self.rows -= taken
+            self._cond.notify_all()
+            return out
+
+
+# ---------------------------------------------------------------------------------------
+
+
+class DroneMap:
+    """drone_id → primary key, cached; refreshed periodically and soon after a miss."""
+
+    def __init__(
+        self, loader: Callable[[], dict[str, int]], every: float = 30.0, after_miss: float = 2.0
+    ) -> None:
+        self.loader = loader
+        self.every = every
+        self.after_miss = after_miss
+        self.ids: dict[str, int] = {}
+        self._loaded_at = -math.inf
+        self._missed = False
+
+    def get(self, drone_id: str) -> int | None:
+        pk = self.ids.get(drone_id)
+        if pk is None:
+            self._missed = True
+        return pk
+
+    def maybe_refresh(self) -> None:
+        age = time.monotonic() - self._loaded_at
+        if age >= self.every or (self._missed and age >= self.after_miss):
+            self.refresh()
+
+    def refresh(self) -> None:
+        try:
+            self.ids = self.loader()
+            self._missed = False
+        except psycopg.Error as exc:
+            log.warning("drone map not refreshed: %s", exc)
+        self._loaded_at = time.monotonic()
+
+
+def load_drone_ids(conninfo: str) -> dict[str, int]:
+    with psycopg.connect(conninfo, connect_timeout=3) as conn:
+        return dict(conn.execute("SELECT drone_id, id FROM fleet_drone").fetchall())
+
+
+class CounterSink:
+    """What the ingestor counts into; `workers.counters.Counters` fits, so does this."""
+
+    def __init__(self) -> None:
+        self.counts: dict[str, int] = {}
+        self.gauges: dict[str, float] = {}
+        self._lock = threading.Lock()
+
+    def incr(self, name: str, amount: int = 1) -> None:
+        with self._lock:
+            self.counts[name] = self.counts.get(name, 0) + amount
+
+    def gauge(self, name: str, value: float) -> None:
+        self.gauges[name] = value
+
+    def maybe_flush(self) -> None:
+        return
+
+    def flush(self) -> None:
+        return
+
+
+LivePublisher = Callable[[dict[int, dict[str, tuple[float, dict]]]], None]
+
+
+@dataclass
+class IngestConfig:
+    conninfo: str
+    mqtt_url: str
+    flush_rows: int = 5000
+    flush_interval: float = 0.2
+    buffer_rows: int = 500_000
+    limits: Limits = field(default_factory=Limits)
+    live_hz: float = 5.0
+    client_id: str = ""
+    put_wait: float = 0.5
+
+
+class Ingestor:
+    """Subscribe, validate, buffer and COPY; `start()`, then `stop()` drains the buffer."""
+
+    def __init__(
+        self,
+        config: IngestConfig,
+        *,
+        drones: DroneMap,
+        counters: object,
+        live: LivePublisher | None = None,
+    ) -> None:
+        self.config = config
+        self.drones = drones
+        self.counters = counters
+        self.live = live
+        self.buffer = SampleBuffer(config.buffer_rows)
+        self._conn: psycopg.Connection | None = None
+        self._known_days: set[date] = set()
+        self._stop_writing = threading.Event()
+        self._latest: dict[int, dict[str, tuple[float, dict]]] = {}
+        self._latest_lock = threading.Lock()
+        self._threads: list[threading.Thread] = []
+        self._stored_window: deque[tuple[float, int]] = deque()
+        self.stored = 0
+        self.client = self._make_client()
+
+    # -- MQTT side -------------------------------------------------------------------------
+
+    def _make_client(self) -> mqtt.Client:
+        url = urlsplit(self.config.mqtt_url)
+        client_id = self.config.client_id or f"ingest-{socket.gethostname()}-{os.getpid()}"
+        client = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=True
+        )
+        if url.username:
+            client.username_pw_set(url.username, url.password)
+        client.reconnect_delay_set(0.2, 5)
+        client.on_connect = self._on_connect
+        client.on_message = self._on_message
+        self._host, self._port = url.hostname or "127.0.0.1", url.port or 1883
+        return client
+
+    def _on_connect(self, client, userdata, flags, reason_code, properties) -> None:  # type: ignore[no-untyped-def]
+        if reason_code.is_failure:
+            log.error("broker refused the ingest connection: %s", reason_code)
+            return
+        sock = client.socket()
+        if sock is not None:
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        client.subscribe(SUBSCRIPTION, qos=1)
+        log.info("ingest subscribed to %s", SUBSCRIPTION)
+
+    def _on_message(self, client, userdata, message) -> None:  # type: ignore[no-untyped-def]
+        self.handle(message.topic, message.payload)
+
+    def handle(self, topic: str, payload: bytes) -> bool:
+        """One message from the broker: validate, buffer; False if it was dropped."""
+        counters = self.counters
+        counters.incr("received")
+        parts = topic.split("/")
+        if len(parts) != 3 or parts[1:] != ["telemetry", "out"]:
+            counters.incr("dropped.bad_topic")
+            return False
+        drone_pk = self.drones.get(parts[0])
+        if drone_pk is None:
+            counters.incr("dropped.unknown_drone")
+            return False
+        try:
+            objects = parse_message(payload, now=time.time(), limits=self.config.limits)
+        except Rejected as exc:
+            counters.incr(f"dropped.{exc.reason}")
+            log.debug("dropped telemetry from %s: %s", parts[0], exc)
+            return False
+        if not objects:
+            return True
+        samples = [storage.Sample(ts, drone_pk, name, fields) for name, ts, fields in objects]
+        chunk = Chunk(
+            received=time.monotonic(),
+            rows=len(samples),
+            text="".join(s.copy_line() for s in samples),
+            days=frozenset(datetime.fromtimestamp(s.ts, UTC).date() for s in samples),
+        )
+        if not self.buffer.put(chunk, self.config.put_wait):
+            counters.incr("overflow")
+            counters.incr("overflow_objects", len(samples))
+            return False
+        counters.incr("objects_received", len(samples))
+        if self.live is not None:
+            with self._latest_lock:
+                latest = self._latest.setdefault(drone_pk, {})
+                for name, ts, fields in objects:
+                    previous = latest.get(name)
+                    if previous is None or previous[0] <= ts:
+                        latest[name] = (ts, fields)
+        return True
+
+    # -- database side -----------------------------------------------------------------------
+
+    def _connection(self) -> psycopg.Connection:
+        if self._conn is None or self._conn.closed:
+            self._conn = psycopg.connect(self.config.conninfo, autocommit=True, connect_timeout=3)
+            self._known_days.clear()
+        return self._conn
+
+    def _drop_connection(self) -> None:
+        if self._conn is not None:
+            try:
+                self._conn.close()
+            except psycopg.Error:
+                pass
+        self._conn = None
+
+    def _ensure_days(self, conn: psycopg.Connection, days: set[date]) -> None:
+        for day in days - self._known_days:
+            try:
+                storage.ensure_partition(conn, storage.SAMPLE_TABLE, day)
+            except psycopg.errors.Error as exc:
+                if conn.closed or conn.broken:
+                    raise
+                # The default partition still takes the rows; the beat task retries.
+                log.warning("partition for %s not created: %s", day, exc)
+            self._known_days.add(day)
+
+    def write(self, chunks: list[Chunk], *, idempotent: bool) -> None:
+        """Store chunks in one transaction; raises psycopg errors for the caller to retry."""
+        conn = self._connection()
+        self._ensure_days(conn, set().union(*(c.days for c in chunks)))
+        text = "".join(c.text for c in chunks)
+        with conn.transaction(), conn.cursor() as cursor:
+            if idempotent:
+                cursor.execute(
+                    "CREATE TEMP TABLE IF NOT EXISTS telemetry_stage "
+                    "(LIKE telemetry_sample) ON COMMIT DELETE ROWS"
+                )
+                table = "telemetry_stage"
+            else:
+                table = "telemetry_sample"
+            with cursor.copy(f"COPY {table} (ts, drone_id, object, fields) FROM STDIN") as copy:
+                copy.write(text)
+            if idempotent:
+                cursor.execute(
+                    "INSERT INTO telemetry_sample SELECT * FROM telemetry_stage "
+                    "ON CONFLICT (drone_id, object, ts) DO NOTHING"
+                )
+
+    def _flush_once(self, pending: list[Chunk], retrying: bool) -> None:
+        try:
+            self.write(pending, idempotent=retrying)
+        except psycopg.errors.UniqueViolation:
+            # A sample already stored (a QoS 1 redelivery): keep the rest, skip the copies.
+            self.write(pending, idempotent=True)
+
+    def _writer(self) -> None:
+        pending: list[Chunk] = []
+        retrying = False
+        backoff = 0.1
+        while True:
+            if not pending:
+                if self._stop_writing.is_set() and self.buffer.rows == 0:
+                    break
+                pending = self.buffer.take(
+                    max_rows=self.config.flush_rows * 4,
+                    wait=self.config.flush_interval,
+                    min_rows=self.config.flush_rows,
+                )
+            self.drones.maybe_refresh()
+            if pending:
+                try:
+                    self._flush_once(pending, retrying)
+                except (psycopg.OperationalError, psycopg.InterfaceError) as exc:
+                    # The database is away: keep the batch, retry it idempotently, since a
+                    # connection lost around COMMIT leaves us not knowing if it landed.
+                    self.counters.incr("db_errors")
+                    log.warning("telemetry write failed, retrying in %.1f s: %s", backoff, exc)
+                    self._drop_connection()
+                    retrying = True
+                    time.sleep(backoff)
+                    backoff = min(backoff * 2, 2.0)
+                    continue
+                except psycopg.Error as exc:
+                    rows = sum(c.rows for c in pending)
+                    self.counters.incr("dropped.db_rejected", rows)
+                    log.error("telemetry batch of %d rows refused by the database: %s", rows, exc)
+                    self._drop_connection()
+                else:
+                    self._record_stored(pending)
+                pending = []
+                retrying = False
+                backoff = 0.1
+            self._report()
+
+    def _record_stored(self, chunks: list[Chunk]) -> None:
+        rows = sum(c.rows for c in chunks)
+        now = time.monotonic()
+        self.stored += rows
+        self.counters.incr("stored", rows)
+        self.counters.gauge("lag_s", round(now - min(c.received for c in chunks), 4))
+        self._stored_window.append((now, rows))
+
+    def _report(self) -> None:
+        now = time.monotonic()
+        while self._stored_window and self._stored_window[0][0] < now - 5:
+            self._stored_window.popleft()
+        rate = sum(rows for _, rows in self._stored_window) / 5
+        self.counters.gauge("rate_objects_per_s", round(rate, 1))
+        self.counters.gauge("buffer_rows", self.buffer.rows)
+        self.counters.gauge("alive_at", time.time())
+        self.counters.maybe_flush()
+
+    # -- live values -----------------------------------------------------------------------
+
+    def _publisher(self) -> None:
+        period = 1.0 / self.config.live_hz
+        while not self._stop_writing.wait(period):
+            with self._latest_lock:
+                latest, self._latest = self._latest, {}
+            if latest and self.live is not None:
+                try:
+                    self.live(latest)
+                except Exception:  # noqa: BLE001 - live view is best effort, storage is not
+                    log.exception("live telemetry push failed")
+
+    # -- life cycle --------------------------------------------------------------------------
+
+    def start(self) -> None:
+        self.drones.refresh()
+        self._threads = [threading.Thread(target=self._writer, name="ingest-writer", daemon=True)]
+        if self.live is not None:
+            self._threads.append(
+                threading.Thread(target=self._publisher, name="ingest-live", daemon=True)
+            )
+        for thread in self._threads:
+            thread.start()
+        self.client.connect_async(self._host, self._port, keepalive=30)
+        self.client.loop_start()
+
+    def stop(self, drain_timeout: float = 30.0) -> bool:
+        """Stop reading, then write what is buffered; True if everything was written."""
+        self.client.disconnect()
+        self.client.loop_stop()
+        self._stop_writing.set()
+        deadline = time.monotonic() + drain_timeout
+        for thread in self._threads:
+            thread.join(max(0.0, deadline - time.monotonic()))
+        drained = not any(t.is_alive() for t in self._threads)
+        self.counters.flush()
+        self._drop_connection()
+        return drained

@@ -1,0 +1,66 @@
+"""`manage.py ingest_telemetry`: the broker-to-database connector (run several in parallel).
+
+Drains on SIGTERM/SIGINT: stops reading, writes what it holds, then exits.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+
+from django.conf import settings
+from django.core.management.base import BaseCommand
+
+from telemetry.ingest import DroneMap, IngestConfig, Ingestor, Limits, load_drone_ids
+from telemetry.live import ChannelsLivePublisher
+from telemetry.queries import conninfo_from_settings
+from workers.counters import Counters
+
+log = logging.getLogger(__name__)
+
+
+class Command(BaseCommand):
+    help = "Store every drone's telemetry from the broker into PostgreSQL (COPY batches)."
+
+    def add_arguments(self, parser) -> None:  # type: ignore[no-untyped-def]
+        parser.add_argument("--mqtt-url", default=None, help="Broker URL (default MQTT_URL).")
+        parser.add_argument(
+            "--database-url", default=None, help="Store into this database instead."
+        )
+        parser.add_argument("--no-live", action="store_true", help="Do not push live values.")
+        parser.add_argument("--drain-timeout", type=float, default=30.0)
+
+    def handle(self, *args, **options) -> None:  # type: ignore[no-untyped-def]
+        conninfo = options["database_url"] or conninfo_from_settings()
+        config = IngestConfig(
+            conninfo=conninfo,
+            mqtt_url=options["mqtt_url"] or settings.MQTT_URL,
+            flush_rows=settings.TELEMETRY_FLUSH_ROWS,
+            flush_interval=settings.TELEMETRY_FLUSH_INTERVAL_S,
+            buffer_rows=settings.TELEMETRY_BUFFER_ROWS,
+            limits=Limits(
+                max_bytes=settings.TELEMETRY_MAX_MESSAGE_BYTES,
+                max_past_s=settings.TELEMETRY_MAX_PAST_S,
+                max_future_s=settings.TELEMETRY_MAX_FUTURE_S,
+            ),
+            live_hz=settings.TELEMETRY_LIVE_HZ,
+        )
+        ingestor = Ingestor(
+            config,
+            drones=DroneMap(lambda: load_drone_ids(conninfo)),
+            counters=Counters("ingest"),
+            live=None if options["no_live"] else ChannelsLivePublisher(),
+        )
+        stop = threading.Event()
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(sig, lambda *_: stop.set())
+        ingestor.start()
+        self.stdout.write(f"ingest_telemetry: reading {config.mqtt_url.split('@')[-1]}")
+        self.stdout.flush()
+        stop.wait()
+        drained = ingestor.stop(drain_timeout=options["drain_timeout"])
+        self.stdout.write(
+            f"ingest_telemetry: stopped, {ingestor.stored} objects stored"
+            + ("" if drained else ", buffer NOT fully written")
+        )
