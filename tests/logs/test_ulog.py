@@ -5,6 +5,7 @@ import pytest
 from pyulog import ULog
 
 from telemetry.logs import LogFormatError, find_special, import_log
+from telemetry.logs.analysis import quaternion
 from telemetry.logs.synth import synthetic_ulog, write_ulog
 
 REAL_LOGS = sorted(Path("/work/shared/testdata/ulog").glob("*.ulg"))
@@ -27,7 +28,8 @@ def _assert_equal_to_pyulog(path: Path) -> None:
             np.testing.assert_array_equal(series.times, d.data["timestamp"].astype(np.int64) * 1000)
             assert series.time_source == "board"
             checked += 1
-    assert checked == len([s for s in log.series if not s.startswith("logging/")])
+    derived = [s for s in log.series if s.startswith("logging/") or "/euler/" in s]
+    assert checked == len(log.series) - len(derived)
 
 
 @pytest.mark.parametrize("path", REAL_LOGS, ids=lambda p: p.name)
@@ -101,3 +103,20 @@ def test_ulog_cut_mid_flight_keeps_the_data_before_the_cut(tmp_path):
     full, cut = import_log(REAL_LOGS[0]), import_log(path)
     series = cut.series["sensor_combined/gyro_rad[0]"]
     assert 0 < len(series.values) < len(full.series["sensor_combined/gyro_rad[0]"].values)
+
+
+def test_px4_attitude_quaternion_also_gives_yaw_pitch_roll(tmp_path):
+    yaw, pitch, roll = np.radians([[120.0, -30.0], [10.0, 45.0], [-20.0, 5.0]])
+    arr = np.zeros(2, dtype=[("timestamp", "<u8"), ("q", "(4,)<f4")])
+    arr["timestamp"] = [1, 2]
+    arr["q"] = quaternion(yaw, pitch, roll)
+    path = tmp_path / "att.ulg"
+    write_ulog(path, {"vehicle_attitude": arr})
+    log = import_log(path)
+    for name, expected in (("yaw", yaw), ("pitch", pitch), ("roll", roll)):
+        np.testing.assert_allclose(
+            log.series[f"vehicle_attitude/euler/{name}"].values, expected, atol=1e-6
+        )
+    assert find_special(log)["rotation"] == [
+        f"vehicle_attitude/euler/{n}" for n in ("roll", "pitch", "yaw")
+    ]

@@ -87,6 +87,8 @@ class UlogImporter:
                         special=special,
                     )  # type: ignore[arg-type]
                 )
+            if d.name == "vehicle_attitude" and d.multi_id == 0 and "q[3]" in d.data:
+                self._add_euler(log, layer, d.data, times)
         messages = ulog.logged_messages
         if messages:
             times = np.array([m.timestamp for m in messages], dtype=np.int64) * 1000
@@ -104,6 +106,28 @@ class UlogImporter:
                 )
             )
         return log
+
+    @staticmethod
+    def _add_euler(log: LogData, layer: str, data: dict, times: np.ndarray) -> None:
+        """PX4 logs attitude only as a quaternion (w, x, y, z; body FRD to NED); the 3D view
+        and the trajectory want yaw, pitch, roll in the seed's order (z, then y, then x)."""
+        w, x, y, z = (data[f"q[{i}]"].astype(np.float64) for i in range(4))
+        angles = {
+            "roll": np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
+            "pitch": np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0)),
+            "yaw": np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)),
+        }
+        for name, values in angles.items():
+            log.add(
+                Series(
+                    join(layer, "euler", name),
+                    values,
+                    times,
+                    unit="rad",
+                    time_source="board",
+                    special=f"rotation.{name}",
+                )
+            )
 
 
 def _kind(values: np.ndarray) -> str:
