@@ -97,6 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="LAT,LON,RADIUS_M,PEAK[,SENSOR] simulated plume (repeatable)",
     )
     p.add_argument("--gear-reread-interval", type=_positive, default=5.0, help="seconds")
+    p.add_argument("--camera-fps", type=float, default=0.0, help="camera/out frames per second")
     p.add_argument("--arm-timeout", type=_positive, default=20.0, help="seconds")
     p.add_argument("--log-level", default="INFO")
     return p
@@ -153,6 +154,7 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
         sensor_field=sensor_field,
         gear_reread_interval=args.gear_reread_interval,
         arm_timeout=args.arm_timeout,
+        camera_fps=args.camera_fps,
     )
 
 

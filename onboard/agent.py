@@ -21,7 +21,7 @@ from . import protocol
 from .controller import Controller
 from .failsafe import FailSafe
 from .fc.base import FlightController
-from .gear import GearManager
+from .gear import GearError, GearManager
 from .heartbeat import Heartbeater, build_heartbeat
 from .logger import FlightLogger
 from .mission import MissionWorker, position_of
@@ -53,6 +53,7 @@ class AgentConfig:
     arm_timeout: float = 20.0
     flight_timeout: float = 600.0
     camera: str = "sim"
+    camera_fps: float = 0.0  # frames per second on <id>/camera/out; 0 = no stream
     mqtt_keepalive: int = 10
 
 
@@ -125,7 +126,10 @@ class Agent:
         self.gear.start()
         self.mqtt.start()
         self.heartbeater.start()
-        for target, name in ((self._telemetry_loop, "telemetry"), (self._supervise, "supervisor")):
+        loops = [(self._telemetry_loop, "telemetry"), (self._supervise, "supervisor")]
+        if self.config.camera_fps > 0:
+            loops.append((self._camera_loop, "camera"))
+        for target, name in loops:
             thread = threading.Thread(target=target, name=name, daemon=True)
             thread.start()
             self._threads.append(thread)
@@ -212,6 +216,18 @@ class Agent:
                 self._flush_telemetry()
             except Exception:
                 log.exception("telemetry publish failed")
+
+    def _camera_loop(self) -> None:
+        period = 1.0 / self.config.camera_fps
+        while not self._stop.wait(period):
+            if not self.gear.has_camera() or not self.mqtt.connected:
+                continue
+            try:
+                self.send("camera", self.gear.camera_frame(self.fc.state))
+            except GearError as exc:
+                log.debug("no camera frame: %s", exc)
+            except Exception:
+                log.exception("camera frame failed")
 
     def _supervise(self) -> None:
         while not self._stop.wait(0.2):

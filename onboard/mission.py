@@ -382,12 +382,20 @@ class MissionWorker:
             raise StepFailed("No position has been requested yet, so there is nothing to reach.")
         deadline = time.monotonic() + self.flight_timeout / self.time_scale
         while True:
-            actual = current_ned(self.fc.state)
-            if actual is not None and inside_cylinder(
-                actual,
-                target.ned,
-                horizontal_tolerance=horizontal_tolerance,
-                vertical_tolerance=vertical_tolerance,
+            state = self.fc.state
+            actual = current_ned(state)
+            # A landing is reached on the ground, not 2 m above it: the next step is
+            # usually disarm, which is refused while airborne.
+            landed = target.kind != "land" or not state.airborne
+            if (
+                actual is not None
+                and landed
+                and inside_cylinder(
+                    actual,
+                    target.ned,
+                    horizontal_tolerance=horizontal_tolerance,
+                    vertical_tolerance=vertical_tolerance,
+                )
             ):
                 return {"target": dict(zip(("north", "east", "down"), target.ned, strict=True))}
             if time.monotonic() > deadline:

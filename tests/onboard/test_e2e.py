@@ -244,3 +244,132 @@ def test_a_drone_behind_its_own_broker_is_commanded_through_the_ground_broker(
             ground.close()
     finally:
         internal.stop()
+
+
+def test_a_plume_and_a_draining_battery_raise_one_alarm_each(tmp_path: Path) -> None:
+    broker = start_broker(tmp_path / "broker", {"ground": "pw", DRONE: "dpw"})
+    sim = start_simulator(
+        home=HOME,
+        time_scale=SCALE,
+        arming_line=tmp_path / "arming_line",
+        log_file=tmp_path / "sim.log",
+        battery_capacity_mah=200,
+    )
+    plume = f"{HOME[0] + 100 / 111_320},{HOME[1]},30,2500"
+    process = start_agent(
+        tmp_path,
+        drone_id=DRONE,
+        link=sim.url,
+        broker_url=broker.url_for(DRONE),
+        arming_line=tmp_path / "arming_line",
+        time_scale=SCALE,
+        extra=[
+            "--plume",
+            plume,
+            "--bounds",
+            "CO2::1000",
+            "--battery-critical",
+            "0.25",
+            "--camera-fps",
+            "5",
+        ],
+    )
+    ground = Ground(broker.port, DRONE)
+    try:
+        ground.wait_for("heartbeats", lambda m: m["fc"]["connected"] and m["position"], timeout=15)
+        steps = [
+            {"index": 0, "command": "arm"},
+            {"index": 1, "command": "takeoff", "params": {"altitude": 10}},
+            {"index": 2, "command": "wait_for_flight"},
+            {"index": 3, "command": "changeN", "params": {"value": 100}},
+            {"index": 4, "command": "wait_for_flight"},
+            {"index": 5, "command": "sense", "params": {"sensor": "CO2"}},
+            {"index": 6, "command": "sleep", "params": {"value": 60}},
+            {"index": 7, "command": "land"},
+            {"index": 8, "command": "wait_for_flight"},
+            {"index": 9, "command": "disarm"},
+        ]
+        ground.send("mission", protocol.mission_start("m2", "a2", steps).to_dict())
+        done = ground.wait_for(
+            "mission",
+            lambda m: m.get("type") == "mission" and m["status"] not in ("accepted",),
+            timeout=60,
+        )
+        assert done["status"] == "completed", done
+        alarms = [protocol.parse_alarm(m) for m in ground.on("alarms")]
+        assert [a.level for a in alarms] == ["OUT_MEASURE", "CRITICAL"]
+        measure, critical = alarms
+        assert (measure.sensor, measure.index, measure.mission_id) == ("CO2", 5, "m2")
+        assert measure.value > 1000 and measure.position.lat == pytest.approx(
+            HOME[0] + 100 / 111_320, abs=3e-5
+        )
+        assert critical.index == 6 and critical.assignment_id == "a2"
+        assert critical.value < 0.25
+        frames = [protocol.parse_camera_frame(m) for m in ground.on("camera")]
+        assert frames and frames[-1].jpeg.startswith(b"\xff\xd8")
+    finally:
+        ground.close()
+        stop_process(process)
+        sim.stop()
+        broker.stop()
+
+
+def test_the_launcher_starts_a_fleet_with_provisioned_credentials(tmp_path: Path) -> None:
+    import json
+    import os
+    import subprocess
+    import sys
+
+    users = {"ground": "pw", "SIM_A": "a-secret", "SIM_B": "b:secret@"}
+    broker = start_broker(tmp_path / "broker", users)
+    creds = [
+        {
+            "drone_id": d,
+            "mqtt": {"host": "127.0.0.1", "port": broker.port, "username": d, "password": users[d]},
+        }
+        for d in ("SIM_A", "SIM_B")
+    ]
+    (tmp_path / "creds.json").write_text(json.dumps(creds))
+    repo = Path(__file__).resolve().parents[2]
+    launcher = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "onboard.launcher",
+            "--count",
+            "2",
+            "--home",
+            f"{HOME[0]},{HOME[1]}",
+            "--credentials-file",
+            str(tmp_path / "creds.json"),
+            "--time-scale",
+            str(SCALE),
+            "--workdir",
+            str(tmp_path / "fleet"),
+            "--",
+            "--heartbeat-interval",
+            "0.5",
+        ],
+        cwd=repo,
+        env=dict(os.environ, PYTHONPATH=str(repo)),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    grounds = [Ground(broker.port, d, client_id=f"g-{d}") for d in ("SIM_A", "SIM_B")]
+    try:
+        beats = [
+            g.wait_for("heartbeats", lambda m: m["fc"]["connected"] and m["position"], timeout=30)
+            for g in grounds
+        ]
+        a, b = (protocol.parse_heartbeat(m).position for m in beats)
+        assert (a.lat, a.lon) != (b.lat, b.lon)
+        assert grounds[1].command("objrequest", value="FlightStatus")["ok"]
+    finally:
+        for g in grounds:
+            g.close()
+        assert stop_process(launcher, timeout=20) == 0, launcher.stderr.read()
+        broker.stop()
+    lines = launcher.stdout.read().splitlines()
+    assert [line.split()[1] for line in lines if line.startswith("drone:")] == ["SIM_A", "SIM_B"]
+    assert (tmp_path / "fleet" / "SIM_B" / "gear" / "specs.json").exists()

@@ -237,3 +237,25 @@ def test_the_worker_survives_many_missions_in_parallel_submissions() -> None:
         assert statuses.count("accepted") + statuses.count("rejected") == 5
     finally:
         h.worker.close()
+
+
+def test_wait_for_flight_after_land_waits_until_the_drone_is_down(harness: Harness) -> None:
+    harness.fc.move_to(10, 0, -10)
+    harness.send(
+        [
+            {"index": 0, "command": "arm"},
+            {"index": 1, "command": "land"},
+            {"index": 2, "command": "wait_for_flight"},
+            {"index": 3, "command": "disarm"},
+        ]
+    )
+    while True:
+        message = harness.next()
+        if isinstance(message, protocol.StepProgress) and message.index == 2:
+            break
+    harness.fc.move_to(10, 0, -1.5)  # inside the 2 m cylinder, but still flying
+    time.sleep(0.2)
+    assert harness.messages.empty()
+    harness.fc.move_to(10, 0, 0)
+    assert harness.until_mission_status()[-1].status == "completed"
+    assert harness.fc.state.armed is False

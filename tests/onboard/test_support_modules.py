@@ -305,3 +305,14 @@ def test_no_onboard_module_imports_django() -> None:
                 if n.split(".")[0] in ("django", "rest_framework", "channels", "celery")
             ]
     assert offenders == []
+
+
+def test_camera_frames_carry_the_pose_and_a_jpeg(gear_dir: Path) -> None:
+    gear = GearManager(gear_dir, lambda *a: None)
+    fc = FakeFlightController()
+    fc.move_to(5.0, -3.0, -20.0)
+    frame = gear.camera_frame(fc.state)
+    assert frame.position == (5.0, -3.0, -20.0)
+    assert frame.jpeg.startswith(b"\xff\xd8")
+    parsed = protocol.parse_camera_frame(json.loads(protocol.encode(frame)))
+    assert parsed.orientation == pytest.approx(frame.orientation)
