@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from telemetry.logs.importers import import_log
+from telemetry.logs.importers.base import DEFAULT_LIMITS, Limits, Progress, no_progress
 from telemetry.logs.lod import downsample
 from telemetry.logs.model import LogData, find_special
 
@@ -126,6 +128,19 @@ class LogStore:
     def special(self) -> dict[str, list[str]]:
         return self.index["special"]
 
+    def series_list(self) -> list[dict]:
+        """The API's series summary: [{"path", "unit", "count", "start", "end"}] (seconds)."""
+        return [
+            {
+                "path": p,
+                "unit": i["unit"],
+                "count": i["count"],
+                "start": i["start"],
+                "end": i["end"],
+            }
+            for p, i in self.index["series"].items()
+        ]
+
     def info(self, path: str) -> dict:
         try:
             return self.index["series"][path]
@@ -185,3 +200,18 @@ class LogStore:
 def open_store(directory: str | Path) -> LogStore:
     """Open a store written by write_store."""
     return LogStore(directory)
+
+
+def import_to_store(
+    path: str | Path,
+    directory: str | Path,
+    *,
+    limits: Limits = DEFAULT_LIMITS,
+    progress: Progress = no_progress,
+) -> LogStore:
+    """What the import task runs: parse any supported log and store it atomically.
+    Raises LogFormatError (nothing written) when the file cannot be read."""
+    log = import_log(path, limits=limits, progress=lambda f: progress(0.9 * f))
+    write_store(log, directory)
+    progress(1.0)
+    return open_store(directory)

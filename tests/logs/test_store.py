@@ -3,9 +3,9 @@ import json
 import numpy as np
 import pytest
 
-from telemetry.logs import import_log
+from telemetry.logs import LogFormatError, import_log
 from telemetry.logs.model import LogData, Series
-from telemetry.logs.store import open_store, write_store
+from telemetry.logs.store import import_to_store, open_store, write_store
 from tests.logs.dfi_builder import write_dfi
 
 
@@ -101,3 +101,31 @@ def test_rewriting_a_store_replaces_it(tmp_path):
     write_store(import_log(write_dfi(tmp_path / "f.dfi")), tmp_path / "log1")
     assert open_store(tmp_path / "log1").index["format"] == "dfi"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.dfi", "log1"]
+
+
+def test_import_to_store_reports_progress_and_summarises_series(tmp_path):
+    seen = []
+    store = import_to_store(write_dfi(tmp_path / "f.dfi"), tmp_path / "s", progress=seen.append)
+    assert seen[-1] == 1.0 and seen == sorted(seen)
+    assert store.series_list()[0] == {
+        "path": "navdata/time (recorder)",
+        "unit": "ns",
+        "count": 3,
+        "start": 0.001,
+        "end": 0.003,
+    }
+    assert {
+        "path": "commands/Velocity/x",
+        "unit": "m/s",
+        "count": 2,
+        "start": 0.005,
+        "end": 0.006,
+    } in store.series_list()
+
+
+def test_import_to_store_writes_nothing_for_a_bad_file(tmp_path):
+    bad = tmp_path / "bad.ulg"
+    bad.write_bytes(b"ULog\x01\x12\x35\x01" + b"\0" * 3)
+    with pytest.raises(LogFormatError):
+        import_to_store(bad, tmp_path / "s")
+    assert not (tmp_path / "s").exists()
