@@ -102,3 +102,17 @@ def test_dataflash_truncated_inside_its_formats_is_rejected(bin_log):
     bin_log.write_bytes(bin_log.read_bytes()[:60])
     with pytest.raises(LogFormatError, match="no FMT records"):
         import_log(bin_log)
+
+
+def test_dataflash_corrupt_fmt_loses_only_its_message_type(bin_log):
+    data = bytearray(bin_log.read_bytes())
+    at = data.index(b"ATT\x00")  # the FMT record describing ATT
+    data[at + 4 : at + 10] = b"QccCc?"  # an unknown format character
+    bin_log.write_bytes(bytes(data))
+    log = import_log(bin_log)
+    assert not any(p.startswith("ATT/") for p in log.series)
+    assert len(log.series["GPS/Lat"].values) == 20
+    assert any(
+        "Ignored a corrupt FMT record: FMT of ATT: unsupported format character '?'" in w
+        for w in log.warnings
+    )

@@ -9,6 +9,7 @@ object per record, which is what makes it slow on 100 MB logs.
 from __future__ import annotations
 
 import mmap
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -106,10 +107,18 @@ def _parse_fmt(record: bytes) -> Format:
     return Format(type_, length, name, chars, columns)
 
 
-def scan(
-    data: bytes | mmap.mmap, progress: Progress
-) -> tuple[dict[int, Format], dict[int, list[int]], int, bool]:
-    """Record start offsets per message type; also skipped bytes and a truncated tail."""
+@dataclass
+class Scan:
+    formats: dict[int, Format]
+    offsets: dict[int, list[int]]  # record starts per message type
+    skipped: int  # bytes of corrupt or unknown records
+    truncated: bool  # the last record is cut short
+    bad_formats: list[str]  # FMT records that could not be used
+
+
+def scan(data: bytes | mmap.mmap, progress: Progress) -> Scan:
+    """Find every record start, following FMT records as they come."""
+    bad_formats: list[str] = []
     lengths = [0] * 256
     lengths[FMT_TYPE] = FMT_LEN
     formats: dict[int, Format] = {}
@@ -135,10 +144,15 @@ def scan(
                     append = appenders[t] = offsets.setdefault(t, []).append
                 append(pos)
                 if t == FMT_TYPE:
-                    fmt = _parse_fmt(bytes(data[pos : pos + FMT_LEN]))
-                    if fmt.type != FMT_TYPE:
-                        formats[fmt.type] = fmt
-                        lengths[fmt.type] = fmt.length
+                    try:
+                        fmt = _parse_fmt(bytes(data[pos : pos + FMT_LEN]))
+                    except LogFormatError as exc:
+                        # Losing one message type beats losing the flight.
+                        bad_formats.append(str(exc))
+                    else:
+                        if fmt.type != FMT_TYPE:
+                            formats[fmt.type] = fmt
+                            lengths[fmt.type] = fmt.length
                 pos += length
                 counter += 1
                 if counter & 0xFFFF == 0:
@@ -154,7 +168,7 @@ def scan(
             break
         skipped += nxt - pos
         pos = nxt
-    return formats, offsets, skipped, truncated
+    return Scan(formats, offsets, skipped, truncated, bad_formats)
 
 
 class DataFlashImporter:
@@ -167,16 +181,18 @@ class DataFlashImporter:
 
     def read(self, path: Path, *, limits: Limits, progress: Progress) -> LogData:
         with path.open("rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
-            formats, offsets, skipped, truncated = scan(data, progress)
+            found = scan(data, progress)
+            formats, offsets = found.formats, found.offsets
             if not formats:
                 raise LogFormatError(
                     f"The file {path.name!r} has no FMT records: not a DataFlash log, or truncated."
                 )
             buf = np.frombuffer(data, dtype=np.uint8)
             log = LogData(format="dataflash")
-            if skipped:
-                log.warnings.append(f"Skipped {skipped} bytes of corrupt or unknown records.")
-            if truncated:
+            if found.skipped:
+                log.warnings.append(f"Skipped {found.skipped} bytes of corrupt or unknown records.")
+            log.warnings.extend(f"Ignored a corrupt FMT record: {m}" for m in found.bad_formats)
+            if found.truncated:
                 log.warnings.append("The last record is truncated and was dropped.")
             try:
                 self._decode(buf, formats, offsets, log, progress)
