@@ -78,9 +78,7 @@ class DroneQuerySet(models.QuerySet):
 
 
 class Drone(models.Model):
-    organisation = models.ForeignKey(
-        Organisation, on_delete=models.CASCADE, related_name="drones"
-    )
+    organisation = models.ForeignKey(Organisation, on_delete=models.CASCADE, related_name="drones")
     # Topic trees are global on the broker, so the id is unique across organisations.
     drone_id = models.CharField(
         max_length=64, unique=True, validators=[RegexValidator(DRONE_ID_RE.pattern)]

@@ -22,9 +22,7 @@ class Command(BaseCommand):
     @transaction.atomic
     def handle(self, *args, **options):  # type: ignore[no-untyped-def]
         password_file = Path(settings.DATA_DIR) / "admin_password"
-        organisation, _ = Organisation.objects.get_or_create(
-            slug="demo", defaults={"name": "Demo"}
-        )
+        organisation, _ = Organisation.objects.get_or_create(slug="demo", defaults={"name": "Demo"})
         User = get_user_model()
         user = User.objects.filter(username="admin").first()
         if user is None or not password_file.exists():

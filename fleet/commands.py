@@ -1,0 +1,208 @@
+"""The Drone Manager (seed 001, 3.4.2.2, 4.2.3, table 4.2): commands with real replies.
+
+A command is checked here before anything is sent (who may, which drone, which
+parameters, is it safe), logged with its sender, sent through the gateway (fleet.link)
+and answered with the drone's own reply, correlated by a fresh request id.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+from asgiref.sync import sync_to_async
+from django.conf import settings
+from django.utils import timezone
+from django.utils.module_loading import import_string
+
+from onboard import protocol
+
+from . import link
+from .models import CommandLog, Drone, Role
+from .permissions import require_role
+
+log = logging.getLogger(__name__)
+
+# Seed table 4.2: queries answered by the Drone Identifier (GET) ...
+QUERY_COMMANDS = ("discover", "getgear")
+GET_COMMANDS = ("discover", "getgear", "objrequest")
+# ... and the Mission Planner's two (POST), routed to the hooks in settings.
+CHAIN_COMMANDS = ("startchain", "stopchain")
+ALL_COMMANDS = (*QUERY_COMMANDS, *protocol.CONTROL_COMMANDS, *CHAIN_COMMANDS)
+POST_COMMANDS = tuple(c for c in ALL_COMMANDS if c not in GET_COMMANDS)
+# Refused while airborne unless forced (PROTOCOL.md "Control"; seed: destructive in flight).
+UNSAFE_IN_FLIGHT = ("disarm", "resetfc")
+
+
+class CommandRefused(Exception):
+    """A command refused before sending; `status` is the HTTP status that says why."""
+
+    def __init__(self, status: int, message: str, field: str | None = None) -> None:
+        super().__init__(message)
+        self.status = status
+        self.message = message
+        self.field = field
+
+
+@dataclass
+class Prepared:
+    drone: Drone
+    command: str
+    params: dict
+    entry: CommandLog
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """The drone's answer (None on timeout) to one command."""
+
+    request_id: str
+    command: str
+    reply: dict | None
+
+    @property
+    def timed_out(self) -> bool:
+        return self.reply is None
+
+    @property
+    def ok(self) -> bool:
+        return bool(self.reply and self.reply.get("ok"))
+
+
+def handle_control_reply(drone_id: str, response: protocol.ControlResponse) -> str | None:
+    """Gateway handler for `<id>/control/out`."""
+    return link.deliver_reply(drone_id, response.request_id, response.to_dict())
+
+
+def find_drone(user: Any, drone_id: str) -> Drone:
+    """The user's drone, or 404 (another organisation's drone is as unknown as none)."""
+    if not isinstance(drone_id, str) or not protocol.is_drone_id(drone_id):
+        raise CommandRefused(404, f"Unknown drone {drone_id!r}.", "droneID")
+    drone = (
+        Drone.objects.for_user(user)
+        .select_related("organisation")
+        .filter(drone_id=drone_id)
+        .first()
+    )
+    if drone is None:
+        raise CommandRefused(404, f"Unknown drone {drone_id!r}.", "droneID")
+    return drone
+
+
+def _refuse(entry_fields: dict, refusal: CommandRefused) -> CommandRefused:
+    CommandLog.objects.create(
+        **entry_fields,
+        request_id="",
+        outcome=CommandLog.Outcome.REJECTED,
+        error=refusal.message,
+        answered_at=timezone.now(),
+    )
+    return refusal
+
+
+def prepare(user: Any, drone_id: str, command: str, params: dict | None) -> Prepared:
+    """Every check of issue 4 in order: drone (404), role (403), params (400), state (409).
+
+    Returns the pending log entry with a fresh request id; refusals are logged too.
+    """
+    drone = find_drone(user, drone_id)
+    base = {"drone": drone, "user": user, "command": str(command)[:40], "params": params or {}}
+    if not require_role(user, drone.organisation, Role.OPERATOR):
+        raise _refuse(base, CommandRefused(403, "Only operators and admins may command drones."))
+    try:
+        clean = protocol.validate_command(command, params or {})
+    except protocol.ProtocolError as exc:
+        field = exc.field.removeprefix("params.")
+        raise _refuse(base, CommandRefused(400, f"{field}: {exc.message}", field)) from None
+    if not drone.online:
+        raise _refuse(base, CommandRefused(409, f"Drone {drone.drone_id} is offline."))
+    if command in UNSAFE_IN_FLIGHT and drone.airborne and not clean.get("force"):
+        raise _refuse(
+            base,
+            CommandRefused(
+                409, f"Refusing {command} while {drone.drone_id} is airborne; send force=true."
+            ),
+        )
+    entry = CommandLog.objects.create(
+        drone=drone,
+        user=user,
+        request_id=protocol.new_request_id(),
+        command=command,
+        params=clean,
+    )
+    return Prepared(drone=drone, command=command, params=clean, entry=entry)
+
+
+def record(entry: CommandLog, reply: dict | None) -> None:
+    if reply is None:
+        entry.outcome = CommandLog.Outcome.TIMEOUT
+        entry.error = f"No reply within {settings.COMMAND_TIMEOUT_S:g} s."
+    else:
+        entry.outcome = CommandLog.Outcome.OK if reply.get("ok") else CommandLog.Outcome.FAILED
+        entry.response = reply
+        entry.error = reply.get("error") or ""
+    entry.answered_at = timezone.now()
+    entry.save(update_fields=["outcome", "response", "error", "answered_at"])
+
+
+async def execute(prepared: Prepared, *, timeout: float | None = None) -> Outcome:
+    """Publish to `<id>/control/in` via a gateway and wait for the drone's own reply."""
+    request = protocol.ControlRequest(prepared.entry.request_id, prepared.command, prepared.params)
+    reply = await link.arequest(
+        prepared.drone.drone_id, "control", request.to_dict(), timeout=timeout
+    )
+    await sync_to_async(record)(prepared.entry, reply)
+    return Outcome(request.request_id, prepared.command, reply)
+
+
+async def send(user: Any, drone_id: str, command: str, params: dict | None) -> Outcome:
+    """prepare + execute, for async callers (views, tests, other apps)."""
+    prepared = await sync_to_async(prepare)(user, drone_id, command, params)
+    return await execute(prepared)
+
+
+# -- Drone Identifier queries ------------------------------------------------------------
+
+
+def discover(user: Any) -> dict:
+    """Seed `discover`: the user's drones with their state, specs and sensors."""
+    drones = Drone.objects.for_user(user).order_by("drone_id")
+    return {"drones": [drone_summary(d) for d in drones]}
+
+
+def drone_summary(drone: Drone) -> dict:
+    return {
+        "drone_id": drone.drone_id,
+        "online": drone.online,
+        "last_seen": drone.last_seen.isoformat() if drone.last_seen else None,
+        "position": drone.position,
+        "battery": drone.battery,
+        "armed": drone.armed,
+        "airborne": drone.airborne,
+        "specs": drone.specs,
+        "sensors": drone.sensors,
+        "mission": drone.mission,
+    }
+
+
+def gear(drone: Drone) -> dict:
+    return {"drone_id": drone.drone_id, "specs": drone.specs, "sensors": drone.sensors}
+
+
+# -- Mission Planner hooks ---------------------------------------------------------------
+
+
+def chain_hook(command: str):  # type: ignore[no-untyped-def]
+    """The function settings.FLEET_CHAIN_HANDLERS names for startchain / stopchain."""
+    return import_string(settings.FLEET_CHAIN_HANDLERS[command])
+
+
+def prepare_chain(user: Any, drone_id: str) -> Drone:
+    """The checks every chain command shares: drone (404), role (403), online (409)."""
+    drone = find_drone(user, drone_id)
+    if not require_role(user, drone.organisation, Role.OPERATOR):
+        raise CommandRefused(403, "Only operators and admins may command drones.")
+    if not drone.online:
+        raise CommandRefused(409, f"Drone {drone.drone_id} is offline.")
+    return drone

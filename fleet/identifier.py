@@ -1,0 +1,173 @@
+"""The Drone Identifier (seed 001, 3.4.2.1 and 4.2.1): who is connected, where, with what.
+
+Plain functions the gateway calls per message, and the offline sweep the Celery beat
+runs. Each returns None when the message was taken, or a short reason when it was
+dropped (the gateway counts it as `dropped.<reason>`).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from datetime import datetime, timedelta
+
+from django.conf import settings
+from django.db import connection
+from django.utils import timezone
+
+from onboard.protocol import GearAnnouncement, GearReply, Heartbeat
+
+from . import events, link
+from .models import ConnectionEvent, Drone
+
+log = logging.getLogger(__name__)
+
+# One statement: update the state and learn whether the drone was offline before (the
+# sub-select reads the old row under lock), so a reconnection is noticed without a second
+# round trip on the hot path. Revoked drones are not updated: they are unknown here.
+_HEARTBEAT_SQL = """
+UPDATE fleet_drone AS d SET
+    online = TRUE, last_seen = %s, lat = %s, lon = %s, alt = %s,
+    battery_voltage = %s, battery_remaining = %s, armed = %s, airborne = %s,
+    flight_mode = %s, mission = %s::jsonb, fc = %s::jsonb
+FROM (
+    SELECT id, online FROM fleet_drone
+    WHERE drone_id = %s AND NOT credentials_revoked FOR UPDATE
+) AS old
+WHERE d.id = old.id
+RETURNING d.id, d.organisation_id, old.online
+"""
+
+
+class _Throttle:
+    """At most one live update per drone per interval; state changes always go through."""
+
+    def __init__(self) -> None:
+        self._last: dict[str, float] = {}
+        self._lock = threading.Lock()
+
+    def allow(self, drone_id: str, *, force: bool = False) -> bool:
+        now = time.monotonic()
+        with self._lock:
+            if not force and now - self._last.get(drone_id, -1e9) < settings.FLEET_PUSH_INTERVAL_S:
+                return False
+            self._last[drone_id] = now
+            return True
+
+
+_throttle = _Throttle()
+
+
+def live_state(heartbeat: Heartbeat, seen: datetime) -> dict:
+    """The fields a fleet page shows, in the shape of the drone API."""
+    return {
+        "drone_id": heartbeat.drone_id,
+        "online": True,
+        "last_seen": seen.isoformat(),
+        "position": None if heartbeat.position is None else heartbeat.position.to_dict(),
+        "battery": {
+            "voltage": heartbeat.battery_voltage,
+            "remaining": heartbeat.battery_remaining,
+        },
+        "armed": heartbeat.armed,
+        "airborne": heartbeat.airborne,
+        "flight_mode": heartbeat.flight_mode,
+        "mission": None if heartbeat.mission is None else heartbeat.mission.to_dict(),
+        "fc": {"protocol": heartbeat.fc_protocol, "connected": heartbeat.fc_connected},
+    }
+
+
+def handle_heartbeat(drone_id: str, heartbeat: Heartbeat) -> str | None:
+    """Record a heartbeat: one UPDATE; an `online` event if the drone was offline."""
+    if heartbeat.drone_id != drone_id:
+        return "drone_id_mismatch"
+    seen = timezone.now()
+    position = heartbeat.position
+    mission = None if heartbeat.mission is None else json.dumps(heartbeat.mission.to_dict())
+    fc = json.dumps({"protocol": heartbeat.fc_protocol, "connected": heartbeat.fc_connected})
+    with connection.cursor() as cursor:
+        cursor.execute(
+            _HEARTBEAT_SQL,
+            [
+                seen,
+                None if position is None else position.lat,
+                None if position is None else position.lon,
+                None if position is None else position.alt,
+                heartbeat.battery_voltage,
+                heartbeat.battery_remaining,
+                heartbeat.armed,
+                heartbeat.airborne,
+                heartbeat.flight_mode[:40],
+                mission,
+                fc,
+                drone_id,
+            ],
+        )
+        row = cursor.fetchone()
+    if row is None:
+        return "unknown_drone"
+    pk, organisation_id, was_online = row
+    if not was_online:
+        ConnectionEvent.objects.create(
+            drone_id=pk, kind=ConnectionEvent.Kind.ONLINE, at=seen, reason="heartbeat"
+        )
+    if _throttle.allow(drone_id, force=not was_online):
+        events.publish_nowait(
+            organisation_id, {"type": "drone", "drone": live_state(heartbeat, seen)}
+        )
+    return None
+
+
+def handle_gear(drone_id: str, message: GearAnnouncement | GearReply) -> str | None:
+    """Store announced specs and sensors; hand query replies to whoever asked."""
+    fields = {}
+    if message.specs is not None:
+        fields["specs"] = message.specs
+    if message.sensors is not None:
+        fields["sensors"] = message.sensors
+    if isinstance(message, GearReply):
+        reason = link.deliver_reply(drone_id, message.request_id, message.to_dict())
+        if reason is not None:
+            return reason
+    if fields:
+        updated = Drone.objects.filter(drone_id=drone_id, credentials_revoked=False).update(
+            **fields
+        )
+        if not updated:
+            return "unknown_drone"
+    return None
+
+
+def sweep_offline(now: datetime | None = None) -> list[str]:
+    """Mark drones offline after the configured number of missed heartbeats.
+
+    Compare-and-set per drone, so several sweeps (or a heartbeat arriving meanwhile) never
+    write two offline events or undo a fresh heartbeat. Returns the drone ids marked.
+    """
+    now = now or timezone.now()
+    grace = settings.OFFLINE_AFTER_MISSED_HEARTBEATS * settings.HEARTBEAT_INTERVAL_S
+    threshold = now - timedelta(seconds=grace)
+    stale = Drone.objects.filter(online=True, last_seen__lt=threshold).values_list(
+        "pk", "drone_id", "organisation_id", "last_seen"
+    )
+    marked = []
+    for pk, drone_id, organisation_id, last_seen in stale:
+        if not Drone.objects.filter(pk=pk, online=True, last_seen=last_seen).update(online=False):
+            continue
+        silent = (now - last_seen).total_seconds()
+        ConnectionEvent.objects.create(
+            drone_id=pk,
+            kind=ConnectionEvent.Kind.OFFLINE,
+            at=now,
+            reason=f"no heartbeat for {silent:.1f} s",
+        )
+        events.publish_to_organisation(
+            organisation_id,
+            {"type": "drone", "drone": {"drone_id": drone_id, "online": False}},
+        )
+        marked.append(drone_id)
+    if marked:
+        log.info("marked offline: %s", ", ".join(marked))
+    return marked

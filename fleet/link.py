@@ -1,0 +1,122 @@
+"""The web ↔ gateway link through Redis: the only way ground code reaches a drone.
+
+Web processes never open MQTT connections. To send, they push onto one Redis list (the
+outbox) that every gateway pops from (BLPOP, so each message is published exactly once
+however many gateways run). To wait for a reply, the sender registers the request id
+(with the drone it went to) and blocks on a per-request list; the gateway that receives
+the drone's answer pushes it there. Any web process can therefore wait for any reply.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+import weakref
+from typing import Any
+
+import redis
+import redis.asyncio as aredis
+from django.conf import settings
+
+from onboard import protocol
+
+OUTBOX_KEY = "skyhive:gateway:outbox"
+PENDING_PREFIX = "skyhive:pending:"
+REPLY_PREFIX = "skyhive:reply:"
+# A reply nobody waits for any more is kept this long, then Redis forgets it.
+REPLY_TTL_S = 60
+
+_sync_client: redis.Redis | None = None
+_async_clients: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def sync_redis() -> redis.Redis:
+    global _sync_client
+    if _sync_client is None:
+        _sync_client = redis.Redis.from_url(settings.REDIS_URL, socket_timeout=5)
+    return _sync_client
+
+
+def async_redis() -> aredis.Redis:
+    """One client per event loop: redis.asyncio connections belong to the loop they ran on."""
+    loop = asyncio.get_running_loop()
+    client = _async_clients.get(loop)
+    if client is None:
+        client = aredis.Redis.from_url(settings.REDIS_URL, socket_timeout=None)
+        _async_clients[loop] = client
+    return client
+
+
+def outbox_item(drone_id: str, channel: str, message: dict, *, ttl: float) -> bytes:
+    """One outbox entry. `expires` stops a gateway that starts late from sending stale
+    commands (a take-off nobody waits for any more)."""
+    return json.dumps(
+        {
+            "topic": protocol.topic(drone_id, channel, "in"),
+            "qos": protocol.QOS[channel],
+            "payload": message,
+            "expires": time.time() + ttl,
+        },
+        separators=(",", ":"),
+    ).encode()
+
+
+def send_to_drone(drone_id: str, channel: str, message: dict, *, ttl: float | None = None) -> None:
+    """Queue `message` for `<drone_id>/<channel>/in`; a gateway publishes it."""
+    ttl = settings.COMMAND_TIMEOUT_S if ttl is None else ttl
+    sync_redis().rpush(OUTBOX_KEY, outbox_item(drone_id, channel, message, ttl=ttl))
+
+
+async def asend_to_drone(
+    drone_id: str, channel: str, message: dict, *, ttl: float | None = None
+) -> None:
+    ttl = settings.COMMAND_TIMEOUT_S if ttl is None else ttl
+    await async_redis().rpush(OUTBOX_KEY, outbox_item(drone_id, channel, message, ttl=ttl))
+
+
+async def arequest(
+    drone_id: str, channel: str, message: dict, *, timeout: float | None = None
+) -> dict | None:
+    """Send a message carrying `request_id` and wait for the drone's answer (None on timeout)."""
+    timeout = settings.COMMAND_TIMEOUT_S if timeout is None else timeout
+    request_id = message["request_id"]
+    client = async_redis()
+    pipe = client.pipeline(transaction=False)
+    pipe.set(PENDING_PREFIX + request_id, drone_id, px=int((timeout + 5) * 1000))
+    pipe.rpush(OUTBOX_KEY, outbox_item(drone_id, channel, message, ttl=timeout))
+    await pipe.execute()
+    popped = await client.blpop([REPLY_PREFIX + request_id], timeout=timeout)
+    if popped is None:
+        await client.delete(PENDING_PREFIX + request_id)
+        return None
+    return json.loads(popped[1])
+
+
+def deliver_reply(drone_id: str, request_id: str, reply: dict) -> str | None:
+    """Gateway side: hand a drone's answer to whoever waits for it.
+
+    Returns None when delivered, else the reason it was dropped: no such request pending,
+    or the answer came from another drone than the one asked (a drone must not be able to
+    answer for another).
+    """
+    client = sync_redis()
+    asked = client.getdel(PENDING_PREFIX + request_id)
+    if asked is None:
+        return "unexpected_reply"
+    if asked.decode() != drone_id:
+        return "reply_from_wrong_drone"
+    key = REPLY_PREFIX + request_id
+    pipe = client.pipeline(transaction=False)
+    pipe.rpush(key, json.dumps(reply, separators=(",", ":")))
+    pipe.expire(key, REPLY_TTL_S)
+    pipe.execute()
+    return None
+
+
+def pop_outbox(timeout: float = 1.0) -> dict[str, Any] | None:
+    """Gateway side: the next message to publish, or None after `timeout` seconds."""
+    popped = sync_redis().blpop([OUTBOX_KEY], timeout=timeout)
+    if popped is None:
+        return None
+    return json.loads(popped[1])

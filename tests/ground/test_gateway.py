@@ -1,0 +1,209 @@
+"""The gateway and the Drone Identifier on a real broker, Redis and database."""
+
+from __future__ import annotations
+
+import json
+import time
+import uuid
+from datetime import timedelta
+
+import pytest
+from django.utils import timezone
+
+from fleet import credentials
+from fleet.identifier import sweep_offline
+from fleet.models import ConnectionEvent, Drone
+from workers.counters import Counters, snapshot
+from workers.gateway import Gateway
+
+from .conftest import heartbeat, mqtt_client, wait_for
+
+pytestmark = pytest.mark.django_db(transaction=True)
+
+
+def _drone_client(broker, drone_id: str):  # type: ignore[no-untyped-def]
+    creds = credentials.provision(drone_id)
+    url = f"mqtt://{drone_id}:{creds.password}@127.0.0.1:{broker.port}"
+    return mqtt_client(url)
+
+
+def test_a_heartbeat_updates_the_drone_and_records_it_coming_online(world_tx, broker, gateway):
+    client = _drone_client(broker, "ACME_1")
+    client.publish("ACME_1/heartbeats/out", json.dumps(heartbeat("ACME_1")), qos=0)
+
+    drone = wait_for(lambda: Drone.objects.filter(drone_id="ACME_1", online=True).first())
+    assert drone is not None
+    assert (drone.lat, drone.lon, drone.alt) == (40.6303, -8.6575, 12.0)
+    assert drone.battery_remaining == 0.9 and drone.armed and drone.airborne
+    assert drone.fc == {"protocol": "uavtalk", "connected": True}
+    client.publish(
+        "ACME_1/heartbeats/out", json.dumps(heartbeat("ACME_1")), qos=1
+    ).wait_for_publish()
+    wait_for(lambda: gateway.counters.get("handled") >= 2 or None, 2)
+    kinds = list(ConnectionEvent.objects.filter(drone=drone).values_list("kind", flat=True))
+    assert kinds == ["online"]
+    client.loop_stop()
+
+
+def test_a_gear_announcement_stores_specs_and_sensors(world_tx, broker, gateway):
+    client = _drone_client(broker, "ACME_1")
+    gear = {
+        "type": "gear",
+        "specs": {"TYPE": "HEXACOPTER", "BATTERY": {"CELL_COUNT": 4}},
+        "sensors": {"GAS": {"CO2": "Sensirion SCD30"}},
+        "ts": time.time(),
+    }
+    client.publish("ACME_1/gear/out", json.dumps(gear), qos=1)
+    drone = wait_for(lambda: Drone.objects.filter(drone_id="ACME_1").exclude(specs={}).first())
+    assert drone.specs["TYPE"] == "HEXACOPTER"
+    assert drone.sensors == {"GAS": {"CO2": "Sensirion SCD30"}}
+    client.loop_stop()
+
+
+BAD_INPUT = [
+    ("ACME_1/heartbeats/out", b"{not json", "malformed"),
+    ("ACME_1/heartbeats/out", json.dumps(heartbeat("ACME_1", armed="very")).encode(), "malformed"),
+    (
+        "ACME_1/heartbeats/out",
+        json.dumps(heartbeat("ACME_1", position={"lat": 123, "lon": 0, "alt": 0})).encode(),
+        "malformed",
+    ),
+    ("ACME_1/heartbeats/out", json.dumps(heartbeat("GLOBEX_1")).encode(), "drone_id_mismatch"),
+    ("NOBODY_9/heartbeats/out", json.dumps(heartbeat("NOBODY_9")).encode(), "unknown_drone"),
+    ("ACME_1/heartbeats/out", b"[" + b"1," * 200_000 + b"1]", "too_large"),
+    ("ACME_1/heartbeats/out", b"\xff\xfe", "malformed"),
+    ("ACME_1/gear/out", json.dumps({"type": "gear", "specs": []}).encode(), "malformed"),
+    (
+        "ACME_1/control/out",
+        json.dumps(
+            {"request_id": "a" * 32, "command": "arm", "ok": True, "ts": time.time()}
+        ).encode(),
+        "unexpected_reply",
+    ),
+]
+
+
+def test_malformed_and_unauthorised_input_is_dropped_counted_and_changes_nothing(
+    world_tx, broker, gateway
+):
+    before = Drone.objects.get(drone_id="ACME_1")
+    ground = mqtt_client(broker.url_for("ground"))
+    for topic, payload, _reason in BAD_INPUT:
+        ground.publish(topic, payload, qos=1).wait_for_publish()
+
+    wait_for(lambda: gateway.counters.get("received") >= len(BAD_INPUT) or None)
+    for _topic, _payload, reason in BAD_INPUT:
+        assert gateway.counters.get(f"dropped.{reason}") >= 1, reason
+    assert gateway.counters.get("dropped") == len(BAD_INPUT)
+    after = Drone.objects.get(drone_id="ACME_1")
+    assert (after.online, after.lat, after.specs, after.last_seen) == (
+        before.online,
+        before.lat,
+        before.specs,
+        before.last_seen,
+    )
+    assert not Drone.objects.filter(drone_id="NOBODY_9").exists()
+    # The gateway is still serving, and its counts reach /health's process snapshot.
+    assert gateway.client.is_connected()
+    gateway.counters.flush()
+    assert snapshot()[gateway.counters.process]["dropped.malformed"] >= 4
+    ground.loop_stop()
+
+
+def test_handlers_never_crash_the_gateway(world_tx, broker, fresh_redis):
+    gw = Gateway(
+        broker.url_for("ground"),
+        dispatch={"heartbeats": "tests.ground.test_gateway.explode_handler"},
+        counters=Counters(f"gateway-test-{uuid.uuid4().hex[:8]}", flush_every=1e9),
+    )
+    gw.start()
+    try:
+        assert gw.wait_connected(5)
+        ground = mqtt_client(broker.url_for("ground"))
+        for _ in range(3):
+            ground.publish("ACME_1/heartbeats/out", json.dumps(heartbeat("ACME_1")), qos=1)
+        assert wait_for(lambda: gw.counters.get("dropped.handler_error") == 3 or None)
+        assert gw.client.is_connected()
+        ground.loop_stop()
+    finally:
+        gw.stop()
+
+
+def explode_handler(drone_id: str, message: object) -> str | None:
+    raise RuntimeError("bug in a handler")
+
+
+def test_a_drone_goes_offline_after_missed_heartbeats_and_comes_back_on_the_next(
+    world_tx, broker, gateway, settings
+):
+    settings.HEARTBEAT_INTERVAL_S = 0.5
+    ground = mqtt_client(broker.url_for("ground"))
+    ground.publish("ACME_1/heartbeats/out", json.dumps(heartbeat("ACME_1")), qos=1)
+    assert wait_for(lambda: Drone.objects.filter(drone_id="ACME_1", online=True).exists())
+
+    assert sweep_offline() == []  # fresh: nothing to do
+    later = timezone.now() + timedelta(seconds=1.6)
+    assert sweep_offline(later) == ["ACME_1"]
+    assert sweep_offline(later) == []  # compare-and-set: one offline event only
+    drone = Drone.objects.get(drone_id="ACME_1")
+    assert not drone.online
+
+    ground.publish("ACME_1/heartbeats/out", json.dumps(heartbeat("ACME_1")), qos=1)
+    assert wait_for(lambda: Drone.objects.filter(drone_id="ACME_1", online=True).exists())
+    kinds = list(
+        ConnectionEvent.objects.filter(drone=drone).order_by("pk").values_list("kind", flat=True)
+    )
+    assert kinds == ["online", "offline", "online"]
+    ground.loop_stop()
+
+
+def test_two_gateways_share_the_load_without_processing_a_message_twice(world_tx, broker, gateway):
+    second = Gateway(
+        broker.url_for("ground"),
+        client_id="gw-second",
+        counters=Counters(f"gateway-test-{uuid.uuid4().hex[:8]}", flush_every=1e9),
+    )
+    second.start()
+    try:
+        assert second.wait_connected(5)
+        time.sleep(0.2)  # both subscriptions in place
+        ground = mqtt_client(broker.url_for("ground"))
+        for _ in range(40):
+            ground.publish("ACME_1/heartbeats/out", json.dumps(heartbeat("ACME_1")), qos=1)
+
+        def total() -> int:
+            return gateway.counters.get("received") + second.counters.get("received")
+
+        wait_for(lambda: total() >= 40 or None)
+        time.sleep(0.3)
+        assert total() == 40
+        assert gateway.counters.get("received") > 0 and second.counters.get("received") > 0
+        ground.loop_stop()
+    finally:
+        second.stop()
+
+
+def test_the_gateway_reconnects_after_the_broker_restarts(world_tx, broker, gateway):
+    broker.restart()
+    assert wait_for(lambda: gateway.client.is_connected(), timeout=10)
+    ground = mqtt_client(broker.url_for("ground"))
+    ground.publish("ACME_1/heartbeats/out", json.dumps(heartbeat("ACME_1")), qos=1)
+    assert wait_for(lambda: Drone.objects.filter(drone_id="ACME_1", online=True).exists(), 5)
+    ground.loop_stop()
+
+
+def test_outbox_messages_that_expired_are_not_sent(world_tx, broker, gateway):
+    from fleet import link
+
+    received = []
+    drone = _drone_client(broker, "ACME_1")
+    drone.on_message = lambda c, u, m: received.append(json.loads(m.payload))
+    drone.subscribe("ACME_1/control/in", qos=1)
+    time.sleep(0.2)
+    link.send_to_drone("ACME_1", "control", {"stale": True}, ttl=-1)
+    link.send_to_drone("ACME_1", "control", {"fresh": True}, ttl=10)
+    assert wait_for(lambda: received)
+    time.sleep(0.2)
+    assert received == [{"fresh": True}]
+    assert gateway.counters.get("outbox.expired") == 1
+    drone.loop_stop()

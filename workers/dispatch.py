@@ -1,0 +1,28 @@
+"""Which domain function handles each drone → ground channel (the gateway's one table).
+
+A handler is `handler(drone_id: str, message) -> str | None`: `message` is already
+parsed by `onboard.protocol` (the parser for that channel), and the drone id is the
+topic's, which the broker's ACL ties to the drone's credentials. It returns None when the
+message was taken, or a short reason (`"unknown_drone"`) when it was dropped; the gateway
+counts `dropped.<reason>`. Channels mapped to None are received and counted only.
+Telemetry is not here: it has its own ingest process.
+"""
+
+from __future__ import annotations
+
+DISPATCH: dict[str, str | None] = {
+    "heartbeats": "fleet.identifier.handle_heartbeat",
+    "gear": "fleet.identifier.handle_gear",
+    "control": "fleet.commands.handle_control_reply",
+    "mission": None,
+    "alarms": None,
+    "pictures": None,
+    "camera": None,
+}
+
+# Bigger payloads are dropped before parsing (pictures carry a JPEG, base64-encoded).
+MAX_PAYLOAD_BYTES: dict[str, int] = {
+    "pictures": 16 * 1024 * 1024,
+    "camera": 4 * 1024 * 1024,
+}
+DEFAULT_MAX_PAYLOAD_BYTES = 256 * 1024

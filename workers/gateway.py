@@ -1,0 +1,199 @@
+"""The MQTT gateway: the one ground process that talks to the drones' broker.
+
+Inbound, it subscribes to the drones' `/out` topics through shared subscriptions
+(`$share/gateway/...`), so several gateways split the messages without processing one
+twice, parses each with `onboard.protocol` and hands it to the domain function named in
+`workers.dispatch.DISPATCH`. Anything malformed, oversized, unknown or unauthorised is
+dropped and counted, never raised. Outbound, it pops the Redis outbox (`fleet.link`)
+and publishes to `<id>/<channel>/in`.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import socket
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+from urllib.parse import urlsplit
+
+import paho.mqtt.client as mqtt
+import redis
+from django.db import close_old_connections, connection
+from django.db.utils import DatabaseError, InterfaceError
+from django.utils.module_loading import import_string
+
+from fleet import link
+from onboard import protocol
+from workers.counters import Counters
+
+from .dispatch import DEFAULT_MAX_PAYLOAD_BYTES, DISPATCH, MAX_PAYLOAD_BYTES
+
+log = logging.getLogger("gateway")
+
+SHARE_GROUP = "gateway"
+
+
+def subscription(channel: str) -> str:
+    return f"$share/{SHARE_GROUP}/+/{channel}/out"
+
+
+class Gateway:
+    """One paho client (VERSION2 callbacks) plus a thread publishing the outbox."""
+
+    def __init__(
+        self,
+        broker_url: str,
+        *,
+        dispatch: dict[str, str | None] | None = None,
+        client_id: str | None = None,
+        counters: Counters | None = None,
+    ) -> None:
+        url = urlsplit(broker_url)
+        self.host = url.hostname or "127.0.0.1"
+        self.port = url.port or 1883
+        self.counters = counters or Counters("gateway")
+        table = DISPATCH if dispatch is None else dispatch
+        self.handlers: dict[str, Callable[[str, Any], str | None] | None] = {
+            channel: import_string(path) if path else None for channel, path in table.items()
+        }
+        self.connected = threading.Event()
+        self.stopping = threading.Event()
+        self.client = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2,
+            client_id=client_id or f"gateway-{socket.gethostname()}-{os.getpid()}",
+            clean_session=True,
+        )
+        if url.username:
+            self.client.username_pw_set(url.username, url.password)
+        self.client.reconnect_delay_set(min_delay=1, max_delay=30)
+        self.client.max_queued_messages_set(10_000)
+        self.client.on_connect = self._on_connect
+        self.client.on_disconnect = self._on_disconnect
+        self.client.on_message = self._on_message
+        self._outbox_thread = threading.Thread(
+            target=self._publish_outbox, name="gateway-outbox", daemon=True
+        )
+
+    # -- lifecycle ------------------------------------------------------------------------
+
+    def start(self) -> None:
+        # connect_async + loop_start: paho retries the first connection too, with backoff.
+        self.client.connect_async(self.host, self.port, keepalive=30)
+        self.client.loop_start()
+        self._outbox_thread.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Drain: stop taking outbox work, finish the message in hand, disconnect."""
+        self.stopping.set()
+        self._outbox_thread.join(timeout)
+        self.client.disconnect()
+        self.client.loop_stop()
+        self.counters.flush()
+        close_old_connections()
+
+    def wait_connected(self, timeout: float) -> bool:
+        return self.connected.wait(timeout)
+
+    # -- paho callbacks ---------------------------------------------------------------------
+
+    def _on_connect(self, client, userdata, flags, reason_code, properties) -> None:  # type: ignore[no-untyped-def]
+        if reason_code.is_failure:
+            self.counters.incr("connect_refused")
+            log.error("broker refused the connection: %s", reason_code)
+            return
+        sock = client.socket()
+        if sock is not None:
+            # Nagle + delayed ACKs add ~40 ms per command round trip (UAVTALK.md).
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        client.subscribe([(subscription(ch), protocol.QOS[ch]) for ch in self.handlers])
+        self.counters.incr("connects")
+        self.connected.set()
+        log.info("connected to %s:%s", self.host, self.port)
+
+    def _on_disconnect(self, client, userdata, flags, reason_code, properties) -> None:  # type: ignore[no-untyped-def]
+        self.connected.clear()
+        if not self.stopping.is_set():
+            self.counters.incr("disconnects")
+            log.warning("disconnected (%s); reconnecting", reason_code)
+
+    def _on_message(self, client, userdata, message: mqtt.MQTTMessage) -> None:  # type: ignore[no-untyped-def]
+        try:
+            self.handle(message.topic, message.payload)
+        except Exception:  # noqa: BLE001 - the gateway must outlive any bug in a handler
+            self.counters.incr("dropped.handler_error")
+            log.exception("handler failed on %s", message.topic)
+        self.counters.maybe_flush()
+
+    # -- inbound ----------------------------------------------------------------------------
+
+    def handle(self, topic_name: str, payload: bytes) -> str | None:
+        """Process one message; returns None if handled, else why it was dropped/skipped."""
+        self.counters.incr("received")
+        reason = self._handle(topic_name, payload)
+        if reason is None:
+            self.counters.incr("handled")
+        elif reason.startswith("unhandled."):
+            self.counters.incr(reason)
+        else:
+            self.counters.incr("dropped")
+            self.counters.incr(f"dropped.{reason}")
+            log.debug("dropped %s: %s", topic_name, reason)
+        return reason
+
+    def _handle(self, topic_name: str, payload: bytes) -> str | None:
+        try:
+            drone_id, channel, direction = protocol.split_topic(topic_name)
+        except protocol.ProtocolError:
+            return "bad_topic"
+        if direction != "out" or channel not in self.handlers:
+            return "bad_topic"
+        if len(payload) > MAX_PAYLOAD_BYTES.get(channel, DEFAULT_MAX_PAYLOAD_BYTES):
+            return "too_large"
+        handler = self.handlers[channel]
+        if handler is None:
+            return f"unhandled.{channel}"
+        try:
+            message = protocol.PARSERS[(channel, "out")](protocol.decode_json(payload))
+        except protocol.ProtocolError as exc:
+            log.debug("malformed %s: %s", topic_name, exc)
+            return "malformed"
+        try:
+            return handler(drone_id, message)
+        except (InterfaceError, DatabaseError):
+            # A dropped database connection: let Django open a fresh one for the next message.
+            connection.close()
+            raise
+
+    # -- outbound ---------------------------------------------------------------------------
+
+    def _publish_outbox(self) -> None:
+        while not self.stopping.is_set():
+            # Only take work while connected, so another gateway can take it meanwhile.
+            if not self.connected.wait(0.5):
+                continue
+            try:
+                item = link.pop_outbox(timeout=1.0)
+            except redis.RedisError as exc:
+                self.counters.incr("outbox.redis_error")
+                log.warning("outbox unavailable: %s", exc)
+                self.stopping.wait(1.0)
+                continue
+            if item is not None:
+                self.publish_item(item)
+            self.counters.maybe_flush()
+
+    def publish_item(self, item: dict) -> None:
+        if item.get("expires", 0) < time.time():
+            self.counters.incr("outbox.expired")
+            return
+        payload = json.dumps(item["payload"], separators=(",", ":"))
+        info = self.client.publish(item["topic"], payload, qos=int(item.get("qos", 1)))
+        if info.rc == mqtt.MQTT_ERR_SUCCESS:
+            self.counters.incr("published")
+        else:
+            self.counters.incr("outbox.publish_failed")
+            log.warning("publish to %s failed: %s", item["topic"], mqtt.error_string(info.rc))

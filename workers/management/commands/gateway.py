@@ -1,0 +1,34 @@
+"""`manage.py gateway`: run the MQTT gateway until SIGTERM/SIGINT, then drain and exit."""
+
+from __future__ import annotations
+
+import signal
+import threading
+
+from django.conf import settings
+from django.core.management.base import BaseCommand
+
+from workers.gateway import Gateway
+
+
+class Command(BaseCommand):
+    help = "Bridge the drones' MQTT topics and the ground (Drone Identifier, Drone Manager)."
+
+    def add_arguments(self, parser) -> None:  # type: ignore[no-untyped-def]
+        parser.add_argument(
+            "--broker", default=settings.MQTT_URL, help="mqtt://user:pass@host:port"
+        )
+        parser.add_argument("--client-id", default=None)
+
+    def handle(self, *args, **options) -> None:  # type: ignore[no-untyped-def]
+        stopping = threading.Event()
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(signum, lambda *_: stopping.set())
+        gateway = Gateway(options["broker"], client_id=options["client_id"])
+        gateway.start()
+        self.stdout.write(f"gateway: {gateway.host}:{gateway.port}", ending="\n")
+        self.stdout.flush()
+        while not stopping.wait(1.0):
+            gateway.counters.flush()
+        gateway.stop()
+        self.stdout.write("gateway: stopped")
