@@ -232,7 +232,7 @@ class GearManager:
                 state.roll or 0.0, state.pitch or 0.0, state.yaw or 0.0
             )
         jpeg = render_view(state.ned, orientation, width=160, height=120, quality=70)
-        return protocol.CameraFrame(tuple(state.ned), tuple(orientation), jpeg)
+        return protocol.CameraFrame(state.ned, orientation, jpeg)
 
     def take_picture(self, state: VehicleState, context: dict | None = None) -> dict:
         """Take, store and publish one picture; the result names it."""

@@ -71,7 +71,7 @@ def _credentials_from(obj: object, drone_id: str | None = None) -> Credentials:
         raise LaunchError(f"invalid drone id {drone_id!r} in the credentials")
     port = mqtt.get("port")
     return Credentials(
-        drone_id=drone_id,
+        drone_id=str(drone_id),
         username=mqtt.get("username"),
         password=mqtt.get("password"),
         host=mqtt.get("host"),
@@ -341,7 +341,7 @@ def main(argv: list[str] | None = None) -> int:
     for drone in fleet.drones:
         print(
             f"drone: {drone.drone_id} link={drone.sim.url} "  # type: ignore[attr-defined]
-            f"agent_pid={drone.agent.pid} folder={drone.folder}",
+            f"agent_pid={drone.agent.pid if drone.agent else None} folder={drone.folder}",
             flush=True,
         )
     watcher = threading.Thread(target=fleet.watch, daemon=True)

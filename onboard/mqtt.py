@@ -81,7 +81,8 @@ class MqttLink:
             self.client.username_pw_set(self.broker.username, self.broker.password)
         if self.broker.tls:
             self.client.tls_set()
-        self.client.reconnect_delay_set(min_delay=0.1, max_delay=max_backoff)
+        # paho types these as int but computes with floats; 0.1 s makes a restart cheap.
+        self.client.reconnect_delay_set(min_delay=0.1, max_delay=max_backoff)  # type: ignore[arg-type]
         self.client.max_inflight_messages_set(100)
         self.client.on_connect = self._on_connect
         self.client.on_disconnect = self._on_disconnect

@@ -99,8 +99,8 @@ class NavigationProcessor:
         base = last.ned if last is not None else current_ned(state)
         here = current_ned(state)
         if command == "takeoff":
-            origin = here or (0.0, 0.0, 0.0)
-            return Target("takeoff", (origin[0], origin[1], -params["altitude"]))
+            start = here or (0.0, 0.0, 0.0)
+            return Target("takeoff", (start[0], start[1], -params["altitude"]))
         if command == "land":
             origin = here or base
             if origin is None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Protocol
+from typing import Any, Protocol
 
 
 class FlightControllerError(Exception):
@@ -58,7 +58,7 @@ class VehicleState:
         """Armed and more than half a metre above home."""
         return bool(self.armed and self.alt is not None and self.alt > 0.5)
 
-    def with_changes(self, **changes: object) -> VehicleState:
+    def with_changes(self, **changes: Any) -> VehicleState:
         return replace(self, **changes)
 
 
@@ -123,7 +123,7 @@ class StateHolder:
         with self._lock:
             return self._state
 
-    def update(self, **changes: object) -> VehicleState:
+    def update(self, **changes: Any) -> VehicleState:
         with self._lock:
             self._state = replace(self._state, **changes)
             return self._state
