@@ -31,6 +31,7 @@ INSTALLED_APPS = [
     "fleet",
     "missions",
     "telemetry",
+    "telemetry.logs",
     "workers",
 ]
 
@@ -226,3 +227,15 @@ FLEET_CHAIN_HANDLERS = {
     "startchain": "fleet.chain.start_chain",
     "stopchain": "fleet.chain.stop_chain",
 }
+
+# --- flight logs ---
+# Uploaded logs and their columnar stores, one folder per organisation and log.
+LOGS_DIR = env_str("LOGS_DIR", f"{DATA_DIR}/logs")
+# The Celery queue the import task goes to (a worker started with `-Q celery,logs` keeps
+# long imports away from the fleet's short periodic tasks when this is set to "logs").
+LOGS_IMPORT_QUEUE = env_str("LOGS_IMPORT_QUEUE", "celery")
+# ZIP archives (DFI): total uncompressed size and per-member compression ratio (ZIP bombs).
+LOGS_MAX_UNCOMPRESSED_BYTES = env_int("LOGS_MAX_UNCOMPRESSED_BYTES", 2 * 1024**3)
+LOGS_MAX_COMPRESSION_RATIO = env_float("LOGS_MAX_COMPRESSION_RATIO", 200.0)
+# The most points one series request may ask for with `points` (min/max buckets).
+LOGS_MAX_PLOT_POINTS = env_int("LOGS_MAX_PLOT_POINTS", 20_000)
