@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import select
 import signal
@@ -10,6 +11,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -107,14 +109,13 @@ def start_simulator(
     args += extra_args or []
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT), env.get("PYTHONPATH")]))
-    stderr = open(log_file, "ab") if log_file is not None else subprocess.DEVNULL  # noqa: SIM115
-    try:
+    with contextlib.ExitStack() as stack:
+        stderr: Any = subprocess.DEVNULL
+        if log_file is not None:
+            stderr = stack.enter_context(open(log_file, "ab"))  # the child keeps its own copy
         process = subprocess.Popen(
             args, stdout=subprocess.PIPE, stderr=stderr, cwd=REPO_ROOT, env=env
         )
-    finally:
-        if log_file is not None:
-            stderr.close()
     sim = SimulatorProcess(process, args=args)
     line = _read_line(process, startup_timeout)
     if line.startswith("pty: "):

@@ -210,6 +210,8 @@ class BoardSession:
             self.vehicle.set_flight_mode(values["FlightMode"])
         elif name == "PathDesired":
             self.vehicle.set_path_desired(values["Mode"], values["End"])
+        elif name == "Waypoint":
+            self.vehicle.set_waypoint(inst, values["Mode"], values["Position"])
         elif name == "UAVTalkReceiver":
             separator = self.frames.separator_us
             self._receiver = [c - separator for c in values["Channel"]]

@@ -64,6 +64,9 @@ class Vehicle:
     current_a: float = 0.0
     peak_current_a: float = 0.0
     home: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # Waypoint instances (mode, NED) the path planner flies in order, and where it is.
+    waypoints: dict[int, tuple[str, tuple[float, float, float]]] = field(default_factory=dict)
+    plan_index: int | None = None
 
     def __post_init__(self) -> None:
         self.home = self.config.home
@@ -94,7 +97,15 @@ class Vehicle:
         if mode == "ReturnToHome":
             self.target = PathTarget("Endpoint", (0.0, 0.0, min(self.ned[2], -10.0)))
 
+    def set_waypoint(self, instance: int, mode: str, position: Sequence[float]) -> None:
+        """A Waypoint write: the path planner (re)starts from instance 0 in PathPlanner mode."""
+        north, east, down = (float(v) for v in position)
+        self.waypoints[instance] = (mode, (north, east, down))
+        self.plan_index = 0
+
     def set_path_desired(self, mode: str, end: Sequence[float]) -> None:
+        """A direct PathDesired write replaces any waypoint plan."""
+        self.plan_index = None
         north, east, down = (float(v) for v in end)
         if mode == "Land":
             down = 0.0
@@ -126,7 +137,22 @@ class Vehicle:
             self._fall_or_rest(dt)
         self._drain(dt)
 
+    def _follow_plan(self) -> None:
+        """PathPlanner: feed Waypoint instances to the path follower until the first Invalid."""
+        if self.flight_mode != "PathPlanner" or self.plan_index is None:
+            return
+        waypoint = self.waypoints.get(self.plan_index)
+        if waypoint is None or waypoint[0] == "Invalid":
+            self.plan_index = None  # plan done: hold the last target
+            return
+        mode, (north, east, down) = waypoint
+        self.target = PathTarget(mode, (north, east, 0.0 if mode == "Land" else min(down, 0.0)))
+        gap = math.dist(self.ned, self.target.end)
+        if gap < 1.0 and mode not in ("Land", "HoldPosition"):
+            self.plan_index += 1
+
     def _fly(self, dt: float) -> None:
+        self._follow_plan()
         cfg = self.config
         tn, te, td = self.target.end
         if self.target.mode == "Land":

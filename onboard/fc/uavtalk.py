@@ -191,7 +191,11 @@ class UAVTalkFlightController:
                         self._on_frame(frame, now)
                     except Exception:  # never let one odd frame kill the link thread
                         log.exception("could not handle frame %s", frame.name)
-            self._housekeeping(now)
+            try:
+                self._housekeeping(now)
+            except LinkDown as exc:
+                log.warning("flight controller link lost while sending: %s", exc)
+                self._set_disconnected()
 
     def _housekeeping(self, now: float) -> None:
         if not self.link.is_open:

@@ -231,8 +231,8 @@ class FrameDecoder:
         if obj is None:
             if msg_type in (MessageType.OBJ_REQ, MessageType.ACK, MessageType.NACK):
                 # Keep it: the other side must be able to NACK / match it by id.
-                inst = struct.unpack_from("<H", rest)[0] if len(rest) >= 2 else None
-                return Frame(msg_type, object_id, inst)
+                raw_inst = struct.unpack_from("<H", rest)[0] if len(rest) >= 2 else None
+                return Frame(msg_type, object_id, raw_inst)
             self.stats.unknown_object += 1
             return None
         size = METADATA_STRUCT.size if is_meta else obj.size

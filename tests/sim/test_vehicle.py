@@ -130,3 +130,19 @@ def test_moving_home_keeps_the_vehicle_where_it_is_on_the_globe():
     vehicle.set_home(lat, lon, alt)
     assert vehicle.ned[0] == pytest.approx(-100.0, abs=1e-6)
     assert vehicle.lla() == pytest.approx(before, abs=1e-9)
+
+
+def test_the_path_planner_flies_waypoints_in_order_until_the_first_invalid():
+    vehicle = armed_vehicle()
+    vehicle.set_waypoint(0, "Endpoint", (0, 0, -10))
+    vehicle.set_waypoint(1, "Endpoint", (40, 0, -10))
+    vehicle.set_waypoint(2, "Endpoint", (40, 30, -15))
+    vehicle.set_waypoint(3, "Invalid", (0, 0, 0))
+    vehicle.set_waypoint(4, "Endpoint", (500, 500, -50))  # after Invalid: never flown
+    visited = set()
+    for _ in range(round(60 / DT)):
+        vehicle.step(DT)
+        if vehicle.plan_index is not None:
+            visited.add(vehicle.plan_index)
+    assert visited == {0, 1, 2, 3}
+    assert vehicle.ned == pytest.approx([40.0, 30.0, -15.0], abs=0.01)
