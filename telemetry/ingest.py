@@ -126,13 +126,22 @@ class Chunk:
 
 
 class SampleBuffer:
-    """Accepted messages waiting for the database, bounded in rows."""
+    """Accepted messages not yet committed, bounded in rows.
+
+    Rows taken by the writer still count against the bound until `release`, so a batch
+    being retried through a database outage is part of what the bound limits.
+    """
 
     def __init__(self, max_rows: int) -> None:
         self.max_rows = max_rows
-        self.rows = 0
+        self.queued = 0
+        self.held = 0
         self._chunks: deque[Chunk] = deque()
         self._cond = threading.Condition()
+
+    @property
+    def rows(self) -> int:
+        return self.queued + self.held
 
     def put(self, chunk: Chunk, wait: float) -> bool:
         """Add a chunk, waiting up to `wait` s for room (back-pressure on the MQTT reader)."""
@@ -144,15 +153,15 @@ class SampleBuffer:
                     return False
                 self._cond.wait(remaining)
             self._chunks.append(chunk)
-            self.rows += chunk.rows
+            self.queued += chunk.rows
             self._cond.notify_all()
             return True
 
     def take(self, max_rows: int, wait: float, min_rows: int) -> list[Chunk]:
-        """Up to max_rows worth of chunks, once min_rows are there or `wait` s passed."""
+        """Up to max_rows worth of chunks, once min_rows are queued or `wait` s passed."""
         with self._cond:
             deadline = time.monotonic() + wait
-            while self.rows < min_rows:
+            while self.queued < min_rows:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     break
@@ -163,9 +172,15 @@ class SampleBuffer:
                 chunk = self._chunks.popleft()
                 out.append(chunk)
                 taken += chunk.rows
-            self.rows -= taken
-            self._cond.notify_all()
+            self.queued -= taken
+            self.held += taken
             return out
+
+    def release(self, rows: int) -> None:
+        """Rows taken earlier are committed (or given up): make room for new ones."""
+        with self._cond:
+            self.held -= rows
+            self._cond.notify_all()
 
 
 # ---------------------------------------------------------------------------------------
@@ -266,6 +281,7 @@ class Ingestor:
         self._conn: psycopg.Connection | None = None
         self._known_days: set[date] = set()
         self._stop_writing = threading.Event()
+        self._abandon = threading.Event()
         self._latest: dict[int, dict[str, tuple[float, dict]]] = {}
         self._latest_lock = threading.Lock()
         self._threads: list[threading.Thread] = []
@@ -423,7 +439,11 @@ class Ingestor:
                     log.warning("telemetry write failed, retrying in %.1f s: %s", backoff, exc)
                     self._drop_connection()
                     retrying = True
-                    time.sleep(backoff)
+                    if self._abandon.wait(backoff):
+                        rows = sum(c.rows for c in pending) + self.buffer.queued
+                        self.counters.incr("lost_at_shutdown", rows)
+                        log.error("stopped with %d rows never written", rows)
+                        return
                     backoff = min(backoff * 2, 2.0)
                     continue
                 except psycopg.Error as exc:
@@ -433,6 +453,7 @@ class Ingestor:
                     self._drop_connection()
                 else:
                     self._record_stored(pending)
+                self.buffer.release(sum(c.rows for c in pending))
                 pending = []
                 retrying = False
                 backoff = 0.1
@@ -492,6 +513,10 @@ class Ingestor:
         for thread in self._threads:
             thread.join(max(0.0, deadline - time.monotonic()))
         drained = not any(t.is_alive() for t in self._threads)
+        if not drained:
+            self._abandon.set()
+            for thread in self._threads:
+                thread.join(5)
         self.counters.flush()
         self._drop_connection()
         return drained
