@@ -1,11 +1,26 @@
 """Flight-log import, columnar storage, level-of-detail and analysis (issue 7).
 
 Plain modules without Django: the upload API, the Celery import task and the viewer call
-`import_log`, `store.write_store` / `store.open_store`, `lod.downsample` and `analysis`.
+`import_log`, `store.import_to_store` / `store.open_store`, `lod.downsample` and `analysis`.
+This package is also the `logs` Django app, so names load lazily: starting Django does
+not import numpy, pyulog, pymavlink and rosbags.
 """
 
-from telemetry.logs.importers import import_log
-from telemetry.logs.importers.base import Limits, LogFormatError
-from telemetry.logs.model import LogData, Series, find_special
+from importlib import import_module
 
-__all__ = ["Limits", "LogData", "LogFormatError", "Series", "find_special", "import_log"]
+_EXPORTS = {
+    "import_log": "telemetry.logs.importers",
+    "Limits": "telemetry.logs.importers.base",
+    "LogFormatError": "telemetry.logs.importers.base",
+    "LogData": "telemetry.logs.model",
+    "Series": "telemetry.logs.model",
+    "find_special": "telemetry.logs.model",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> object:
+    if name in _EXPORTS:
+        return getattr(import_module(_EXPORTS[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
