@@ -1,10 +1,11 @@
 from django.contrib import admin
 from django.contrib.auth import views as auth_views
-from django.urls import include, path
+from django.urls import include, path, re_path
 from drf_spectacular.views import SpectacularAPIView, SpectacularSwaggerView
 from rest_framework.routers import DefaultRouter
 
 from fleet import api as fleet_api
+from fleet.control import ControlView
 from missions import api as missions_api
 
 from .health import health
@@ -16,12 +17,18 @@ router.register("missions", missions_api.MissionViewSet, basename="mission")
 api_v1 = [
     path("me/", fleet_api.me, name="me"),
     path("token/", fleet_api.obtain_token, name="token"),
+    re_path(
+        r"^drones/(?P<drone_id>[A-Za-z0-9_-]{1,64})/commands/$",
+        fleet_api.DroneCommandView.as_view(),
+        name="drone-commands",
+    ),
     path("telemetry/", include("telemetry.api_urls")),
     path("", include(router.urls)),
 ]
 
 urlpatterns = [
     path("health", health, name="health"),
+    path("control", ControlView.as_view(), name="control"),
     path("admin/", admin.site.urls),
     path("accounts/login/", auth_views.LoginView.as_view(), name="login"),
     path("accounts/logout/", auth_views.LogoutView.as_view(), name="logout"),
