@@ -94,6 +94,11 @@ class LogData:
     def __iter__(self) -> Iterator[Series]:
         return iter(self.series.values())
 
+    def special_by_layer(self) -> dict[str, dict[str, list[str]]]:
+        """find_special per layer, leaving out layers without any."""
+        found = {layer: find_special(self, layer=layer) for layer in self.layers}
+        return {layer: special for layer, special in found.items() if special}
+
     def tree(self) -> Group:
         root = Group("")
         for s in self.series.values():
@@ -148,14 +153,17 @@ def _walk(group: Group) -> Iterator[Group]:
         yield from _walk(g)
 
 
-def find_special(log: LogData) -> dict[str, list[str]]:
-    """Series paths of the special quantities the dedicated views need.
+def find_special(log: LogData, *, layer: str | None = None) -> dict[str, list[str]]:
+    """Series paths of the special quantities the dedicated views need (within one layer
+    when `layer` is given: a mission log has a GPS track per drone).
 
     Keys are among SPECIAL_KEYS; x/y/z groups (or roll/pitch/yaw for rotation) list their
     members in axis order, motors every motor in name order, gps [lat, lon] or
     [lat, lon, alt]. Reader hints (`Series.special`) win over name matching; otherwise the
     first match in layer order is taken.
     """
+    if layer is not None:
+        log = LogData(log.format, {p: s for p, s in log.series.items() if s.layer == layer})
     found: dict[str, list[str]] = {}
     hinted: dict[str, dict[str, str]] = {}
     for s in log:

@@ -99,6 +99,7 @@ def _write(log: LogData, out: Path) -> dict:
         "layers": list(layers.values()),
         "series": series,
         "special": find_special(log),
+        "special_by_layer": log.special_by_layer(),
         "metadata": log.metadata,
         "warnings": log.warnings,
     }
@@ -127,6 +128,10 @@ class LogStore:
     @property
     def special(self) -> dict[str, list[str]]:
         return self.index["special"]
+
+    @property
+    def special_by_layer(self) -> dict[str, dict[str, list[str]]]:
+        return self.index["special_by_layer"]
 
     def series_list(self) -> list[dict]:
         """The API's series summary: [{"path", "unit", "count", "start", "end"}] (seconds)."""

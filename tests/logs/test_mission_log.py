@@ -50,6 +50,13 @@ def test_mission_log_gives_one_layer_per_drone(tmp_path):
     ]
     assert log.metadata["mission"] == {"id": 7, "name": "Survey"}
     assert find_special(log)["gps"] == ["drone Alpha/lat", "drone Alpha/lon", "drone Alpha/alt"]
+    by_layer = log.special_by_layer()
+    assert by_layer["drone Bravo"]["gps"] == [
+        "drone Bravo/lat",
+        "drone Bravo/lon",
+        "drone Bravo/alt",
+    ]
+    assert find_special(log, layer="drone Bravo") == by_layer["drone Bravo"]
 
 
 def test_mission_log_skips_events_it_cannot_place_and_says_so(tmp_path):

@@ -83,6 +83,9 @@ def test_store_index_lists_special_quantities_of_the_log(tmp_path):
     write_store(import_log(write_dfi(tmp_path / "f.dfi")), tmp_path / "log2")
     index = json.loads((tmp_path / "log2" / "index.json").read_text())
     assert index["special"]["altitude"] == ["navdata/Altitude"]
+    assert index["special_by_layer"]["commands"] == {
+        "velocity": ["commands/Velocity/x", "commands/Velocity/y", "commands/Velocity/z"]
+    }
     assert index["format"] == "dfi"
 
 
