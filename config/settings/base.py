@@ -239,3 +239,11 @@ LOGS_MAX_UNCOMPRESSED_BYTES = env_int("LOGS_MAX_UNCOMPRESSED_BYTES", 2 * 1024**3
 LOGS_MAX_COMPRESSION_RATIO = env_float("LOGS_MAX_COMPRESSION_RATIO", 200.0)
 # The most points one series request may ask for with `points` (min/max buckets).
 LOGS_MAX_PLOT_POINTS = env_int("LOGS_MAX_PLOT_POINTS", 20_000)
+
+# --- past view ---
+INSTALLED_APPS += ["telemetry.pastview"]  # app label "pastview"
+# Relative poses reach the page at most this often per drone (new frames and tracking
+# events are pushed at once); teleoperation moves are rate-limited and bounded per step.
+PASTVIEW_PUSH_HZ = env_float("PASTVIEW_PUSH_HZ", 30.0)
+PASTVIEW_TELEOP_HZ = env_float("PASTVIEW_TELEOP_HZ", 4.0)
+PASTVIEW_TELEOP_STEP_M = env_float("PASTVIEW_TELEOP_STEP_M", 0.5)
