@@ -118,6 +118,7 @@ def main() -> int:
         sup.start("gateway", [*manage, "gateway"], env)
     if command_exists("ingest_telemetry"):
         sup.start("ingest", [*manage, "ingest_telemetry"], env)
+    sup.start("pastview", [*manage, "pastview"], env)  # telemetry/pastview: one level deeper
     sup.start("worker", [PY, "-m", "celery", "-A", "config", "worker", "-l", "info",
                          "--concurrency", "2", "-n", "worker@%h"], env)
     schedule = ROOT / ".data" / "run" / "celerybeat-schedule"
