@@ -133,33 +133,46 @@ def test_bad_messages_are_counted_by_reason_and_nothing_of_them_is_stored(world_
     ground = Publisher(broker.url_for("ground"))
     now = time.time()
     good = {"ts": now, "objects": [{"name": "Gyros", "ts": now, "fields": {"x": 1.0}}]}
-    half_bad = {"ts": now, "objects": [
-        {"name": "Gyros", "ts": now - 1, "fields": {"x": 1.0}},
-        {"name": "Accels", "ts": now - 1, "fields": {"x": "1", "y": {"nested": True}}},
-    ]}
+    half_bad = {
+        "ts": now,
+        "objects": [
+            {"name": "Gyros", "ts": now - 1, "fields": {"x": 1.0}},
+            {"name": "Accels", "ts": now - 1, "fields": {"x": "1", "y": {"nested": True}}},
+        ],
+    }
     bad = {
         "not_json": [b"{not json", b"\xff\xfe", b""],
         "bad_value": [
             b'{"ts": 1, "objects": [{"name": "Gyros", "ts": %f, "fields": {"x": NaN}}]}' % now,
-            b'{"ts": 1, "objects": [{"name": "Gyros", "ts": %f, "fields": {"x": Infinity}}]}'
-            % now,
+            b'{"ts": 1, "objects": [{"name": "Gyros", "ts": %f, "fields": {"x": Infinity}}]}' % now,
             json.dumps(half_bad).encode(),
         ],
         "bad_schema": [
             json.dumps({"ts": now, "objects": {"name": "Gyros"}}).encode(),
-            json.dumps({"ts": now, "objects": [{"name": "Gyros", "ts": "soon", "fields": {}}]})
-            .encode(),
-            json.dumps({"ts": now, "objects": [{"name": "Gy\tros", "ts": now, "fields": {}}]})
-            .encode(),
+            json.dumps(
+                {"ts": now, "objects": [{"name": "Gyros", "ts": "soon", "fields": {}}]}
+            ).encode(),
+            json.dumps(
+                {"ts": now, "objects": [{"name": "Gy\tros", "ts": now, "fields": {}}]}
+            ).encode(),
         ],
         "ts_window": [
-            json.dumps({"ts": now, "objects": [{"name": "Gyros", "ts": now + 3600,
-                                                "fields": {"x": 1}}]}).encode(),
-            json.dumps({"ts": now, "objects": [{"name": "Gyros", "ts": 1000.0,
-                                                "fields": {"x": 1}}]}).encode(),
+            json.dumps(
+                {"ts": now, "objects": [{"name": "Gyros", "ts": now + 3600, "fields": {"x": 1}}]}
+            ).encode(),
+            json.dumps(
+                {"ts": now, "objects": [{"name": "Gyros", "ts": 1000.0, "fields": {"x": 1}}]}
+            ).encode(),
         ],
-        "oversize": [json.dumps({"ts": now, "objects": [
-            {"name": "Gyros", "ts": now, "fields": {"x": 1, "pad": "y" * 200}}] * 30}).encode()],
+        "oversize": [
+            json.dumps(
+                {
+                    "ts": now,
+                    "objects": [{"name": "Gyros", "ts": now, "fields": {"x": 1, "pad": "y" * 200}}]
+                    * 30,
+                }
+            ).encode()
+        ],
     }
     try:
         for payloads in bad.values():
@@ -184,7 +197,9 @@ def test_a_full_buffer_counts_overflow_instead_of_growing(world_tx, tmp_path):
     # No database: the buffer only fills.
     ingestor, counters = _ingestor(
         "host=127.0.0.1 port=1 dbname=none connect_timeout=1",
-        broker.url_for("ground"), buffer_rows=20, put_wait=0.01,
+        broker.url_for("ground"),
+        buffer_rows=20,
+        put_wait=0.01,
     )
     ingestor.drones.ids = {"ACME_1": world_tx.drone.pk}
     ingestor.drones.loader = lambda: {"ACME_1": world_tx.drone.pk}
@@ -192,8 +207,13 @@ def test_a_full_buffer_counts_overflow_instead_of_growing(world_tx, tmp_path):
     try:
         now = time.time()
         for i in range(30):
-            ground.publish("ACME_1/telemetry/out", {"ts": now, "objects": [
-                {"name": "Gyros", "ts": now + i * 0.01, "fields": {"x": i}}]})
+            ground.publish(
+                "ACME_1/telemetry/out",
+                {
+                    "ts": now,
+                    "objects": [{"name": "Gyros", "ts": now + i * 0.01, "fields": {"x": i}}],
+                },
+            )
         counts = counters.counts
         assert wait_until(
             lambda: counts.get("objects_received", 0) + counts.get("overflow", 0) == 30, 10
