@@ -177,3 +177,22 @@ def test_a_bad_home_is_refused_with_a_clear_message():
 
     with pytest.raises(SimulatorError):
         start_simulator(home=(123.0, 0.0, 0.0))
+
+
+def test_writing_an_objects_metadata_changes_its_stream_rate(board):
+    from onboard.uavtalk import pack_metadata
+
+    ground = RawGround(board.pty_path)
+    ground.connect()
+    attitude = REGISTRY["AttitudeActual"]
+    throttled = 3 << 4  # flight update mode "throttled" in the metadata flags
+    meta = encode_frame(MessageType.OBJ_ACK, attitude.id + 1, pack_metadata(throttled, 1000, 0, 0))
+    ground.send(meta)
+    assert ground.pump(2, lambda f: f.type == MessageType.ACK) is not None
+    ground.frames.clear()
+    ground.pump(1.0)  # ten simulated seconds
+    count = sum(1 for f in ground.frames if f.name == "AttitudeActual")
+    assert 8 <= count <= 12  # once a simulated second instead of ten times
+    ground.send(CODEC.encode_request("AttitudeActual"))  # a plain request still answers
+    assert ground.pump(2, lambda f: f.name == "AttitudeActual") is not None
+    ground.close()
