@@ -1,6 +1,6 @@
 from django.contrib import admin
 
-from .models import Assignment, Event, Mission, Step
+from .models import Assignment, Event, Mission, Picture, Step
 
 
 class StepInline(admin.TabularInline):
@@ -38,3 +38,10 @@ class EventAdmin(admin.ModelAdmin):
     list_filter = ["kind"]
     search_fields = ["mission__name", "message"]
     date_hierarchy = "at"
+
+
+@admin.register(Picture)
+class PictureAdmin(admin.ModelAdmin):
+    list_display = ["mission", "drone", "index", "name", "taken_at", "lat", "lon"]
+    search_fields = ["mission__name", "name", "drone__drone_id"]
+    date_hierarchy = "taken_at"

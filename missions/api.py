@@ -1,26 +1,452 @@
-"""REST resources of missions, filtered to the user's organisations."""
+"""REST resources of missions, filtered to the user's organisations.
+
+Bodies are validated by the domain (planning, onboard.protocol) so the API and the drone
+agree on what a valid step is; every refusal answers the project's error shape with the
+offending field named.
+"""
 
 from __future__ import annotations
 
-from rest_framework import viewsets
+from django.http import HttpResponse
+from drf_spectacular.types import OpenApiTypes
+from drf_spectacular.utils import OpenApiParameter, extend_schema, inline_serializer
+from rest_framework import exceptions, serializers, status, viewsets
+from rest_framework.decorators import action
+from rest_framework.parsers import FormParser, JSONParser, MultiPartParser
+from rest_framework.request import Request
+from rest_framework.response import Response
 
-from fleet.permissions import OrganisationRole
+from fleet.models import Drone, Membership, Organisation, Role
+from fleet.permissions import OrganisationRole, require_role
+from fleet.tenancy import current_membership
 
-from .models import Mission
-from .serializers import MissionDetailSerializer, MissionSerializer
+from . import logs, panic, pictures, planning, qgc_plan
+from .models import Mission, Picture
+from .serializers import (
+    MissionDetailSerializer,
+    MissionSerializer,
+    PictureSerializer,
+    StepSerializer,
+)
+from .services import MissionError, create_mission, start_mission, stop_mission
+
+
+class Refused(exceptions.APIException):
+    status_code = status.HTTP_400_BAD_REQUEST
+    default_code = "invalid"
+
+    def __init__(self, field: str, message: str, status_code: int = 400) -> None:
+        super().__init__({field: [message]})
+        self.status_code = status_code
+        if status_code != 400:
+            self.default_code = {404: "not_found", 409: "conflict", 413: "too_large"}.get(
+                status_code, "refused"
+            )
+
+
+def refuse(exc: MissionError | planning.PlanningError) -> Refused:
+    code = exc.status if isinstance(exc, MissionError) else 400
+    return Refused(exc.field, exc.message, code)
+
+
+def _body(request: Request) -> dict:
+    if not isinstance(request.data, dict):
+        raise Refused("body", "must be a JSON object")
+    return request.data
+
+
+def _organisation_for_write(request: Request, slug: object = None) -> Organisation:
+    """The organisation named in the body (slug), else the portal's current one; the
+    user must be an operator there."""
+    if slug is not None:
+        membership = (
+            Membership.objects.for_user(request.user).filter(organisation__slug=slug).first()
+        )
+        if membership is None:
+            raise Refused("organisation", f"you are not a member of {slug!r}", 404)
+    else:
+        membership = current_membership(request)
+        if membership is None:
+            raise Refused("organisation", "you are not a member of any organisation", 403)
+    if not membership.allows(Role.OPERATOR):
+        raise exceptions.PermissionDenied("Operators and admins only.")
+    return membership.organisation
+
+
+CoverageRequest = inline_serializer(
+    "CoverageRequest",
+    {
+        "vertices": serializers.ListField(
+            child=serializers.ListField(child=serializers.FloatField())
+        ),
+        "step_distance": serializers.FloatField(),
+        "altitude": serializers.FloatField(required=False),
+    },
+)
+CoverageResponse = inline_serializer(
+    "CoverageResponse",
+    {
+        "waypoints": serializers.ListField(child=serializers.ListField()),
+        "area_m2": serializers.FloatField(),
+        "vectors": serializers.DictField(),
+        "step_distance": serializers.FloatField(),
+        "shape": serializers.ListField(child=serializers.IntegerField()),
+    },
+)
+ExtendRequest = inline_serializer(
+    "ExtendRequest",
+    {
+        "vertices": serializers.ListField(
+            child=serializers.ListField(child=serializers.FloatField())
+        ),
+        "step_distance": serializers.FloatField(),
+        "altitude": serializers.FloatField(required=False),
+        "center": serializers.ListField(child=serializers.FloatField()),
+        "joining_drones": serializers.IntegerField(),
+    },
+)
+ExtendResponse = inline_serializer(
+    "ExtendResponse",
+    {
+        "waypoints": serializers.ListField(child=serializers.ListField()),
+        "area_m2": serializers.FloatField(),
+        "target_area_m2": serializers.FloatField(),
+        "parts": serializers.ListField(child=serializers.ListField()),
+    },
+)
+CreateRequest = inline_serializer(
+    "MissionCreateRequest",
+    {
+        "name": serializers.CharField(required=False),
+        "organisation": serializers.SlugField(required=False),
+        "altitude": serializers.FloatField(required=False),
+        "steps": serializers.ListField(child=serializers.DictField(), required=False),
+        "coverage": inline_serializer(
+            "MissionCoverage",
+            {
+                "vertices": serializers.ListField(child=serializers.ListField()),
+                "step_distance": serializers.FloatField(),
+                "intermediate_action": serializers.JSONField(required=False),
+            },
+        ),
+        "extensibility": serializers.DictField(required=False),
+    },
+)
+StartRequest = inline_serializer(
+    "MissionStartRequest", {"drone": serializers.CharField(required=False, allow_null=True)}
+)
+PanicRequest = inline_serializer(
+    "PanicRequest", {"lat": serializers.FloatField(), "lon": serializers.FloatField()}
+)
+
+
+def _altitude(body: dict) -> float:
+    altitude = body.get("altitude", 10.0)
+    if isinstance(altitude, bool) or not isinstance(altitude, int | float):
+        raise Refused("altitude", "must be a number of metres")
+    if not 0.5 <= altitude <= 1000:
+        raise Refused("altitude", "must be between 0.5 and 1000 m")
+    return float(altitude)
+
+
+def _steps_from_coverage(spec: object, altitude: float, max_waypoints: int) -> tuple[list, dict]:
+    """A coverage spec → mission steps and the extensibility parameters to keep."""
+    if not isinstance(spec, dict):
+        raise Refused("coverage", "must be an object with vertices and step_distance")
+    try:
+        area = planning.coverage(
+            spec.get("vertices"), spec.get("step_distance"), max_waypoints=max_waypoints
+        )
+        action = spec.get("intermediate_action")
+        steps = planning.mission_steps(
+            area.waypoints, altitude=altitude, intermediate_action=action
+        )
+    except planning.PlanningError as exc:
+        raise Refused(f"coverage.{exc.field}", exc.message) from None
+    return steps, {
+        "vertices": spec.get("vertices"),
+        "vectors": area.vectors.to_dict(),
+        "step_distance": area.step_distance,
+        "intermediate_action": action,
+        "area_m2": area.area_m2,
+    }
 
 
 class MissionViewSet(viewsets.ReadOnlyModelViewSet):
+    """Missions of the user's organisations: plan, create, start, stop, follow, export."""
+
     permission_classes = [OrganisationRole]
+    parser_classes = [JSONParser, FormParser, MultiPartParser]
 
     def get_queryset(self):  # type: ignore[no-untyped-def]
         queryset = Mission.objects.for_user(self.request.user).select_related("organisation")
-        status = self.request.query_params.get("status")
-        if status:
-            queryset = queryset.filter(status=status)
+        status_filter = self.request.query_params.get("status")
+        if status_filter:
+            queryset = queryset.filter(status=status_filter)
         if self.action == "retrieve":
             queryset = queryset.prefetch_related("steps__drone", "assignments__drone")
         return queryset
 
     def get_serializer_class(self):  # type: ignore[no-untyped-def]
         return MissionDetailSerializer if self.action == "retrieve" else MissionSerializer
+
+    def _writable(self, pk: str | None) -> Mission:
+        mission = self.get_object()
+        if not require_role(self.request.user, mission.organisation, Role.OPERATOR):
+            raise exceptions.PermissionDenied("Operators and admins only.")
+        return mission
+
+    # -- planning --------------------------------------------------------------------------
+
+    @extend_schema(request=CoverageRequest, responses=CoverageResponse)
+    @action(detail=False, methods=["post"], url_path="coverage")
+    def coverage(self, request: Request) -> Response:
+        """Serpentine waypoints over the parallelogram of three consecutive vertices."""
+        from django.conf import settings
+
+        body = _body(request)
+        if "altitude" in body:
+            _altitude(body)
+        try:
+            area = planning.coverage(
+                body.get("vertices"),
+                body.get("step_distance"),
+                max_waypoints=settings.MISSIONS_MAX_WAYPOINTS,
+            )
+        except planning.PlanningError as exc:
+            raise refuse(exc) from None
+        return Response(area.to_dict())
+
+    @extend_schema(request=ExtendRequest, responses=ExtendResponse)
+    @action(detail=False, methods=["post"], url_path="coverage/extend")
+    def coverage_extend(self, request: Request) -> Response:
+        """The same shape around a new centre, +50 % area per joining drone, split in parts."""
+        from django.conf import settings
+
+        body = _body(request)
+        if "altitude" in body:
+            _altitude(body)
+        try:
+            extension = planning.extend(
+                body.get("vertices"),
+                body.get("step_distance"),
+                center=body.get("center"),  # type: ignore[arg-type]
+                joining_drones=body.get("joining_drones"),  # type: ignore[arg-type]
+                max_waypoints=settings.MISSIONS_MAX_WAYPOINTS,
+            )
+        except planning.PlanningError as exc:
+            raise refuse(exc) from None
+        return Response(extension.to_dict())
+
+    # -- lifecycle -------------------------------------------------------------------------
+
+    @extend_schema(request=CreateRequest, responses={201: MissionDetailSerializer})
+    def create(self, request: Request) -> Response:
+        """A draft mission from `steps`, or from a `coverage` (which also keeps the
+        extensibility parameters a collaboration needs)."""
+        from django.conf import settings
+
+        body = _body(request)
+        organisation = _organisation_for_write(request, body.get("organisation"))
+        altitude = _altitude(body)
+        extensibility = body.get("extensibility")
+        if extensibility is not None and not isinstance(extensibility, dict):
+            raise Refused("extensibility", "must be an object")
+        if "coverage" in body:
+            steps, extensibility = _steps_from_coverage(
+                body["coverage"], altitude, settings.MISSIONS_MAX_WAYPOINTS
+            )
+        else:
+            steps = body.get("steps")
+        if extensibility and "vectors" in extensibility:
+            try:
+                planning.Vectors.from_dict(extensibility["vectors"])
+                planning.normalise_actions(extensibility.get("intermediate_action"))
+            except planning.PlanningError as exc:
+                raise Refused(f"extensibility.{exc.field}", exc.message) from None
+        try:
+            mission = create_mission(
+                organisation=organisation,
+                name=str(body.get("name") or ""),
+                steps=steps,
+                altitude=altitude,
+                extensibility=extensibility,
+                user=request.user,
+            )
+        except MissionError as exc:
+            raise refuse(exc) from None
+        return Response(MissionDetailSerializer(mission).data, status=status.HTTP_201_CREATED)
+
+    @extend_schema(request=StartRequest, responses=MissionDetailSerializer)
+    @action(detail=True, methods=["post"])
+    def start(self, request: Request, pk: str | None = None) -> Response:
+        """Send the mission to `drone` (an id of the same organisation) or, without one,
+        to the nearest available drone."""
+        mission = self._writable(pk)
+        body = _body(request)
+        drone = None
+        drone_id = body.get("drone")
+        if drone_id not in (None, ""):
+            drone = Drone.objects.filter(
+                drone_id=str(drone_id), organisation=mission.organisation
+            ).first()
+            if drone is None:
+                raise Refused("drone", f"no drone {drone_id!r} in this organisation", 404)
+        try:
+            start_mission(mission, drone=drone, user=request.user)
+        except MissionError as exc:
+            raise refuse(exc) from None
+        mission.refresh_from_db()
+        return Response(MissionDetailSerializer(mission).data)
+
+    @extend_schema(request=None, responses=MissionDetailSerializer)
+    @action(detail=True, methods=["post"])
+    def stop(self, request: Request, pk: str | None = None) -> Response:
+        """Stop every drone flying the mission (stopchain)."""
+        mission = self._writable(pk)
+        try:
+            stop_mission(mission, user=request.user)
+        except MissionError as exc:
+            raise refuse(exc) from None
+        mission.refresh_from_db()
+        return Response(MissionDetailSerializer(mission).data)
+
+    @extend_schema(responses=StepSerializer(many=True))
+    @action(detail=True, methods=["get"])
+    def steps(self, request: Request, pk: str | None = None) -> Response:
+        mission = self.get_object()
+        steps = mission.steps.select_related("drone").order_by("index")
+        return Response(StepSerializer(steps, many=True).data)
+
+    @extend_schema(request=PanicRequest, responses={201: MissionDetailSerializer})
+    @action(detail=False, methods=["post"])
+    def panic(self, request: Request) -> Response:
+        """The panic button: the nearest available drone flies to (lat, lon) at 10 m."""
+        body = _body(request)
+        organisation = _organisation_for_write(request, body.get("organisation"))
+        try:
+            started = panic.call_drone(
+                organisation=organisation,
+                lat=body.get("lat"),
+                lon=body.get("lon"),
+                user=request.user,
+            )
+        except MissionError as exc:
+            raise refuse(exc) from None
+        started.mission.refresh_from_db()
+        return Response(
+            MissionDetailSerializer(started.mission).data, status=status.HTTP_201_CREATED
+        )
+
+    # -- logs, pictures, plans -------------------------------------------------------------
+
+    @extend_schema(responses={200: OpenApiTypes.OBJECT})
+    @action(detail=True, methods=["get"])
+    def log(self, request: Request, pk: str | None = None) -> Response:
+        """The mission log: mission, drones, assignments, steps, stages and every event."""
+        mission = self.get_object()
+        response = Response(logs.build_log(mission))
+        if request.query_params.get("download"):
+            response["Content-Disposition"] = f'attachment; filename="mission-{mission.pk}.json"'
+        return response
+
+    @extend_schema(
+        request={
+            "multipart/form-data": inline_serializer("LogUpload", {"file": serializers.FileField()})
+        },
+        responses={200: OpenApiTypes.OBJECT},
+    )
+    @action(detail=False, methods=["post"], url_path="logs/check")
+    def check_log(self, request: Request) -> Response:
+        """Read an uploaded mission log for the viewer; 4xx says what is wrong with it."""
+        upload = request.FILES.get("file")
+        if upload is None:
+            raise Refused("file", "attach the mission log as `file`")
+        if upload.size > logs.MAX_LOG_BYTES:
+            raise Refused("file", "is too large", 413)
+        try:
+            return Response(logs.parse_log(upload.read()))
+        except MissionError as exc:
+            raise refuse(exc) from None
+
+    @extend_schema(responses=PictureSerializer(many=True))
+    @action(detail=True, methods=["get"])
+    def pictures(self, request: Request, pk: str | None = None) -> Response:
+        mission = self.get_object()
+        rows = Picture.objects.filter(mission=mission).select_related("drone")
+        return Response(PictureSerializer(rows, many=True).data)
+
+    @extend_schema(
+        parameters=[OpenApiParameter("undistort", bool, description="barrel correction")],
+        responses={(200, "application/zip"): OpenApiTypes.BINARY},
+    )
+    @action(detail=True, methods=["get"], url_path="pictures/odm")
+    def pictures_odm(self, request: Request, pk: str | None = None) -> HttpResponse:
+        """Every picture plus `geo.txt`, ready for OpenDroneMap."""
+        mission = self.get_object()
+        if not mission.pictures.exists():
+            raise Refused("pictures", "this mission has no pictures", 404)
+        correct = request.query_params.get("undistort") in ("1", "true", "yes")
+        data = pictures.odm_archive(mission, correct_barrel=correct)
+        response = HttpResponse(data, content_type="application/zip")
+        response["Content-Disposition"] = f'attachment; filename="mission-{mission.pk}-odm.zip"'
+        return response
+
+    @extend_schema(responses={(200, "application/json"): OpenApiTypes.OBJECT})
+    @action(detail=True, methods=["get"], url_path="plan")
+    def export_plan(self, request: Request, pk: str | None = None) -> HttpResponse:
+        """The mission as a QGroundControl `.plan` file."""
+        mission = self.get_object()
+        steps = [
+            {"index": s.index, "command": s.command, "params": s.params}
+            for s in mission.steps.order_by("index")
+        ]
+        try:
+            document = qgc_plan.export_plan(steps, altitude=mission.altitude)
+        except planning.PlanningError as exc:
+            raise refuse(exc) from None
+        response = HttpResponse(qgc_plan.dumps(document), content_type="application/json")
+        response["Content-Disposition"] = f'attachment; filename="mission-{mission.pk}.plan"'
+        return response
+
+    @extend_schema(
+        request={
+            "multipart/form-data": inline_serializer(
+                "PlanUpload", {"file": serializers.FileField()}
+            )
+        },
+        responses={201: MissionDetailSerializer},
+    )
+    @action(detail=False, methods=["post"], url_path="import-plan")
+    def import_plan(self, request: Request) -> Response:
+        """A draft mission from a QGroundControl `.plan` file (multipart `file`, or the
+        plan itself as the JSON body)."""
+        upload = request.FILES.get("file")
+        organisation = _organisation_for_write(request, request.data.get("organisation"))
+        if upload is not None:
+            source: object = upload.read()
+        elif isinstance(request.data, dict) and request.data.get("fileType"):
+            source = dict(request.data)
+        else:
+            raise Refused("file", "attach the .plan file as `file`")
+        try:
+            plan = qgc_plan.import_plan(source)  # type: ignore[arg-type]
+            mission = create_mission(
+                organisation=organisation,
+                name=(upload.name if upload is not None else "") or "Imported plan",
+                steps=plan.steps,
+                altitude=_plan_altitude(plan.steps),
+                user=request.user,
+            )
+        except planning.PlanningError as exc:
+            raise refuse(exc) from None
+        except MissionError as exc:
+            raise refuse(exc) from None
+        return Response(MissionDetailSerializer(mission).data, status=status.HTTP_201_CREATED)
+
+
+def _plan_altitude(steps: list[dict]) -> float:
+    for step in steps:
+        if step.get("command") == "takeoff":
+            return float(step["params"].get("altitude") or 10.0)
+    return 10.0

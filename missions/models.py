@@ -44,14 +44,34 @@ class StepStatus(models.TextChoices):
     STARTED = "started", "Started"
     COMPLETED = "completed", "Completed"
     FAILED = "failed", "Failed"
+    # Replaced by a collaborative re-plan (seed 001, 5.4): no drone will fly it any more.
+    SUPERSEDED = "superseded", "Superseded"
 
 
 STEP_TRANSITIONS: dict[str, set[str]] = {
-    StepStatus.PENDING: {StepStatus.STARTED, StepStatus.COMPLETED, StepStatus.FAILED},
-    StepStatus.STARTED: {StepStatus.COMPLETED, StepStatus.FAILED, StepStatus.PENDING},
-    StepStatus.FAILED: {StepStatus.PENDING, StepStatus.STARTED, StepStatus.COMPLETED},
+    StepStatus.PENDING: {
+        StepStatus.STARTED,
+        StepStatus.COMPLETED,
+        StepStatus.FAILED,
+        StepStatus.SUPERSEDED,
+    },
+    StepStatus.STARTED: {
+        StepStatus.COMPLETED,
+        StepStatus.FAILED,
+        StepStatus.PENDING,
+        StepStatus.SUPERSEDED,
+    },
+    StepStatus.FAILED: {
+        StepStatus.PENDING,
+        StepStatus.STARTED,
+        StepStatus.COMPLETED,
+        StepStatus.SUPERSEDED,
+    },
     StepStatus.COMPLETED: set(),
+    StepStatus.SUPERSEDED: set(),
 }
+# A mission is done when every step is in one of these, whoever did it.
+STEP_DONE = {StepStatus.COMPLETED, StepStatus.SUPERSEDED}
 
 
 class MissionQuerySet(models.QuerySet):
@@ -140,6 +160,8 @@ class Assignment(models.Model):
         COLLABORATION = "collaboration", "Collaboration"
 
     class Status(models.TextChoices):
+        # Waiting for the drone to finish its previous assignment of this mission.
+        QUEUED = "queued", "Queued"
         SENT = "sent", "Sent"
         ACCEPTED = "accepted", "Accepted"
         REJECTED = "rejected", "Rejected"
@@ -156,9 +178,15 @@ class Assignment(models.Model):
     status = models.CharField(max_length=10, choices=Status.choices, default=Status.SENT)
     created_at = models.DateTimeField(auto_now_add=True)
     decode_ms = models.FloatField(null=True, blank=True)
+    # The failing assignment this one replaces: one replacement per failure, by constraint.
+    replaces = models.OneToOneField(
+        "self", null=True, blank=True, on_delete=models.SET_NULL, related_name="replaced_by"
+    )
 
     class Meta:
         ordering = ["created_at"]
+
+    ACTIVE = (Status.QUEUED, Status.SENT, Status.ACCEPTED)
 
     def __str__(self) -> str:
         return f"{self.mission} → {self.drone} ({self.reason})"
@@ -188,3 +216,34 @@ class Event(models.Model):
 
     def __str__(self) -> str:
         return f"{self.mission} {self.kind} {self.message}"
+
+
+def picture_path(picture: Picture, filename: str) -> str:
+    return f"missions/{picture.mission_id}/pictures/{filename}"
+
+
+class Picture(models.Model):
+    """A picture taken by `takepic` in a mission, stored geotagged (EXIF GPS)."""
+
+    mission = models.ForeignKey(Mission, on_delete=models.CASCADE, related_name="pictures")
+    drone = models.ForeignKey(Drone, null=True, blank=True, on_delete=models.SET_NULL)
+    index = models.PositiveIntegerField(null=True, blank=True)
+    name = models.CharField(max_length=255)
+    taken_at = models.DateTimeField()
+    lat = models.FloatField(null=True, blank=True)
+    lon = models.FloatField(null=True, blank=True)
+    alt = models.FloatField(null=True, blank=True)
+    attitude = models.JSONField(null=True, blank=True)
+    image = models.FileField(upload_to=picture_path, max_length=300)
+    thumbnail = models.FileField(upload_to=picture_path, max_length=300, blank=True)
+
+    class Meta:
+        ordering = ["taken_at", "id"]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["mission", "drone", "name"], name="one_picture_per_name"
+            )
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.mission} {self.name}"

@@ -1,8 +1,9 @@
 from __future__ import annotations
 
+from django.urls import reverse
 from rest_framework import serializers
 
-from .models import Assignment, Mission, Step
+from .models import Assignment, Mission, Picture, Step
 
 
 class StepSerializer(serializers.ModelSerializer):
@@ -30,7 +31,17 @@ class AssignmentSerializer(serializers.ModelSerializer):
 
     class Meta:
         model = Assignment
-        fields = ["id", "drone", "step_indexes", "preparation", "reason", "status", "created_at"]
+        fields = [
+            "id",
+            "drone",
+            "step_indexes",
+            "preparation",
+            "reason",
+            "status",
+            "replaces",
+            "decode_ms",
+            "created_at",
+        ]
         read_only_fields = fields
 
 
@@ -60,3 +71,31 @@ class MissionDetailSerializer(MissionSerializer):
     class Meta(MissionSerializer.Meta):
         fields = [*MissionSerializer.Meta.fields, "steps", "assignments"]
         read_only_fields = fields
+
+
+class PictureSerializer(serializers.ModelSerializer):
+    drone = serializers.SlugRelatedField(slug_field="drone_id", read_only=True)
+    url = serializers.SerializerMethodField()
+    thumbnail_url = serializers.SerializerMethodField()
+
+    class Meta:
+        model = Picture
+        fields = [
+            "id",
+            "drone",
+            "index",
+            "name",
+            "taken_at",
+            "lat",
+            "lon",
+            "alt",
+            "url",
+            "thumbnail_url",
+        ]
+        read_only_fields = fields
+
+    def get_url(self, picture: Picture) -> str:
+        return reverse("missions:picture", args=[picture.pk])
+
+    def get_thumbnail_url(self, picture: Picture) -> str:
+        return reverse("missions:picture-thumbnail", args=[picture.pk])

@@ -1,24 +1,44 @@
+"""Portal pages: mission list and detail (live), the Mission Planner, the mission-log
+viewer, the panic button, and the pictures behind the organisation check."""
+
 from __future__ import annotations
 
+from django.conf import settings
 from django.contrib.auth.decorators import login_required
-from django.http import Http404, HttpRequest, HttpResponse
+from django.http import FileResponse, Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, render
 
-from .models import Mission, MissionStatus
+from onboard.protocol import STEP_COMMANDS
+
+from .models import Mission, MissionStatus, Picture
+
+
+def _organisation(request: HttpRequest):  # type: ignore[no-untyped-def]
+    organisation = request.organisation  # type: ignore[attr-defined]
+    if organisation is None:
+        raise Http404("You are not a member of any organisation.")
+    return organisation
+
+
+def _map_context() -> dict:
+    return {
+        "map_tile_url": getattr(settings, "MAP_TILE_URL", ""),
+        "map_tile_attribution": getattr(settings, "MAP_TILE_ATTRIBUTION", ""),
+    }
 
 
 @login_required
 def mission_list(request: HttpRequest) -> HttpResponse:
-    organisation = request.organisation  # type: ignore[attr-defined]
-    if organisation is None:
-        raise Http404("You are not a member of any organisation.")
-    missions = Mission.objects.filter(organisation=organisation)
+    missions = Mission.objects.filter(organisation=_organisation(request))
     status = request.GET.get("status", "")
     if status in MissionStatus.values:
         missions = missions.filter(status=status)
     query = request.GET.get("q", "").strip()
     if query:
         missions = missions.filter(name__icontains=query)
+    drone = request.GET.get("drone", "").strip()
+    if drone:
+        missions = missions.filter(assignments__drone__drone_id=drone).distinct()
     return render(
         request,
         "missions/list.html",
@@ -27,14 +47,14 @@ def mission_list(request: HttpRequest) -> HttpResponse:
             "statuses": MissionStatus.choices,
             "status": status,
             "q": query,
+            "drone": drone,
         },
     )
 
 
 @login_required
 def mission_detail(request: HttpRequest, pk: str) -> HttpResponse:
-    organisation = request.organisation  # type: ignore[attr-defined]
-    mission = get_object_or_404(Mission, pk=pk, organisation=organisation)
+    mission = get_object_or_404(Mission, pk=pk, organisation=_organisation(request))
     return render(
         request,
         "missions/detail.html",
@@ -43,5 +63,61 @@ def mission_detail(request: HttpRequest, pk: str) -> HttpResponse:
             "steps": mission.steps.select_related("drone"),
             "assignments": mission.assignments.select_related("drone"),
             "events": mission.events.select_related("drone")[:500],
+            **_map_context(),
         },
     )
+
+
+@login_required
+def planner(request: HttpRequest) -> HttpResponse:
+    organisation = _organisation(request)
+    return render(
+        request,
+        "missions/planner.html",
+        {
+            "drones": organisation.drones.all(),
+            "commands": STEP_COMMANDS,
+            **_map_context(),
+        },
+    )
+
+
+@login_required
+def log_viewer(request: HttpRequest) -> HttpResponse:
+    organisation = _organisation(request)
+    mission = None
+    if request.GET.get("mission"):
+        mission = Mission.objects.filter(
+            organisation=organisation, pk=request.GET["mission"]
+        ).first()
+    return render(
+        request,
+        "missions/log_viewer.html",
+        {
+            "mission": mission,
+            "missions": Mission.objects.filter(organisation=organisation)[:50],
+            **_map_context(),
+        },
+    )
+
+
+@login_required
+def panic_page(request: HttpRequest) -> HttpResponse:
+    _organisation(request)
+    return render(request, "missions/panic.html", {})
+
+
+def _picture(request: HttpRequest, pk: int) -> Picture:
+    return get_object_or_404(Picture, pk=pk, mission__organisation=_organisation(request))
+
+
+@login_required
+def picture(request: HttpRequest, pk: int) -> FileResponse:
+    row = _picture(request, pk)
+    return FileResponse(row.image.open("rb"), content_type="image/jpeg", filename=row.name)
+
+
+@login_required
+def picture_thumbnail(request: HttpRequest, pk: int) -> FileResponse:
+    row = _picture(request, pk)
+    return FileResponse(row.thumbnail.open("rb"), content_type="image/jpeg")

@@ -1,0 +1,176 @@
+"""Collaborative extension on an OUT_MEASURE alarm (seed 001, 3.1.6 and 5.4), once per mission.
+
+The area is rebuilt around the alarm position from the mission's extensibility parameters
+(`vectors`, `step_distance`, `intermediate_action`), larger by 50 % per joining drone; the
+new waypoints are split among the alarming drone and up to N nearest available drones.
+The alarming drone is flying another assignment: it is told to stop first, and its new
+part is queued until it reports the old one stopped (a drone runs one mission at a time).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+
+from django.conf import settings
+from django.db import transaction
+
+from missions.handover import plan_collaboration
+from missions.models import STEP_DONE, Assignment, Event, Mission, MissionStatus, Step, StepStatus
+from missions.planning import PlanningError, Vectors, extend_from_vectors
+from missions.services import nearest_available, record, send_assignment, send_stop
+
+
+def _center(alarm: Event | None, alarming: Assignment) -> tuple[float, float] | None:
+    position = alarm.data.get("position") if alarm is not None else None
+    if isinstance(position, Mapping) and position.get("lat") is not None:
+        return float(position["lat"]), float(position["lon"])
+    drone = alarming.drone
+    if drone.lat is not None and drone.lon is not None:
+        return drone.lat, drone.lon
+    return None
+
+
+def _decline(mission: Mission, message: str, decision: str) -> list[Assignment]:
+    record(mission, Event.Kind.DECISION, message, data={"decision": decision})
+    return []
+
+
+def collaborate(
+    *, mission_id: str, assignment_id: str, alarm_event_id: int | None = None
+) -> list[Assignment]:
+    """Extend the mission around the alarm and dispatch one part per drone."""
+    began = time.perf_counter()
+    with transaction.atomic():
+        mission = Mission.objects.select_for_update().filter(pk=mission_id).first()
+        if mission is None or mission.status != MissionStatus.RUNNING:
+            return []
+        if mission.assignments.filter(reason=Assignment.Reason.COLLABORATION).exists():
+            return _decline(mission, "already extended: alarm noted", "collaboration_ignored")
+        params = mission.extensibility or {}
+        if not params.get("vectors") or not params.get("step_distance"):
+            return _decline(
+                mission, "no extensibility parameters: alarm noted", "collaboration_ignored"
+            )
+        alarming = (
+            Assignment.objects.select_related("drone")
+            .filter(pk=assignment_id, mission=mission)
+            .first()
+        )
+        if alarming is None:
+            return []
+        alarm = Event.objects.filter(pk=alarm_event_id, mission=mission).first()
+        center = _center(alarm, alarming)
+        if center is None:
+            return _decline(mission, "the alarm has no position", "collaboration_ignored")
+        alarming_id = alarming.drone.drone_id
+        joining = nearest_available(
+            mission.organisation_id,
+            target=center,
+            count=settings.MISSIONS_JOINING_DRONES,
+            exclude=[alarming_id],
+        )
+        drones = [alarming.drone, *joining]
+        positions = [list(center)] + [[d.lat, d.lon] for d in joining]
+        plan_began = time.perf_counter()
+        try:
+            extension = extend_from_vectors(
+                Vectors.from_dict(params["vectors"]),
+                params["step_distance"],
+                center=center,
+                joining_drones=len(joining),
+                drone_positions=positions,
+                max_waypoints=settings.MISSIONS_MAX_WAYPOINTS,
+            )
+            steps = [
+                {"index": s.index, "command": s.command, "params": s.params, "status": s.status}
+                for s in mission.steps.order_by("index")
+            ]
+            handover = plan_collaboration(
+                [
+                    {
+                        **s,
+                        "status": StepStatus.COMPLETED if s["status"] in STEP_DONE else s["status"],
+                    }
+                    for s in steps
+                ],
+                extension=extension,
+                drone_ids=[d.drone_id for d in drones],
+                alarming_drone=alarming_id,
+                altitude=mission.altitude,
+                intermediate_action=params.get("intermediate_action"),
+            )
+        except PlanningError as exc:
+            return _decline(mission, f"extension impossible: {exc}", "collaboration_failed")
+        plan_ms = (time.perf_counter() - plan_began) * 1000
+        mission.steps.filter(index__in=handover.superseded_indexes).exclude(
+            status__in=STEP_DONE
+        ).update(status=StepStatus.SUPERSEDED)
+        Step.objects.bulk_create(
+            Step(mission=mission, index=s["index"], command=s["command"], params=s["params"])
+            for s in handover.new_steps
+        )
+        # Every drone still flying the old plan stops; the alarming one then takes its part.
+        flying = list(
+            mission.assignments.filter(status__in=Assignment.ACTIVE).select_related("drone")
+        )
+        mission.assignments.filter(status__in=Assignment.ACTIVE).update(
+            status=Assignment.Status.STOPPED
+        )
+        for old in flying:
+            drone_id = old.drone.drone_id
+            transaction.on_commit(lambda d=drone_id: send_stop(d, str(mission.pk)))
+        by_id = {d.drone_id: d for d in drones}
+        stopped_ids = {old.drone.drone_id for old in flying}
+        created = []
+        for part in handover.assignments:
+            preparation = list(part.preparation_indexes)
+            queued = part.drone_id in stopped_ids
+            assignment = Assignment.objects.create(
+                mission=mission,
+                drone=by_id[part.drone_id],
+                step_indexes=[s["index"] for s in part.steps if s["index"] not in preparation],
+                preparation=preparation,
+                reason=Assignment.Reason.COLLABORATION,
+                status=Assignment.Status.QUEUED if queued else Assignment.Status.SENT,
+            )
+            created.append(assignment)
+            if not queued:
+                transaction.on_commit(lambda a=assignment: send_assignment(a))
+        record(
+            mission,
+            Event.Kind.DECISION,
+            f"extended around the alarm: {len(extension.waypoints)} waypoints over "
+            f"{extension.area_m2:g} m² for {len(drones)} drones",
+            drone=alarming.drone,
+            data={
+                "decision": "collaboration",
+                "center": list(center),
+                "waypoints": len(extension.waypoints),
+                "area_m2": extension.area_m2,
+                "target_area_m2": extension.target_area_m2,
+                "shape": list(extension.shape),
+                "drones": [d.drone_id for d in drones],
+                "parts": [p.waypoint_indexes for p in extension.parts],
+                "superseded": handover.superseded_indexes,
+                "alarm": alarm_event_id,
+                "plan_ms": round(plan_ms, 3),
+                "task_ms": round((time.perf_counter() - began) * 1000, 3),
+            },
+        )
+        for assignment, part in zip(created, handover.assignments, strict=True):
+            record(
+                mission,
+                Event.Kind.HANDOVER,
+                f"{part.drone_id}: {len(part.waypoint_indexes)} waypoints of the new area",
+                drone=assignment.drone,
+                data={
+                    "from": alarming_id,
+                    "to": part.drone_id,
+                    "position": {"lat": center[0], "lon": center[1]},
+                    "waypoints": part.waypoint_indexes,
+                    "preparation": part.preparation_indexes,
+                    "reason": "collaboration",
+                },
+            )
+    return created

@@ -1,0 +1,254 @@
+"""Replacing a drone that must stop (seed 001, 3.1.5 and 5.3), exactly once per failure.
+
+The failing assignment's row lock serialises concurrent runs; the one-to-one
+`Assignment.replaces` makes a second replacement of the same failure impossible, so a
+duplicated alarm or a task re-run after a worker died (acks late) changes nothing. With
+no drone available the mission is paused; `resume_paused` retries from Celery beat.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Mapping
+
+from django.db import transaction
+
+from missions.handover import plan_replacement
+from missions.models import (
+    STEP_DONE,
+    Assignment,
+    Event,
+    Mission,
+    MissionStatus,
+    Step,
+    StepStatus,
+)
+from missions.planning import PlanningError
+from missions.services import (
+    move_mission,
+    nearest_available,
+    record,
+    send_assignment,
+    send_control,
+    send_stop,
+)
+
+log = logging.getLogger(__name__)
+
+
+def planner_view(mission: Mission, own: set[int]) -> list[dict]:
+    """The mission's steps for the handover planner: only `own` steps may be left to do.
+
+    Steps of other drones (and superseded ones) count as done, so the replacement takes
+    over the failing drone's work only, while indexes stay in the mission's index space.
+    """
+    view = []
+    for step in mission.steps.order_by("index"):
+        done = step.status in STEP_DONE or step.index not in own
+        view.append(
+            {
+                "index": step.index,
+                "command": step.command,
+                "params": step.params,
+                "status": StepStatus.COMPLETED if done else step.status,
+            }
+        )
+    return view
+
+
+def _stop_position(alarm: Event | None, failing: Assignment) -> tuple[float, float] | None:
+    position = (alarm.data.get("position") if alarm else None) or None
+    if isinstance(position, Mapping) and position.get("lat") is not None:
+        return float(position["lat"]), float(position["lon"])
+    drone = failing.drone
+    if drone.lat is not None and drone.lon is not None:
+        return drone.lat, drone.lon
+    return None
+
+
+def replace_drone(
+    *, mission_id: str, assignment_id: str, alarm_event_id: int | None = None
+) -> Assignment | None:
+    """Stop and land the failing drone, then hand its remaining steps to the nearest
+    available one; pause the mission when there is none. Returns the new assignment."""
+    began = time.perf_counter()
+    with transaction.atomic():
+        mission = Mission.objects.select_for_update().filter(pk=mission_id).first()
+        failing = (
+            Assignment.objects.select_for_update()
+            .select_related("drone")
+            .filter(pk=assignment_id, mission_id=mission_id)
+            .first()
+        )
+        if mission is None or failing is None:
+            return None
+        existing = Assignment.objects.filter(replaces=failing).first()
+        if existing is not None:
+            return existing
+        if mission.status not in (MissionStatus.RUNNING, MissionStatus.PAUSED):
+            return None
+        if failing.status in (Assignment.Status.COMPLETED, Assignment.Status.REJECTED):
+            return None
+        alarm = Event.objects.filter(pk=alarm_event_id, mission=mission).first()
+        failing_id = failing.drone.drone_id
+        if failing.status in Assignment.ACTIVE:
+            failing.status = Assignment.Status.STOPPED
+            failing.save(update_fields=["status"])
+            record(
+                mission,
+                Event.Kind.DECISION,
+                f"{failing_id} told to stop and land",
+                drone=failing.drone,
+                data={"decision": "stop_failing", "assignment": str(failing.pk)},
+            )
+            transaction.on_commit(lambda: send_stop(failing_id, str(mission.pk)))
+            transaction.on_commit(lambda: send_control(failing_id, "land"))
+        own = set(failing.step_indexes) | set(failing.preparation)
+        view = planner_view(mission, own)
+        stop_position = _stop_position(alarm, failing)
+        remaining = [s for s in view if s["status"] != StepStatus.COMPLETED]
+        if not remaining:
+            record(
+                mission,
+                Event.Kind.DECISION,
+                "nothing left to hand over",
+                data={"decision": "no_replacement_needed", "assignment": str(failing.pk)},
+            )
+            return None
+        select_began = time.perf_counter()
+        target = stop_position or _first_navigation(remaining)
+        found = nearest_available(mission.organisation_id, target=target, exclude=[failing_id])
+        select_ms = (time.perf_counter() - select_began) * 1000
+        if not found:
+            _pause(mission, failing, stop_position, alarm)
+            return None
+        drone = found[0]
+        plan_began = time.perf_counter()
+        try:
+            handover = plan_replacement(
+                view,
+                stop_position=stop_position,
+                altitude=mission.altitude,
+                drone_id=drone.drone_id,
+            )
+        except PlanningError as exc:
+            record(
+                mission,
+                Event.Kind.DECISION,
+                f"replacement impossible: {exc}",
+                data={"decision": "replacement_failed", "error": str(exc)},
+            )
+            return None
+        plan = handover.assignments[0]
+        Step.objects.bulk_create(
+            Step(mission=mission, index=s["index"], command=s["command"], params=s["params"])
+            for s in handover.new_steps
+        )
+        replacement = Assignment.objects.create(
+            mission=mission,
+            drone=drone,
+            step_indexes=plan.handed_over_indexes,
+            preparation=plan.preparation_indexes,
+            reason=Assignment.Reason.REPLACEMENT,
+            status=Assignment.Status.SENT,
+            replaces=failing,
+        )
+        if mission.status == MissionStatus.PAUSED:
+            move_mission(mission, MissionStatus.RUNNING)
+        plan_ms = (time.perf_counter() - plan_began) * 1000
+        timings = {
+            "select_ms": round(select_ms, 3),
+            "plan_ms": round(plan_ms, 3),
+            "task_ms": round((time.perf_counter() - began) * 1000, 3),
+        }
+        if alarm is not None and alarm.data.get("received_at"):
+            timings["since_alarm_ms"] = round((time.time() - alarm.data["received_at"]) * 1000, 3)
+        record(
+            mission,
+            Event.Kind.DECISION,
+            f"{drone.drone_id} replaces {failing_id}",
+            drone=drone,
+            data={
+                "decision": "replacement",
+                "failing": failing_id,
+                "drone_id": drone.drone_id,
+                "assignment": str(replacement.pk),
+                "replaces": str(failing.pk),
+                "alarm": alarm_event_id,
+                **timings,
+            },
+        )
+        record(
+            mission,
+            Event.Kind.HANDOVER,
+            f"{failing_id} → {drone.drone_id}: {len(plan.handed_over_indexes)} steps",
+            drone=drone,
+            data={
+                "from": failing_id,
+                "to": drone.drone_id,
+                "position": None
+                if stop_position is None
+                else {"lat": stop_position[0], "lon": stop_position[1]},
+                "handed_over": plan.handed_over_indexes,
+                "preparation": plan.preparation_indexes,
+                "reason": "replacement",
+            },
+        )
+        transaction.on_commit(lambda: send_assignment(replacement))
+    return replacement
+
+
+def _first_navigation(steps: list[dict]) -> tuple[float, float] | None:
+    for step in steps:
+        if step["command"] == "navigate":
+            return float(step["params"]["lat"]), float(step["params"]["lon"])
+    return None
+
+
+def _pause(
+    mission: Mission,
+    failing: Assignment,
+    stop_position: tuple[float, float] | None,
+    alarm: Event | None,
+) -> None:
+    if mission.status == MissionStatus.RUNNING:
+        move_mission(mission, MissionStatus.PAUSED)
+    already = mission.events.filter(
+        kind=Event.Kind.DECISION, data__decision="paused", data__assignment=str(failing.pk)
+    ).exists()
+    if not already:
+        record(
+            mission,
+            Event.Kind.DECISION,
+            f"paused: no drone can replace {failing.drone.drone_id}; "
+            "the mission resumes when one comes online",
+            drone=failing.drone,
+            data={
+                "decision": "paused",
+                "assignment": str(failing.pk),
+                "alarm": None if alarm is None else alarm.pk,
+                "operator_notice": True,
+            },
+        )
+
+
+def resume_paused() -> list[str]:
+    """Retry the replacement of every paused mission; the ids of those that resumed."""
+    resumed = []
+    for mission in Mission.objects.filter(status=MissionStatus.PAUSED):
+        pause = (
+            mission.events.filter(kind=Event.Kind.DECISION, data__decision="paused")
+            .order_by("-at", "-id")
+            .first()
+        )
+        if pause is None:
+            continue
+        replacement = replace_drone(
+            mission_id=str(mission.pk),
+            assignment_id=pause.data["assignment"],
+            alarm_event_id=pause.data.get("alarm"),
+        )
+        if replacement is not None:
+            resumed.append(str(mission.pk))
+    return resumed
