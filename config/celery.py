@@ -8,4 +8,4 @@ os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.local")
 
 app = Celery("skyhive")
 app.config_from_object("django.conf:settings", namespace="CELERY")
-app.autodiscover_tasks(["workers", "telemetry"])
+app.autodiscover_tasks(["workers", "telemetry", "telemetry.logs", "missions"])

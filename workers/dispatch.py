@@ -14,9 +14,9 @@ DISPATCH: dict[str, str | None] = {
     "heartbeats": "fleet.identifier.handle_heartbeat",
     "gear": "fleet.identifier.handle_gear",
     "control": "fleet.commands.handle_control_reply",
-    "mission": None,
-    "alarms": None,
-    "pictures": None,
+    "mission": "missions.gateway.handle_mission",
+    "alarms": "missions.gateway.handle_alarm",
+    "pictures": "missions.gateway.handle_picture",
     "camera": None,
 }
 

@@ -228,6 +228,29 @@ FLEET_CHAIN_HANDLERS = {
     "stopchain": "fleet.chain.stop_chain",
 }
 
+# --- missions ---
+# Coverage requests above this many waypoints are refused (issue 5, item 2).
+MISSIONS_MAX_WAYPOINTS = env_int("MISSIONS_MAX_WAYPOINTS", 50_000)
+# A drone at or below this battery fraction is never chosen for a mission.
+MISSIONS_BATTERY_RESERVE = env_float("MISSIONS_BATTERY_RESERVE", 0.3)
+# Drones brought in by an OUT_MEASURE alarm (seed 001, 5.4: two).
+MISSIONS_JOINING_DRONES = env_int("MISSIONS_JOINING_DRONES", 2)
+# A mission start not published by a gateway within this long is dropped as stale.
+MISSIONS_START_TTL_S = env_float("MISSIONS_START_TTL_S", 60.0)
+# Paused missions (no drone to replace a failing one) look for a drone this often.
+MISSIONS_RESUME_INTERVAL_S = env_float("MISSIONS_RESUME_INTERVAL_S", 5.0)
+# The panic button's hover altitude (seed 001, 5.1: 10 m).
+MISSIONS_PANIC_ALTITUDE = env_float("MISSIONS_PANIC_ALTITUDE", 10.0)
+CELERY_BEAT_SCHEDULE["missions.resume_paused"] = {
+    "task": "missions.resume_paused",
+    "schedule": MISSIONS_RESUME_INTERVAL_S,
+    "options": {"expires": MISSIONS_RESUME_INTERVAL_S},
+}
+FLEET_CHAIN_HANDLERS = {
+    "startchain": "missions.chain.start_chain",
+    "stopchain": "missions.chain.stop_chain",
+}
+
 # --- flight logs ---
 # Uploaded logs and their columnar stores, one folder per organisation and log.
 LOGS_DIR = env_str("LOGS_DIR", f"{DATA_DIR}/logs")
