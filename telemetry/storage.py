@@ -137,10 +137,13 @@ def ensure_partition(conn: psycopg.Connection, table: str, day: date) -> bool:
             bounds,
         )
         conn.execute(
-            sql.SQL("ALTER TABLE {} ATTACH PARTITION {} FOR VALUES FROM (%s) TO (%s)").format(
-                sql.Identifier(table), sql.Identifier(name)
-            ),
-            bounds,
+            # DDL takes no bind parameters: the bounds go in as quoted literals.
+            sql.SQL("ALTER TABLE {} ATTACH PARTITION {} FOR VALUES FROM ({}) TO ({})").format(
+                sql.Identifier(table),
+                sql.Identifier(name),
+                sql.Literal(bounds[0].isoformat()),
+                sql.Literal(bounds[1].isoformat()),
+            )
         )
     log.info("created partition %s", name)
     return True
