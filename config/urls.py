@@ -7,6 +7,7 @@ from rest_framework.routers import DefaultRouter
 from fleet import api as fleet_api
 from fleet.control import ControlView
 from missions import api as missions_api
+from telemetry.logs import urls as logs_urls
 
 from .health import health
 
@@ -23,6 +24,7 @@ api_v1 = [
         name="drone-commands",
     ),
     path("telemetry/", include("telemetry.api_urls")),
+    path("logs/", include(logs_urls.api_urlpatterns)),
     path("", include(router.urls)),
 ]
 
@@ -47,5 +49,6 @@ urlpatterns = [
     path("api/docs/", SpectacularSwaggerView.as_view(url_name="schema"), name="api-docs"),
     path("missions/", include("missions.urls")),
     path("telemetry/", include("telemetry.urls")),
+    path("logs/", include("telemetry.logs.urls")),
     path("", include("fleet.urls")),
 ]

@@ -1,0 +1,262 @@
+"""REST resources of flight logs: upload, list, search, status, delete, and the series and
+analyses the viewer page reads (`/api/v1/logs/`)."""
+
+from __future__ import annotations
+
+import numpy as np
+from django.conf import settings
+from django.db import transaction
+from rest_framework import exceptions, mixins, serializers, status, viewsets
+from rest_framework.decorators import action
+from rest_framework.request import Request
+from rest_framework.response import Response
+
+from fleet.models import Membership, Organisation, Role
+from fleet.permissions import OrganisationRole
+from telemetry.logs import services, uploads
+from telemetry.logs.importers import HEAD_BYTES, pick_importer
+from telemetry.logs.importers.base import LogFormatError
+from telemetry.logs.models import FlightLog, LogStatus
+from telemetry.logs.store import LogStore
+
+MAX_TIMELINE_BINS = 4000
+
+
+class NotReady(exceptions.APIException):
+    status_code = status.HTTP_409_CONFLICT
+    default_code = "not_ready"
+    default_detail = "The log is not ready: it is still processing or it failed."
+
+
+class FlightLogSerializer(serializers.ModelSerializer):
+    owner = serializers.SlugRelatedField(slug_field="username", read_only=True)
+    organisation = serializers.SlugRelatedField(slug_field="slug", read_only=True)
+    url = serializers.CharField(source="get_absolute_url", read_only=True)
+    start = serializers.FloatField(source="start_s", read_only=True)
+    end = serializers.FloatField(source="end_s", read_only=True)
+    duration = serializers.FloatField(source="duration_s", read_only=True)
+
+    class Meta:
+        model = FlightLog
+        fields = [
+            "id",
+            "name",
+            "size",
+            "status",
+            "progress",
+            "error",
+            "format",
+            "series_count",
+            "start",
+            "end",
+            "duration",
+            "organisation",
+            "owner",
+            "created_at",
+            "processed_at",
+            "url",
+        ]
+        read_only_fields = fields
+
+
+def _points(raw: str | None, *, default: int | None = None) -> int | None:
+    if raw in (None, ""):
+        return default
+    limit = int(settings.LOGS_MAX_PLOT_POINTS)
+    try:
+        points = int(raw)
+    except ValueError:
+        raise exceptions.ValidationError({"points": ["Must be a whole number."]}) from None
+    if not 1 <= points <= limit:
+        raise exceptions.ValidationError({"points": [f"Must be between 1 and {limit}."]})
+    return points
+
+
+def _seconds(request: Request, name: str) -> float | None:
+    try:
+        return services.parse_float(request.query_params.get(name), name)
+    except ValueError as exc:
+        raise exceptions.ValidationError({name: [str(exc)]}) from None
+
+
+def _upload_organisation(request: Request) -> Organisation:
+    """The organisation an upload goes to: the `organisation` field (slug) if given, else
+    the one the portal acts for, else the user's only membership; operators and up."""
+    memberships = Membership.objects.for_user(request.user)
+    slug = request.data.get("organisation") or ""
+    if slug:
+        memberships = memberships.filter(organisation__slug=slug)
+    else:
+        current = getattr(request._request, "organisation", None)
+        if current is not None:
+            memberships = memberships.filter(organisation=current)
+    membership = memberships.first()
+    if membership is None:
+        raise exceptions.NotFound("You are not a member of that organisation.")
+    if not membership.allows(Role.OPERATOR):
+        raise exceptions.PermissionDenied("Uploading logs needs the operator role.")
+    return membership.organisation
+
+
+class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets.GenericViewSet):
+    """Flight logs of the user's organisations. `?q=` searches names, formats and owners;
+    `?status=` filters. Viewers read; operators upload and delete."""
+
+    permission_classes = [OrganisationRole]
+    serializer_class = FlightLogSerializer
+    lookup_value_regex = "[0-9a-fA-F-]{32,36}"
+
+    def initialize_request(self, request, *args, **kwargs):  # type: ignore[no-untyped-def]
+        # Before anything reads the body (the CSRF check reads request.POST), so uploads
+        # stream to the logs folder and stop at the limit.
+        if request.method == "POST" and "pk" not in kwargs:
+            uploads.install(request)
+        return super().initialize_request(request, *args, **kwargs)
+
+    def initial(self, request: Request, *args, **kwargs) -> None:  # type: ignore[no-untyped-def]
+        if request.method == "POST":
+            uploads.check_content_length(request._request)
+        super().initial(request, *args, **kwargs)
+
+    def get_queryset(self):  # type: ignore[no-untyped-def]
+        queryset = FlightLog.objects.for_user(self.request.user).select_related(
+            "organisation", "owner"
+        )
+        if self.action == "list":
+            queryset = queryset.search(self.request.query_params.get("q", ""))
+            wanted = self.request.query_params.get("status")
+            if wanted in LogStatus.values:
+                queryset = queryset.filter(status=wanted)
+        return queryset
+
+    def create(self, request: Request) -> Response:
+        upload = request.FILES.get(uploads.FIELD)
+        if upload is None:
+            raise exceptions.ValidationError({"file": ["Choose a flight log file to upload."]})
+        try:
+            if not upload.size:
+                raise exceptions.ValidationError({"file": ["The file is empty."]})
+            with open(upload.path, "rb") as f:
+                head = f.read(HEAD_BYTES)
+            try:
+                pick_importer(upload.path.with_name(upload.name or "log"), head)
+            except LogFormatError as exc:
+                raise exceptions.ValidationError(
+                    {"file": [str(exc)]}, code="unsupported_format"
+                ) from None
+            organisation = _upload_organisation(request)
+            with transaction.atomic():
+                log = services.create_log(
+                    organisation=organisation, owner=request.user, upload=upload
+                )
+        finally:
+            upload.discard()  # a no-op once create_log moved it into place
+        return Response(
+            {"id": str(log.pk), "status": log.status, "url": log.get_absolute_url()},
+            status=status.HTTP_201_CREATED,
+        )
+
+    def retrieve(self, request: Request, pk: str | None = None) -> Response:
+        log = self.get_object()
+        body = dict(FlightLogSerializer(log).data)
+        body.update(series=[], layers=[], special={}, warnings=[])
+        if log.status == LogStatus.READY:
+            store = self._store(log)
+            body.update(
+                series=services.series_list(store),
+                layers=store.index["layers"],
+                special=store.special,
+                warnings=store.index["warnings"][:200],
+                metadata=store.index["metadata"],
+            )
+        return Response(body)
+
+    def perform_destroy(self, instance: FlightLog) -> None:
+        services.delete_log(instance)
+
+    def _store(self, log: FlightLog) -> LogStore:
+        if log.status != LogStatus.READY:
+            raise NotReady()
+        try:
+            return services.store_of(log)
+        except (OSError, ValueError) as exc:
+            raise exceptions.APIException(
+                "The processed data of this log is missing; upload it again."
+            ) from exc
+
+    @action(detail=True, methods=["get"])
+    def series(self, request: Request, pk: str | None = None) -> Response:
+        """`?path=&start=&end=&points=` → {"t": [seconds], "v": [values]}: every sample in
+        the range, or min/max per bucket when `points` is given."""
+        store = self._store(self.get_object())
+        path = request.query_params.get("path")
+        if not path:
+            raise exceptions.ValidationError({"path": ["Name the series to read."]})
+        if path not in store.index["series"]:
+            raise exceptions.NotFound(f"There is no series {path!r} in this log.")
+        return Response(
+            store.plot(
+                path,
+                start=_seconds(request, "start"),
+                end=_seconds(request, "end"),
+                points=_points(request.query_params.get("points")),
+            )
+        )
+
+    @action(detail=True, methods=["get"])
+    def values(self, request: Request, pk: str | None = None) -> Response:
+        """`?t=` → every value at or before t, nested by group: {"t", "values": {...}}."""
+        store = self._store(self.get_object())
+        t = _seconds(request, "t")
+        if t is None:
+            raise exceptions.ValidationError({"t": ["Give the time in seconds."]})
+        return Response({"t": t, "values": services.values_at_time(store, t)})
+
+    @action(detail=True, methods=["get"])
+    def timeline(self, request: Request, pk: str | None = None) -> Response:
+        """`?start=&end=&bins=` → per layer, how many samples fall in each of `bins` equal
+        time slices: what the timeline draws, whatever the log's length."""
+        store = self._store(self.get_object())
+        index = store.index
+        start = _seconds(request, "start")
+        end = _seconds(request, "end")
+        start = index["start"] if start is None else start
+        end = index["end"] if end is None else end
+        bins = _points(request.query_params.get("bins"), default=1000) or 1000
+        bins = min(bins, MAX_TIMELINE_BINS)
+        if start is None or end is None or end <= start:
+            return Response({"start": start, "end": end, "layers": []})
+        edges = np.linspace(start, end, bins + 1) * 1e9
+        layers = []
+        for layer in index["layers"]:
+            times = _layer_times(store, layer["name"])
+            if times is None:
+                continue
+            cuts = np.searchsorted(times, edges)
+            layers.append({"name": layer["name"], "counts": np.diff(cuts).tolist()})
+        return Response({"start": start, "end": end, "bins": bins, "layers": layers})
+
+    @action(detail=True, methods=["get"])
+    def track(self, request: Request, pk: str | None = None) -> Response:
+        """The GPS path, or the trajectory estimated from velocity and yaw without GPS."""
+        store = self._store(self.get_object())
+        points = _points(request.query_params.get("points"), default=2000) or 2000
+        return Response(services.track(store, points=points))
+
+    @action(detail=True, methods=["get"])
+    def attitude(self, request: Request, pk: str | None = None) -> Response:
+        """Roll, pitch and yaw in radians for the 3D view (applied yaw, then pitch, then roll)."""
+        store = self._store(self.get_object())
+        points = _points(request.query_params.get("points"), default=4000) or 4000
+        return Response(services.attitude(store, points=points))
+
+
+def _layer_times(store: LogStore, layer: str) -> np.ndarray | None:
+    """The densest time array among the layer's series (a message's fields share one)."""
+    best, count = None, -1
+    for path, info in store.index["series"].items():
+        if path.split("/", 1)[0] == layer and info["count"] > count:
+            best, count = path, info["count"]
+    if best is None:
+        return None
+    return store.read_ns(best)[0]

@@ -1,0 +1,265 @@
+"""What the API, the pages and the import task do with flight logs, in one place.
+
+The parsing, storage and analysis themselves are the Django-free core (`importers`,
+`store`, `analysis`); this module ties them to rows, folders, limits and progress events.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import shutil
+import time
+from collections.abc import Callable
+
+import numpy as np
+from asgiref.sync import async_to_sync
+from celery.exceptions import SoftTimeLimitExceeded
+from channels.layers import get_channel_layer
+from django.conf import settings
+from django.db import transaction
+from django.utils import timezone
+
+from telemetry.logs.analysis import trajectory_of, values_at, values_tree
+from telemetry.logs.importers import import_log
+from telemetry.logs.importers.base import Limits, LogFormatError
+from telemetry.logs.models import FlightLog, LogStatus
+from telemetry.logs.store import LogStore, open_store, write_store
+from telemetry.logs.uploads import StoredUpload
+
+logger = logging.getLogger(__name__)
+
+# Progress goes to the database and the page at most this often (a 1 GB import reports
+# hundreds of fractions; each one is an UPDATE and a Redis publish).
+PROGRESS_INTERVAL_S = 0.25
+GENERIC_FAILURE = "The file could not be processed because of an internal error; we logged it."
+
+
+def limits() -> Limits:
+    return Limits(
+        max_file_bytes=int(settings.LOG_UPLOAD_MAX_BYTES),
+        max_uncompressed_bytes=int(settings.LOGS_MAX_UNCOMPRESSED_BYTES),
+        max_compression_ratio=float(settings.LOGS_MAX_COMPRESSION_RATIO),
+    )
+
+
+def create_log(*, organisation, owner, upload: StoredUpload) -> FlightLog:  # type: ignore[no-untyped-def]
+    """A `processing` row for an upload already on disk; the import is queued on commit."""
+    from telemetry.logs.tasks import import_flight_log
+
+    name = os.path.basename(upload.name or "log")[:255] or "log"
+    log = FlightLog(organisation=organisation, owner=owner, name=name, size=upload.size or 0)
+    log.directory.mkdir(parents=True, exist_ok=True)
+    os.replace(upload.path, log.upload_path)
+    try:
+        log.save()
+    except BaseException:
+        shutil.rmtree(log.directory, ignore_errors=True)
+        raise
+    transaction.on_commit(
+        lambda: import_flight_log.apply_async((str(log.pk),), queue=settings.LOGS_IMPORT_QUEUE)
+    )
+    return log
+
+
+def delete_log(log: FlightLog) -> None:
+    directory = log.directory
+    log.delete()
+    transaction.on_commit(lambda: shutil.rmtree(directory, ignore_errors=True))
+
+
+def publish(log: FlightLog, payload: dict) -> None:
+    """Push a progress or status event to the log's page; a missing Redis never fails the
+    import (the page also polls the API)."""
+    layer = get_channel_layer()
+    if layer is None:
+        return
+    try:
+        async_to_sync(layer.group_send)(
+            log.group_name, {"type": "flightlog.event", "payload": payload}
+        )
+    except Exception:  # noqa: BLE001 - progress is best effort; the import goes on
+        logger.warning("could not publish progress of log %s", log.pk, exc_info=True)
+
+
+def _progress_reporter(log: FlightLog) -> Callable[[float], None]:
+    last = [0.0]
+
+    def report(fraction: float) -> None:
+        now = time.monotonic()
+        if now - last[0] < PROGRESS_INTERVAL_S:
+            return
+        last[0] = now
+        # Parsing is most of the work; writing the store is the last 5 %.
+        value = round(min(max(fraction, 0.0), 1.0) * 0.95, 4)
+        FlightLog.objects.filter(pk=log.pk, status=LogStatus.PROCESSING).update(progress=value)
+        publish(log, {"type": "progress", "progress": value, "status": LogStatus.PROCESSING})
+
+    return report
+
+
+def _finish(log: FlightLog, **fields: object) -> bool:
+    """Compare-and-set out of `processing`; False when the log was deleted or finished."""
+    changed = FlightLog.objects.filter(pk=log.pk, status=LogStatus.PROCESSING).update(
+        processed_at=timezone.now(), **fields
+    )
+    return changed == 1
+
+
+def fail(log: FlightLog, message: str) -> None:
+    shutil.rmtree(log.store_path, ignore_errors=True)
+    if _finish(log, status=LogStatus.FAILED, error=message, progress=1.0):
+        publish(log, {"type": "status", "status": LogStatus.FAILED, "error": message})
+
+
+def process_log(log_id: str) -> str:
+    """Parse an uploaded log into its columnar store; returns the final status.
+
+    Any bad file ends as `failed` with one sentence for the user and no store on disk;
+    the worker process always survives.
+    """
+    log = FlightLog.objects.filter(pk=log_id).first()
+    if log is None or log.status != LogStatus.PROCESSING:
+        return log.status if log else "deleted"
+    publish(log, {"type": "progress", "progress": 0.0, "status": LogStatus.PROCESSING})
+    try:
+        data = import_log(log.upload_path, limits=limits(), progress=_progress_reporter(log))
+        index = write_store(data, log.store_path)
+    except LogFormatError as exc:
+        fail(log, str(exc))
+        return LogStatus.FAILED
+    except MemoryError:
+        fail(log, "The file is too large to process on this server.")
+        return LogStatus.FAILED
+    except SoftTimeLimitExceeded:
+        fail(log, "Processing the file took longer than the time limit.")
+        return LogStatus.FAILED
+    except Exception:
+        logger.exception("importing log %s (%s) failed", log.pk, log.name)
+        fail(log, GENERIC_FAILURE)
+        return LogStatus.FAILED
+    done = _finish(
+        log,
+        status=LogStatus.READY,
+        progress=1.0,
+        format=data.format,
+        series_count=len(index["series"]),
+        start_s=index["start"],
+        end_s=index["end"],
+    )
+    if not done:  # deleted while we parsed: leave nothing behind
+        shutil.rmtree(log.directory, ignore_errors=True)
+        return "deleted"
+    publish(log, {"type": "status", "status": LogStatus.READY, "progress": 1.0})
+    return LogStatus.READY
+
+
+# --- reading a ready log ---
+
+
+def store_of(log: FlightLog) -> LogStore:
+    return open_store(log.store_path)
+
+
+def series_list(store: LogStore) -> list[dict]:
+    return [
+        {
+            "path": path,
+            "unit": info["unit"],
+            "count": info["count"],
+            "start": info["start"],
+            "end": info["end"],
+            "kind": info["kind"],
+            "time_source": info["time_source"],
+            "labels": info["labels"],
+        }
+        for path, info in store.index["series"].items()
+    ]
+
+
+def values_at_time(store: LogStore, t: float) -> dict:
+    return values_tree(values_at(store, t))
+
+
+def _decimate(n: int, points: int) -> np.ndarray:
+    """Evenly spaced indices (first and last kept): a path, unlike a plot, needs its order."""
+    if n <= points:
+        return np.arange(n)
+    return np.unique(np.linspace(0, n - 1, points).round().astype(np.int64))
+
+
+def _finite(values: np.ndarray) -> list:
+    return [v if math.isfinite(v) else None for v in np.asarray(values, float).tolist()]
+
+
+def _degrees(values: np.ndarray) -> np.ndarray:
+    values = np.asarray(values, dtype=np.float64)
+    # MAVLink and some PX4 topics keep degrees x 1e7 in integers.
+    if len(values) and np.nanmax(np.abs(values)) > 360:
+        return values / 1e7
+    return values
+
+
+def track(store: LogStore, *, points: int = 2000) -> dict:
+    """The path to draw on the map: GPS when recorded, else the trajectory estimated from
+    velocity and yaw (metres north and west of the start), else nothing."""
+    gps = store.special.get("gps") or []
+    if len(gps) >= 2:
+        t, lat = store.read(gps[0])
+        t_lon, lon = store.read(gps[1])
+        n = min(len(lat), len(lon))
+        lat, lon, t = _degrees(lat[:n]), _degrees(lon[:n]), t[:n]
+        ok = np.isfinite(lat) & np.isfinite(lon) & ~((lat == 0) & (lon == 0))
+        t, lat, lon = t[ok], lat[ok], lon[ok]
+        if len(t):
+            idx = _decimate(len(t), points)
+            return {
+                "source": "gps",
+                "t": t[idx].tolist(),
+                "lat": lat[idx].tolist(),
+                "lon": lon[idx].tolist(),
+            }
+    trajectory = trajectory_of(store)
+    if trajectory is not None and len(trajectory.t):
+        idx = _decimate(len(trajectory.t), points)
+        return {
+            "source": "estimated",
+            "unit": trajectory.unit,
+            "t": trajectory.t[idx].tolist(),
+            "x": _finite(trajectory.x[idx]),
+            "y": _finite(trajectory.y[idx]),
+        }
+    return {"source": None, "t": []}
+
+
+def attitude(store: LogStore, *, points: int = 4000) -> dict:
+    """Roll, pitch and yaw in radians on the roll series' time stamps, for the 3D view."""
+    rotation = store.special.get("rotation") or []
+    if len(rotation) < 3:
+        return {"t": [], "roll": [], "pitch": [], "yaw": []}
+    t, roll = store.read(rotation[0])
+    out: dict[str, list] = {}
+    idx = _decimate(len(t), points)
+    for name, path in zip(("roll", "pitch", "yaw"), rotation, strict=False):
+        ts, values = store.read(path)
+        values = np.asarray(values, dtype=np.float64)
+        if store.info(path)["unit"].lower() in ("deg", "degree", "degrees", "°", "cdeg"):
+            values = np.radians(values / (100 if store.info(path)["unit"] == "cdeg" else 1))
+        if len(ts) != len(t) or not np.array_equal(ts, t):
+            values = np.interp(t, ts, values) if len(ts) else np.full(len(t), np.nan)
+        out[name] = _finite(values[idx])
+    return {"t": t[idx].tolist(), **out}
+
+
+def parse_float(raw: str | None, name: str) -> float | None:
+    """A finite float query parameter, or ValueError naming it."""
+    if raw in (None, ""):
+        return None
+    try:
+        value = float(raw)
+    except ValueError:
+        raise ValueError(f"{name} must be a number of seconds.") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number.")
+    return value
