@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 from django.conf import settings as django_settings
@@ -9,6 +10,8 @@ from django.db import models
 
 from telemetry.pastview.selection import PastViewSettings
 from telemetry.pastview.service import DEFAULT_CAMERA, default_settings
+
+log = logging.getLogger(__name__)
 
 
 class ViewSettingsQuerySet(models.QuerySet):
@@ -42,8 +45,16 @@ class ViewSettings(models.Model):
         return f"past view of {self.drone_id}"
 
     def past_view_settings(self) -> PastViewSettings:
-        """The stored settings, validated; unknown or broken ones fall back to defaults."""
-        return PastViewSettings.from_dict(self.settings) if self.settings else default_settings()
+        """The stored settings, validated; broken ones (an older format) give the defaults."""
+        if not self.settings:
+            return default_settings()
+        try:
+            return PastViewSettings.from_dict(self.settings)
+        except ValueError as exc:
+            log.warning(
+                "past-view settings of %s unusable (%s); using defaults", self.drone_id, exc
+            )
+            return default_settings()
 
     def to_dict(self) -> dict[str, Any]:
         return {
