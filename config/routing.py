@@ -4,10 +4,12 @@ from fleet.consumers import FleetConsumer
 from missions.consumers import MissionConsumer
 from telemetry.consumers import TelemetryConsumer
 from telemetry.logs.consumers import LogProgressConsumer
+from telemetry.pastview.consumers import PastViewConsumer
 
 websocket_urlpatterns = [
     path("ws/fleet/", FleetConsumer.as_asgi()),
     path("ws/missions/<uuid:mission_id>/", MissionConsumer.as_asgi()),
     path("ws/telemetry/<str:drone_id>/", TelemetryConsumer.as_asgi()),
+    path("ws/pastview/<str:drone_id>/", PastViewConsumer.as_asgi()),
     path("ws/logs/<uuid:log_id>/", LogProgressConsumer.as_asgi()),
 ]

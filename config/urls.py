@@ -49,6 +49,7 @@ urlpatterns = [
     path("api/docs/", SpectacularSwaggerView.as_view(url_name="schema"), name="api-docs"),
     path("missions/", include("missions.urls")),
     path("telemetry/", include("telemetry.urls")),
+    path("pastview/", include("telemetry.pastview.urls")),
     path("logs/", include("telemetry.logs.urls")),
     path("", include("fleet.urls")),
 ]
