@@ -111,7 +111,7 @@ def main() -> int:
     sup.start(
         "web",
         [PY, "-m", "uvicorn", "config.asgi:application", "--host", "127.0.0.1",
-         "--port", str(args.web_port), "--no-access-log"],
+         "--port", str(args.web_port), "--no-access-log", "--lifespan", "off"],
         env,
     )
     if command_exists("gateway"):
