@@ -1,0 +1,76 @@
+"""Missions test helpers: drones that look online, an outbox of our own, areas in metres."""
+
+from __future__ import annotations
+
+import json
+from urllib.parse import urlsplit, urlunsplit
+
+import numpy as np
+import pytest
+
+from missions.geo import LocalFrame
+
+# The seed's experiments flew at the University of Aveiro campus.
+AVEIRO = LocalFrame(40.6303, -8.6575)
+# Our own Redis database for the gateway outbox: engineers running other suites at the
+# same time have gateways popping the default one.
+OUTBOX_DB = 9
+
+
+def point_at(north_m: float, east_m: float) -> tuple[float, float]:
+    return AVEIRO.point_to_latlon([north_m, east_m])
+
+
+def rectangle(east_m: float, north_m: float, *, origin=(0.0, 0.0)) -> list[list[float]]:  # type: ignore[no-untyped-def]
+    """Vertices A, B, C: A at `origin` (north, east metres), A→B east, B→C north."""
+    n0, e0 = origin
+    lat, lon = AVEIRO.to_latlon([n0, n0, n0 + north_m], [e0, e0 + east_m, e0 + east_m])
+    return np.column_stack((lat, lon)).tolist()
+
+
+def online_drone(org, drone_id: str, north: float = 0.0, east: float = 0.0, battery: float = 0.9):  # type: ignore[no-untyped-def]
+    from fleet.models import Drone
+
+    lat, lon = point_at(north, east)
+    drone, _ = Drone.objects.update_or_create(
+        drone_id=drone_id,
+        defaults={
+            "organisation": org,
+            "online": True,
+            "lat": lat,
+            "lon": lon,
+            "alt": 0.0,
+            "battery_remaining": battery,
+            "battery_voltage": 16.4,
+        },
+    )
+    return drone
+
+
+def redis_url_with_db(url: str, db: int) -> str:
+    parts = urlsplit(url)
+    return urlunsplit(parts._replace(path=f"/{db}"))
+
+
+@pytest.fixture
+def outbox(settings):  # type: ignore[no-untyped-def]
+    """The gateway outbox in a Redis database of our own, emptied; `.items()` reads it."""
+    from fleet import link
+
+    settings.REDIS_URL = redis_url_with_db(settings.REDIS_URL, OUTBOX_DB)
+    link._sync_client = None
+    client = link.sync_redis()
+    client.delete(link.OUTBOX_KEY)
+
+    class Outbox:
+        url = settings.REDIS_URL
+
+        def items(self) -> list[dict]:
+            return [json.loads(raw) for raw in client.lrange(link.OUTBOX_KEY, 0, -1)]
+
+        def clear(self) -> None:
+            client.delete(link.OUTBOX_KEY)
+
+    yield Outbox()
+    client.delete(link.OUTBOX_KEY)
+    link._sync_client = None
