@@ -233,6 +233,7 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
             if times is None:
                 continue
             cuts = np.searchsorted(times, edges)
+            cuts[-1] = np.searchsorted(times, edges[-1], side="right")  # the end is inside
             layers.append({"name": layer["name"], "counts": np.diff(cuts).tolist()})
         return Response({"start": start, "end": end, "bins": bins, "layers": layers})
 

@@ -10,8 +10,10 @@ import uuid
 from pathlib import Path
 
 from django.conf import settings
+from django.core.exceptions import SuspiciousFileOperation
 from django.db import models
 from django.urls import reverse
+from django.utils.text import get_valid_filename
 
 from fleet.models import Organisation
 
@@ -86,8 +88,13 @@ class FlightLog(models.Model):
 
     @property
     def upload_path(self) -> Path:
-        """The file as uploaded; its suffix is kept because importers fall back on it."""
-        return self.directory / ("original" + Path(self.name).suffix.lower()[:16])
+        """The file as uploaded, under its own name: importers fall back on the suffix and
+        name the file in their error messages."""
+        try:
+            name = get_valid_filename(self.name)[-120:]
+        except SuspiciousFileOperation:
+            name = "log"
+        return self.directory / "upload" / name
 
     @property
     def store_path(self) -> Path:

@@ -50,7 +50,7 @@ def create_log(*, organisation, owner, upload: StoredUpload) -> FlightLog:  # ty
 
     name = os.path.basename(upload.name or "log")[:255] or "log"
     log = FlightLog(organisation=organisation, owner=owner, name=name, size=upload.size or 0)
-    log.directory.mkdir(parents=True, exist_ok=True)
+    log.upload_path.parent.mkdir(parents=True, exist_ok=True)
     os.replace(upload.path, log.upload_path)
     try:
         log.save()

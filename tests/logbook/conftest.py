@@ -1,0 +1,129 @@
+"""A real Celery worker on its own queue, a private logs folder, and upload helpers.
+
+The worker listens only on a queue named for this run, so workers started by other test
+folders (or other runs sharing the test Redis) never take our imports, and ours never
+takes theirs.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+QUEUE = f"logs-test-{uuid.uuid4().hex[:8]}"
+
+
+@pytest.fixture(scope="session")
+def logs_dir(tmp_path_factory) -> Path:  # type: ignore[no-untyped-def]
+    return tmp_path_factory.mktemp("flight-logs")
+
+
+@pytest.fixture(autouse=True)
+def _logs_settings(settings, logs_dir):  # type: ignore[no-untyped-def]
+    settings.LOGS_DIR = str(logs_dir)
+    settings.LOGS_IMPORT_QUEUE = QUEUE
+
+
+def worker_env(database_name: str, logs_dir: Path) -> dict[str, str]:
+    return dict(
+        os.environ,
+        DJANGO_SETTINGS_MODULE="config.settings.test",
+        TEST_WORKER_DB_NAME=database_name,
+        LOGS_DIR=str(logs_dir),
+        LOGS_IMPORT_QUEUE=QUEUE,
+        PYTHONUNBUFFERED="1",
+    )
+
+
+class Worker:
+    def __init__(self, database_name: str, logs_dir: Path) -> None:
+        self.log_file = open(logs_dir / f"worker-{QUEUE}.log", "w")  # noqa: SIM115
+        self.process = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "celery",
+                "-A",
+                "config",
+                "worker",
+                "--pool",
+                "solo",
+                "-Q",
+                QUEUE,
+                "-l",
+                "info",
+                "-n",
+                f"{QUEUE}@%h",
+                "--without-heartbeat",
+                "--without-gossip",
+                "--without-mingle",
+            ],
+            cwd=ROOT,
+            env=worker_env(database_name, logs_dir),
+            stdout=self.log_file,
+            stderr=subprocess.STDOUT,
+        )
+
+    @property
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def output(self) -> str:
+        self.log_file.flush()
+        return Path(self.log_file.name).read_text()
+
+    def stop(self) -> None:
+        self.process.terminate()
+        try:
+            self.process.wait(10)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+        self.log_file.close()
+
+
+@pytest.fixture(scope="session")
+def worker(request, logs_dir):  # type: ignore[no-untyped-def]
+    """One `celery worker --pool solo` for the folder, reading the test database."""
+    request.getfixturevalue("django_db_setup")
+    from django.db import connection
+
+    started = Worker(connection.settings_dict["NAME"], logs_dir)
+    yield started
+    started.stop()
+
+
+@pytest.fixture(scope="session")
+def live_logs(request, logs_dir):  # type: ignore[no-untyped-def]
+    """The real ASGI app under uvicorn, sending imports to our worker's queue."""
+    request.getfixturevalue("django_db_setup")
+    from django.db import connection
+
+    from tests.support.live import LiveServer
+
+    server = LiveServer(
+        connection.settings_dict["NAME"],
+        extra_env={"LOGS_DIR": str(logs_dir), "LOGS_IMPORT_QUEUE": QUEUE},
+    )
+    yield server
+    server.stop()
+
+
+def upload(client, path: Path, **extra: object):  # type: ignore[no-untyped-def]
+    with open(path, "rb") as f:
+        return client.post("/api/v1/logs/", {"file": f, **extra})
+
+
+def wait_until_processed(client, log_id: str, timeout: float = 60.0) -> dict:  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + timeout
+    while True:
+        body = client.get(f"/api/v1/logs/{log_id}/").json()
+        if body["status"] != "processing" or time.monotonic() > deadline:
+            return body
+        time.sleep(0.1)
