@@ -102,6 +102,7 @@ class PastViewProcess:
             push_hz=settings.PASTVIEW_PUSH_HZ,
         )
         self.connected = threading.Event()
+        self.subscribed = threading.Event()
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2,
             client_id=client_id or f"pastview-{socket.gethostname()}-{os.getpid()}",
@@ -113,6 +114,7 @@ class PastViewProcess:
         self.client.on_connect = self._on_connect
         self.client.on_disconnect = self._on_disconnect
         self.client.on_message = self._on_message
+        self.client.on_subscribe = lambda *args: self.subscribed.set()
         self._settings_seen = time.time()
         self._applied: dict[str, Any] = {}  # drone id -> updated_at of the settings applied
         self._next_status = 0.0
@@ -137,6 +139,7 @@ class PastViewProcess:
 
     def _on_disconnect(self, client, userdata, flags, reason_code, properties) -> None:  # type: ignore[no-untyped-def]
         self.connected.clear()
+        self.subscribed.clear()
 
     def _on_message(self, client, userdata, message: mqtt.MQTTMessage) -> None:  # type: ignore[no-untyped-def]
         try:

@@ -1,0 +1,169 @@
+"""The past-view service on a real broker: frames and poses in over MQTT, updates out on the
+drone's Channels group (real Redis), bad input counted while the view keeps running."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.support.mosquitto import start_broker
+
+from .support import DronePublisher, GroupListener, ServiceThread, close, level, wait_until
+
+pytestmark = pytest.mark.django_db(transaction=True)
+
+DRONE = "ACME_1"  # the world's drone
+
+
+@pytest.fixture
+def broker(tmp_path: Path):
+    b = start_broker(tmp_path, {"ground": "pw", DRONE: "dpw", "GLOBEX_1": "gpw"})
+    yield b
+    b.stop()
+
+
+@pytest.fixture
+def service(broker, world_tx):
+    running = ServiceThread(broker.url_for("ground"))
+    yield running
+    running.stop()
+
+
+@pytest.fixture
+def drone(broker):
+    publisher = DronePublisher(broker.port, DRONE, "dpw")
+    yield publisher
+    publisher.close()
+
+
+async def test_a_pose_after_a_frame_reaches_the_page_with_the_frame_and_the_relative_pose(
+    service, drone
+):
+    t0 = time.time()
+    async with GroupListener(DRONE) as pages:
+        drone.frame(t0, [0.0, 0.0, -10.0], level(0.0))
+        live = await pages.next(lambda m: m["type"] == "live")
+        assert live["ts"] == t0 and live["jpeg"]
+        # 2.5 m straight ahead of where the frame was taken, same heading: SPIRIT's ideal.
+        drone.poses((t0 + 0.1, [2.5, 0.0, -10.0], level(0.0)))
+        update = await pages.next(lambda m: m["type"] == "update")
+    assert update["tracking"] == "tracked"
+    assert update["function"] == "spirit"
+    assert update["changed"] is True and update["jpeg"]
+    assert update["frame"]["ts"] == t0
+    assert close(update["relative"]["position"], [2.5, 0.0, 0.0])
+    assert close(update["relative"]["orientation"], [0.0, 0.0, 0.0, 1.0])
+
+
+async def test_the_frame_image_is_sent_only_when_the_choice_changes(service, drone):
+    t0 = time.time()
+    async with GroupListener(DRONE) as pages:
+        drone.frame(t0, [0.0, 0.0, -10.0], level(0.0))
+        await pages.next(lambda m: m["type"] == "live")
+        drone.poses((t0 + 0.1, [2.5, 0.0, -10.0], level(0.0)))
+        first = await pages.next(lambda m: m["type"] == "update")
+        # Poses 40 ms apart: the throttle (30 Hz) lets each through, the frame stays.
+        for i in range(1, 4):
+            time.sleep(0.04)
+            drone.poses((t0 + 0.1 + i * 0.04, [2.5 + 0.01 * i, 0.0, -10.0], level(0.0)))
+            again = await pages.next(lambda m: m["type"] == "update")
+            assert again["frame"]["id"] == first["frame"]["id"]
+            assert again["changed"] is False and again["jpeg"] is None
+        # A frame taken 2.5 m behind the drone's new place wins and comes with its image.
+        drone.frame(t0 + 1.0, [10.0, 0.0, -10.0], level(0.0))
+        drone.poses((t0 + 1.1, [12.5, 0.0, -10.0], level(0.0)))
+        switched = await pages.next(lambda m: m["type"] == "update" and m["changed"])
+    assert switched["frame"]["id"] != first["frame"]["id"] and switched["jpeg"]
+    assert close(switched["relative"]["position"], [2.5, 0.0, 0.0])
+
+
+async def test_tracking_lost_and_found_are_pushed_when_they_happen(service, drone):
+    t0 = time.time()
+    still = [1.0, 2.0, -10.0]
+    async with GroupListener(DRONE) as pages:
+        drone.frame(t0, [0.0, 0.0, -10.0], level(0.0))
+        drone.poses((t0 + 0.1, still, level(10.0)), (t0 + 0.2, still, level(10.0)))
+        lost = await pages.next(lambda m: m.get("event") == "lost")
+        drone.poses((t0 + 0.3, [1.0, 2.1, -10.0], level(10.0)))
+        found = await pages.next(lambda m: m.get("event") == "found")
+    assert lost["tracking"] == "lost"
+    assert found["tracking"] == "tracked"
+
+
+async def test_bad_input_is_counted_and_the_view_keeps_running(service, drone):
+    t0 = time.time()
+    drone.raw("camera", b"\xff\xfe not json")
+    drone.raw("camera", json.dumps({"ts": t0, "pose": {"position": [0, 0, -10]}, "jpeg": "x"}))
+    broken = b"\xff\xd8\xff\xe0" + b"\x00garbage" * 50 + b"\xff\xd9"
+    drone.frame(t0, [0.0, 0.0, -10.0], level(0.0), jpeg=broken)
+    drone.frame(t0 + 0.5, [5.0, 0.0, -10.0], level(0.0))
+    drone.frame(t0 + 0.2, [9.0, 0.0, -10.0], level(0.0))  # older than the last: out of order
+    drone.poses((t0 + 0.6, [7.5, 0.0, float("nan")], level(0.0)))
+    drone.poses((t0 + 0.7, [7.5, 0.0, -10.0], [0.0, 0.0, 0.0, 2.0]))  # not a unit quaternion
+    drone.poses((t0 + 0.65, [7.4, 0.0, -10.0], level(0.0)))  # older than the last pose
+    drone.raw("telemetry", b'{"ts": 1, "objects": "nope"}')
+
+    def counted() -> bool:
+        status = service.service.status(DRONE)
+        return bool(status) and status["poses_received"] == 3
+
+    assert wait_until(counted)
+    status = service.service.status(DRONE)
+    assert status["frames_malformed"] == 1
+    assert status["buffer"]["corrupt_jpeg"] == 1
+    assert status["frames_out_of_order"] == 1
+    assert status["poses_bad"] == 1
+    assert status["quaternions_repaired"] == 1
+    assert status["poses_out_of_order"] == 1
+    assert status["frames_stored"] == 1
+    counters = service.service.counters
+    assert counters["dropped.malformed"] == 3  # not JSON, no jpeg, objects not a list
+    async with GroupListener(DRONE) as pages:
+        drone.poses((t0 + 0.8, [7.5, 0.0, -10.0], level(0.0)))
+        update = await pages.next(lambda m: m["type"] == "update")
+    assert close(update["relative"]["position"], [2.5, 0.0, 0.0])
+
+
+async def test_settings_edited_in_the_database_switch_the_evaluation_function(
+    service, drone, world_tx
+):
+    from asgiref.sync import sync_to_async
+
+    from telemetry.pastview.models import ViewSettings
+
+    t0 = time.time()
+    async with GroupListener(DRONE) as pages:
+        drone.frame(t0, [0.0, 0.0, -10.0], level(0.0))
+        drone.poses((t0 + 0.1, [2.5, 0.0, -10.0], level(0.0)))
+        before = await pages.next(lambda m: m["type"] == "update")
+        await sync_to_async(ViewSettings.objects.create)(
+            drone=world_tx.drone,
+            settings={"evaluation": {"function": "constant_time_delay", "ref_delay_s": 1.0}},
+        )
+        # The service looks every two seconds; looking now as well changes nothing else.
+        await sync_to_async(service.process.reload_settings)()
+        applied = await pages.next(lambda m: m["type"] == "settings")
+        drone.poses((t0 + 0.2, [2.6, 0.0, -10.0], level(0.0)))
+        after = await pages.next(lambda m: m["type"] == "update")
+    assert before["function"] == "spirit"
+    assert applied["settings"]["evaluation"]["function"] == "constant_time_delay"
+    assert after["function"] == "constant_time_delay"
+    assert after["frame"]["score"] == pytest.approx(0.8, abs=1e-6)
+
+
+async def test_one_drones_frames_never_reach_another_drones_page(service, broker, drone):
+    other = DronePublisher(broker.port, "GLOBEX_1", "gpw")
+    try:
+        async with GroupListener("GLOBEX_1") as theirs, GroupListener(DRONE) as mine:
+            drone.frame(time.time(), [0.0, 0.0, -10.0], level(0.0))
+            await mine.next(lambda m: m["type"] == "live")
+            with pytest.raises(AssertionError):
+                await theirs.next(timeout=0.5)
+            # A drone cannot publish into another's tree: the broker's ACL drops it.
+            other.client.publish(f"{DRONE}/camera/out", b"{}", qos=1).wait_for_publish(5)
+            assert service.service.counters["dropped.malformed"] == 0
+    finally:
+        other.close()
