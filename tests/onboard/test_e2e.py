@@ -70,6 +70,11 @@ def agent_for(tmp_path: Path, sim):
         stop_process(process)
 
 
+def _pos(heartbeat: dict, key: str, default: float = 0.0) -> float:
+    """A heartbeat's position field; early heartbeats have no position yet."""
+    return (heartbeat["position"] or {}).get(key, default)
+
+
 def test_the_drone_arms_takes_off_flies_north_and_lands_on_command(
     broker, agent_for, tmp_path: Path
 ) -> None:
@@ -87,16 +92,16 @@ def test_the_drone_arms_takes_off_flies_north_and_lands_on_command(
         assert refused["ok"] is False and "not armed" in refused["error"]
         assert ground.command("arm")["result"] == {"armed": True}
         assert ground.command("takeoff", altitude=10)["ok"]
-        up = ground.wait_for("heartbeats", lambda m: m["position"]["alt"] > 9.5)
+        up = ground.wait_for("heartbeats", lambda m: _pos(m, "alt") > 9.5)
         assert up["airborne"] is True
         airborne_disarm = ground.command("disarm")
         assert airborne_disarm["ok"] is False and "airborne" in airborne_disarm["error"]
 
         assert ground.command("changeN", value=100)["ok"]
-        north = ground.wait_for("heartbeats", lambda m: m["position"]["lat"] > HOME[0] + 0.00088)
+        north = ground.wait_for("heartbeats", lambda m: _pos(m, "lat") > HOME[0] + 0.00088)
         assert north["position"]["lat"] == pytest.approx(HOME[0] + 100 / 111_320, abs=2e-5)
         assert ground.command("land")["ok"]
-        ground.wait_for("heartbeats", lambda m: m["position"]["alt"] < 0.2 and m["armed"])
+        ground.wait_for("heartbeats", lambda m: _pos(m, "alt", 99) < 0.2 and m["armed"])
         assert ground.command("disarm")["result"] == {"armed": False}
         status = ground.command("objrequest", value="FlightStatus")
         assert status["result"]["fields"]["Armed"] == "Disarmed"
