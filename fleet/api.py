@@ -2,20 +2,59 @@
 
 from __future__ import annotations
 
+from asgiref.sync import sync_to_async
+from django.conf import settings
 from django.contrib.auth import authenticate
-from drf_spectacular.utils import extend_schema, inline_serializer
-from rest_framework import exceptions, serializers, viewsets
+from drf_spectacular.utils import OpenApiResponse, extend_schema, inline_serializer
+from rest_framework import exceptions, serializers, status, viewsets
 from rest_framework.authtoken.models import Token
-from rest_framework.decorators import api_view, authentication_classes, permission_classes
+from rest_framework.decorators import (
+    action,
+    api_view,
+    authentication_classes,
+    permission_classes,
+)
 from rest_framework.permissions import AllowAny
 from rest_framework.request import Request
 from rest_framework.response import Response
 
 from config.api import StrictSerializer
 
-from .models import Drone, Membership
-from .permissions import OrganisationRole
-from .serializers import DroneDetailSerializer, DroneSerializer, MembershipSerializer
+from . import commands, credentials
+from .async_views import AsyncAPIView
+from .commands import CommandRefused
+from .models import Drone, Membership, Role
+from .permissions import OrganisationRole, require_role
+from .serializers import (
+    ConnectionEventSerializer,
+    DroneDetailSerializer,
+    DroneSerializer,
+    MembershipSerializer,
+)
+
+GearSerializer = inline_serializer(
+    "Gear",
+    {
+        "drone_id": serializers.CharField(),
+        "specs": serializers.DictField(),
+        "sensors": serializers.DictField(),
+    },
+)
+CredentialsSerializer = inline_serializer(
+    "BrokerCredentials",
+    {
+        "drone_id": serializers.CharField(),
+        "mqtt": inline_serializer(
+            "BrokerAccount",
+            {
+                "host": serializers.CharField(),
+                "port": serializers.IntegerField(),
+                "username": serializers.CharField(),
+                "password": serializers.CharField(),
+            },
+        ),
+    },
+)
 
 
 class DroneViewSet(viewsets.ReadOnlyModelViewSet):
@@ -29,7 +68,135 @@ class DroneViewSet(viewsets.ReadOnlyModelViewSet):
         return Drone.objects.for_user(self.request.user).select_related("organisation")
 
     def get_serializer_class(self):  # type: ignore[no-untyped-def]
+        if self.action == "connections":
+            return ConnectionEventSerializer
         return DroneDetailSerializer if self.action == "retrieve" else DroneSerializer
+
+    @extend_schema(responses=GearSerializer)
+    @action(detail=True, methods=["get"])
+    def gear(self, request: Request, drone_id: str | None = None) -> Response:
+        """Specs and sensors the drone last announced (the Drone Identifier's `getgear`)."""
+        return Response(commands.gear(self.get_object()))
+
+    @action(detail=True, methods=["get"])
+    def connections(self, request: Request, drone_id: str | None = None) -> Response:
+        """Connection history: online/offline events, newest first."""
+        events = self.get_object().connection_events.all()
+        page = self.paginate_queryset(events)
+        return self.get_paginated_response(ConnectionEventSerializer(page, many=True).data)
+
+    @extend_schema(
+        methods=["POST"],
+        request=None,
+        responses={201: CredentialsSerializer},
+        description="New broker credentials (admin role). The password is shown once.",
+    )
+    @extend_schema(methods=["DELETE"], request=None, responses={204: None})
+    @action(detail=True, methods=["post", "delete"])
+    def credentials(self, request: Request, drone_id: str | None = None) -> Response:
+        """Issue (POST) or revoke (DELETE) the drone's broker credentials; admins only."""
+        drone = self.get_object()
+        if not require_role(request.user, drone.organisation, Role.ADMIN):
+            raise exceptions.PermissionDenied("Only admins manage broker credentials.")
+        if request.method == "DELETE":
+            credentials.revoke(drone)
+            return Response(status=status.HTTP_204_NO_CONTENT)
+        issued = credentials.provision(drone.drone_id, drone.organisation.slug)
+        return Response(issued.to_dict(), status=status.HTTP_201_CREATED)
+
+
+class CommandRequestSerializer(StrictSerializer):
+    command = serializers.ChoiceField(choices=commands.API_COMMANDS)
+    params = serializers.DictField(required=False, default=dict)
+
+
+CommandReplySerializer = inline_serializer(
+    "CommandReply",
+    {
+        "request_id": serializers.CharField(),
+        "command": serializers.CharField(),
+        "ok": serializers.BooleanField(),
+        "result": serializers.DictField(allow_null=True),
+        "error": serializers.CharField(allow_null=True),
+    },
+)
+
+
+class Conflict(exceptions.APIException):
+    status_code = status.HTTP_409_CONFLICT
+    default_code = "conflict"
+
+
+class NoReply(exceptions.APIException):
+    status_code = status.HTTP_504_GATEWAY_TIMEOUT
+    default_code = "no_reply"
+
+
+def _api_error(refusal: CommandRefused) -> exceptions.APIException:
+    if refusal.status == 400:
+        return exceptions.ValidationError({refusal.field or "params": [refusal.message]})
+    if refusal.status == 403:
+        return exceptions.PermissionDenied(refusal.message)
+    if refusal.status == 404:
+        return exceptions.NotFound(refusal.message)
+    return Conflict(refusal.message)
+
+
+class DroneCommandView(AsyncAPIView):
+    """`POST /api/v1/drones/{drone_id}/commands/`: the drone's own reply, or an error."""
+
+    permission_classes = [OrganisationRole]
+
+    @extend_schema(
+        operation_id="drones_commands_create",
+        request=CommandRequestSerializer,
+        responses={
+            200: CommandReplySerializer,
+            400: OpenApiResponse(description="bad command or parameter (named in `fields`)"),
+            403: OpenApiResponse(description="viewers may not command"),
+            404: OpenApiResponse(description="unknown drone"),
+            409: OpenApiResponse(description="drone offline or unsafe"),
+            504: OpenApiResponse(description="no reply in time"),
+        },
+        description=(
+            "Send one command of seed table 4.2 (`params` as in PROTOCOL.md). A reply with "
+            "`ok: false` is the drone's own refusal."
+        ),
+    )
+    async def post(self, request: Request, drone_id: str) -> Response:
+        serializer = CommandRequestSerializer(data=request.data)
+        serializer.is_valid(raise_exception=True)
+        command = serializer.validated_data["command"]
+        params = serializer.validated_data["params"]
+        try:
+            if command in commands.CHAIN_COMMANDS:
+                result = await sync_to_async(commands.run_chain)(
+                    request.user, drone_id, command, params.get("mission")
+                )
+                return Response(
+                    {
+                        "request_id": "",
+                        "command": command,
+                        "ok": True,
+                        "result": result,
+                        "error": None,
+                    }
+                )
+            outcome = await commands.send(request.user, drone_id, command, params)
+        except CommandRefused as refusal:
+            raise _api_error(refusal) from None
+        if outcome.timed_out:
+            raise NoReply(f"No reply from {drone_id} within {settings.COMMAND_TIMEOUT_S:g} s.")
+        reply = outcome.reply or {}
+        return Response(
+            {
+                "request_id": outcome.request_id,
+                "command": command,
+                "ok": bool(reply.get("ok")),
+                "result": reply.get("result"),
+                "error": reply.get("error"),
+            }
+        )
 
 
 @extend_schema(

@@ -31,6 +31,8 @@ GET_COMMANDS = ("discover", "getgear", "objrequest")
 CHAIN_COMMANDS = ("startchain", "stopchain")
 ALL_COMMANDS = (*QUERY_COMMANDS, *protocol.CONTROL_COMMANDS, *CHAIN_COMMANDS)
 POST_COMMANDS = tuple(c for c in ALL_COMMANDS if c not in GET_COMMANDS)
+# What `POST /api/v1/drones/{id}/commands/` takes (the queries are GET resources there).
+API_COMMANDS = (*protocol.CONTROL_COMMANDS, *CHAIN_COMMANDS)
 # Refused while airborne unless forced (PROTOCOL.md "Control"; seed: destructive in flight).
 UNSAFE_IN_FLIGHT = ("disarm", "resetfc")
 
@@ -206,3 +208,14 @@ def prepare_chain(user: Any, drone_id: str) -> Drone:
     if not drone.online:
         raise CommandRefused(409, f"Drone {drone.drone_id} is offline.")
     return drone
+
+
+def run_chain(user: Any, drone_id: str, command: str, mission: object = None) -> dict:
+    """startchain / stopchain through the configured hook, after the shared checks."""
+    drone = prepare_chain(user, drone_id)
+    hook = chain_hook(command)
+    if command == "startchain":
+        if not isinstance(mission, str) or not mission:
+            raise CommandRefused(400, "mission: is required", "mission")
+        return hook(drone=drone, user=user, mission=mission)
+    return hook(drone=drone, user=user)

@@ -176,7 +176,7 @@ class Gateway:
             if not self.connected.wait(0.5):
                 continue
             try:
-                item = link.pop_outbox(timeout=1.0)
+                item = link.pop_outbox(timeout=0.25)
             except redis.RedisError as exc:
                 self.counters.incr("outbox.redis_error")
                 log.warning("outbox unavailable: %s", exc)

@@ -11,21 +11,30 @@ from tests.support.mosquitto import start_broker
 GROUND_PASSWORD = "ground-test-password"
 
 
-@pytest.fixture
-def broker(tmp_path, settings):  # type: ignore[no-untyped-def]
-    """Mosquitto with only the ground user; provision drones into it with fleet.credentials."""
-    directory = tmp_path / "mosquitto"
+@pytest.fixture(scope="session")
+def _shared_broker(tmp_path_factory):  # type: ignore[no-untyped-def]
+    directory = tmp_path_factory.mktemp("ground") / "mosquitto"
     b = start_broker(
         directory,
         {"ground": GROUND_PASSWORD},
         extra_config=f"pid_file {directory / 'mosquitto.pid'}\n",
     )
-    settings.MOSQUITTO_DIR = str(directory)
+    yield b
+    b.stop()
+
+
+@pytest.fixture
+def broker(_shared_broker, settings):  # type: ignore[no-untyped-def]
+    """Mosquitto with the ground user, wired to the settings; provision drones into it with
+    fleet.credentials (its passwd and ACL are regenerated from each test's database)."""
+    b = _shared_broker
+    if b.process is None or b.process.poll() is not None:
+        b.start()
+    settings.MOSQUITTO_DIR = str(b.directory)
     settings.MQTT_URL = b.url_for("ground")
     settings.MQTT_PUBLIC_HOST = "127.0.0.1"
     settings.MQTT_PUBLIC_PORT = b.port
-    yield b
-    b.stop()
+    return b
 
 
 @pytest.fixture
@@ -112,3 +121,42 @@ def wait_for(predicate, timeout: float = 5.0, interval: float = 0.02):  # type: 
             return value
         time.sleep(interval)
     return predicate()
+
+
+class Responder:
+    """A minimal MQTT drone: answers `<id>/control/in` the way the agent does (used where
+    the test is about the ground side; the end-to-end tests run the real agent)."""
+
+    def __init__(self, url: str, drone_id: str, *, refuse: tuple[str, ...] = ()) -> None:
+        import json
+        import time
+
+        self.drone_id = drone_id
+        self.requests: list[dict] = []
+        self.missions: list[dict] = []
+        self.client = mqtt_client(url)
+
+        def on_message(client, userdata, message):  # type: ignore[no-untyped-def]
+            request = json.loads(message.payload)
+            if message.topic.endswith("/mission/in"):
+                self.missions.append(request)
+                return
+            self.requests.append(request)
+            ok = request["command"] not in refuse
+            reply = {
+                "request_id": request["request_id"],
+                "command": request["command"],
+                "ok": ok,
+                "result": {"echo": request["params"]} if ok else None,
+                "error": None if ok else "refused by the test drone",
+                "ts": time.time(),
+            }
+            client.publish(f"{drone_id}/control/out", json.dumps(reply), qos=1)
+
+        self.client.on_message = on_message
+        self.client.subscribe([(f"{drone_id}/control/in", 1), (f"{drone_id}/mission/in", 1)])
+        time.sleep(0.1)
+
+    def stop(self) -> None:
+        self.client.disconnect()
+        self.client.loop_stop()

@@ -50,12 +50,19 @@ class Command(BaseCommand):
         credentials.write_text(json.dumps(entries))
         credentials.chmod(0o600)
         argv = [
-            sys.executable, "-m", "onboard.launcher",
-            "--count", str(count),
-            "--home", options["home"],
-            "--credentials-file", str(credentials),
-            "--time-scale", str(options["time_scale"]),
-            "--workdir", str(workdir),
+            sys.executable,
+            "-m",
+            "onboard.launcher",
+            "--count",
+            str(count),
+            "--home",
+            options["home"],
+            "--credentials-file",
+            str(credentials),
+            "--time-scale",
+            str(options["time_scale"]),
+            "--workdir",
+            str(workdir),
         ]
         self.stdout.write(f"starting {count} simulated drone(s) around {options['home']}")
         self.stdout.flush()
