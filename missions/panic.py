@@ -16,6 +16,8 @@ def panic_steps(lat: float, lon: float, altitude: float) -> list[dict]:
     return [
         {"command": "arm", "params": {}},
         {"command": "takeoff", "params": {"altitude": altitude}},
+        # Climb first, then fly: each stage is timed on its own (seed figure 5.8).
+        {"command": "wait_for_flight", "params": {}},
         {"command": "navigate", "params": {"lat": lat, "lon": lon}},
         {"command": "wait_for_flight", "params": {}},
     ]

@@ -291,6 +291,7 @@ def test_the_panic_button_sends_the_nearest_drone_to_the_caller_at_ten_metres(wo
     assert [s["command"] for s in data["steps"]] == [
         "arm",
         "takeoff",
+        "wait_for_flight",
         "navigate",
         "wait_for_flight",
     ]

@@ -1,0 +1,229 @@
+"""End-to-end harness: a private Mosquitto, the real gateway, a real Celery worker and
+simulated drones (firmware.sim + the onboard agent, per drone), on the test database.
+
+Engineers run other suites against the same Redis at the same time, so the gateway
+outbox lives in a Redis database of our own and our Celery tasks go to a queue of our
+own; neither changes what is tested.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from django.conf import settings
+
+from firmware.sim import start_simulator
+from onboard.launcher import GEAR_EXAMPLE
+from tests.support.mosquitto import Broker, start_broker
+
+from .conftest import AVEIRO, OUTBOX_DB, point_at, redis_url_with_db
+
+ROOT = Path(__file__).resolve().parents[2]
+GROUND_PASSWORD = "ground-e2e-password"
+# Simulated seconds per real second: the seed's five-minute survey takes about 15 s.
+TIME_SCALE = 20.0
+HOME_ALT_MSL = 12.0
+
+
+def wait_for(predicate: Callable[[], Any], timeout: float, interval: float = 0.05) -> Any:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(interval)
+    return predicate()
+
+
+def stop_process(process: subprocess.Popen, timeout: float = 10.0) -> None:
+    if process.poll() is None:
+        process.terminate()
+        try:
+            process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+class Worker:
+    """`celery worker` on the test database, consuming our own queue only."""
+
+    def __init__(self, database_name: str, log_dir: Path) -> None:
+        from config.celery import app
+
+        self.queue = f"h9-missions-{uuid.uuid4().hex[:8]}"
+        self._previous_queue = app.conf.task_default_queue
+        app.conf.task_default_queue = self.queue
+        env = dict(
+            os.environ,
+            DJANGO_SETTINGS_MODULE="config.settings.test",
+            TEST_WORKER_DB_NAME=database_name,
+            REDIS_URL=redis_url_with_db(settings.REDIS_URL, OUTBOX_DB),
+            CELERY_BROKER_URL=str(app.conf.broker_url),
+            CELERY_RESULT_BACKEND=str(app.conf.result_backend),
+            PYTHONUNBUFFERED="1",
+        )
+        env.pop("DJANGO_ALLOW_ASYNC_UNSAFE", None)
+        self.log = open(log_dir / f"worker-{self.queue}.log", "w")  # noqa: SIM115
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "celery", "-A", "config", "worker", "--pool", "solo",
+             "-Q", self.queue, "-l", "info", "-n", f"{self.queue}@%h", "--without-heartbeat",
+             "--without-gossip", "--without-mingle"],
+            cwd=ROOT, env=env, stdout=self.log, stderr=subprocess.STDOUT,
+        )
+
+    def stop(self) -> None:
+        from config.celery import app
+
+        stop_process(self.process)
+        self.log.close()
+        app.conf.task_default_queue = self._previous_queue
+
+
+@dataclass
+class SimDrone:
+    drone_id: str
+    home: tuple[float, float, float]
+    folder: Path
+    sim: Any = None
+    agent: subprocess.Popen | None = None
+
+    def stop(self) -> None:
+        if self.agent is not None:
+            stop_process(self.agent)
+        if self.sim is not None:
+            self.sim.stop()
+
+
+@dataclass
+class Sky:
+    """One test's broker, gateway and drones (the worker is shared by the module)."""
+
+    tmp_path: Path
+    organisation_slug: str
+    time_scale: float = TIME_SCALE
+    broker: Broker | None = None
+    gateway: Any = None
+    drones: list[SimDrone] = field(default_factory=list)
+    _saved: dict = field(default_factory=dict)
+
+    def start(self) -> Sky:
+        from fleet import link
+
+        directory = self.tmp_path / "mosquitto"
+        self.broker = start_broker(
+            directory,
+            {"ground": GROUND_PASSWORD},
+            extra_config=f"pid_file {directory / 'mosquitto.pid'}\n",
+        )
+        overrides = {
+            "MOSQUITTO_DIR": str(directory),
+            "MQTT_URL": self.broker.url_for("ground"),
+            "MQTT_PUBLIC_HOST": "127.0.0.1",
+            "MQTT_PUBLIC_PORT": self.broker.port,
+            "REDIS_URL": redis_url_with_db(settings.REDIS_URL, OUTBOX_DB),
+        }
+        for name, value in overrides.items():
+            self._saved[name] = getattr(settings, name)
+            setattr(settings, name, value)
+        link._sync_client = None
+        link.sync_redis().delete(link.OUTBOX_KEY)
+        self.start_gateway()
+        return self
+
+    def start_gateway(self) -> None:
+        from workers.counters import Counters
+        from workers.gateway import Gateway
+
+        tag = uuid.uuid4().hex[:8]
+        self.gateway = Gateway(
+            self.broker.url_for("ground"),  # type: ignore[union-attr]
+            client_id=f"gw-h9-{tag}",
+            counters=Counters(f"gateway-h9-{tag}", flush_every=1e9),
+        )
+        self.gateway.start()
+        assert self.gateway.wait_connected(10), "the gateway did not connect"
+
+    def stop_gateway(self) -> None:
+        self.gateway.stop()
+
+    def add_drone(
+        self, drone_id: str, *, north: float = 0.0, east: float = 0.0, extra: list[str] = ()
+    ) -> SimDrone:
+        """Provision the drone, start its simulator and agent, wait until it is online."""
+        from fleet import credentials
+        from fleet.models import Drone
+
+        creds = credentials.provision(drone_id, self.organisation_slug)
+        lat, lon = point_at(north, east)
+        folder = self.tmp_path / drone_id
+        folder.mkdir(parents=True)
+        shutil.copytree(GEAR_EXAMPLE, folder / "gear")
+        drone = SimDrone(drone_id, (lat, lon, HOME_ALT_MSL), folder)
+        self.drones.append(drone)
+        drone.sim = start_simulator(
+            home=drone.home,
+            time_scale=self.time_scale,
+            arming_line=folder / "arming_line",
+            log_file=folder / "sim.log",
+        )
+        url = f"mqtt://{drone_id}:{creds.password}@127.0.0.1:{self.broker.port}"  # type: ignore[union-attr]
+        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        with open(folder / "agent.log", "ab") as log:
+            drone.agent = subprocess.Popen(
+                [sys.executable, "-m", "onboard", "--drone-id", drone_id, "--link",
+                 drone.sim.url, "--broker", url, "--arming", f"sim-line:{folder / 'arming_line'}",
+                 "--gear-dir", str(folder / "gear"), "--log-dir", str(folder / "logs"),
+                 "--time-scale", str(self.time_scale), "--heartbeat-interval", "0.3", *extra],
+                stdout=subprocess.DEVNULL, stderr=log, cwd=ROOT, env=env,
+            )
+        return drone
+
+    def wait_online(self, timeout: float = 30.0) -> None:
+        from fleet.models import Drone
+
+        ids = [d.drone_id for d in self.drones]
+
+        def ready() -> bool:
+            rows = Drone.objects.filter(drone_id__in=ids, online=True, lat__isnull=False)
+            return rows.exclude(battery_remaining__isnull=True).count() == len(ids)
+
+        assert wait_for(ready, timeout), f"drones not online: {self.describe()}"
+
+    def describe(self) -> str:
+        from fleet.models import Drone
+
+        rows = Drone.objects.filter(drone_id__in=[d.drone_id for d in self.drones])
+        return ", ".join(
+            f"{d.drone_id}(online={d.online}, pos={d.lat},{d.lon}, batt={d.battery_remaining})"
+            for d in rows
+        )
+
+    def close(self) -> None:
+        from fleet import link
+
+        for drone in self.drones:
+            drone.stop()
+        if self.gateway is not None:
+            self.gateway.stop()
+        if self.broker is not None:
+            self.broker.stop()
+        for name, value in self._saved.items():
+            setattr(settings, name, value)
+        link._sync_client = None
+
+
+def metres(a: tuple[float, float], b: tuple[float, float]) -> float:
+    import math
+
+    n, e = AVEIRO.to_ne([a[0], b[0]], [a[1], b[1]])
+    return math.hypot(float(n[1] - n[0]), float(e[1] - e[0]))
