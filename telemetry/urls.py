@@ -6,4 +6,6 @@ app_name = "telemetry"
 
 urlpatterns = [
     path("", views.overview, name="overview"),
+    path("status/", views.ingest_status, name="status"),
+    path("drones/<str:drone_id>/", views.dashboard, name="dashboard"),
 ]

@@ -87,6 +87,21 @@ def drone_messages(start: float, seconds: float, rate_scale: float = 1.0) -> Ite
                     },
                 },
             ]
+        if i % 50 == 0:
+            objects.append(
+                {
+                    "name": "FlightTelemetryStats",
+                    "ts": t,
+                    "fields": {
+                        "TxDataRate": 2100.0,
+                        "RxDataRate": 180.0,
+                        "TxFailures": 0,
+                        "RxFailures": 0,
+                        "TxRetries": 0,
+                        "Status": "Connected",
+                    },
+                }
+            )
         if i % 20 == 0:
             objects.append(
                 {
