@@ -1,5 +1,13 @@
-from django.contrib import admin
+import json
 
+import redis
+from django.contrib import admin, messages
+from django.db.models import QuerySet
+from django.http import HttpRequest
+
+from workers.counters import snapshot
+
+from . import credentials
 from .models import CommandLog, ConnectionEvent, Drone, Membership, Organisation
 
 
@@ -50,6 +58,38 @@ class DroneAdmin(admin.ModelAdmin):
     search_fields = ["drone_id", "name"]
     readonly_fields = ["mqtt_password_hash", "last_seen", "created_at"]
     inlines = [ConnectionEventInline]
+    actions = ["issue_credentials", "revoke_credentials"]
+    change_list_template = "fleet/admin/drone_change_list.html"
+
+    @admin.action(description="Issue new broker credentials (shown once)")
+    def issue_credentials(self, request: HttpRequest, queryset: QuerySet[Drone]) -> None:
+        for drone in queryset.select_related("organisation"):
+            issued = credentials.provision(drone.drone_id, drone.organisation.slug)
+            self.message_user(
+                request,
+                f"{drone.drone_id}: {json.dumps(issued.to_dict())} — copy it now, it is not kept.",
+                messages.WARNING,
+            )
+
+    @admin.action(description="Revoke broker credentials (disconnects the drone)")
+    def revoke_credentials(self, request: HttpRequest, queryset: QuerySet[Drone]) -> None:
+        for drone in queryset:
+            credentials.revoke(drone)
+        self.message_user(request, f"Revoked {queryset.count()} drone(s).", messages.SUCCESS)
+
+    def changelist_view(self, request: HttpRequest, extra_context: dict | None = None):  # type: ignore[no-untyped-def]
+        """Gateway counters (received, handled, dropped by reason) above the drone list."""
+        try:
+            processes = snapshot()
+        except redis.RedisError:
+            processes = {}
+        gateways = {
+            name: sorted((k, int(v)) for k, v in counts.items() if k != "updated_at")
+            for name, counts in processes.items()
+            if name.startswith("gateway")
+        }
+        extra_context = {**(extra_context or {}), "gateway_counters": gateways}
+        return super().changelist_view(request, extra_context)
 
 
 @admin.register(ConnectionEvent)
