@@ -3,7 +3,7 @@
 // The canvas lies over the frame's picture. Its camera is the frame's camera: the same
 // horizontal field of view, tilted down by the mount angle from the body's forward axis.
 // The drone is a box with the real frame's proportions, left side red and right side
-// green (navigation lights), an arrow on top pointing forward, placed at its position
+// green (navigation lights), a red/green arrow on top pointing forward, placed at its position
 // and orientation relative to the frame (sent by the server).
 import * as THREE from "three";
 
@@ -40,20 +40,21 @@ function droneModel(box) {
   const top = -height / 2 - Math.max(0.002, height * 0.02);
   const L = length / 2;
   const W = width / 2;
-  // An arrow on the top face, pointing forward: shaft and head as flat triangles.
-  const points = [
-    [0.9 * L, 0], [0.1 * L, -0.6 * W], [0.1 * L, 0.6 * W],
-    [0.1 * L, -0.25 * W], [-0.8 * L, -0.25 * W], [-0.8 * L, 0.25 * W],
-    [0.1 * L, -0.25 * W], [-0.8 * L, 0.25 * W], [0.1 * L, 0.25 * W],
+  // The arrow on the top face points forward, its left half red and its right half
+  // green (the seed's navigation-light colouring), so both show from behind and above.
+  const half = (side) => [
+    [0.9 * L, 0], [0.1 * L, 0], [0.1 * L, side * 0.6 * W], // head
+    [0.1 * L, 0], [-0.8 * L, 0], [-0.8 * L, side * 0.25 * W], // shaft
+    [0.1 * L, 0], [-0.8 * L, side * 0.25 * W], [0.1 * L, side * 0.25 * W],
   ];
-  const vertices = new Float32Array(points.flatMap(([x, y]) => [x, y, top]));
-  const arrowGeometry = new THREE.BufferGeometry();
-  arrowGeometry.setAttribute("position", new THREE.BufferAttribute(vertices, 3));
-  const arrow = new THREE.Mesh(
-    arrowGeometry,
-    new THREE.MeshBasicMaterial({ color: 0x1060ff, side: THREE.DoubleSide }),
-  );
-  group.add(arrow);
+  for (const [side, color] of [[-1, RED], [1, GREEN]]) {
+    const vertices = new Float32Array(half(side).flatMap(([x, y]) => [x, y, top]));
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute("position", new THREE.BufferAttribute(vertices, 3));
+    group.add(new THREE.Mesh(
+      geometry, new THREE.MeshBasicMaterial({ color, side: THREE.DoubleSide }),
+    ));
+  }
   return group;
 }
 

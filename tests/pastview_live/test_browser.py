@@ -1,0 +1,99 @@
+"""The past-view page in headless Chromium: frames and poses from a drone over MQTT, through
+the service and the live ASGI server, drawn with WebGL over the chosen frame."""
+
+from __future__ import annotations
+
+import base64
+import io
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from tests.conftest import login
+from tests.support.mosquitto import start_broker
+
+from .support import DronePublisher, ServiceThread, level
+
+pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
+
+DRONE = "ACME_1"
+
+
+@pytest.fixture
+def broker(tmp_path: Path):
+    b = start_broker(tmp_path, {"ground": "pw", DRONE: "dpw"})
+    yield b
+    b.stop()
+
+
+@pytest.fixture
+def service(broker, world_tx):
+    running = ServiceThread(broker.url_for("ground"))
+    yield running
+    running.stop()
+
+
+def canvas_colours(page) -> dict[str, int]:  # type: ignore[no-untyped-def]
+    """Pixels of the drone's red and green sides in the WebGL canvas (not the photo under it)."""
+    url = page.evaluate("document.getElementById('pv-canvas').toDataURL('image/png')")
+    image = Image.open(io.BytesIO(base64.b64decode(url.split(",", 1)[1]))).convert("RGBA")
+    r, g, b, a = np.asarray(image).astype(int).transpose(2, 0, 1)
+    drawn = a >= 200
+    counts = {
+        "drawn": int(drawn.sum()),
+        "red": int((drawn & (r > 200) & (g < 60) & (b < 60)).sum()),
+        "green": int((drawn & (g > 200) & (r < 60) & (b < 60)).sum()),
+    }
+    return counts
+
+
+def test_the_view_draws_the_drone_over_the_chosen_frame_and_warns_when_tracking_is_lost(
+    service, broker, live_asgi, page, tmp_path: Path
+):
+    drone = DronePublisher(broker.port, DRONE, "dpw")
+    try:
+        login(page, live_asgi, "operator")
+        page.goto(f"{live_asgi.url}/pastview/{DRONE}/")
+        page.wait_for_function("window.pastview.socket && window.pastview.socket.readyState === 1")
+        page.wait_for_timeout(300)  # the consumer joins the group right after accepting
+        assert page.locator("#pv-warning").inner_text() == "No frame yet"
+        assert canvas_colours(page)["drawn"] == 0
+
+        # A frame taken 2.5 m behind and 1 m above the drone: the top with its red/green
+        # arrow and the box show.
+        t0 = time.time()
+        drone.frame(t0, [0.0, 0.0, -11.0], level(0.0))
+        drone.poses((t0 + 0.1, [2.5, 0.0, -10.0], level(0.0)))
+        page.wait_for_function("window.pastview.frame !== null && window.pastview.updates > 0")
+        page.wait_for_function("document.getElementById('pv-frame').complete")
+        assert page.locator("#pv-warning").is_hidden()
+        assert page.locator("#pv-tracking").inner_text() == "tracked"
+        colours = canvas_colours(page)
+        assert colours["red"] > 50 and colours["green"] > 50, colours
+        page.locator("#pv-stage").screenshot(path=str(tmp_path / "pastview.png"))
+        # The box sits in the upper middle: straight ahead, 1 m below the camera's level
+        # while the camera looks 30 degrees down.
+        assert colours["drawn"] < 0.2 * 640 * 480
+
+        drone.poses(
+            (t0 + 0.2, [2.5, 0.0, -10.0], level(0.0)), (t0 + 0.3, [2.5, 0.0, -10.0], level(0.0))
+        )
+        page.wait_for_function("window.pastview.tracking === 'lost'")
+        assert "Tracking lost" in page.locator("#pv-warning").inner_text()
+        drone.poses((t0 + 0.4, [2.6, 0.0, -10.0], level(0.0)))
+        page.wait_for_function("window.pastview.tracking === 'tracked'")
+        assert page.locator("#pv-warning").is_hidden()
+    finally:
+        drone.close()
+
+
+def test_a_viewer_gets_the_view_without_controls(service, live_asgi, page):
+    login(page, live_asgi, "viewer")
+    page.goto(f"{live_asgi.url}/pastview/{DRONE}/")
+    page.wait_for_function("window.pastview.socket && window.pastview.socket.readyState === 1")
+    assert page.locator("#pv-canvas").is_visible()
+    assert page.locator("#pv-control").count() == 0
+    assert page.locator("#pv-save").is_disabled()
