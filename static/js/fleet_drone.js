@@ -1,0 +1,70 @@
+/* The drone page: live status, and a form per command posted to the commands API. */
+(function () {
+  "use strict";
+  const config = JSON.parse(document.getElementById("fleet-config").textContent);
+  const live = window.SkyhiveLive;
+  const droneId = config.drones[0].drone_id;
+  const csrf = document.querySelector('meta[name="csrf-token"]').content;
+  const result = document.getElementById("command-result");
+
+  function show(drone) {
+    if (drone.drone_id !== droneId) return;
+    const badge = document.getElementById("drone-state");
+    badge.textContent = drone.online ? "online" : "offline";
+    badge.className = `badge ${drone.online ? "ok" : "off"}`;
+    const set = (field, text) => { const el = document.querySelector(`#drone-status [data-field="${field}"]`); if (el) el.textContent = text; };
+    set("armed", drone.armed ? "yes" : "no");
+    set("airborne", drone.airborne ? "yes" : "no");
+    set("flight_mode", drone.flight_mode || "–");
+    set("battery", live.percent(drone.battery));
+    const p = drone.position;
+    set("position", p ? `${live.position(p)}, ${Number(p.alt).toFixed(1)} m` : "no fix");
+    set("mission", drone.mission ? `${drone.mission.mission_id} step ${live.missionStep(drone.mission)}` : "–");
+    set("last_seen", live.clock(drone.last_seen));
+  }
+
+  live.connect(config, show);
+
+  function params(form) {
+    const out = {};
+    for (const input of form.querySelectorAll("input")) {
+      if (input.type === "checkbox") { if (input.checked) out[input.name] = true; continue; }
+      if (input.value === "") continue;
+      out[input.name] = input.dataset.type === "text" ? input.value : Number(input.value);
+    }
+    return out;
+  }
+
+  async function send(form) {
+    const command = form.dataset.command;
+    if (form.dataset.confirm && !window.confirm(form.dataset.confirm)) return;
+    const buttons = form.querySelectorAll("button");
+    buttons.forEach((b) => { b.disabled = true; });
+    result.textContent = `${command}: waiting for ${droneId}…`;
+    try {
+      const response = await fetch(config.commandUrl, {
+        method: "POST",
+        credentials: "same-origin",
+        headers: { "Content-Type": "application/json", "X-CSRFToken": csrf, Accept: "application/json" },
+        body: JSON.stringify({ command, params: params(form) }),
+      });
+      const body = await response.json().catch(() => ({ error: response.statusText }));
+      if (response.ok) {
+        const verdict = body.ok ? "ok" : `refused: ${body.error}`;
+        result.textContent = `${command}: ${verdict}\n${JSON.stringify(body.result || {}, null, 2)}`;
+      } else {
+        result.textContent = `${command}: ${response.status} ${body.error || ""}`;
+      }
+      result.dataset.status = response.ok && body.ok ? "ok" : "error";
+    } catch (error) {
+      result.textContent = `${command}: ${error}`;
+      result.dataset.status = "error";
+    } finally {
+      buttons.forEach((b) => { b.disabled = false; });
+    }
+  }
+
+  for (const form of document.querySelectorAll("form[data-command]")) {
+    form.addEventListener("submit", (event) => { event.preventDefault(); send(form); });
+  }
+})();
