@@ -6,6 +6,8 @@ import base64
 import json
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from onboard import protocol as p
 
@@ -41,10 +43,13 @@ def test_control_request_gets_defaults_and_floats() -> None:
     ("command", "params", "field"),
     [
         ("fly", {}, "command"),
+        (["arm"], {}, "command"),
+        ("arm", [], "params"),
         ("sleep", {"value": 1}, "command"),  # mission-only
         ("changeN", {}, "params.value"),
         ("changeN", {"value": "ten"}, "params.value"),
         ("changeN", {"value": True}, "params.value"),
+        ("changeN", {"value": 10**400}, "params.value"),
         ("navigate", {"lat": 91, "lon": 0}, "params.lat"),
         ("navigate", {"lat": 0, "lon": -180.5}, "params.lon"),
         ("navigate", {"lat": "nan", "lon": 0}, "params.lat"),
@@ -215,3 +220,52 @@ def test_parse_message_dispatches_on_the_topic() -> None:
     with pytest.raises(p.ProtocolError) as caught:
         p.parse_message("D1/gear/in", b'{"request_id": "' + b"a" * 32 + b'", "query": "reading"}')
     assert caught.value.field == "sensor"
+
+
+json_values = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8),
+    lambda children: (
+        st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4)
+    ),
+    max_leaves=12,
+)
+field_names = st.sampled_from(
+    [
+        "request_id",
+        "command",
+        "params",
+        "action",
+        "mission_id",
+        "assignment_id",
+        "payload",
+        "query",
+        "sensor",
+        "type",
+        "ts",
+        "lat",
+        "lon",
+        "value",
+        "steps",
+        "index",
+        "status",
+    ]
+)
+messages = st.dictionaries(field_names, json_values | st.just(p.new_request_id()), max_size=8)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from(sorted(p.PARSERS)), messages | json_values)
+def test_any_json_gets_a_parse_or_a_protocol_error_never_a_crash(key, message) -> None:
+    try:
+        p.PARSERS[key](message)
+    except p.ProtocolError as exc:
+        assert exc.field is not None
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.sampled_from(p.STEP_COMMANDS), st.dictionaries(field_names, json_values, max_size=4))
+def test_any_params_validate_or_name_the_field(command, params) -> None:
+    try:
+        p.validate_command(command, params, mission=True)
+    except p.ProtocolError as exc:
+        assert exc.field.startswith("params")

@@ -316,3 +316,29 @@ def test_camera_frames_carry_the_pose_and_a_jpeg(gear_dir: Path) -> None:
     assert frame.jpeg.startswith(b"\xff\xd8")
     parsed = protocol.parse_camera_frame(json.loads(protocol.encode(frame)))
     assert parsed.orientation == pytest.approx(frame.orientation)
+
+
+def test_the_gpio_switch_explains_what_is_missing(tmp_path: Path) -> None:
+    from onboard.arming import ArmingError, GpiodLine
+
+    with pytest.raises(ArmingError, match="gpiod|GPIO chip"):
+        GpiodLine(str(tmp_path / "no-such-chip"), 17, 27)
+
+
+def test_the_launcher_provisions_each_drone_with_a_command(tmp_path: Path) -> None:
+    import sys
+
+    from onboard.launcher import LaunchError, provision
+
+    script = tmp_path / "provision.py"
+    script.write_text(
+        "import json, sys\n"
+        "print('creating drone', file=sys.stderr)\n"
+        "print('Drone created.')\n"
+        "print(json.dumps({'drone_id': sys.argv[1], 'mqtt': {'host': 'h', 'port': 1884,"
+        " 'username': sys.argv[1], 'password': 'pw-' + sys.argv[1]}}))\n"
+    )
+    creds = provision(f"{sys.executable} {script}", "SIM_007")
+    assert (creds.drone_id, creds.password, creds.port) == ("SIM_007", "pw-SIM_007", 1884)
+    with pytest.raises(LaunchError, match="failed"):
+        provision(f"{sys.executable} -c 'import sys; sys.exit(3)'", "SIM_008")
