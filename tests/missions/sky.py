@@ -75,10 +75,29 @@ class Worker:
         env.pop("DJANGO_ALLOW_ASYNC_UNSAFE", None)
         self.log = open(log_dir / f"worker-{self.queue}.log", "w")  # noqa: SIM115
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "celery", "-A", "config", "worker", "--pool", "solo",
-             "-Q", self.queue, "-l", "info", "-n", f"{self.queue}@%h", "--without-heartbeat",
-             "--without-gossip", "--without-mingle"],
-            cwd=ROOT, env=env, stdout=self.log, stderr=subprocess.STDOUT,
+            [
+                sys.executable,
+                "-m",
+                "celery",
+                "-A",
+                "config",
+                "worker",
+                "--pool",
+                "solo",
+                "-Q",
+                self.queue,
+                "-l",
+                "info",
+                "-n",
+                f"{self.queue}@%h",
+                "--without-heartbeat",
+                "--without-gossip",
+                "--without-mingle",
+            ],
+            cwd=ROOT,
+            env=env,
+            stdout=self.log,
+            stderr=subprocess.STDOUT,
         )
 
     def stop(self) -> None:
@@ -94,6 +113,7 @@ class SimDrone:
     drone_id: str
     home: tuple[float, float, float]
     folder: Path
+    broker_url: str = ""
     sim: Any = None
     agent: subprocess.Popen | None = None
 
@@ -161,14 +181,14 @@ class Sky:
     ) -> SimDrone:
         """Provision the drone, start its simulator and agent, wait until it is online."""
         from fleet import credentials
-        from fleet.models import Drone
 
         creds = credentials.provision(drone_id, self.organisation_slug)
         lat, lon = point_at(north, east)
         folder = self.tmp_path / drone_id
         folder.mkdir(parents=True)
         shutil.copytree(GEAR_EXAMPLE, folder / "gear")
-        drone = SimDrone(drone_id, (lat, lon, HOME_ALT_MSL), folder)
+        url = f"mqtt://{drone_id}:{creds.password}@127.0.0.1:{self.broker.port}"  # type: ignore[union-attr]
+        drone = SimDrone(drone_id, (lat, lon, HOME_ALT_MSL), folder, url)
         self.drones.append(drone)
         drone.sim = start_simulator(
             home=drone.home,
@@ -176,15 +196,35 @@ class Sky:
             arming_line=folder / "arming_line",
             log_file=folder / "sim.log",
         )
-        url = f"mqtt://{drone_id}:{creds.password}@127.0.0.1:{self.broker.port}"  # type: ignore[union-attr]
         env = dict(os.environ, PYTHONPATH=str(ROOT))
         with open(folder / "agent.log", "ab") as log:
             drone.agent = subprocess.Popen(
-                [sys.executable, "-m", "onboard", "--drone-id", drone_id, "--link",
-                 drone.sim.url, "--broker", url, "--arming", f"sim-line:{folder / 'arming_line'}",
-                 "--gear-dir", str(folder / "gear"), "--log-dir", str(folder / "logs"),
-                 "--time-scale", str(self.time_scale), "--heartbeat-interval", "0.3", *extra],
-                stdout=subprocess.DEVNULL, stderr=log, cwd=ROOT, env=env,
+                [
+                    sys.executable,
+                    "-m",
+                    "onboard",
+                    "--drone-id",
+                    drone_id,
+                    "--link",
+                    drone.sim.url,
+                    "--broker",
+                    drone.broker_url,
+                    "--arming",
+                    f"sim-line:{folder / 'arming_line'}",
+                    "--gear-dir",
+                    str(folder / "gear"),
+                    "--log-dir",
+                    str(folder / "logs"),
+                    "--time-scale",
+                    str(self.time_scale),
+                    "--heartbeat-interval",
+                    "0.3",
+                    *extra,
+                ],
+                stdout=subprocess.DEVNULL,
+                stderr=log,
+                cwd=ROOT,
+                env=env,
             )
         return drone
 
@@ -227,3 +267,26 @@ def metres(a: tuple[float, float], b: tuple[float, float]) -> float:
 
     n, e = AVEIRO.to_ne([a[0], b[0]], [a[1], b[1]])
     return math.hypot(float(n[1] - n[0]), float(e[1] - e[0]))
+
+
+def publish_as(drone: SimDrone, topic: str, message: dict) -> None:
+    """Publish with the drone's own credentials (QoS 1), as a redelivery would arrive."""
+    import json
+    import threading
+    from urllib.parse import urlsplit
+
+    import paho.mqtt.client as mqtt
+
+    parts = urlsplit(drone.broker_url)
+    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=uuid.uuid4().hex)
+    client.username_pw_set(parts.username, parts.password)
+    connected = threading.Event()
+    client.on_connect = lambda c, u, f, rc, p: connected.set()
+    client.connect(parts.hostname or "127.0.0.1", parts.port or 1883)
+    client.loop_start()
+    try:
+        assert connected.wait(5), "could not connect as the drone"
+        client.publish(topic, json.dumps(message), qos=1).wait_for_publish(5)
+    finally:
+        client.disconnect()
+        client.loop_stop()

@@ -3,7 +3,6 @@ alarms and a gateway restart: simulated drones, the real gateway, a real Celery 
 
 from __future__ import annotations
 
-import json
 import time
 
 import pytest
@@ -99,3 +98,217 @@ def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx,
     # Seed 5.1: climbing 10 m at ≤ 2 m/s takes at least 5 s; the whole call under a minute.
     assert stages["takeoff"] >= 4.0 and sum(stages.values()) < 60
     assert mission.assignments.get().decode_ms is not None
+
+
+def test_aerial_photography_takes_a_geotagged_picture_at_each_of_45_waypoints(world_tx, sky):
+    sky.add_drone("ACME_CAM", north=-20, east=-10)
+    sky.wait_online()
+    body = {
+        "name": "photography",
+        "altitude": 10,
+        "coverage": {
+            "vertices": rectangle(64, 32),
+            "step_distance": 8,
+            "intermediate_action": "takepic",
+        },
+    }
+    client = api(world_tx.operator)
+    created = client.post("/api/v1/missions/", body, format="json")
+    assert created.status_code == 201, created.json()
+    mission_id = created.json()["id"]
+    assert client.post(f"/api/v1/missions/{mission_id}/start/", format="json").status_code == 200
+    mission = wait_status(mission_id, {"completed", "failed", "stopped"}, 90)
+    assert mission.status == MissionStatus.COMPLETED
+
+    assert mission.steps.filter(command="navigate", status=StepStatus.COMPLETED).count() == 45
+    takepics = set(mission.steps.filter(command="takepic").values_list("index", flat=True))
+    assert len(takepics) == 45
+    # Pictures travel on their own topic; the last may land just after the mission ends.
+    assert wait_for(lambda: Picture.objects.filter(mission=mission).count() == 45, 10)
+    pictures = Picture.objects.filter(mission=mission)
+    assert set(pictures.values_list("index", flat=True)) == takepics
+    assert all(p.lat is not None and abs(p.alt - 10) < 1.5 for p in pictures)
+    archive = client.get(f"/api/v1/missions/{mission_id}/pictures/odm/")
+    assert archive.status_code == 200 and archive["Content-Type"] == "application/zip"
+
+
+def _survey_with_alarm(
+    level: str, width: float, height: float, step: float, after: int, action=None
+) -> tuple[list[dict], dict]:  # type: ignore[no-untyped-def]
+    """Survey steps with a virtual alarm right after waypoint `after` (1-based) is done."""
+    from missions.planning import coverage, mission_steps
+
+    area = coverage(rectangle(width, height), step)
+    steps = mission_steps(area.waypoints, altitude=10, intermediate_action=action)
+    per_waypoint = 2 + (1 if action else 0)
+    at = 2 + per_waypoint * after
+    alarm = {"command": "virtualalarm", "params": {"level": level, "message": "test alarm"}}
+    steps = [{"command": s["command"], "params": s["params"]} for s in steps]
+    steps.insert(at, alarm)
+    extensibility = {
+        "vectors": area.vectors.to_dict(),
+        "step_distance": step,
+        "intermediate_action": action,
+    }
+    return steps, extensibility
+
+
+def test_self_replacement_hands_the_remaining_waypoints_to_a_second_drone(world_tx, sky):
+    from fleet.models import Drone
+
+    first = sky.add_drone("ACME_R1", north=-10)
+    sky.add_drone("ACME_R2", north=-40, east=-20)
+    sky.wait_online()
+    steps, _ = _survey_with_alarm("CRITICAL", 60, 30, 10, after=13)
+    client = api(world_tx.operator)
+    mission_id = client.post(
+        "/api/v1/missions/", {"name": "replace", "steps": steps}, format="json"
+    ).json()["id"]
+    response = client.post(
+        f"/api/v1/missions/{mission_id}/start/", {"drone": "ACME_R1"}, format="json"
+    )
+    assert response.status_code == 200, response.json()
+
+    alarm = wait_for(lambda: Event.objects.filter(mission_id=mission_id, kind="alarm").first(), 60)
+    assert alarm is not None, sky.describe()
+    # The broker delivers the alarm again (QoS 1 redelivery): still one replacement.
+    duplicate = {
+        "type": "alarm",
+        "level": "CRITICAL",
+        "message": alarm.data["message"],
+        "ts": alarm.data["ts"],
+        "position": alarm.data["position"],
+        "mission_id": mission_id,
+        "assignment_id": alarm.data["assignment"],
+        "index": alarm.data["index"],
+        "sensor": None,
+        "value": None,
+    }
+    from .sky import publish_as
+
+    publish_as(first, "ACME_R1/alarms/out", duplicate)
+
+    mission = wait_status(mission_id, {"completed", "failed", "stopped"}, 90)
+    assert mission.status == MissionStatus.COMPLETED
+    assert mission.events.filter(kind="alarm").count() == 2
+    replacement = mission.assignments.get(reason=Assignment.Reason.REPLACEMENT)
+    assert replacement.drone.drone_id == "ACME_R2"
+    assert [mission.steps.get(index=i).command for i in replacement.preparation][:2] == [
+        "arm",
+        "takeoff",
+    ]
+    assert all(
+        mission.steps.get(index=i).drone.drone_id == "ACME_R2" for i in replacement.preparation
+    )
+
+    # Waypoints are counted by their wait_for_flight (arrival), preparation left out.
+    waits = sorted(
+        mission.steps.filter(command="wait_for_flight")
+        .exclude(index__in=replacement.preparation)
+        .values_list("index", flat=True)
+    )
+    assert len(waits) == 28
+    waypoints = {
+        drone: [i for i in indexes if i in waits]
+        for drone, indexes in completed_waypoints(mission).items()
+    }
+    assert sorted(waypoints["ACME_R1"] + waypoints["ACME_R2"]) == waits  # none skipped
+    # Seed 5.3: 13 by the first drone, 15 by the replacement.
+    assert len(waypoints["ACME_R1"]) >= 13 and len(waypoints["ACME_R2"]) >= 1
+    completions = accepted_completions(mission)
+    assert len(completions) == len(set(completions))  # no step done twice
+    # The first drone was told to land and did.
+    assert wait_for(lambda: not Drone.objects.get(drone_id="ACME_R1").airborne, 20)
+    decision = mission.events.get(data__decision="replacement")
+    assert decision.data["since_alarm_ms"] < 5000
+
+
+def test_collaborative_sensing_extends_the_area_to_56_waypoints_flown_by_three(world_tx, sky):
+    sky.add_drone("ACME_C1", north=-10)
+    sky.add_drone("ACME_C2", north=-30, east=20)
+    sky.add_drone("ACME_C3", north=-30, east=45)
+    sky.wait_online()
+    hold = {"command": "sleep", "params": {"value": 2}}
+    steps, extensibility = _survey_with_alarm("OUT_MEASURE", 35, 28, 7, after=15, action=hold)
+    assert sum(s["command"] == "navigate" for s in steps) == 30
+    client = api(world_tx.operator)
+    created = client.post(
+        "/api/v1/missions/",
+        {"name": "co2", "steps": steps, "extensibility": extensibility},
+        format="json",
+    )
+    assert created.status_code == 201, created.json()
+    mission_id = created.json()["id"]
+    client.post(f"/api/v1/missions/{mission_id}/start/", {"drone": "ACME_C1"}, format="json")
+
+    mission = wait_status(mission_id, {"completed", "failed", "stopped"}, 120)
+    assert mission.status == MissionStatus.COMPLETED
+    decision = mission.events.get(data__decision="collaboration")
+    assert decision.data["waypoints"] == 56
+    assert decision.data["area_m2"] == pytest.approx(2058, abs=1)
+    parts = mission.assignments.filter(reason=Assignment.Reason.COLLABORATION)
+    assert sorted(a.drone.drone_id for a in parts) == ["ACME_C1", "ACME_C2", "ACME_C3"]
+    new_navigates = mission.steps.filter(
+        index__in=[i for a in parts for i in a.step_indexes], command="navigate"
+    )
+    assert new_navigates.count() == 56
+    assert new_navigates.filter(status=StepStatus.COMPLETED).count() == 56
+    flown_by = {s.drone.drone_id for s in new_navigates}
+    assert flown_by == {"ACME_C1", "ACME_C2", "ACME_C3"}
+    alarming = parts.get(drone__drone_id="ACME_C1")
+    assert alarming.preparation == []
+    original = mission.steps.filter(command="navigate").exclude(pk__in=new_navigates)
+    assert original.filter(status=StepStatus.COMPLETED).count() >= 15
+    assert not original.exclude(status__in=[StepStatus.COMPLETED, StepStatus.SUPERSEDED]).exists()
+
+
+def test_replacement_with_no_drone_available_pauses_then_resumes_when_one_comes_online(
+    world_tx, sky
+):
+    sky.add_drone("ACME_S1")
+    sky.wait_online()
+    steps, _ = _survey_with_alarm("CRITICAL", 20, 10, 10, after=2)
+    client = api(world_tx.operator)
+    mission_id = client.post(
+        "/api/v1/missions/", {"name": "pause", "steps": steps}, format="json"
+    ).json()["id"]
+    client.post(f"/api/v1/missions/{mission_id}/start/", format="json")
+    mission = wait_status(mission_id, {"paused", "completed", "failed"}, 60)
+    assert mission.status == MissionStatus.PAUSED
+    assert mission.events.filter(data__decision="paused", data__operator_notice=True).exists()
+
+    sky.add_drone("ACME_S2", north=30)
+    mission = wait_status(mission_id, {"completed", "failed", "stopped"}, 90)
+    assert mission.status == MissionStatus.COMPLETED
+    assert mission.assignments.get(reason="replacement").drone.drone_id == "ACME_S2"
+    waits = mission.steps.filter(command="wait_for_flight")
+    assert not waits.exclude(status=StepStatus.COMPLETED).exists()
+
+
+def test_a_gateway_restart_mid_mission_loses_no_progress(world_tx, sky):
+    sky.add_drone("ACME_G1")
+    sky.wait_online()
+    hold = {"command": "sleep", "params": {"value": 3}}
+    steps, _ = _survey_with_alarm("OUT_MEASURE", 30, 10, 10, after=99, action=hold)
+    steps = [s for s in steps if s["command"] != "virtualalarm"]
+    client = api(world_tx.operator)
+    mission_id = client.post(
+        "/api/v1/missions/", {"name": "restart", "steps": steps}, format="json"
+    ).json()["id"]
+    client.post(f"/api/v1/missions/{mission_id}/start/", format="json")
+    assert wait_for(
+        lambda: (
+            Mission.objects.get(pk=mission_id)
+            .steps.filter(command="sleep", status=StepStatus.COMPLETED)
+            .count()
+            >= 2
+        ),
+        60,
+    )
+    sky.stop_gateway()
+    time.sleep(1.0)  # 20 simulated seconds of flight with nobody listening
+    sky.start_gateway()
+    mission = wait_status(mission_id, {"completed", "failed", "stopped"}, 60)
+    assert mission.status == MissionStatus.COMPLETED
+    assert set(mission.steps.values_list("status", flat=True)) == {StepStatus.COMPLETED}
+    assert set(mission.steps.values_list("drone__drone_id", flat=True)) == {"ACME_G1"}
