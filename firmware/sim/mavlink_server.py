@@ -1,0 +1,900 @@
+"""The simulator's MAVLink personality: an ArduCopter-like autopilot, sans-I/O.
+
+`MavlinkSession` has BoardSession's shape (`receive(data, now)`, `tick(now)`,
+`take_output()`, `on_reboot`), so `firmware.sim.server.serve` runs it over TCP (like
+ArduPilot SITL on 5760) or a pty. Same `Vehicle` kinematics, battery and time scale as the
+UAVTalk personality; only the language differs:
+
+- HEARTBEAT at 1 Hz (wall clock: the link is real even when physics run faster), and
+  again at once when arming or mode changes;
+- streams on request: SET_MESSAGE_INTERVAL (per message) or REQUEST_DATA_STREAM (groups),
+  scheduled in simulated time and capped at MAX_WALL_HZ on the wall clock;
+- COMMAND_LONG / COMMAND_INT with a COMMAND_ACK each: ARM_DISARM (denied when the battery
+  is critical, disarm denied in the air unless forced with 21196), DO_SET_MODE, NAV_TAKEOFF
+  (GUIDED, armed), NAV_LAND, NAV_RETURN_TO_LAUNCH, MISSION_START, DO_REPOSITION,
+  SET_MESSAGE_INTERVAL, REQUEST_MESSAGE, PREFLIGHT_REBOOT_SHUTDOWN; others UNSUPPORTED;
+- SET_POSITION_TARGET_GLOBAL_INT / LOCAL_NED in GUIDED;
+- the mission protocol (upload and download, MISSION_ITEM_INT and legacy MISSION_ITEM),
+  AUTO mode flying the items, MISSION_CURRENT and MISSION_ITEM_REACHED;
+- parameters (PARAM_SET/READ/LIST), including fault knobs in the style of SITL's SIM_*:
+  SIM_CMD_MUTE (a command id never answered), SIM_JUNK_RATE (bad-CRC and unknown-id
+  frames per second sent to the ground), BATT_CRT_PCT (critical battery, % left).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from firmware.sim.receiver import ARMED, DISARMED
+from firmware.sim.vehicle import PathTarget, Vehicle, lla_to_ned
+from onboard.fc.mavlink import COPTER_MODES, FORCE_MAGIC, MavlinkCodec
+
+log = logging.getLogger(__name__)
+
+SYSTEM_ID = 1
+COMPONENT_ID = mavlink.MAV_COMP_ID_AUTOPILOT1
+HEARTBEAT_S = 1.0
+MAX_WALL_HZ = 50.0
+GCS_TIMEOUT_S = 5.0
+UPLOAD_RETRY_S = 0.5  # wall seconds before re-requesting a mission item
+UPLOAD_RETRIES = 6
+ACCEPTANCE_RADIUS_M = 1.0
+BOOT_TIME_S = 2.0
+MODE_NAMES = {number: name for name, number in COPTER_MODES.items()}
+FLYING_MODES = ("GUIDED", "AUTO", "LOITER", "RTL", "LAND", "BRAKE", "POSHOLD")
+NOT_ARMABLE = ("AUTO", "RTL", "LAND")
+STREAM_GROUPS = {
+    mavlink.MAV_DATA_STREAM_RAW_SENSORS: ("HIGHRES_IMU", "GPS_RAW_INT"),
+    mavlink.MAV_DATA_STREAM_EXTENDED_STATUS: ("SYS_STATUS", "BATTERY_STATUS", "MISSION_CURRENT"),
+    mavlink.MAV_DATA_STREAM_POSITION: ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"),
+    mavlink.MAV_DATA_STREAM_EXTRA1: ("ATTITUDE",),
+}
+STREAMABLE = (
+    "SYS_STATUS",
+    "BATTERY_STATUS",
+    "GLOBAL_POSITION_INT",
+    "LOCAL_POSITION_NED",
+    "ATTITUDE",
+    "HIGHRES_IMU",
+    "GPS_RAW_INT",
+    "HOME_POSITION",
+    "MISSION_CURRENT",
+)
+STREAM_IDS = {getattr(mavlink, f"MAVLINK_MSG_ID_{name}"): name for name in STREAMABLE}
+DEFAULT_PARAMS = {
+    "BATT_CRT_PCT": 15.0,
+    "DISARM_DELAY": 2.0,
+    "SIM_CMD_MUTE": 0.0,
+    "SIM_JUNK_RATE": 0.0,
+    "WPNAV_SPEED": 1000.0,
+}
+NAV_POSITION_ITEMS = (
+    mavlink.MAV_CMD_NAV_WAYPOINT,
+    mavlink.MAV_CMD_NAV_LOITER_TIME,
+    mavlink.MAV_CMD_NAV_LOITER_UNLIM,
+    mavlink.MAV_CMD_NAV_TAKEOFF,
+    mavlink.MAV_CMD_NAV_LAND,
+    mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+)
+
+
+@dataclass
+class MissionItem:
+    """One stored item; lat/lon in degrees (None for local frames), alt above home."""
+
+    seq: int
+    frame: int
+    command: int
+    params: tuple[float, float, float, float]
+    x: float
+    y: float
+    z: float
+    autocontinue: int = 1
+
+    def wire(self) -> dict:
+        """The MISSION_ITEM_INT fields, as a ground station uploaded them."""
+        if self.frame in (mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_ENU):
+            x, y = round(self.x * 1e4), round(self.y * 1e4)
+        else:
+            x, y = round(self.x * 1e7), round(self.y * 1e7)
+        return {"frame": self.frame, "command": self.command, "x": x, "y": y, "z": self.z}
+
+
+@dataclass
+class SimStats:
+    messages_in: int = 0
+    commands: int = 0
+    acks: int = 0
+    muted: int = 0
+    junk_sent: int = 0
+    setpoints: int = 0
+    setpoints_ignored: int = 0
+    mission_uploads: int = 0
+    reboots: int = 0
+
+
+@dataclass
+class _Upload:
+    count: int
+    items: list[MissionItem] = field(default_factory=list)
+    asked_at: float = 0.0
+    tries: int = 0
+    legacy: bool = False
+
+
+@dataclass
+class MavlinkSession:
+    vehicle: Vehicle
+    time_scale: float = 1.0
+    link_timeout_s: float = GCS_TIMEOUT_S
+    on_reboot: Callable[[], None] | None = None
+    stats: SimStats = field(default_factory=SimStats)
+
+    def __post_init__(self) -> None:
+        self.codec = MavlinkCodec(SYSTEM_ID, COMPONENT_ID)
+        self.decoder = self.codec  # the name serve()/__main__ log stats from
+        self.params = dict(DEFAULT_PARAMS)
+        self.mode = "STABILIZE"
+        self.intervals: dict[str, float] = {}  # message → simulated seconds between sends
+        self.next_due: dict[str, float] = {}
+        self.last_sent_wall: dict[str, float] = {}
+        self.mission: list[MissionItem] = []
+        self.current = 0
+        self.item_started = False
+        self.hold_until: float | None = None
+        self.mission_done = False
+        self.upload: _Upload | None = None
+        self.gcs_heard = -math.inf
+        self.gcs: tuple[int, int] = (255, 0)
+        self._out = bytearray()
+        self._last_real: float | None = None
+        self._last_heartbeat = -math.inf
+        self._landed_at: float | None = None
+        self._booting_until = 0.0
+        self._junk_due = 0.0
+        self._was_critical = False
+        self._send_heartbeat_now = False
+
+    # --- helpers ------------------------------------------------------------------------
+    @property
+    def armed(self) -> bool:
+        return self.vehicle.receiver.state == ARMED
+
+    @property
+    def booting(self) -> bool:
+        return self.vehicle.time < self._booting_until
+
+    def _send(self, name: str, *args: Any, **kwargs: Any) -> None:
+        self._out += self.codec.encode(name, *args, **kwargs)
+
+    def take_output(self) -> bytes:
+        out = bytes(self._out)
+        self._out.clear()
+        return out
+
+    def statustext(self, severity: int, text: str) -> None:
+        log.info("STATUSTEXT %s", text)
+        self._send("statustext", severity, text.encode()[:50])
+
+    def _ack(self, command: int, result: int) -> None:
+        self.stats.acks += 1
+        self._send("command_ack", command, result, 0, 0, self.gcs[0], self.gcs[1])
+
+    def _set_armed(self, armed: bool) -> None:
+        self.vehicle.receiver.state = ARMED if armed else DISARMED
+        if armed:
+            v = self.vehicle
+            v.target = PathTarget("HoldPosition", (v.ned[0], v.ned[1], v.ned[2]))
+        self._landed_at = None
+        self._sync_vehicle_mode()
+        self._send_heartbeat_now = True
+
+    def set_mode(self, mode: str) -> None:
+        before = self.mode
+        self.mode = mode
+        v = self.vehicle
+        if mode in ("GUIDED", "LOITER", "BRAKE", "POSHOLD") and before != mode:
+            v.target = PathTarget("HoldPosition", (v.ned[0], v.ned[1], v.ned[2]))
+        elif mode == "LAND":
+            v.target = PathTarget("Land", (v.ned[0], v.ned[1], 0.0))
+        elif mode == "RTL":
+            v.target = PathTarget("Endpoint", (0.0, 0.0, min(v.ned[2], -10.0)))
+        elif mode == "AUTO" and before != "AUTO":
+            self.item_started = False
+            self.mission_done = False
+        self._sync_vehicle_mode()
+        self._send_heartbeat_now = True
+
+    def _sync_vehicle_mode(self) -> None:
+        # The kinematic model flies its target in any of its autonomous modes.
+        flying = self.armed and self.mode in FLYING_MODES
+        self.vehicle.flight_mode = "PositionHold" if flying else "Manual"
+
+    def _ned_of(self, frame: int, x: float, y: float, z: float) -> tuple[float, float, float]:
+        """A position in a MAVLink frame → the vehicle's NED (alt above home)."""
+        v = self.vehicle
+        if frame in (mavlink.MAV_FRAME_LOCAL_NED,):
+            return x, y, z
+        if frame in (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT):
+            z = z - v.home[2]
+        if x == 0 and y == 0:
+            north, east = v.ned[0], v.ned[1]
+        else:
+            north, east, _ = lla_to_ned(x, y, v.home[2], v.home)
+        return north, east, -z
+
+    # --- input ------------------------------------------------------------------------
+    def receive(self, data: bytes, now: float) -> None:
+        if self.booting:
+            return
+        for msg in self.codec.feed(data):
+            self.stats.messages_in += 1
+            if msg.get_type() == "HEARTBEAT":
+                self.gcs_heard = now
+                self.gcs = (msg.get_srcSystem(), msg.get_srcComponent())
+            try:
+                self._handle(msg, now)
+            except Exception:  # a message the model cannot apply must not stop the board
+                log.exception("could not apply %s", msg.get_type())
+
+    def _for_me(self, msg: Any) -> bool:
+        target = getattr(msg, "target_system", 0)
+        return target in (0, SYSTEM_ID)
+
+    def _handle(self, msg: Any, now: float) -> None:
+        kind = msg.get_type()
+        if not self._for_me(msg):
+            return
+        if kind == "COMMAND_LONG":
+            self._command(
+                msg.command,
+                [
+                    msg.param1,
+                    msg.param2,
+                    msg.param3,
+                    msg.param4,
+                    msg.param5,
+                    msg.param6,
+                    msg.param7,
+                ],
+                None,
+            )
+        elif kind == "COMMAND_INT":
+            params = [msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z]
+            self._command(msg.command, params, msg.frame)
+        elif kind == "SET_MODE":
+            name = MODE_NAMES.get(msg.custom_mode)
+            if name is not None:
+                self.set_mode(name)
+        elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
+            self._setpoint(
+                msg.coordinate_frame, msg.type_mask, msg.lat_int / 1e7, msg.lon_int / 1e7, msg.alt
+            )
+        elif kind == "SET_POSITION_TARGET_LOCAL_NED":
+            self._setpoint(msg.coordinate_frame, msg.type_mask, msg.x, msg.y, msg.z)
+        elif kind == "REQUEST_DATA_STREAM":
+            self._data_stream(msg.req_stream_id, msg.req_message_rate, msg.start_stop)
+        elif kind.startswith("MISSION_") or kind == "MISSION_ITEM":
+            self._mission_message(kind, msg, now)
+        elif kind.startswith("PARAM_"):
+            self._param_message(kind, msg)
+
+    # --- commands ---------------------------------------------------------------------
+    def _command(self, command: int, p: list[float], frame: int | None) -> None:
+        self.stats.commands += 1
+        if command == int(self.params["SIM_CMD_MUTE"]) and command != 0:
+            self.stats.muted += 1
+            return  # the fault knob: this vehicle never answers that command
+        handler = {
+            mavlink.MAV_CMD_COMPONENT_ARM_DISARM: self._cmd_arm,
+            mavlink.MAV_CMD_DO_SET_MODE: self._cmd_set_mode,
+            mavlink.MAV_CMD_NAV_TAKEOFF: self._cmd_takeoff,
+            mavlink.MAV_CMD_NAV_LAND: self._cmd_land,
+            mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: lambda p, f: self._mode_result("RTL"),
+            mavlink.MAV_CMD_MISSION_START: self._cmd_mission_start,
+            mavlink.MAV_CMD_DO_REPOSITION: self._cmd_reposition,
+            mavlink.MAV_CMD_SET_MESSAGE_INTERVAL: self._cmd_interval,
+            mavlink.MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
+            mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN: self._cmd_reboot,
+        }.get(command)
+        if handler is None:
+            self._ack(command, mavlink.MAV_RESULT_UNSUPPORTED)
+            return
+        result = handler(p, frame)
+        if result is not None:
+            self._ack(command, result)
+
+    def _cmd_arm(self, p: list[float], frame: int | None) -> int:
+        force = abs(p[1] - FORCE_MAGIC) < 0.5
+        if p[0] >= 0.5:
+            if self.armed:
+                return mavlink.MAV_RESULT_ACCEPTED
+            percent = self.vehicle.remaining * 100
+            if not force and percent < self.params["BATT_CRT_PCT"]:
+                self.statustext(
+                    mavlink.MAV_SEVERITY_CRITICAL,
+                    f"PreArm: Battery critical {percent:.0f}% < {self.params['BATT_CRT_PCT']:g}%",
+                )
+                return mavlink.MAV_RESULT_DENIED
+            if not force and self.mode in NOT_ARMABLE:
+                self.statustext(mavlink.MAV_SEVERITY_CRITICAL, f"Arm: Mode {self.mode} not armable")
+                return mavlink.MAV_RESULT_DENIED
+            self._set_armed(True)
+            self.statustext(mavlink.MAV_SEVERITY_INFO, "Arming motors")
+            return mavlink.MAV_RESULT_ACCEPTED
+        if not self.armed:
+            return mavlink.MAV_RESULT_ACCEPTED
+        if self.vehicle.airborne and not force:
+            self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Disarm: vehicle is flying")
+            return mavlink.MAV_RESULT_DENIED
+        self._set_armed(False)
+        self.statustext(mavlink.MAV_SEVERITY_INFO, "Disarming motors")
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _cmd_set_mode(self, p: list[float], frame: int | None) -> int:
+        name = MODE_NAMES.get(int(p[1]))
+        if not int(p[0]) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED or name is None:
+            return mavlink.MAV_RESULT_DENIED
+        return self._mode_result(name)
+
+    def _mode_result(self, name: str) -> int:
+        # ArduCopter accepts AUTO on the ground too: the mission starts once armed.
+        self.set_mode(name)
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _cmd_takeoff(self, p: list[float], frame: int | None) -> int:
+        if self.mode != "GUIDED" or not self.armed:
+            self.statustext(mavlink.MAV_SEVERITY_WARNING, "Takeoff: arm in GUIDED first")
+            return mavlink.MAV_RESULT_FAILED
+        if self.vehicle.airborne:
+            return mavlink.MAV_RESULT_FAILED
+        altitude = p[6]
+        if not altitude > 0:
+            return mavlink.MAV_RESULT_DENIED
+        v = self.vehicle
+        v.target = PathTarget("Endpoint", (v.ned[0], v.ned[1], -altitude))
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _cmd_land(self, p: list[float], frame: int | None) -> int:
+        lat, lon = p[4], p[5]
+        if frame is not None:
+            lat, lon = lat / 1e7, lon / 1e7
+        self.set_mode("LAND")
+        if lat and lon and math.isfinite(lat) and math.isfinite(lon):
+            north, east, _ = lla_to_ned(lat, lon, self.vehicle.home[2], self.vehicle.home)
+            self.vehicle.target = PathTarget("Land", (north, east, 0.0))
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _cmd_mission_start(self, p: list[float], frame: int | None) -> int:
+        if not self.mission:
+            self.statustext(mavlink.MAV_SEVERITY_WARNING, "Mission: no items")
+            return mavlink.MAV_RESULT_FAILED
+        self.current = min(int(p[0]), len(self.mission) - 1)
+        self.set_mode("AUTO")
+        self.item_started = False
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _cmd_reposition(self, p: list[float], frame: int | None) -> int:
+        if not self.armed or self.mode != "GUIDED":
+            return mavlink.MAV_RESULT_FAILED
+        lat, lon = (p[4] / 1e7, p[5] / 1e7) if frame is not None else (p[4], p[5])
+        north, east, down = self._ned_of(
+            frame if frame is not None else mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT, lat, lon, p[6]
+        )
+        self.vehicle.set_path_desired("Endpoint", (north, east, down))
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _cmd_interval(self, p: list[float], frame: int | None) -> int:
+        name = STREAM_IDS.get(int(p[0]))
+        if name is None:
+            return mavlink.MAV_RESULT_UNSUPPORTED if int(p[0]) else mavlink.MAV_RESULT_DENIED
+        interval_us = p[1]
+        if interval_us < 0:
+            self.intervals.pop(name, None)
+        elif interval_us > 0:
+            self.intervals[name] = interval_us / 1e6
+        self.next_due.pop(name, None)
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _cmd_request_message(self, p: list[float], frame: int | None) -> int | None:
+        name = STREAM_IDS.get(int(p[0]))
+        if name is None:
+            return mavlink.MAV_RESULT_UNSUPPORTED
+        self._ack(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAV_RESULT_ACCEPTED)
+        self._emit(name)
+        return None
+
+    def _cmd_reboot(self, p: list[float], frame: int | None) -> int | None:
+        if int(p[0]) != 1:
+            return mavlink.MAV_RESULT_UNSUPPORTED
+        if self.vehicle.airborne:
+            return mavlink.MAV_RESULT_DENIED
+        self._ack(mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, mavlink.MAV_RESULT_ACCEPTED)
+        self.reboot()
+        return None
+
+    def reboot(self) -> None:
+        self.stats.reboots += 1
+        self.vehicle.reboot()
+        self._booting_until = self.vehicle.time + BOOT_TIME_S
+        self.mode = "STABILIZE"
+        self.intervals.clear()
+        self.next_due.clear()
+        self.upload = None
+        self.codec = MavlinkCodec(SYSTEM_ID, COMPONENT_ID)
+        self.decoder = self.codec
+        if self.on_reboot is not None:
+            self.on_reboot()
+        # The ACK already queued still reaches a TCP peer only if the link survives.
+        self._out.clear()
+
+    def _setpoint(self, frame: int, mask: int, x: float, y: float, z: float) -> None:
+        if not self.armed or self.mode != "GUIDED" or mask & 0b111:
+            self.stats.setpoints_ignored += 1
+            return
+        self.stats.setpoints += 1
+        north, east, down = self._ned_of(frame, x, y, z)
+        self.vehicle.set_path_desired("Endpoint", (north, east, down))
+
+    def _data_stream(self, stream: int, rate: int, start: int) -> None:
+        if stream == mavlink.MAV_DATA_STREAM_ALL:
+            names = [n for group in STREAM_GROUPS.values() for n in group]
+        else:
+            names = list(STREAM_GROUPS.get(stream, ()))
+        for name in names:
+            if start and rate > 0:
+                self.intervals[name] = 1.0 / rate
+            else:
+                self.intervals.pop(name, None)
+            self.next_due.pop(name, None)
+
+    # --- parameters -------------------------------------------------------------------
+    def _param_message(self, kind: str, msg: Any) -> None:
+        names = list(self.params)
+        if kind == "PARAM_SET":
+            name = _text(msg.param_id)
+            if name not in self.params:
+                self.statustext(mavlink.MAV_SEVERITY_WARNING, f"Unknown parameter {name}")
+                return
+            self.params[name] = float(msg.param_value)
+            self._param_value(name)
+        elif kind == "PARAM_REQUEST_READ":
+            name = _text(msg.param_id)
+            if msg.param_index >= 0 and msg.param_index < len(names):
+                name = names[msg.param_index]
+            if name in self.params:
+                self._param_value(name)
+        elif kind == "PARAM_REQUEST_LIST":
+            for name in names:
+                self._param_value(name)
+
+    def _param_value(self, name: str) -> None:
+        names = list(self.params)
+        self._send(
+            "param_value",
+            name.encode(),
+            self.params[name],
+            mavlink.MAV_PARAM_TYPE_REAL32,
+            len(names),
+            names.index(name),
+        )
+
+    # --- mission protocol -------------------------------------------------------------
+    def _mission_message(self, kind: str, msg: Any, now: float) -> None:
+        if getattr(msg, "mission_type", 0) != mavlink.MAV_MISSION_TYPE_MISSION:
+            if kind in ("MISSION_COUNT", "MISSION_REQUEST_LIST", "MISSION_CLEAR_ALL"):
+                # Fence and rally lists are not kept: say so, as a vehicle without them does.
+                if kind == "MISSION_REQUEST_LIST":
+                    self._send("mission_count", *self.gcs, 0, msg.mission_type)
+                else:
+                    self._mission_ack(mavlink.MAV_MISSION_UNSUPPORTED, msg.mission_type)
+            return
+        if kind == "MISSION_COUNT":
+            if self.mode == "AUTO" and self.armed:
+                self._mission_ack(mavlink.MAV_MISSION_DENIED)
+                return
+            self.upload = _Upload(msg.count)
+            if msg.count == 0:
+                self._finish_upload()
+            else:
+                self._request_item(now)
+        elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
+            self._receive_item(kind, msg, now)
+        elif kind == "MISSION_REQUEST_LIST":
+            self._send("mission_count", *self.gcs, len(self.mission), 0)
+        elif kind in ("MISSION_REQUEST_INT", "MISSION_REQUEST"):
+            self._send_item(msg.seq, legacy=kind == "MISSION_REQUEST")
+        elif kind == "MISSION_CLEAR_ALL":
+            self.mission = []
+            self.current = 0
+            self._mission_ack(mavlink.MAV_MISSION_ACCEPTED)
+        elif kind == "MISSION_SET_CURRENT":
+            if 0 <= msg.seq < len(self.mission):
+                self.current = msg.seq
+                self.item_started = False
+                self._emit("MISSION_CURRENT")
+
+    def _mission_ack(self, result: int, mission_type: int = 0) -> None:
+        self._send("mission_ack", *self.gcs, result, mission_type)
+
+    def _request_item(self, now: float) -> None:
+        upload = self.upload
+        assert upload is not None
+        upload.asked_at = now
+        seq = len(upload.items)
+        if upload.legacy:
+            self._send("mission_request", *self.gcs, seq, 0)
+        else:
+            self._send("mission_request_int", *self.gcs, seq, 0)
+
+    def _receive_item(self, kind: str, msg: Any, now: float) -> None:
+        upload = self.upload
+        if upload is None:
+            return
+        if msg.seq != len(upload.items):
+            if msg.seq < len(upload.items):
+                return  # a resend of one we have
+            self._mission_ack(mavlink.MAV_MISSION_INVALID_SEQUENCE)
+            return
+        x, y = float(msg.x), float(msg.y)
+        if kind == "MISSION_ITEM_INT":
+            scale = 1e4 if msg.frame == mavlink.MAV_FRAME_LOCAL_NED else 1e7
+            x, y = x / scale, y / scale
+        else:
+            upload.legacy = True
+        if msg.frame not in (
+            mavlink.MAV_FRAME_GLOBAL,
+            mavlink.MAV_FRAME_GLOBAL_INT,
+            mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+            mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+            mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,
+            mavlink.MAV_FRAME_LOCAL_NED,
+            mavlink.MAV_FRAME_MISSION,
+        ):
+            self.upload = None
+            self._mission_ack(mavlink.MAV_MISSION_UNSUPPORTED_FRAME)
+            return
+        upload.items.append(
+            MissionItem(
+                msg.seq,
+                msg.frame,
+                msg.command,
+                (msg.param1, msg.param2, msg.param3, msg.param4),
+                x,
+                y,
+                float(msg.z),
+                msg.autocontinue,
+            )
+        )
+        upload.tries = 0
+        if len(upload.items) == upload.count:
+            self._finish_upload()
+        else:
+            self._request_item(now)
+
+    def _finish_upload(self) -> None:
+        upload = self.upload
+        assert upload is not None
+        self.mission = upload.items
+        self.upload = None
+        self.current = 0
+        self.item_started = False
+        self.mission_done = False
+        self.stats.mission_uploads += 1
+        self._mission_ack(mavlink.MAV_MISSION_ACCEPTED)
+        log.info("mission of %d items accepted", len(self.mission))
+
+    def _send_item(self, seq: int, *, legacy: bool) -> None:
+        if not 0 <= seq < len(self.mission):
+            self._mission_ack(mavlink.MAV_MISSION_INVALID_SEQUENCE)
+            return
+        item = self.mission[seq]
+        wire = item.wire()
+        common = (
+            wire["frame"],
+            item.command,
+            int(seq == self.current),
+            item.autocontinue,
+            *item.params,
+        )
+        if legacy:
+            self._send("mission_item", *self.gcs, seq, *common, item.x, item.y, item.z, 0)
+        else:
+            self._send("mission_item_int", *self.gcs, seq, *common, wire["x"], wire["y"], item.z, 0)
+
+    def _upload_watchdog(self, now: float) -> None:
+        upload = self.upload
+        if upload is None or now - upload.asked_at < UPLOAD_RETRY_S:
+            return
+        upload.tries += 1
+        if upload.tries > UPLOAD_RETRIES:
+            self.upload = None
+            self._mission_ack(mavlink.MAV_MISSION_OPERATION_CANCELLED)
+            self.statustext(mavlink.MAV_SEVERITY_WARNING, "Mission upload timed out")
+            return
+        self._request_item(now)
+
+    # --- AUTO mode --------------------------------------------------------------------
+    def _run_mission(self) -> None:
+        if self.mode != "AUTO" or not self.armed or self.mission_done or not self.mission:
+            return
+        v = self.vehicle
+        item = self.mission[self.current]
+        if not self.item_started:
+            self.item_started = True
+            self.hold_until = None
+            self._start_item(item)
+            self._emit("MISSION_CURRENT")
+        if not self._item_reached(item):
+            return
+        hold = (
+            item.params[0]
+            if item.command in (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME)
+            else 0.0
+        )
+        if self.hold_until is None:
+            self.hold_until = v.time + max(hold, 0.0)
+        if v.time < self.hold_until:
+            return
+        self._send("mission_item_reached", item.seq)
+        if self.current + 1 >= len(self.mission):
+            self.mission_done = True
+            self.statustext(mavlink.MAV_SEVERITY_INFO, "Mission complete")
+            if item.command not in (mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH):
+                v.target = PathTarget("HoldPosition", (v.ned[0], v.ned[1], v.ned[2]))
+            return
+        self.current += 1
+        self.item_started = False
+
+    def _start_item(self, item: MissionItem) -> None:
+        v = self.vehicle
+        command = item.command
+        if command == mavlink.MAV_CMD_NAV_TAKEOFF:
+            v.target = PathTarget("Endpoint", (v.ned[0], v.ned[1], -abs(item.z)))
+        elif command in (
+            mavlink.MAV_CMD_NAV_WAYPOINT,
+            mavlink.MAV_CMD_NAV_LOITER_TIME,
+            mavlink.MAV_CMD_NAV_LOITER_UNLIM,
+        ):
+            v.target = PathTarget("Endpoint", self._ned_of(item.frame, item.x, item.y, item.z))
+        elif command == mavlink.MAV_CMD_NAV_LAND:
+            north, east, _ = self._ned_of(item.frame, item.x, item.y, 0.0)
+            v.target = PathTarget("Land", (north, east, 0.0))
+        elif command == mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+            v.target = PathTarget("Land", (0.0, 0.0, 0.0))
+        # DO_* and CONDITION_* items take effect at once (camera triggers, speed, ...).
+
+    def _item_reached(self, item: MissionItem) -> bool:
+        v = self.vehicle
+        if item.command == mavlink.MAV_CMD_NAV_LOITER_UNLIM:
+            return False
+        if item.command in (mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH):
+            return not v.airborne and abs(v.velocity[2]) < 0.05
+        if item.command in NAV_POSITION_ITEMS:
+            return math.dist(v.ned, v.target.end) < ACCEPTANCE_RADIUS_M
+        return True
+
+    # --- time -------------------------------------------------------------------------
+    def tick(self, now: float) -> None:
+        if self._last_real is None:
+            self._last_real = now
+        real_dt = max(0.0, now - self._last_real)
+        self._last_real = now
+        sim_dt = min(real_dt * self.time_scale, 1.0)
+        while sim_dt > 1e-9:
+            dt = min(sim_dt, 0.05)
+            self._run_mission()
+            self.vehicle.step(dt)
+            self._auto_disarm()
+            sim_dt -= dt
+        if self.booting:
+            return
+        self._upload_watchdog(now)
+        self._battery_watch()
+        if self._send_heartbeat_now or now - self._last_heartbeat >= HEARTBEAT_S:
+            self._send_heartbeat_now = False
+            self._last_heartbeat = now
+            self._heartbeat()
+        if now - self.gcs_heard > self.link_timeout_s:
+            return  # nobody there: only heartbeats, as ArduPilot on a quiet port
+        self._stream(now)
+        self._junk(now)
+
+    def _auto_disarm(self) -> None:
+        v = self.vehicle
+        landing = self.mode == "LAND" or (
+            self.mode == "AUTO"
+            and self.mission
+            and self.mission[self.current].command
+            in (mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+        )
+        if not self.armed or not landing or v.airborne:
+            self._landed_at = None
+            return
+        if self._landed_at is None:
+            self._landed_at = v.time
+        elif v.time - self._landed_at >= self.params["DISARM_DELAY"]:
+            self._set_armed(False)
+            self.statustext(mavlink.MAV_SEVERITY_INFO, "Disarming motors (landed)")
+
+    def _battery_watch(self) -> None:
+        critical = self.vehicle.remaining * 100 < self.params["BATT_CRT_PCT"]
+        if critical and not self._was_critical:
+            self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Battery critical")
+        self._was_critical = critical
+
+    def _heartbeat(self) -> None:
+        base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
+        if self.mode in ("GUIDED", "AUTO", "RTL", "LAND"):
+            base |= mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
+        if self.mode == "AUTO":
+            base |= mavlink.MAV_MODE_FLAG_AUTO_ENABLED
+        if self.armed:
+            base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+        status = mavlink.MAV_STATE_ACTIVE if self.armed else mavlink.MAV_STATE_STANDBY
+        if self._was_critical:
+            status = mavlink.MAV_STATE_CRITICAL
+        self._send(
+            "heartbeat",
+            mavlink.MAV_TYPE_QUADROTOR,
+            mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            base,
+            COPTER_MODES[self.mode],
+            status,
+        )
+
+    def _stream(self, now: float) -> None:
+        board = self.vehicle.time
+        for name, interval in self.intervals.items():
+            due = self.next_due.get(name)
+            if due is not None and board < due:
+                continue
+            if now - self.last_sent_wall.get(name, -math.inf) < 1.0 / MAX_WALL_HZ:
+                continue
+            self._emit(name)
+            self.last_sent_wall[name] = now
+            nxt = (due if due is not None else board) + interval
+            self.next_due[name] = nxt if nxt > board else board + interval
+
+    def _junk(self, now: float) -> None:
+        rate = self.params["SIM_JUNK_RATE"]
+        if rate <= 0 or now < self._junk_due:
+            return
+        self._junk_due = now + 1.0 / rate
+        good = self.codec.encode("heartbeat", 2, 3, 0, 0, 0)
+        bad_crc = bytearray(good)
+        bad_crc[-1] ^= 0xFF
+        unknown = bytearray(good)
+        unknown[7:10] = b"\x77\x77\x00"  # message id 30583: in no dialect
+        self._out += bytes(bad_crc) + bytes(unknown)
+        self.stats.junk_sent += 2
+
+    def _emit(self, name: str) -> None:
+        v = self.vehicle
+        boot_ms = int(v.time * 1000) & 0xFFFFFFFF
+        lat, lon, alt_msl = v.lla()
+        roll, pitch, yaw = v.attitude()
+        if name == "SYS_STATUS":
+            sensors = 0x0020_FC2F
+            self._send(
+                "sys_status",
+                sensors,
+                sensors,
+                sensors,
+                200,
+                round(v.voltage * 1000),
+                round(v.current_a * 100),
+                round(v.remaining * 100),
+                0,
+                self.codec.stats.bad_crc + self.codec.stats.bad_data,
+                0,
+                0,
+                0,
+                0,
+            )
+        elif name == "BATTERY_STATUS":
+            cell_mv = round(v.voltage / v.config.cells * 1000)
+            cells = [cell_mv] * v.config.cells + [0xFFFF] * (10 - v.config.cells)
+            self._send(
+                "battery_status",
+                0,
+                mavlink.MAV_BATTERY_FUNCTION_ALL,
+                mavlink.MAV_BATTERY_TYPE_LIPO,
+                0x7FFF,
+                cells,
+                round(v.current_a * 100),
+                round(v.consumed_mah),
+                -1,
+                round(v.remaining * 100),
+                round(v.estimated_flight_time()),
+            )
+        elif name == "GLOBAL_POSITION_INT":
+            self._send(
+                "global_position_int",
+                boot_ms,
+                round(lat * 1e7),
+                round(lon * 1e7),
+                round(alt_msl * 1000),
+                round(-v.ned[2] * 1000),
+                round(v.velocity[0] * 100),
+                round(v.velocity[1] * 100),
+                round(v.velocity[2] * 100),
+                round(v.yaw * 100) % 36000,
+            )
+        elif name == "LOCAL_POSITION_NED":
+            self._send("local_position_ned", boot_ms, *v.ned, *v.velocity)
+        elif name == "ATTITUDE":
+            self._send(
+                "attitude",
+                boot_ms,
+                math.radians(roll),
+                math.radians(pitch),
+                math.radians(((yaw + 180) % 360) - 180),
+                0.0,
+                0.0,
+                0.0,
+            )
+        elif name == "HIGHRES_IMU":
+            pressure = 1013.25 * (1 - 2.25577e-5 * alt_msl) ** 5.25588
+            self._send(
+                "highres_imu",
+                int(v.time * 1e6),
+                0.0,
+                0.0,
+                -9.81,
+                0.0,
+                0.0,
+                0.0,
+                0.21,
+                0.0,
+                0.42,
+                pressure,
+                0.0,
+                alt_msl,
+                35.0,
+                0x1FFF,
+            )
+        elif name == "GPS_RAW_INT":
+            self._send(
+                "gps_raw_int",
+                int(v.time * 1e6),
+                3,
+                round(lat * 1e7),
+                round(lon * 1e7),
+                round(alt_msl * 1000),
+                90,
+                110,
+                round(math.hypot(*v.velocity[:2]) * 100),
+                round(v.yaw * 100) % 36000,
+                v.config.satellites,
+            )
+        elif name == "HOME_POSITION":
+            h = v.home
+            self._send(
+                "home_position",
+                round(h[0] * 1e7),
+                round(h[1] * 1e7),
+                round(h[2] * 1000),
+                0.0,
+                0.0,
+                0.0,
+                [1.0, 0.0, 0.0, 0.0],
+                0.0,
+                0.0,
+                0.0,
+            )
+        elif name == "MISSION_CURRENT":
+            self._send("mission_current", self.current, len(self.mission))
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bytes | bytearray):
+        value = bytes(value).decode(errors="replace")
+    return str(value).rstrip("\0")

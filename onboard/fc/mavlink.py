@@ -1,0 +1,1102 @@
+"""MAVLink driver for PX4 / ArduPilot flight controllers (seed 001, 6.2.4; issue 10).
+
+Layers, as for UAVTalk: `MavlinkCodec` is sans-I/O (bytes in, messages out, counted
+drops), links are named by URL (`serial:`, `tcp://`, `udp://`), and
+`MavlinkFlightController` owns one I/O thread that reads the link, tracks the vehicle's
+heartbeat on a monotonic clock, sends the ground station's own heartbeat, resolves
+COMMAND_ACKs and keeps `VehicleState` current. Listeners run on a dispatcher thread.
+
+Telemetry mapping (listeners get both: the MAVLink message under its own name with its
+own fields, so logs stay faithful, and the platform's object where one maps):
+
+| MAVLink message      | platform object(s)                | fields                        |
+|----------------------|-----------------------------------|-------------------------------|
+| HEARTBEAT            | FlightStatus                      | Armed, FlightMode             |
+| ATTITUDE             | AttitudeActual                    | Roll/Pitch/Yaw (deg), q1..q4  |
+| LOCAL_POSITION_NED   | PositionActual, VelocityActual    | North, East, Down (m, m/s)    |
+| GLOBAL_POSITION_INT  | GPSPosition (merged)              | Latitude/Longitude (1e7 deg), |
+|                      |                                   | Altitude (m MSL), Heading, Groundspeed |
+| GPS_RAW_INT          | GPSPosition (merged)              | Status, Satellites, HDOP, VDOP |
+| SYS_STATUS           | FlightBatteryState (merged),      | Voltage, Current, Remaining;  |
+|                      | SystemStats                       | CPULoad, RxErrors             |
+| BATTERY_STATUS       | FlightBatteryState (merged)       | ConsumedEnergy (mAh), Voltage |
+| HIGHRES_IMU          | Accels, Gyros (deg/s),            | x, y, z, temperature;         |
+|                      | Magnetometer, BaroAltitude        | Altitude, Pressure (kPa)      |
+| (link, 1 Hz)         | FlightTelemetryStats              | Status, RxFailures, RxUnknown |
+
+Commands: arming by COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (force = 21196 in param2),
+take-off in GUIDED with MAV_CMD_NAV_TAKEOFF, MAV_CMD_NAV_LAND, goto by
+SET_POSITION_TARGET_GLOBAL_INT (or LOCAL_NED with `goto_frame="local"`). A COMMAND_ACK
+that is not ACCEPTED raises `CommandRejected` naming the MAV_RESULT; no ACK raises
+`CommandTimeout`. Flight modes are ArduCopter's custom modes (GUIDED, AUTO, LAND, ...).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import queue
+import socket
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from onboard.fc.base import (
+    CommandTimeout,
+    FlightControllerError,
+    NotConnected,
+    ObjectListener,
+    StateHolder,
+    VehicleState,
+)
+from onboard.links import LinkDown, LinkError, ReopeningLink
+
+log = logging.getLogger(__name__)
+
+EARTH_RADIUS = 6_378_137.0
+FORCE_MAGIC = 21196.0  # param2 of MAV_CMD_COMPONENT_ARM_DISARM that overrides checks
+GCS_HEARTBEAT_S = 1.0
+HEARTBEAT_TIMEOUT_S = 3.0  # ArduPilot's and PX4's GCS failsafes use 3-5 s
+ACK_TIMEOUT_S = 3.0
+COMMAND_TRIES = 3
+# Position only: ignore velocity, acceleration, yaw and yaw rate (POSITION_TARGET_TYPEMASK).
+POSITION_ONLY_MASK = 0x0FF8
+COPTER_MODES = {name: number for number, name in mavutil.mode_mapping_acm.items()}
+# Wanted stream rates in Hz; SET_MESSAGE_INTERVAL per message, REQUEST_DATA_STREAM fallback.
+DEFAULT_RATES: dict[str, float] = {
+    "GLOBAL_POSITION_INT": 10.0,
+    "LOCAL_POSITION_NED": 10.0,
+    "ATTITUDE": 10.0,
+    "HIGHRES_IMU": 5.0,
+    "SYS_STATUS": 2.0,
+    "GPS_RAW_INT": 2.0,
+    "BATTERY_STATUS": 1.0,
+    "MISSION_CURRENT": 1.0,
+    "HOME_POSITION": 0.5,
+}
+# REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) that carry each message on ArduPilot.
+DATA_STREAMS = {
+    mavlink.MAV_DATA_STREAM_RAW_SENSORS: ("HIGHRES_IMU", "GPS_RAW_INT"),
+    mavlink.MAV_DATA_STREAM_EXTENDED_STATUS: ("SYS_STATUS", "BATTERY_STATUS", "MISSION_CURRENT"),
+    mavlink.MAV_DATA_STREAM_POSITION: ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"),
+    mavlink.MAV_DATA_STREAM_EXTRA1: ("ATTITUDE",),
+}
+# Platform object → the MAVLink messages it is built from (for objrequest).
+PLATFORM_SOURCES = {
+    "FlightStatus": ("HEARTBEAT",),
+    "AttitudeActual": ("ATTITUDE",),
+    "PositionActual": ("LOCAL_POSITION_NED",),
+    "VelocityActual": ("LOCAL_POSITION_NED",),
+    "GPSPosition": ("GLOBAL_POSITION_INT", "GPS_RAW_INT"),
+    "FlightBatteryState": ("SYS_STATUS", "BATTERY_STATUS"),
+    "SystemStats": ("SYS_STATUS",),
+    "Accels": ("HIGHRES_IMU",),
+    "Gyros": ("HIGHRES_IMU",),
+    "Magnetometer": ("HIGHRES_IMU",),
+    "BaroAltitude": ("HIGHRES_IMU",),
+    "HomeLocation": ("HOME_POSITION",),
+}
+
+
+def enum_name(enum: str, value: int) -> str:
+    """`MAV_RESULT` 2 → "MAV_RESULT_DENIED" (the number itself when it is not in the enum)."""
+    entry = mavlink.enums.get(enum, {}).get(value)
+    return entry.name if entry is not None else f"{enum}_{value}"
+
+
+def command_name(command: int) -> str:
+    return enum_name("MAV_CMD", command)
+
+
+# --- codec -------------------------------------------------------------------------------
+
+
+@dataclass
+class CodecStats:
+    messages: int = 0
+    bad_crc: int = 0
+    unknown: int = 0
+    bad_data: int = 0
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+class MavlinkCodec:
+    """MAVLink 2 framing (pymavlink's parser, no I/O): `feed(bytes)` → good messages.
+
+    Frames with a bad CRC, bytes that are no frame, and messages of ids this dialect does
+    not know are counted in `stats` and dropped, never raised.
+    """
+
+    def __init__(self, system_id: int, component_id: int) -> None:
+        self.mav = mavlink.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
+        self.mav.robust_parsing = True
+        self.stats = CodecStats()
+        self._lock = threading.Lock()
+
+    def feed(self, data: bytes) -> list[Any]:
+        try:
+            parsed = self.mav.parse_buffer(data) or []
+        except Exception as exc:  # a parser bug on hostile bytes must not stop the link
+            self.stats.bad_data += 1
+            log.debug("MAVLink parser error: %s", exc)
+            return []
+        good = []
+        for msg in parsed:
+            if isinstance(msg, mavlink.MAVLink_bad_data):
+                if "CRC" in str(getattr(msg, "reason", "")):
+                    self.stats.bad_crc += 1
+                else:
+                    self.stats.bad_data += 1
+            elif isinstance(msg, mavlink.MAVLink_unknown):
+                self.stats.unknown += 1
+            else:
+                self.stats.messages += 1
+                good.append(msg)
+        return good
+
+    def encode(self, name: str, *args: Any, **kwargs: Any) -> bytes:
+        """`encode("heartbeat", 6, 8, 0, 0, 4)`: one packed frame with the next sequence."""
+        with self._lock:
+            msg = getattr(self.mav, f"{name}_encode")(*args, **kwargs)
+            wire = msg.pack(self.mav)
+            self.mav.seq = (self.mav.seq + 1) % 256
+            return bytes(wire)
+
+
+def message_fields(msg: Any) -> dict:
+    """A message's fields as plain JSON values (NaN → None, bytes → hex, arrays → lists)."""
+    out = {}
+    for name in msg.get_fieldnames():
+        out[name] = _jsonable(getattr(msg, name))
+    return out
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, bytes | bytearray):
+        return value.hex()
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    return value
+
+
+# --- links -------------------------------------------------------------------------------
+
+
+class UdpLink:
+    """`udp://HOST:PORT` listens there and answers whoever sent last (a GCS on 14550);
+    `udpout://HOST:PORT` (or `udp://HOST:PORT?connect`) sends to that address."""
+
+    def __init__(self, url: str) -> None:
+        parts = urlsplit(url)
+        if not parts.port:
+            raise LinkError(f"{url!r}: udp link needs a port, e.g. udp://127.0.0.1:14550")
+        host = parts.hostname or "0.0.0.0"
+        self.url = url
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.peer: tuple[str, int] | None = None
+        self.unsent = 0
+        connect = parts.scheme == "udpout" or "connect" in parse_qs(parts.query, True)
+        try:
+            if connect:
+                self.peer = (host, parts.port)
+                self.sock.bind(("0.0.0.0", 0))
+            else:
+                self.sock.bind((host, parts.port))
+        except OSError as exc:
+            self.sock.close()
+            raise LinkDown(f"{url}: {exc}") from exc
+        self.sock.setblocking(False)
+        self.address = self.sock.getsockname()
+
+    def read(self, max_bytes: int = 4096, timeout: float = 0.1) -> bytes:
+        import select
+
+        try:
+            ready, _, _ = select.select([self.sock], [], [], timeout)
+            if not ready:
+                return b""
+            data, addr = self.sock.recvfrom(65535)
+        except (BlockingIOError, InterruptedError):
+            return b""
+        except OSError as exc:
+            raise LinkDown(f"{self.url}: {exc}") from exc
+        self.peer = addr
+        return data
+
+    def write(self, data: bytes) -> None:
+        if self.peer is None:
+            self.unsent += 1  # nobody has spoken yet: nowhere to answer
+            return
+        with contextlib.suppress(BlockingIOError):
+            try:
+                self.sock.sendto(data, self.peer)
+            except OSError as exc:
+                raise LinkDown(f"{self.url}: {exc}") from exc
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            self.sock.close()
+
+
+class _UdpReopening:
+    """The ReopeningLink interface for UDP (a datagram socket never 'vanishes')."""
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+        self.generation = 0
+        self._link: UdpLink | None = None
+        self._lock = threading.Lock()
+        self._closed = False
+
+    @property
+    def is_open(self) -> bool:
+        return self._link is not None
+
+    def _ensure(self) -> UdpLink:
+        with self._lock:
+            if self._closed:
+                raise LinkDown(f"{self.url}: closed")
+            if self._link is None:
+                self._link = UdpLink(self.url)
+                self.generation += 1
+            return self._link
+
+    def read(self, max_bytes: int = 4096, timeout: float = 0.1) -> bytes:
+        return self._ensure().read(max_bytes, timeout)
+
+    def write(self, data: bytes) -> None:
+        self._ensure().write(data)
+
+    def reopen(self) -> None:
+        with self._lock:
+            link, self._link = self._link, None
+        if link is not None:
+            link.close()
+
+    def close(self) -> None:
+        with self._lock:
+            self._closed = True
+            link, self._link = self._link, None
+        if link is not None:
+            link.close()
+
+
+def open_mavlink_link(url: str) -> Any:
+    """A reopening link for `serial:`/`tcp://` (onboard.links) or `udp://`/`udpout://`."""
+    scheme = urlsplit(url.strip()).scheme
+    if scheme in ("udp", "udpin", "udpout"):
+        return _UdpReopening(url.strip())
+    return ReopeningLink(url)
+
+
+# --- errors ------------------------------------------------------------------------------
+
+
+class CommandRejected(FlightControllerError):
+    """A COMMAND_ACK whose result is not MAV_RESULT_ACCEPTED."""
+
+    def __init__(self, command: int, result: int, detail: str = "") -> None:
+        self.command = command
+        self.result = result
+        self.result_name = enum_name("MAV_RESULT", result)
+        text = f"The flight controller refused {command_name(command)}: {self.result_name}"
+        if detail:
+            text += f" ({detail})"
+        super().__init__(text)
+
+
+# --- the driver --------------------------------------------------------------------------
+
+
+@dataclass
+class _AckWaiter:
+    command: int
+    event: threading.Event = field(default_factory=threading.Event)
+    result: int | None = None
+
+
+@dataclass
+class _MessageWaiter:
+    name: str
+    event: threading.Event = field(default_factory=threading.Event)
+    msg: Any = None
+
+
+MessageHandler = Callable[[Any], None]
+
+
+class MavlinkFlightController:
+    """FlightController over MAVLink 2 (see onboard.fc.base for the interface)."""
+
+    protocol = "mavlink"
+
+    def __init__(
+        self,
+        link_url: str,
+        *,
+        system_id: int = 255,
+        component_id: int = mavlink.MAV_COMP_ID_MISSIONPLANNER,
+        heartbeat_timeout_s: float = HEARTBEAT_TIMEOUT_S,
+        ack_timeout_s: float = ACK_TIMEOUT_S,
+        command_tries: int = COMMAND_TRIES,
+        stream_rates: dict[str, float] | None = None,
+        goto_frame: str = "global",
+        time_scale: float = 1.0,
+    ) -> None:
+        if goto_frame not in ("global", "local"):
+            raise ValueError("goto_frame must be 'global' or 'local'")
+        self.link_url = link_url
+        self.link = open_mavlink_link(link_url)
+        self.codec = MavlinkCodec(system_id, component_id)
+        self.system_id = system_id
+        self.heartbeat_timeout_s = heartbeat_timeout_s
+        self.ack_timeout_s = ack_timeout_s
+        self.command_tries = command_tries
+        self.stream_rates = dict(DEFAULT_RATES if stream_rates is None else stream_rates)
+        self.goto_frame = goto_frame
+        self.time_scale = time_scale
+        self.target_system = 0
+        self.target_component = 0
+        self.autopilot: int | None = None
+        self.stats = {
+            "link_drops": 0,
+            "link_lost": 0,
+            "connects": 0,
+            "statustext": 0,
+            "commands": 0,
+            "command_timeouts": 0,
+            "commands_refused": 0,
+            "foreign": 0,
+            "listener_errors": 0,
+            "handler_errors": 0,
+        }
+        self._holder = StateHolder(VehicleState(protocol="mavlink"))
+        self._latest: dict[str, dict] = {}  # MAVLink message name → fields
+        self._platform: dict[str, dict] = {}  # platform object name → merged fields
+        self._values_lock = threading.Lock()
+        self._listeners: list[ObjectListener] = []
+        self._handlers: list[MessageHandler] = []
+        self._acks: list[_AckWaiter] = []
+        self._msg_waiters: list[_MessageWaiter] = []
+        self._waiters_lock = threading.Lock()
+        self._command_lock = threading.Lock()
+        self._statustexts: deque[tuple[float, int, str]] = deque(maxlen=20)
+        self._connected = threading.Event()
+        self._stop = threading.Event()
+        self._rebuild = threading.Event()
+        self._events: queue.Queue = queue.Queue(maxsize=20_000)
+        self._threads: list[threading.Thread] = []
+        self._start_lock = threading.Lock()
+        self._generation = 0
+        self._last_vehicle_heartbeat = 0.0
+        self._last_gcs_heartbeat = 0.0
+        self._last_link_stats = 0.0
+
+    # --- lifecycle --------------------------------------------------------------------
+    def start(self) -> None:
+        with self._start_lock:
+            if self._threads:
+                return
+            self._stop.clear()
+            for target, name in ((self._io_loop, "mavlink-io"), (self._dispatch, "mavlink-out")):
+                thread = threading.Thread(target=target, name=name, daemon=True)
+                thread.start()
+                self._threads.append(thread)
+
+    def stop(self) -> None:
+        self._stop.set()
+        for thread in self._threads:
+            if thread is not threading.current_thread():
+                thread.join(timeout=3)
+        self._threads = []
+        self.link.close()
+        self._set_disconnected()
+
+    @property
+    def state(self) -> VehicleState:
+        return self._holder.get()
+
+    def add_listener(self, listener: ObjectListener) -> None:
+        self._listeners.append(listener)
+
+    def add_message_handler(self, handler: MessageHandler) -> None:
+        """Call handler(msg) on the I/O thread for every message from the vehicle
+        (the native-mission protocol uses this); it must be quick and must not block."""
+        self._handlers.append(handler)
+
+    def remove_message_handler(self, handler: MessageHandler) -> None:
+        with contextlib.suppress(ValueError):
+            self._handlers.remove(handler)
+
+    def wait_connected(self, timeout: float) -> bool:
+        return self._connected.wait(timeout)
+
+    @property
+    def decoder_stats(self) -> dict:
+        return self.codec.stats.as_dict()
+
+    # --- I/O thread -------------------------------------------------------------------
+    def _io_loop(self) -> None:
+        while not self._stop.is_set():
+            if self._rebuild.is_set():
+                self._rebuild.clear()
+                self.link.reopen()
+                self._set_disconnected()
+            try:
+                data = self.link.read(4096, 0.05)
+            except LinkDown as exc:
+                if self._connected.is_set():
+                    log.warning("MAVLink link lost: %s", exc)
+                    self.stats["link_drops"] += 1
+                self._set_disconnected()
+                continue
+            except LinkError as exc:
+                log.error("MAVLink link unusable: %s", exc)
+                self._stop.wait(1.0)
+                continue
+            now = time.monotonic()
+            if self.link.generation != self._generation:
+                self._generation = self.link.generation
+                self.codec = MavlinkCodec(self.codec.mav.srcSystem, self.codec.mav.srcComponent)
+                self._set_disconnected()
+            if data:
+                for msg in self.codec.feed(data):
+                    try:
+                        self._on_message(msg, now)
+                    except Exception:  # one odd message must not kill the link thread
+                        log.exception("could not handle MAVLink %s", msg.get_type())
+            try:
+                self._housekeeping(now)
+            except LinkDown as exc:
+                log.warning("MAVLink link lost while sending: %s", exc)
+                self._set_disconnected()
+
+    def _housekeeping(self, now: float) -> None:
+        if not self.link.is_open:
+            return
+        if now - self._last_gcs_heartbeat >= GCS_HEARTBEAT_S:
+            self._last_gcs_heartbeat = now
+            self.send(
+                "heartbeat",
+                mavlink.MAV_TYPE_GCS,
+                mavlink.MAV_AUTOPILOT_INVALID,
+                0,
+                0,
+                mavlink.MAV_STATE_ACTIVE,
+            )
+        if self._connected.is_set():
+            if now - self._last_vehicle_heartbeat > self.heartbeat_timeout_s:
+                log.warning(
+                    "no HEARTBEAT from the vehicle for %.1f s: link lost", self.heartbeat_timeout_s
+                )
+                self.stats["link_lost"] += 1
+                self._set_disconnected()
+            elif now - self._last_link_stats >= 1.0:
+                self._last_link_stats = now
+                self._emit_platform("FlightTelemetryStats", self._link_stats("Connected"))
+
+    def _link_stats(self, status: str) -> dict:
+        s = self.codec.stats
+        return {
+            "Status": status,
+            "RxFailures": s.bad_crc + s.bad_data,
+            "RxUnknown": s.unknown,
+            "RxMessages": s.messages,
+        }
+
+    def send(self, name: str, *args: Any, **kwargs: Any) -> None:
+        """Encode one message (`send("mission_count", sys, comp, 3)`) and write it."""
+        self.link.write(self.codec.encode(name, *args, **kwargs))
+
+    def _on_message(self, msg: Any, now: float) -> None:
+        kind = msg.get_type()
+        source = msg.get_srcSystem()
+        if kind == "HEARTBEAT" and not self._is_vehicle(msg):
+            return  # another ground station, a camera, a gimbal
+        if self.target_system and source != self.target_system:
+            self.stats["foreign"] += 1
+            return
+        if kind == "HEARTBEAT":
+            self._on_heartbeat(msg, now)
+        fields = message_fields(msg)
+        with self._values_lock:
+            self._latest[kind] = fields
+        self._update_state(kind, msg, now)
+        if kind == "COMMAND_ACK":
+            self._resolve_ack(msg)
+        elif kind == "STATUSTEXT":
+            self._on_statustext(msg, now)
+        self._resolve_message(kind, msg)
+        for handler in list(self._handlers):
+            try:
+                handler(msg)
+            except Exception:
+                self.stats["handler_errors"] += 1
+                log.exception("MAVLink message handler failed on %s", kind)
+        if self._listeners:
+            self._queue_event(kind, fields)
+            for name, values in self._platform_objects(kind, msg):
+                self._emit_platform(name, values)
+
+    def _is_vehicle(self, msg: Any) -> bool:
+        return msg.type != mavlink.MAV_TYPE_GCS and msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID
+
+    def _on_heartbeat(self, msg: Any, now: float) -> None:
+        self._last_vehicle_heartbeat = now
+        if not self.target_system:
+            self.target_system = msg.get_srcSystem()
+            self.target_component = msg.get_srcComponent()
+            self.autopilot = msg.autopilot
+        if not self._connected.is_set():
+            self.stats["connects"] += 1
+            self._holder.update(connected=True)
+            self._connected.set()
+            log.info(
+                "MAVLink vehicle %d/%d connected on %s",
+                self.target_system,
+                self.target_component,
+                self.link_url,
+            )
+            threading.Thread(target=self._configure, name="mavlink-setup", daemon=True).start()
+
+    def _configure(self) -> None:
+        """Ask for the streams we map and for home; each vehicle session needs it again."""
+        fallback: set[str] = set()
+        for name, hz in self.stream_rates.items():
+            msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
+            interval_us = 1e6 / hz if hz > 0 else -1
+            try:
+                self.command_long(
+                    mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, interval_us, timeout=1.0
+                )
+            except (CommandRejected, CommandTimeout):
+                fallback.add(name)
+            except FlightControllerError:
+                return  # disconnected again
+        for stream, names in DATA_STREAMS.items():
+            rates = [self.stream_rates[n] for n in names if n in fallback]
+            if rates:
+                with contextlib.suppress(LinkDown):
+                    self.send(
+                        "request_data_stream",
+                        self.target_system,
+                        self.target_component,
+                        stream,
+                        max(1, round(max(rates))),
+                        1,
+                    )
+        with contextlib.suppress(FlightControllerError):
+            self.request_message("HOME_POSITION", timeout=1.0)
+
+    def _on_statustext(self, msg: Any, now: float) -> None:
+        self.stats["statustext"] += 1
+        text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode(errors="replace")
+        text = text.rstrip("\0")
+        self._statustexts.append((now, msg.severity, text))
+        level = (
+            logging.ERROR
+            if msg.severity <= mavlink.MAV_SEVERITY_ERROR
+            else logging.WARNING
+            if msg.severity == mavlink.MAV_SEVERITY_WARNING
+            else logging.INFO
+        )
+        log.log(level, "flight controller says: %s", text)
+
+    def recent_statustext(self, since: float) -> list[str]:
+        """STATUSTEXT lines received since a monotonic time (to explain a refusal)."""
+        return [text for at, _, text in list(self._statustexts) if at >= since]
+
+    def _set_disconnected(self) -> None:
+        if self._connected.is_set():
+            self._connected.clear()
+        if self._holder.get().connected:
+            self._holder.update(connected=False)
+            if self._listeners:
+                self._emit_platform("FlightTelemetryStats", self._link_stats("Disconnected"))
+        with self._waiters_lock:
+            acks, self._acks = self._acks, []
+            msgs, self._msg_waiters = self._msg_waiters, []
+        for waiter in [*acks, *msgs]:
+            waiter.event.set()  # they see no answer and raise NotConnected
+
+    def _resolve_ack(self, msg: Any) -> None:
+        if msg.result == mavlink.MAV_RESULT_IN_PROGRESS:
+            return  # a final ACK follows
+        with self._waiters_lock:
+            for waiter in list(self._acks):
+                if waiter.command == msg.command:
+                    waiter.result = msg.result
+                    waiter.event.set()
+                    self._acks.remove(waiter)
+
+    def _resolve_message(self, kind: str, msg: Any) -> None:
+        with self._waiters_lock:
+            if not self._msg_waiters:
+                return
+            for waiter in list(self._msg_waiters):
+                if waiter.name == kind:
+                    waiter.msg = msg
+                    waiter.event.set()
+                    self._msg_waiters.remove(waiter)
+
+    def _queue_event(self, name: str, fields: dict) -> None:
+        try:
+            self._events.put_nowait((name, time.time(), fields))
+        except queue.Full:
+            self.stats["listener_errors"] += 1
+
+    def _emit_platform(self, name: str, values: dict) -> None:
+        with self._values_lock:
+            merged = self._platform.setdefault(name, {})
+            merged.update(values)
+            snapshot = dict(merged)
+        if self._listeners:
+            self._queue_event(name, snapshot)
+
+    def _dispatch(self) -> None:
+        while not self._stop.is_set():
+            try:
+                name, ts, values = self._events.get(timeout=0.2)
+            except queue.Empty:
+                continue
+            for listener in list(self._listeners):
+                try:
+                    listener(name, ts, values)
+                except Exception:
+                    self.stats["listener_errors"] += 1
+                    log.exception("telemetry listener failed on %s", name)
+
+    # --- state ------------------------------------------------------------------------
+    def _update_state(self, kind: str, m: Any, now: float) -> None:
+        changes: dict[str, Any] = {"updated_at": now}
+        if kind == "HEARTBEAT":
+            changes.update(
+                armed=bool(m.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED),
+                arming=False,
+                flight_mode=mavutil.mode_string_v10(m),
+            )
+        elif kind == "GLOBAL_POSITION_INT":
+            changes.update(lat=m.lat / 1e7, lon=m.lon / 1e7, alt=m.relative_alt / 1000.0)
+        elif kind == "LOCAL_POSITION_NED":
+            changes.update(ned=(m.x, m.y, m.z), velocity_ned=(m.vx, m.vy, m.vz))
+        elif kind == "ATTITUDE":
+            roll, pitch, yaw = (math.degrees(v) for v in (m.roll, m.pitch, m.yaw))
+            w, x, y, z = _quaternion(roll, pitch, yaw)
+            changes.update(roll=roll, pitch=pitch, yaw=yaw % 360.0, quaternion=(x, y, z, w))
+        elif kind == "GPS_RAW_INT":
+            changes.update(gps_fix=m.fix_type >= 3, satellites=int(m.satellites_visible))
+        elif kind == "SYS_STATUS":
+            if m.voltage_battery not in (0, 0xFFFF):
+                changes["battery_voltage"] = m.voltage_battery / 1000.0
+            if m.battery_remaining >= 0:
+                changes["battery_remaining"] = m.battery_remaining / 100.0
+        elif kind == "BATTERY_STATUS":
+            if m.battery_remaining >= 0:
+                changes["battery_remaining"] = m.battery_remaining / 100.0
+        elif kind == "HOME_POSITION":
+            changes["home"] = (m.latitude / 1e7, m.longitude / 1e7, m.altitude / 1000.0)
+        else:
+            return
+        self._holder.update(**changes)
+
+    def _platform_objects(self, kind: str, m: Any) -> list[tuple[str, dict]]:
+        if kind == "HEARTBEAT":
+            armed = bool(m.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+            return [
+                (
+                    "FlightStatus",
+                    {
+                        "Armed": "Armed" if armed else "Disarmed",
+                        "FlightMode": mavutil.mode_string_v10(m),
+                    },
+                )
+            ]
+        if kind == "ATTITUDE":
+            roll, pitch, yaw = (math.degrees(v) for v in (m.roll, m.pitch, m.yaw))
+            w, x, y, z = _quaternion(roll, pitch, yaw)
+            return [
+                (
+                    "AttitudeActual",
+                    {"Roll": roll, "Pitch": pitch, "Yaw": yaw, "q1": w, "q2": x, "q3": y, "q4": z},
+                )
+            ]
+        if kind == "LOCAL_POSITION_NED":
+            return [
+                ("PositionActual", {"North": m.x, "East": m.y, "Down": m.z}),
+                ("VelocityActual", {"North": m.vx, "East": m.vy, "Down": m.vz}),
+            ]
+        if kind == "GLOBAL_POSITION_INT":
+            return [
+                (
+                    "GPSPosition",
+                    {
+                        "Latitude": m.lat,
+                        "Longitude": m.lon,
+                        "Altitude": m.alt / 1000.0,
+                        "Heading": m.hdg / 100.0 if m.hdg != 0xFFFF else None,
+                        "Groundspeed": math.hypot(m.vx, m.vy) / 100.0,
+                    },
+                )
+            ]
+        if kind == "GPS_RAW_INT":
+            status = {0: "NoGPS", 1: "NoFix", 2: "Fix2D"}.get(m.fix_type, "Fix3D")
+            return [
+                (
+                    "GPSPosition",
+                    {
+                        "Status": status,
+                        "Satellites": m.satellites_visible,
+                        "HDOP": m.eph / 100.0 if m.eph != 0xFFFF else None,
+                        "VDOP": m.epv / 100.0 if m.epv != 0xFFFF else None,
+                    },
+                )
+            ]
+        if kind == "SYS_STATUS":
+            battery: dict[str, Any] = {}
+            if m.voltage_battery not in (0, 0xFFFF):
+                battery["Voltage"] = m.voltage_battery / 1000.0
+            if m.current_battery >= 0:
+                battery["Current"] = m.current_battery / 100.0
+            if m.battery_remaining >= 0:
+                battery["Remaining"] = m.battery_remaining / 100.0
+            return [
+                ("FlightBatteryState", battery),
+                ("SystemStats", {"CPULoad": m.load / 10.0, "RxErrors": m.errors_comm}),
+            ]
+        if kind == "BATTERY_STATUS":
+            cells = [v for v in m.voltages if v not in (0xFFFF, 0)]
+            values: dict[str, Any] = {"ConsumedEnergy": float(m.current_consumed)}
+            if cells:
+                values["Voltage"] = sum(cells) / 1000.0
+                values["DetectedCellCount"] = len(cells)
+            if m.current_battery >= 0:
+                values["Current"] = m.current_battery / 100.0
+            return [("FlightBatteryState", values)]
+        if kind == "HIGHRES_IMU":
+            return [
+                ("Accels", {"x": m.xacc, "y": m.yacc, "z": m.zacc, "temperature": m.temperature}),
+                (
+                    "Gyros",
+                    {
+                        "x": math.degrees(m.xgyro),
+                        "y": math.degrees(m.ygyro),
+                        "z": math.degrees(m.zgyro),
+                        "temperature": m.temperature,
+                    },
+                ),
+                ("Magnetometer", {"x": m.xmag * 1000, "y": m.ymag * 1000, "z": m.zmag * 1000}),
+                (
+                    "BaroAltitude",
+                    {
+                        "Altitude": m.pressure_alt,
+                        "Pressure": m.abs_pressure / 10.0,
+                        "Temperature": m.temperature,
+                    },
+                ),
+            ]
+        if kind == "HOME_POSITION":
+            return [
+                (
+                    "HomeLocation",
+                    {
+                        "Latitude": m.latitude,
+                        "Longitude": m.longitude,
+                        "Altitude": m.altitude / 1000.0,
+                        "Set": "TRUE",
+                    },
+                )
+            ]
+        return []
+
+    # --- commands ---------------------------------------------------------------------
+    def _require_connected(self) -> None:
+        if not self._connected.is_set():
+            raise NotConnected(f"flight controller on {self.link_url} is not connected")
+
+    def command_long(
+        self, command: int, *params: float, timeout: float | None = None, tries: int | None = None
+    ) -> int:
+        """Send COMMAND_LONG and wait for its COMMAND_ACK; return MAV_RESULT_ACCEPTED or
+        raise CommandRejected (the result named) / CommandTimeout / NotConnected."""
+        self._require_connected()
+        values = [float(p) for p in params] + [0.0] * (7 - len(params))
+        timeout = self.ack_timeout_s if timeout is None else timeout
+        tries = max(1, self.command_tries if tries is None else tries)
+        sent_at = time.monotonic()
+        with self._command_lock:  # one command in flight: ACKs name only the command
+            self.stats["commands"] += 1
+            waiter = _AckWaiter(command)
+            deadline = sent_at + timeout
+            for confirmation in range(tries):
+                with self._waiters_lock:
+                    waiter.event.clear()
+                    if waiter not in self._acks:
+                        self._acks.append(waiter)
+                try:
+                    self.send(
+                        "command_long",
+                        self.target_system,
+                        self.target_component,
+                        command,
+                        confirmation,
+                        *values,
+                    )
+                except LinkDown as exc:
+                    raise NotConnected(str(exc)) from exc
+                left = min(timeout / tries, deadline - time.monotonic())
+                if waiter.event.wait(max(left, 0.0)) and waiter.result is not None:
+                    break
+                self._require_connected()
+            else:
+                with self._waiters_lock:
+                    if waiter in self._acks:
+                        self._acks.remove(waiter)
+                self.stats["command_timeouts"] += 1
+                raise CommandTimeout(
+                    f"No COMMAND_ACK for {command_name(command)} within {timeout:.1f} s "
+                    f"({tries} tries); the flight controller did not answer"
+                )
+        if waiter.result != mavlink.MAV_RESULT_ACCEPTED:
+            self.stats["commands_refused"] += 1
+            detail = "; ".join(self.recent_statustext(sent_at))
+            raise CommandRejected(command, int(waiter.result), detail)
+        return int(waiter.result)
+
+    def request_message(self, name: str, timeout: float = 2.0) -> dict:
+        """MAV_CMD_REQUEST_MESSAGE for one message; wait for it and return its fields."""
+        self._require_connected()
+        msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}", None)
+        if msg_id is None:
+            raise FlightControllerError(f"{name} is not a MAVLink message")
+        waiter = _MessageWaiter(name)
+        with self._waiters_lock:
+            self._msg_waiters.append(waiter)
+        try:
+            self.command_long(mavlink.MAV_CMD_REQUEST_MESSAGE, msg_id, timeout=timeout, tries=2)
+            if not waiter.event.wait(timeout) or waiter.msg is None:
+                self._require_connected()
+                raise CommandTimeout(f"{name} did not arrive within {timeout:.1f} s")
+        finally:
+            with self._waiters_lock:
+                if waiter in self._msg_waiters:
+                    self._msg_waiters.remove(waiter)
+        return message_fields(waiter.msg)
+
+    def latest(self, name: str) -> dict | None:
+        """Last fields of a MAVLink message or platform object, if any arrived."""
+        with self._values_lock:
+            values = self._latest.get(name) or self._platform.get(name)
+            return dict(values) if values is not None else None
+
+    def request_object(self, name: str, timeout: float = 2.0) -> dict:
+        """`objrequest`: a MAVLink message name (ATTITUDE) or a platform object name
+        (AttitudeActual); fresh by REQUEST_MESSAGE, or the last streamed copy."""
+        sources = PLATFORM_SOURCES.get(name, (name,))
+        is_message = hasattr(mavlink, f"MAVLINK_MSG_ID_{name}")
+        if name not in PLATFORM_SOURCES and not is_message:
+            raise FlightControllerError(f"{name} is neither a MAVLink message nor a mapped object")
+        try:
+            fields = self.request_message(sources[0], timeout=timeout)
+        except FlightControllerError:
+            fields = None
+        if is_message and fields is not None:
+            return fields
+        cached = self.latest(name)
+        if cached is None:
+            raise FlightControllerError(f"the flight controller has not sent {name}")
+        return cached
+
+    def write_object(self, name: str, fields: dict, timeout: float = 2.0) -> None:
+        """MAVLink has no writable objects; `PARAMS` writes parameters by PARAM_SET."""
+        if name not in ("PARAMS", "PARAM_VALUE"):
+            raise FlightControllerError(
+                f"{name} cannot be written over MAVLink; write PARAMS with parameter values"
+            )
+        for param, value in fields.items():
+            self.set_param(param, float(value), timeout=timeout)
+
+    def set_param(self, name: str, value: float, timeout: float = 2.0) -> float:
+        """PARAM_SET, confirmed by the PARAM_VALUE echo; returns the value the FC holds."""
+        self._require_connected()
+        if len(name) > 16:
+            raise FlightControllerError(f"parameter names have at most 16 characters: {name!r}")
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            waiter = _MessageWaiter("PARAM_VALUE")
+            with self._waiters_lock:
+                self._msg_waiters.append(waiter)
+            self.send(
+                "param_set",
+                self.target_system,
+                self.target_component,
+                name.encode(),
+                value,
+                mavlink.MAV_PARAM_TYPE_REAL32,
+            )
+            got = waiter.event.wait(min(0.5, max(deadline - time.monotonic(), 0.0)))
+            with self._waiters_lock:
+                if waiter in self._msg_waiters:
+                    self._msg_waiters.remove(waiter)
+            if got and waiter.msg is not None and _param_id(waiter.msg) == name:
+                return float(waiter.msg.param_value)
+            self._require_connected()
+        raise CommandTimeout(f"PARAM_SET {name} was not confirmed within {timeout:.1f} s")
+
+    def set_mode(self, mode: str, timeout: float | None = None) -> None:
+        """MAV_CMD_DO_SET_MODE with an ArduCopter custom mode (GUIDED, AUTO, LAND, ...)."""
+        number = COPTER_MODES.get(mode)
+        if number is None:
+            raise FlightControllerError(f"unknown flight mode {mode!r}")
+        self.command_long(
+            mavlink.MAV_CMD_DO_SET_MODE,
+            mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+            number,
+            timeout=timeout,
+        )
+        self._holder.update(flight_mode=mode)
+
+    def arm(self, timeout: float = 10.0) -> None:
+        self._arming(True, timeout, force=False)
+
+    def disarm(self, timeout: float = 10.0, *, force: bool | None = None) -> None:
+        """Disarm; `force` defaults to "airborne", because the agent's controller only
+        lets an airborne disarm through when the ground sent force."""
+        if force is None:
+            force = self.state.airborne
+        self._arming(False, timeout, force=force)
+
+    def _arming(self, arm: bool, timeout: float, *, force: bool) -> None:
+        self._require_connected()
+        if self.state.armed == arm:
+            return
+        began = time.monotonic()
+        self.command_long(
+            mavlink.MAV_CMD_COMPONENT_ARM_DISARM,
+            1.0 if arm else 0.0,
+            FORCE_MAGIC if force else 0.0,
+            timeout=min(timeout, self.ack_timeout_s),
+        )
+        # ACCEPTED; the next HEARTBEAT carries the new state.
+        word = "arm" if arm else "disarm"
+        deadline = began + timeout
+        while time.monotonic() < deadline:
+            if self.state.armed == arm:
+                log.info("flight controller %sed", word)
+                return
+            self._require_connected()
+            if self._stop.wait(0.02):
+                break
+        raise CommandTimeout(f"the flight controller accepted {word} but did not {word}")
+
+    def _ensure_guided(self) -> None:
+        if self.state.flight_mode != "GUIDED":
+            self.set_mode("GUIDED")
+
+    def takeoff(self, altitude: float) -> None:
+        if altitude <= 0:
+            raise FlightControllerError("take-off altitude must be above home")
+        state = self.state
+        if state.airborne:
+            # NAV_TAKEOFF is refused in the air: climb or descend to the altitude instead.
+            north, east, _ = state.ned or (0.0, 0.0, 0.0)
+            self.goto_ned(north, east, -altitude)
+            return
+        self._ensure_guided()
+        self.command_long(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, 0, 0, altitude)
+
+    def land(self) -> None:
+        self.command_long(mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, math.nan, 0, 0, 0)
+
+    def goto_ned(self, north: float, east: float, down: float) -> None:
+        self._require_connected()
+        self._ensure_guided()
+        home = self.state.home
+        if self.goto_frame == "local" or home is None:
+            self.send(
+                "set_position_target_local_ned",
+                self._boot_ms(),
+                self.target_system,
+                self.target_component,
+                mavlink.MAV_FRAME_LOCAL_NED,
+                POSITION_ONLY_MASK,
+                north,
+                east,
+                down,
+                *([0.0] * 8),
+            )
+            return
+        lat, lon, alt_msl = ned_to_lla(north, east, down, home)
+        self.goto_global(lat, lon, alt_msl - home[2])
+
+    def goto_global(self, lat: float, lon: float, relative_alt: float) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT at an altitude above home (GUIDED)."""
+        self._require_connected()
+        self._ensure_guided()
+        self.send(
+            "set_position_target_global_int",
+            self._boot_ms(),
+            self.target_system,
+            self.target_component,
+            mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            POSITION_ONLY_MASK,
+            round(lat * 1e7),
+            round(lon * 1e7),
+            relative_alt,
+            *([0.0] * 8),
+        )
+
+    def _boot_ms(self) -> int:
+        return int(time.monotonic() * 1000) & 0xFFFFFFFF
+
+    def rebuild_link(self) -> None:
+        """`rebuildtelemetry`: close the link and open it again; streams are re-requested."""
+        self._rebuild.set()
+
+    def reset(self) -> None:
+        """`resetfc`: MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN (param1 1 = reboot the autopilot)."""
+        self.command_long(mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1)
+        self._set_disconnected()
+        self._holder.update(armed=False, arming=False)
+
+
+def _param_id(msg: Any) -> str:
+    value = msg.param_id
+    if isinstance(value, bytes | bytearray):
+        value = bytes(value).decode(errors="replace")
+    return str(value).rstrip("\0")
+
+
+def ned_to_lla(
+    north: float, east: float, down: float, home: tuple[float, float, float]
+) -> tuple[float, float, float]:
+    """The platform's NED → WGS84 (the same sphere as onboard.navigation), alt MSL."""
+    home_lat, home_lon, home_alt = home
+    radius = home_alt + EARTH_RADIUS
+    lat = home_lat + math.degrees(north / radius)
+    lon = home_lon + math.degrees(east / (radius * math.cos(math.radians(home_lat))))
+    return lat, lon, home_alt - down
+
+
+def _quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
+    """(w, x, y, z) from roll, pitch, yaw in degrees (Z-Y-X)."""
+    cr, sr = math.cos(math.radians(roll) / 2), math.sin(math.radians(roll) / 2)
+    cp, sp = math.cos(math.radians(pitch) / 2), math.sin(math.radians(pitch) / 2)
+    cy, sy = math.cos(math.radians(yaw) / 2), math.sin(math.radians(yaw) / 2)
+    return (
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    )
