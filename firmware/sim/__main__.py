@@ -1,7 +1,8 @@
 """`python -m firmware.sim`: a software dRonin flight controller on a pty (or TCP port).
 
 Prints exactly one line, `pty: /dev/pts/N` (or `tcp: HOST:PORT`), then serves UAVTalk
-until SIGTERM/SIGINT.
+until SIGTERM/SIGINT. With `--fc mavlink` it is an ArduCopter-like MAVLink autopilot on
+TCP port 5760 (or `--tcp PORT`, or a pty with `--serial`).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import sys
 from pathlib import Path
 
 from firmware.arming_switch.frames import load_frames
+from firmware.sim.mavlink_server import MavlinkSession
 from firmware.sim.receiver import ReceiverArming
 from firmware.sim.server import PtyTransport, TcpTransport, serve
 from firmware.sim.telemetry import BoardSession
@@ -48,6 +50,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--pty-link", type=Path, help="keep a symlink to the pty at this path")
     p.add_argument("--objects-dir", type=Path, help="UAVObject XML folder")
     p.add_argument("--link-timeout", type=float, default=8.0, help="wall-clock seconds")
+    p.add_argument(
+        "--fc",
+        choices=["uavtalk", "mavlink"],
+        default="uavtalk",
+        help="protocol personality; mavlink serves TCP (default port 5760, like ArduPilot SITL)",
+    )
+    p.add_argument("--serial", action="store_true", help="mavlink on a pty instead of TCP")
     p.add_argument("-v", "--verbose", action="store_true")
     return p
 
@@ -73,14 +82,22 @@ def main(argv: list[str] | None = None) -> int:
         cells=args.cells,
     )
     receiver = ReceiverArming(frames, arming_time_s=args.arming_time)
-    session = BoardSession(
-        vehicle=Vehicle(config=config, receiver=receiver),
-        registry=ObjectRegistry.load(args.objects_dir),
-        frames=frames,
-        time_scale=args.time_scale,
-        arming_line=args.arming_line,
-        link_timeout_s=args.link_timeout,
-    )
+    session: BoardSession | MavlinkSession
+    if args.fc == "mavlink":
+        session = MavlinkSession(
+            vehicle=Vehicle(config=config, receiver=receiver), time_scale=args.time_scale
+        )
+        if args.tcp is None and not args.serial:
+            args.tcp = 5760
+    else:
+        session = BoardSession(
+            vehicle=Vehicle(config=config, receiver=receiver),
+            registry=ObjectRegistry.load(args.objects_dir),
+            frames=frames,
+            time_scale=args.time_scale,
+            arming_line=args.arming_line,
+            link_timeout_s=args.link_timeout,
+        )
     if args.tcp is not None:
         transport: PtyTransport | TcpTransport = TcpTransport(args.tcp_host, args.tcp)
     else:
