@@ -97,7 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="LAT,LON,RADIUS_M,PEAK[,SENSOR] simulated plume (repeatable)",
     )
     p.add_argument("--gear-reread-interval", type=_positive, default=5.0, help="seconds")
-    p.add_argument("--camera-fps", type=float, default=0.0, help="camera/out frames per second")
+    p.add_argument("--video-rate", type=float, default=0.0, help="camera/out frames per second")
+    p.add_argument("--pose-rate", type=float, default=0.0, help="Pose samples per second")
     p.add_argument("--arm-timeout", type=_positive, default=20.0, help="seconds")
     p.add_argument("--log-level", default="INFO")
     return p
@@ -154,7 +155,8 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
         sensor_field=sensor_field,
         gear_reread_interval=args.gear_reread_interval,
         arm_timeout=args.arm_timeout,
-        camera_fps=args.camera_fps,
+        video_rate=args.video_rate,
+        pose_rate=args.pose_rate,
     )
 
 

@@ -21,7 +21,7 @@ from . import protocol
 from .controller import Controller
 from .failsafe import FailSafe
 from .fc.base import FlightController
-from .gear import GearError, GearManager
+from .gear import GearManager
 from .heartbeat import Heartbeater, build_heartbeat
 from .logger import FlightLogger
 from .mission import MissionWorker, position_of
@@ -53,7 +53,10 @@ class AgentConfig:
     arm_timeout: float = 20.0
     flight_timeout: float = 600.0
     camera: str = "sim"
-    camera_fps: float = 0.0  # frames per second on <id>/camera/out; 0 = no stream
+    # Past-image view (onboard/video.py): camera frames on <id>/camera/out and Pose
+    # samples on <id>/telemetry/out, per second; 0 turns each off.
+    video_rate: float = 0.0
+    pose_rate: float = 0.0
     mqtt_keepalive: int = 10
 
 
@@ -111,6 +114,7 @@ class Agent:
             keepalive=config.mqtt_keepalive,
         )
         self.heartbeater = Heartbeater(config.heartbeat_interval, self._beat)
+        self.video: Any = None
         self._control_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="control")
         self._telemetry: list[protocol.TelemetryObject] = []
         self._telemetry_lock = threading.Lock()
@@ -126,10 +130,10 @@ class Agent:
         self.gear.start()
         self.mqtt.start()
         self.heartbeater.start()
-        loops = [(self._telemetry_loop, "telemetry"), (self._supervise, "supervisor")]
-        if self.config.camera_fps > 0:
-            loops.append((self._camera_loop, "camera"))
-        for target, name in loops:
+        if self.config.video_rate > 0 or self.config.pose_rate > 0:
+            self.video = self._video_streamer()
+            self.video.start()
+        for target, name in ((self._telemetry_loop, "telemetry"), (self._supervise, "supervisor")):
             thread = threading.Thread(target=target, name=name, daemon=True)
             thread.start()
             self._threads.append(thread)
@@ -139,6 +143,8 @@ class Agent:
         self.worker.close()
         self._stop.set()
         self.heartbeater.stop()
+        if self.video is not None:
+            self.video.stop()
         self.gear.stop()
         self._control_pool.shutdown(wait=False, cancel_futures=True)
         for thread in self._threads:
@@ -217,17 +223,15 @@ class Agent:
             except Exception:
                 log.exception("telemetry publish failed")
 
-    def _camera_loop(self) -> None:
-        period = 1.0 / self.config.camera_fps
-        while not self._stop.wait(period):
-            if not self.gear.has_camera() or not self.mqtt.connected:
-                continue
-            try:
-                self.send("camera", self.gear.camera_frame(self.fc.state))
-            except GearError as exc:
-                log.debug("no camera frame: %s", exc)
-            except Exception:
-                log.exception("camera frame failed")
+    def _video_streamer(self) -> Any:
+        from .video import VideoConfig, VideoStreamer  # numpy: only when streaming
+
+        config = VideoConfig(
+            rate_hz=self.config.video_rate,
+            pose_hz=self.config.pose_rate,
+            time_scale=self.config.time_scale,
+        )
+        return VideoStreamer(lambda: self.fc.state, self.send, config, enabled=self.gear.has_camera)
 
     def _supervise(self) -> None:
         while not self._stop.wait(0.2):

@@ -213,27 +213,6 @@ class GearManager:
             home=(state.home[0], state.home[1]),
         )
 
-    def camera_frame(self, state: VehicleState) -> protocol.CameraFrame:
-        """One forward-looking frame with its pose, for `<id>/camera/out` (past-image view)."""
-        if self.camera != "sim":
-            raise GearError("Only the simulated camera is supported on this drone.")
-        if state.ned is None:
-            raise GearError("The drone's position is not known yet.")
-        try:
-            from firmware.sim.camera import orientation_from_euler, render_view
-        except ImportError:
-            raise GearError(
-                "The simulated camera renderer (firmware.sim.camera) is not installed."
-            ) from None
-        if state.quaternion is not None:
-            orientation = state.quaternion
-        else:
-            orientation = orientation_from_euler(
-                state.roll or 0.0, state.pitch or 0.0, state.yaw or 0.0
-            )
-        jpeg = render_view(state.ned, orientation, width=160, height=120, quality=70)
-        return protocol.CameraFrame(state.ned, orientation, jpeg)
-
     def take_picture(self, state: VehicleState, context: dict | None = None) -> dict:
         """Take, store and publish one picture; the result names it."""
         if not self.has_camera():

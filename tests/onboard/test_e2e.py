@@ -275,8 +275,10 @@ def test_a_plume_and_a_draining_battery_raise_one_alarm_each(tmp_path: Path) -> 
             "CO2::1000",
             "--battery-critical",
             "0.25",
-            "--camera-fps",
+            "--video-rate",
             "5",
+            "--pose-rate",
+            "20",
         ],
     )
     ground = Ground(broker.port, DRONE)
@@ -312,6 +314,8 @@ def test_a_plume_and_a_draining_battery_raise_one_alarm_each(tmp_path: Path) -> 
         assert critical.value < 0.25
         frames = [protocol.parse_camera_frame(m) for m in ground.on("camera")]
         assert frames and frames[-1].jpeg.startswith(b"\xff\xd8")
+        poses = [o for m in ground.on("telemetry") for o in m["objects"] if o["name"] == "Pose"]
+        assert poses and set(poses[-1]["fields"]) >= {"North", "East", "Down", "qw"}
     finally:
         ground.close()
         stop_process(process)
