@@ -305,3 +305,19 @@ def test_no_onboard_module_imports_django() -> None:
                 if n.split(".")[0] in ("django", "rest_framework", "channels", "celery")
             ]
     assert offenders == []
+
+
+def test_the_receiver_switch_retries_after_the_board_refuses_to_arm() -> None:
+    fc = FakeFlightController()
+    switch = UAVTalkReceiverSwitch(fc, rate_hz=100)
+    switch.request_arm()
+    fc._state.update(arming=True)
+    time.sleep(0.05)
+    fc._state.update(arming=False)  # an alarm: back to Disarmed without arming
+    time.sleep(0.2)
+    switch.release()
+    assert switch.retries == 1
+    yaws = [c[2]["Channel"][3] for c in fc.calls if c[0] == "write"]
+    # arm sticks, then neutral for a moment, then the arm sticks again
+    first_neutral = yaws.index(1500)
+    assert 2000 in yaws[:first_neutral] and 2000 in yaws[first_neutral:]
