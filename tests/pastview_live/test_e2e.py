@@ -1,0 +1,193 @@
+"""End to end: a simulated drone (the flight-controller simulator over a pty, the onboard
+agent with its camera and pose stream) flies a square; the past-view service, the
+gateway and the websocket deliver frames and relative poses, and an operator's
+teleoperation moves the drone through the Drone Manager."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from firmware.sim import start_simulator
+from tests.onboard.ground import REPO_ROOT, Ground, stop_process
+from tests.support.mosquitto import start_broker
+
+from .support import ServiceThread, wait_until
+from .test_consumer import connect
+
+pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
+
+DRONE = "ACME_1"  # the world's drone, so the portal knows it
+HOME = (40.6303, -8.6575, 12.0)
+SCALE = 4.0
+SIDE_M = 8.0
+
+
+@pytest.fixture
+def broker(tmp_path: Path):
+    b = start_broker(tmp_path / "broker", {"ground": "pw", DRONE: "dpw"})
+    yield b
+    b.stop()
+
+
+def start_agent(tmp_path: Path, *, link: str, broker_url: str) -> subprocess.Popen:
+    """The agent process with a 10 Hz camera and a 50 Hz pose stream, its log in tmp_path."""
+    gear = tmp_path / "gear"
+    gear.mkdir()
+    for name in ("specs.json", "sensors.json"):
+        (gear / name).write_text((REPO_ROOT / "onboard" / "gear_example" / name).read_text())
+    args = [
+        sys.executable, "-m", "tests.pastview_live.agent_with_video",
+        "--video-rate", "10", "--pose-rate", "50",
+        "--drone-id", DRONE, "--link", link, "--broker", broker_url,
+        "--arming", f"sim-line:{tmp_path / 'arming_line'}", "--gear-dir", str(gear),
+        "--time-scale", str(SCALE), "--heartbeat-interval", "0.5",
+    ]  # fmt: skip
+    with open(tmp_path / "agent.log", "ab") as log:
+        return subprocess.Popen(
+            args, stdout=subprocess.DEVNULL, stderr=log, cwd=REPO_ROOT,
+            env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
+        )  # fmt: skip
+
+
+@pytest.fixture
+def drone(tmp_path: Path, broker):
+    """The simulator and the agent process, with a 10 Hz camera and a 50 Hz pose stream."""
+    sim = start_simulator(
+        home=HOME,
+        time_scale=SCALE,
+        arming_line=tmp_path / "arming_line",
+        log_file=tmp_path / "sim.log",
+    )
+    agent = start_agent(tmp_path, link=sim.url, broker_url=broker.url_for(DRONE))
+    yield agent
+    stop_process(agent)
+    sim.stop()
+
+
+@pytest.fixture
+def ground_services(broker, world_tx):
+    """The past-view service and a gateway (for the Drone Manager's replies), in threads."""
+    from telemetry.pastview.models import ViewSettings
+    from workers.gateway import Gateway
+
+    # The camera sends 10 frames a second here: keep them all (the default keeps 2).
+    ViewSettings.objects.create(drone=world_tx.drone, settings={"video_hz": 0})
+    service = ServiceThread(broker.url_for("ground"))
+    gateway = Gateway(broker.url_for("ground"), client_id="pastview-e2e-gateway")
+    gateway.start()
+    assert gateway.wait_connected(10)
+    yield service
+    gateway.stop()
+    service.stop()
+
+
+async def updates_until(communicator, done, timeout: float) -> list[dict]:  # type: ignore[no-untyped-def]
+    seen: list[dict] = []
+    deadline = time.monotonic() + timeout
+    while not done(seen):
+        left = deadline - time.monotonic()
+        assert left > 0, f"only {len(seen)} updates; last: {seen[-1:]}"
+        message = await communicator.receive_json_from(timeout=left)
+        if message["type"] in ("update", "snapshot"):
+            seen.append(message if message["type"] == "update" else message["update"])
+    return seen
+
+
+async def test_a_square_flight_reaches_the_page_as_frames_and_relative_poses(
+    drone, broker, ground_services, world_tx
+):
+    from asgiref.sync import sync_to_async
+
+    ground = Ground(broker.port, DRONE, password="pw", client_id="pastview-e2e-ground")
+    page, connected, _ = await connect(world_tx.operator)
+    try:
+        assert connected
+        assert (await page.receive_json_from(timeout=5))["type"] == "hello"
+        await sync_to_async(ground.wait_for)(
+            "heartbeats", lambda m: m["fc"]["connected"] and m["position"] is not None, 30
+        )
+        assert (await sync_to_async(ground.command)("arm"))["ok"]
+        assert (await sync_to_async(ground.command)("takeoff", altitude=10))["ok"]
+        await sync_to_async(ground.wait_for)("heartbeats", lambda m: m["position"]["alt"] > 9.0)
+
+        def near(n: float, e: float):  # type: ignore[no-untyped-def]
+            def check(seen: list[dict]) -> bool:
+                north, east, _ = seen[-1]["pose"]["position"] if seen else (None, None, None)
+                return bool(seen) and math.hypot(north - n, east - e) < 0.5
+
+            return check
+
+        # Each leg once the last is flown: relative moves add to the last target.
+        seen: list[dict] = []
+        for command, value, corner in (
+            ("changeN", SIDE_M, (SIDE_M, 0.0)),
+            ("changeE", SIDE_M, (SIDE_M, SIDE_M)),
+            ("changeN", -SIDE_M, (0.0, SIDE_M)),
+            ("changeE", -SIDE_M, (0.0, 0.0)),
+        ):
+            assert (await sync_to_async(ground.command)(command, value=value))["ok"]
+            seen += await updates_until(page, near(*corner), timeout=30)
+        with_frame = [u for u in seen if u["frame"] is not None]
+        assert with_frame, "no update carried a frame"
+        # A frame's image comes exactly when the choice changes, never with a repeat.
+        previous = None
+        for u in with_frame:
+            changed = previous is None or u["frame"]["id"] != previous
+            assert u["changed"] is changed and bool(u["jpeg"]) is changed
+            previous = u["frame"]["id"]
+        for u in with_frame:
+            position = u["relative"]["position"]
+            assert all(math.isfinite(v) for v in position)
+            assert math.isclose(sum(c * c for c in u["relative"]["orientation"]), 1.0, rel_tol=1e-6)
+        assert len({u["frame"]["id"] for u in with_frame}) >= 4
+        # The chosen frames show the drone ahead of the camera that took them.
+        ahead = [u for u in with_frame if u["relative"]["position"][0] > 0]
+        assert len(ahead) > 0.8 * len(with_frame)
+        tracked = [u for u in seen if u["tracking"] == "tracked"]
+        assert len(tracked) > 0.9 * len(seen)
+
+        # Teleoperation: one step forward, rotated by the heading, through the Drone Manager.
+        await page.send_json_to({"type": "teleop", "forward": 1, "right": 0, "up": 0})
+        while True:
+            reply = await page.receive_json_from(timeout=20)
+            if reply["type"] == "teleop":
+                break
+        assert reply["ok"], reply
+        assert {s["command"] for s in reply["sent"]} <= {"changeN", "changeE"}
+        step = math.hypot(*(s["value"] for s in reply["sent"]))
+        assert step == pytest.approx(0.5, abs=0.01)
+    finally:
+        await page.disconnect()
+        ground.close()
+        await asyncio.sleep(0)
+
+
+def rate(stamps: list[float]) -> float:
+    return (len(stamps) - 1) / (stamps[-1] - stamps[0])
+
+
+def test_the_agent_publishes_downsampled_frames_and_a_pose_stream(drone, broker):
+    ground = Ground(broker.port, DRONE, password="pw", client_id="pastview-e2e-ground2")
+    try:
+        ground.wait_for("camera", lambda m: True, timeout=30)
+        assert wait_until(lambda: len(ground.on("camera")) >= 11, timeout=10)
+        frames = ground.on("camera")
+        assert all(f["jpeg"].startswith("/9j/") for f in frames)  # base64 of a JPEG's SOI
+        # Every third frame of the 30 Hz camera, for the 10 Hz asked.
+        assert rate([f["ts"] for f in frames]) == pytest.approx(10, rel=0.2)
+        poses = [o for m in ground.on("telemetry") for o in m["objects"] if o["name"] == "Pose"]
+        assert set(poses[0]["fields"]) == {"North", "East", "Down", "qx", "qy", "qz", "qw"}
+        assert rate([p["ts"] for p in poses]) == pytest.approx(50, rel=0.2)
+        # On the ground and idle, the simulated tracker still jitters: no false "lost".
+        samples = [tuple(p["fields"].values()) for p in poses]
+        assert all(a != b for a, b in zip(samples, samples[1:], strict=False))
+    finally:
+        ground.close()
