@@ -152,9 +152,8 @@ class Controller:
             raise CommandError(_sentence(exc, "The picture could not be taken")) from exc
 
     def _do_objrequest(self, params: dict, context: dict) -> dict:
-        name = params["value"]
-        fields = self.fc.request_object(name)
-        return {"name": name, "fields": fields}
+        # PROTOCOL.md: the result is the object's latest fields, as the board names them.
+        return dict(self.fc.request_object(params["value"]))
 
     # -- link and board -------------------------------------------------------------------
 

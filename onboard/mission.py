@@ -417,6 +417,10 @@ class MissionWorker:
         error: str | None = None,
         request_id: str | None = None,
     ) -> None:
+        if status in ("accepted", "rejected"):  # _finish logs completed and stopped
+            self.events(
+                "mission", {"event": status, "mission_id": mission_id, "decode_ms": decode_ms}
+            )
         self.publish(
             protocol.MissionProgress(
                 mission_id, assignment_id, status, decode_ms, error, request_id=request_id
