@@ -160,6 +160,8 @@ class MavlinkSession:
         self._junk_due = 0.0
         self._was_critical = False
         self._send_heartbeat_now = False
+        self._reboot_due: float | None = None
+        self._rx_now = 0.0
 
     # --- helpers ------------------------------------------------------------------------
     @property
@@ -233,6 +235,7 @@ class MavlinkSession:
     def receive(self, data: bytes, now: float) -> None:
         if self.booting:
             return
+        self._rx_now = now
         for msg in self.codec.feed(data):
             self.stats.messages_in += 1
             if msg.get_type() == "HEARTBEAT":
@@ -416,10 +419,12 @@ class MavlinkSession:
         if self.vehicle.airborne:
             return mavlink.MAV_RESULT_DENIED
         self._ack(mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, mavlink.MAV_RESULT_ACCEPTED)
-        self.reboot()
+        # Reboot on a later tick than this one, once serve() has written the ACK out.
+        self._reboot_due = self._rx_now
         return None
 
     def reboot(self) -> None:
+        self._reboot_due = None
         self.stats.reboots += 1
         self.vehicle.reboot()
         self._booting_until = self.vehicle.time + BOOT_TIME_S
@@ -685,6 +690,8 @@ class MavlinkSession:
     def tick(self, now: float) -> None:
         if self._last_real is None:
             self._last_real = now
+        if self._reboot_due is not None and now > self._reboot_due:
+            self.reboot()
         real_dt = max(0.0, now - self._last_real)
         self._last_real = now
         sim_dt = min(real_dt * self.time_scale, 1.0)

@@ -1,0 +1,68 @@
+"""A MAVLink simulator per test, on its own TCP port, and a driver connected to it."""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+
+from firmware.sim import start_simulator
+from onboard.fc.mavlink import MavlinkFlightController
+
+# Simulated seconds per wall second: a 10 m climb takes about a quarter of a second.
+TIME_SCALE = 20.0
+HOME = (40.6303, -8.6575, 12.0)
+
+
+def wait_for(predicate: Callable[[], Any], timeout: float, interval: float = 0.02) -> Any:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(interval)
+    return predicate()
+
+
+@pytest.fixture
+def mav_sim(tmp_path) -> Iterator[Any]:  # type: ignore[no-untyped-def]
+    sim = start_simulator(
+        home=HOME, time_scale=TIME_SCALE, fc="mavlink", log_file=tmp_path / "sim.log"
+    )
+    try:
+        yield sim
+    finally:
+        sim.stop()
+
+
+class Recorder:
+    """A telemetry listener that keeps every object it is given, by name."""
+
+    def __init__(self) -> None:
+        self.counts: Counter[str] = Counter()
+        self.last: dict[str, dict] = {}
+
+    def __call__(self, name: str, ts: float, fields: dict) -> None:
+        self.counts[name] += 1
+        self.last[name] = fields
+
+
+@pytest.fixture
+def recorder() -> Recorder:
+    return Recorder()
+
+
+@pytest.fixture
+def fc(mav_sim, recorder) -> Iterator[MavlinkFlightController]:  # type: ignore[no-untyped-def]
+    driver = MavlinkFlightController(mav_sim.link_url, time_scale=TIME_SCALE)
+    driver.add_listener(recorder)
+    driver.start()
+    try:
+        assert driver.wait_connected(5), "no HEARTBEAT from the MAVLink simulator"
+        assert wait_for(lambda: driver.state.home is not None and driver.state.ned, 5)
+        yield driver
+    finally:
+        driver.stop()
