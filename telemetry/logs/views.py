@@ -65,6 +65,9 @@ def log_detail(request: HttpRequest, pk: uuid.UUID) -> HttpResponse:
             "logs": [log],
             "can_delete": bool(membership and membership.allows(Role.OPERATOR)),
             "share_url": request.build_absolute_uri(log.get_absolute_url()),
+            "others": FlightLog.objects.filter(
+                organisation=log.organisation, status=LogStatus.READY
+            ).exclude(pk=log.pk)[:50],
             **_viewer_settings(),
         },
     )
@@ -72,9 +75,10 @@ def log_detail(request: HttpRequest, pk: uuid.UUID) -> HttpResponse:
 
 @login_required
 def log_compare(request: HttpRequest) -> HttpResponse:
-    """`?ids=<uuid>,<uuid>,…`: up to four logs, each with its own viewer, side by side."""
+    """`?ids=<uuid>,<uuid>,…` (or `?pick=` repeated, from the list's form): up to four logs, each with its own viewer, side by side."""
     ids: list[uuid.UUID] = []
-    for raw in request.GET.get("ids", "").replace(" ", "").split(","):
+    wanted = request.GET.get("ids", "").replace(" ", "").split(",") + request.GET.getlist("pick")
+    for raw in wanted:
         try:
             ids.append(uuid.UUID(raw))
         except ValueError:

@@ -1,0 +1,94 @@
+// The Logs list: drag and drop or pick files, upload each with a progress bar, then follow
+// its processing over the log's websocket until it is ready (or says why it failed).
+
+import { csrfToken, escapeHtml, humanBytes, watchProgress } from "./api.js";
+
+const zone = document.getElementById("upload");
+if (zone) {
+  const input = document.getElementById("log-file");
+  const dropzone = document.getElementById("dropzone");
+  const list = document.getElementById("uploads");
+  const api = zone.dataset.api;
+  const limit = Number(zone.dataset.limit);
+
+  const start = (files) => { for (const file of files) uploadOne(file); };
+  input.addEventListener("change", () => { start(input.files); input.value = ""; });
+  for (const type of ["dragenter", "dragover"]) {
+    dropzone.addEventListener(type, (event) => { event.preventDefault(); dropzone.classList.add("dragging"); });
+  }
+  for (const type of ["dragleave", "drop"]) {
+    dropzone.addEventListener(type, (event) => { event.preventDefault(); dropzone.classList.remove("dragging"); });
+  }
+  dropzone.addEventListener("drop", (event) => start(event.dataTransfer.files));
+
+  function uploadOne(file) {
+    const item = document.createElement("li");
+    item.innerHTML = `<span class="name" title="${escapeHtml(file.name)}">${escapeHtml(file.name)}</span>
+      <progress max="1" value="0" aria-label="Progress of ${escapeHtml(file.name)}"></progress>
+      <span class="state">Uploading…</span>`;
+    list.prepend(item);
+    const bar = item.querySelector("progress");
+    const state = item.querySelector(".state");
+    const fail = (message) => {
+      item.classList.add("failed");
+      bar.value = 1;
+      state.textContent = message;
+      state.classList.add("error");
+    };
+    if (file.size > limit) {
+      fail(`Too large: ${humanBytes(file.size)}, over the limit of ${humanBytes(limit)}.`);
+      return;
+    }
+    const form = new FormData();
+    form.append("organisation", zone.dataset.organisation);
+    form.append("file", file);
+    const xhr = new XMLHttpRequest();
+    xhr.open("POST", api);
+    xhr.setRequestHeader("X-CSRFToken", csrfToken());
+    xhr.setRequestHeader("Accept", "application/json");
+    xhr.upload.addEventListener("progress", (event) => {
+      if (!event.lengthComputable) return;
+      bar.value = event.loaded / event.total;
+      state.textContent = `Uploading… ${Math.round((100 * event.loaded) / event.total)} % of ${humanBytes(event.total)}`;
+    });
+    xhr.addEventListener("error", () => fail("The upload was interrupted; try again."));
+    xhr.addEventListener("load", () => {
+      let body = {};
+      try { body = JSON.parse(xhr.responseText); } catch { /* not JSON: use the status */ }
+      if (xhr.status !== 201) {
+        fail(body.error || `The server refused the file (${xhr.status}).`);
+        return;
+      }
+      const page = body.url;
+      item.dataset.log = body.id;
+      bar.value = 0;
+      state.textContent = "Processing… 0 %";
+      watchProgress(`/ws/logs/${body.id}/`, `${api}${body.id}/`, (event) => {
+        if (event.status === "processing") {
+          bar.value = Number(event.progress) || 0;
+          state.textContent = `Processing… ${Math.round(bar.value * 100)} %`;
+        } else if (event.status === "ready") {
+          bar.value = 1;
+          item.classList.add("ready");
+          state.innerHTML = `Ready — <a href="${escapeHtml(page)}">open the log</a>`;
+        } else {
+          fail(event.error || "The file could not be processed.");
+        }
+      });
+    });
+    xhr.send(form);
+  }
+}
+
+// Compare: enabled once two or more ready logs are ticked.
+const compareForm = document.getElementById("compare-form");
+if (compareForm) {
+  const button = document.getElementById("compare-button");
+  const update = () => {
+    const ticked = compareForm.querySelectorAll('input[name="pick"]:checked').length;
+    button.disabled = ticked < 2 || ticked > 4;
+    button.textContent = ticked >= 2 ? `Compare ${ticked} logs` : "Compare selected";
+  };
+  compareForm.addEventListener("change", update);
+  update();
+}

@@ -1,0 +1,53 @@
+// Entry point of a log's page and of the comparison page.
+
+import { send } from "./api.js";
+import { LogViewer } from "./viewer.js";
+
+const viewers = [...document.querySelectorAll("[data-log-viewer]")].map((root) => new LogViewer(root));
+window.logViewers = viewers;
+for (const viewer of viewers) viewer.start();
+
+// Comparison: a cursor moved in one log moves the others to the same time since start.
+const link = document.getElementById("link-cursors");
+if (link) {
+  let relaying = false;
+  for (const viewer of viewers) {
+    viewer.addEventListener("loaded", () => {
+      viewer.state.on("cursor", ({ t, source }) => {
+        if (!link.checked || relaying || source === "link") return;
+        relaying = true;
+        const since = t - viewer.state.start;
+        for (const other of viewers) {
+          if (other !== viewer && other.state) other.state.setCursor(other.state.start + since, "link");
+        }
+        relaying = false;
+      });
+    });
+  }
+}
+
+for (const button of document.querySelectorAll("[data-copy]")) {
+  button.addEventListener("click", async () => {
+    const input = document.querySelector(button.dataset.copy);
+    input.select();
+    try {
+      await navigator.clipboard.writeText(input.value);
+    } catch {
+      document.execCommand("copy");
+    }
+    button.textContent = "Copied";
+    setTimeout(() => { button.textContent = "Copy link"; }, 1500);
+  });
+}
+
+for (const button of document.querySelectorAll("[data-delete]")) {
+  button.addEventListener("click", async () => {
+    if (!window.confirm("Delete this log and its processed data for everyone in the organisation?")) return;
+    try {
+      await send("DELETE", button.dataset.delete);
+      location.assign(button.dataset.then);
+    } catch (err) {
+      window.alert(err.message);
+    }
+  });
+}

@@ -1,0 +1,231 @@
+// One log's viewer: waits for processing, then builds the timeline, values tree, quick
+// plots, multi-plot, map and 3D attitude around one TimeState, and the replay controls.
+
+import { escapeHtml, getJSON, watchProgress } from "./api.js";
+import { AttitudeView } from "./attitude.js";
+import { MapView } from "./map.js";
+import { Chart } from "./plots.js";
+import { Replay } from "./replay.js";
+import { formatDuration, PALETTE, TimeState } from "./state.js";
+import { Timeline } from "./timeline.js";
+import { ValuesTree } from "./tree.js";
+
+const PLOTTABLE = new Set(["int", "double", "enum", "time"]);
+const QUICK = [
+  { key: "altitude", title: "Altitude" },
+  { key: "velocity", title: "Velocity" },
+  { key: "motors", title: "Motors" },
+  { key: "battery", title: "Battery" },
+];
+
+export class LogViewer extends EventTarget {
+  constructor(root) {
+    super();
+    this.root = root;
+    this.api = root.dataset.api;
+    this.wsPath = root.dataset.ws;
+    this.tileUrl = root.dataset.tileUrl || "";
+    this.tileAttribution = root.dataset.tileAttribution || "";
+    this.compact = root.classList.contains("lv-compact");
+    this.state = null;
+  }
+
+  part(name) {
+    return this.root.querySelector(`[data-part="${name}"]`);
+  }
+
+  warn(message) {
+    console.warn(`[${this.root.dataset.name}] ${message}`);
+  }
+
+  start() {
+    const status = this.root.dataset.status;
+    if (status === "ready") return this.load();
+    if (status === "failed") return Promise.resolve();
+    return new Promise((resolve) => {
+      watchProgress(this.wsPath, this.api, (event) => {
+        this.showProgress(event);
+        if (event.status === "ready") this.load().then(resolve);
+        else if (event.status !== "processing") resolve();
+      });
+    });
+  }
+
+  showProgress(event) {
+    const badge = document.querySelector('[data-part="status-badge"]');
+    if (event.status === "processing") {
+      const value = Number(event.progress) || 0;
+      this.part("progress").value = value;
+      this.part("progress-text").textContent = `${Math.round(value * 100)} %`;
+      return;
+    }
+    this.part("processing").hidden = true;
+    if (badge) {
+      badge.textContent = event.status === "ready" ? "Ready" : event.status === "failed" ? "Failed" : event.status;
+      badge.className = `badge ${event.status === "ready" ? "ok" : "bad"}`;
+    }
+    if (event.status !== "ready") {
+      this.part("error").textContent = event.error || "This log is no longer available.";
+      this.part("failed").hidden = false;
+    }
+  }
+
+  async load() {
+    this.info = await getJSON(this.api);
+    if (this.info.status !== "ready") {
+      this.showProgress(this.info);
+      return;
+    }
+    const info = this.info;
+    this.units = new Map(info.series.map((s) => [s.path, s]));
+    this.state = new TimeState(info.start ?? 0, info.end ?? 1);
+    this.part("processing").hidden = true;
+    this.part("body").hidden = false;
+    this.bindToolbar();
+    this.timeline = new Timeline(this.part("timeline-canvas"), this);
+    this.tree = new ValuesTree(this.part("tree"), this.part("tree-filter"), this);
+    this.buildQuickPlots();
+    this.buildMultiPlot();
+    this.map = new MapView(this.part("map"), this, { title: this.part("map-title"), note: this.part("map-note") });
+    this.attitude = new AttitudeView(this.part("attitude"), this.part("angles"), this);
+    this.root.dataset.loaded = "true";
+    this.dispatchEvent(new Event("loaded"));
+  }
+
+  bindToolbar() {
+    const state = this.state;
+    const clock = this.part("clock");
+    const selectionText = this.part("selection-text");
+    const showClock = () => { clock.textContent = `t = ${formatDuration(state.rel(state.cursor))}`; };
+    state.on("cursor", showClock);
+    showClock();
+    state.on("selection", ({ selection }) => {
+      selectionText.textContent = selection
+        ? `selected ${formatDuration(state.rel(selection[0]))} – ${formatDuration(state.rel(selection[1]))} (${(selection[1] - selection[0]).toFixed(3)} s)`
+        : "";
+    });
+    this.replay = new Replay(this, { playButton: this.root.querySelector('[data-action="play"]'), speedSelect: this.part("speed") });
+    const actions = {
+      play: () => this.replay.toggle(),
+      stop: () => this.replay.stop(),
+      rewind: () => this.replay.rewind(),
+      "zoom-selection": () => state.selection && state.setView(...state.selection),
+      "clear-selection": () => state.setSelection(null),
+      "zoom-reset": () => state.setView(state.start, state.end),
+    };
+    this.root.addEventListener("click", (event) => {
+      const action = event.target.closest("[data-action]")?.dataset.action;
+      if (action && actions[action]) actions[action]();
+    });
+    this.root.addEventListener("keydown", (event) => {
+      if (event.target.closest("input, select, textarea, button")) return;
+      if (event.key === " ") { this.replay.toggle(); event.preventDefault(); }
+      else if (event.key === "Home") { this.replay.rewind(); event.preventDefault(); }
+    });
+  }
+
+  line(path, i) {
+    const series = this.units.get(path);
+    const name = path.split("/").slice(-1)[0];
+    return { path, label: series?.unit ? `${name} [${series.unit}]` : name, color: PALETTE[i % PALETTE.length], scale: 1, offset: 0 };
+  }
+
+  buildQuickPlots() {
+    const holder = this.part("quick");
+    const special = this.info.special || {};
+    for (const { key, title } of QUICK) {
+      const card = document.createElement("div");
+      card.className = "card";
+      card.dataset.quick = key;
+      const paths = (special[key] || []).filter((p) => PLOTTABLE.has(this.units.get(p)?.kind));
+      const layer = paths.length ? paths[0].split("/").slice(0, -1).join("/") : "";
+      card.innerHTML = `<div class="lv-head"><h2>${title}</h2><span class="empty">${escapeHtml(layer)}</span></div><div class="lv-chart"></div>`;
+      holder.appendChild(card);
+      const el = card.querySelector(".lv-chart");
+      if (!paths.length) {
+        el.innerHTML = `<p class="lv-missing">No ${title.toLowerCase()} in this log.</p>`;
+        continue;
+      }
+      new Chart(el, this, { height: this.compact ? 130 : 150 }).setLines(paths.map((p, i) => this.line(p, i)));
+    }
+  }
+
+  buildMultiPlot() {
+    const picker = this.part("picker");
+    const filter = this.part("picker-filter");
+    const tbody = this.part("lines").querySelector("tbody");
+    const chart = new Chart(this.part("multi"), this, { height: this.compact ? 200 : 260 });
+    this.multi = chart;
+    let lines = [];
+    const series = this.info.series.filter((s) => PLOTTABLE.has(s.kind));
+    const byLayer = new Map();
+    for (const s of series) {
+      const layer = s.path.split("/")[0];
+      if (!byLayer.has(layer)) byLayer.set(layer, []);
+      byLayer.get(layer).push(s);
+    }
+    const html = [];
+    for (const [layer, members] of byLayer) {
+      html.push(`<div class="layer">${escapeHtml(layer)}</div>`);
+      for (const s of members) {
+        const name = s.path.slice(layer.length + 1);
+        html.push(`<label title="${escapeHtml(s.path)} · ${s.count} samples"><input type="checkbox" value="${escapeHtml(s.path)}"> ${escapeHtml(name)}${s.unit ? ` <span class="unit">${escapeHtml(s.unit)}</span>` : ""}</label>`);
+      }
+    }
+    picker.innerHTML = html.join("");
+    filter.addEventListener("input", () => {
+      const needle = filter.value.trim().toLowerCase();
+      for (const label of picker.querySelectorAll("label")) {
+        label.hidden = Boolean(needle) && !label.title.toLowerCase().includes(needle);
+      }
+    });
+    const renderRows = () => {
+      tbody.innerHTML = lines
+        .map(
+          (line, i) => `<tr data-path="${escapeHtml(line.path)}">
+            <td title="${escapeHtml(line.path)}"><span style="color:${line.color}">●</span> ${escapeHtml(line.path)}</td>
+            <td><input type="color" value="${line.color}" data-field="color" aria-label="Colour of ${escapeHtml(line.path)}"></td>
+            <td><input type="number" step="any" value="${line.scale}" data-field="scale" aria-label="Scale of ${escapeHtml(line.path)}"></td>
+            <td><input type="number" step="any" value="${line.offset}" data-field="offset" aria-label="Offset of ${escapeHtml(line.path)}"></td>
+            <td><button type="button" data-remove="${i}" aria-label="Remove ${escapeHtml(line.path)}">×</button></td></tr>`,
+        )
+        .join("");
+    };
+    const setPaths = (paths) => {
+      const old = new Map(lines.map((l) => [l.path, l]));
+      lines = paths.map((p, i) => old.get(p) || this.line(p, lines.length + i));
+      renderRows();
+      chart.setLines(lines.map((l) => ({ ...l, label: l.path })));
+    };
+    picker.addEventListener("change", () => {
+      setPaths([...picker.querySelectorAll("input:checked")].map((box) => box.value));
+    });
+    tbody.addEventListener("input", (event) => {
+      const field = event.target.dataset.field;
+      const row = event.target.closest("tr");
+      if (!field || !row) return;
+      const line = lines.find((l) => l.path === row.dataset.path);
+      line[field] = field === "color" ? event.target.value : Number.parseFloat(event.target.value);
+      if (field === "color") row.querySelector("span").style.color = line.color;
+      chart.restyle(lines.map((l) => ({ ...l, label: l.path })));
+    });
+    tbody.addEventListener("click", (event) => {
+      const index = event.target.dataset.remove;
+      if (index === undefined) return;
+      const path = lines[Number(index)].path;
+      const box = [...picker.querySelectorAll("input")].find((b) => b.value === path);
+      if (box) box.checked = false;
+      setPaths(lines.filter((l) => l.path !== path).map((l) => l.path));
+    });
+    // Start with one quantity ticked, so the plot is never empty: the altitude if there
+    // is one, else the first floating-point quantity.
+    const special = this.info.special || {};
+    const preferred =
+      (special.altitude || [])[0] || series.find((s) => s.kind === "double")?.path || series[0]?.path;
+    const box = [...picker.querySelectorAll("input")].find((b) => b.value === preferred);
+    if (box) {
+      box.checked = true;
+      setPaths([box.value]);
+    }
+  }
+}

@@ -1,0 +1,100 @@
+"""The Logs pages in headless Chromium against the real ASGI app, websocket and worker."""
+
+from __future__ import annotations
+
+import pytest
+from playwright.sync_api import expect
+
+from telemetry.logs.synth import synthetic_ulog
+from tests.conftest import login
+from tests.logbook.conftest import upload, wait_until_processed
+from tests.logbook.test_api import client_for
+from tests.logs.dfi_builder import write_dfi
+
+pytestmark = [pytest.mark.browser, pytest.mark.e2e]
+
+
+def click_timeline_at(page, viewer, seconds: float, start: float, end: float) -> None:  # type: ignore[no-untyped-def]
+    """Click the timeline where `seconds` lies, from the lane geometry timeline.js draws."""
+    canvas = viewer.locator('[data-part="timeline-canvas"]')
+    box = canvas.bounding_box()
+    label = 110 if "lv-compact" in (viewer.get_attribute("class") or "") else 150
+    lane = box["width"] - label - 8
+    x = label + (seconds - start) / (end - start) * lane
+    canvas.click(position={"x": x, "y": box["height"] - 10})
+
+
+def test_an_uploaded_log_shows_progress_and_the_tree_reads_the_value_at_a_clicked_time(
+    world_tx, worker, live_logs, page, tmp_path
+):
+    login(page, live_logs, "operator")
+    page.goto(f"{live_logs.url}/logs/")
+    page.set_input_files("#log-file", str(write_dfi(tmp_path / "hover-test.dfi")))
+
+    item = page.locator("#uploads li").first
+    expect(item.locator("progress")).to_be_visible()
+    expect(item).to_contain_text("Ready", timeout=30_000)
+    item.get_by_role("link", name="open the log").click()
+
+    viewer = page.locator("[data-log-viewer]")
+    expect(viewer).to_have_attribute("data-loaded", "true", timeout=15_000)
+    # navdata samples at 1, 2 and 3 ms (board time); the log spans 1 to 6 ms.
+    click_timeline_at(page, viewer, 0.0027, 0.001, 0.006)
+    expect(viewer.locator('[data-part="clock"]')).to_have_text("t = 00:00.002")
+    altitude = viewer.locator('[data-path="navdata/Altitude"] .v')
+    expect(altitude).to_have_attribute("data-value", "0.75")
+    expect(altitude).to_contain_text("m")
+    expect(viewer.locator('[data-path="navdata/state"] .v')).to_contain_text("(Flying)")
+    # The quick plots and the multi-plot drew from the series endpoint.
+    expect(viewer.locator('[data-quick="altitude"] canvas')).to_have_count(1)
+    expect(viewer.locator('[data-quick="battery"]')).to_contain_text("No battery in this log")
+    if shots := __import__("os").environ.get("LOGS_SCREENSHOTS"):
+        page.screenshot(path=f"{shots}/viewer.png", full_page=True)
+
+
+def test_a_log_that_cannot_be_read_says_why_on_its_page(
+    world_tx, worker, live_logs, page, tmp_path
+):
+    bad = tmp_path / "broken.ulg"
+    bad.write_bytes(b"garbage" * 100)
+    created = upload(client_for(world_tx.operator), bad).json()
+    wait_until_processed(client_for(world_tx.operator), created["id"])
+    login(page, live_logs, "viewer")
+    page.goto(f"{live_logs.url}/logs/{created['id']}/")
+    alert = page.get_by_role("alert")
+    expect(alert).to_be_visible()
+    expect(alert).to_contain_text("not a valid PX4 ULog")
+
+
+def test_two_logs_open_side_by_side_with_linked_cursors(
+    world_tx, worker, live_logs, page, tmp_path
+):
+    client = client_for(world_tx.operator)
+    ulog = tmp_path / "long.ulg"
+    synthetic_ulog(ulog, seconds=20)
+    ids = []
+    for path in (ulog, write_dfi(tmp_path / "short.dfi")):
+        created = upload(client, path).json()
+        assert wait_until_processed(client, created["id"])["status"] == "ready"
+        ids.append(created["id"])
+
+    login(page, live_logs, "viewer")
+    page.goto(f"{live_logs.url}/logs/compare/?ids={','.join(ids)}")
+    viewers = page.locator("[data-log-viewer]")
+    expect(viewers).to_have_count(2)
+    for i in range(2):
+        expect(viewers.nth(i)).to_have_attribute("data-loaded", "true", timeout=15_000)
+    first, second = viewers.nth(0), viewers.nth(1)
+    expect(first.locator('[data-part="map-title"]')).to_have_text("Map")
+
+    info = client.get(f"/api/v1/logs/{ids[1]}/").json()
+    click_timeline_at(page, second, 0.0025, info["start"], info["end"])
+    expect(second.locator('[data-path="navdata/Altitude"] .v')).to_have_attribute(
+        "data-value", "0.75"
+    )
+    if shots := __import__("os").environ.get("LOGS_SCREENSHOTS"):
+        page.screenshot(path=f"{shots}/compare.png", full_page=True)
+    # The linked cursor moved the long log to the same time since its start.
+    expect(first.locator('[data-part="clock"]')).to_have_text(
+        second.locator('[data-part="clock"]').inner_text()
+    )
