@@ -88,6 +88,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--link-loss-timeout", type=_positive, default=30.0, help="seconds")
     p.add_argument("--link-loss-action", choices=LINK_LOSS_ACTIONS, default="continue")
+    p.add_argument(
+        "--ground-link-topic",
+        help="bridge state topic when behind an internal broker (python -m onboard.bridge "
+        "prints it)",
+    )
     p.add_argument("--sensor-field", type=Path, help="JSON file of simulated plumes")
     p.add_argument(
         "--plume",
@@ -152,6 +157,7 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
         bounds=dict(args.bounds),
         link_loss_timeout=args.link_loss_timeout,
         link_loss_action=args.link_loss_action,
+        ground_link_topic=args.ground_link_topic,
         sensor_field=sensor_field,
         gear_reread_interval=args.gear_reread_interval,
         arm_timeout=args.arm_timeout,

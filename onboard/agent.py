@@ -58,6 +58,9 @@ class AgentConfig:
     video_rate: float = 0.0
     pose_rate: float = 0.0
     mqtt_keepalive: int = 10
+    # Behind an internal broker, the broker connection says nothing about the ground: the
+    # bridge's state topic (onboard.bridge.state_topic) does.
+    ground_link_topic: str | None = None
 
 
 class Agent:
@@ -108,7 +111,8 @@ class Agent:
         self.mqtt = MqttLink(
             config.broker_url,
             client_id=f"skyhive-agent-{self.drone_id}",
-            subscriptions=[protocol.topic(self.drone_id, c, "in") for c in protocol.IN_CHANNELS],
+            subscriptions=[protocol.topic(self.drone_id, c, "in") for c in protocol.IN_CHANNELS]
+            + ([config.ground_link_topic] if config.ground_link_topic else []),
             on_message=self._on_message,
             on_connection=self._on_connection,
             keepalive=config.mqtt_keepalive,
@@ -246,7 +250,8 @@ class Agent:
         self.failsafe.check_reading(sensor, reading)
 
     def _on_connection(self, connected: bool) -> None:
-        self.failsafe.link_changed(connected)
+        if self.config.ground_link_topic is None or not connected:
+            self.failsafe.link_changed(connected)
         if connected:
             self.gear.announce()
 
@@ -257,6 +262,11 @@ class Agent:
         log.warning("dropped message on %s (%s): %s", topic, reason, detail)
 
     def _on_message(self, topic: str, payload: bytes) -> None:
+        if topic == self.config.ground_link_topic:
+            up = payload.strip() == b"1"
+            log.info("ground link (bridge) %s", "up" if up else "down")
+            self.failsafe.link_changed(up)
+            return
         try:
             drone_id, channel, direction = protocol.split_topic(topic)
         except protocol.ProtocolError as exc:

@@ -24,6 +24,11 @@ def _quote(value: str) -> str:
     return value
 
 
+def state_topic(drone_id: str) -> str:
+    """Where the internal broker publishes the bridge's state (give it to --ground-link-topic)."""
+    return f"$SYS/broker/connection/droneMosquitto-{drone_id}/state"
+
+
 def bridge_config(
     drone_id: str,
     ground_url: str,
@@ -47,6 +52,11 @@ def bridge_config(
         f"keepalive_interval {keepalive}",
         "restart_timeout 1 10",
         "try_private true",
+        # The bridge announces its own state ("1" up, "0" down, retained) on the internal
+        # broker only; the agent watches it to know when the ground link is lost.
+        "notifications true",
+        "notifications_local_only true",
+        f"notification_topic {state_topic(drone_id)}",
     ]
     if broker.tls:
         lines.append("bridge_capath /etc/ssl/certs")

@@ -407,3 +407,48 @@ def test_the_drone_arms_through_uavtalk_receiver_channels(tmp_path: Path, broker
         ground.close()
         stop_process(process)
         sim.stop()
+
+
+def test_a_bridged_drone_lands_when_the_ground_link_is_lost(
+    broker, agent_for, tmp_path: Path
+) -> None:
+    from onboard.bridge import state_topic
+    from tests.support.mosquitto import GROUND_AND_DRONES_ACL
+
+    acl = f"user {DRONE}\ntopic read $SYS/broker/connection/#\n\n" + GROUND_AND_DRONES_ACL
+    internal = start_broker(
+        tmp_path / "internal",
+        {DRONE: "local", "ground": "pw"},
+        acl=acl,
+        extra_config="\n" + bridge_config(DRONE, broker.url_for(DRONE)),
+    )
+    try:
+        agent_for(
+            internal.url_for(DRONE),
+            "--ground-link-topic",
+            state_topic(DRONE),
+            "--link-loss-timeout",
+            "1",
+            "--link-loss-action",
+            "land",
+        )
+        ground = Ground(broker.port, DRONE)
+        onboard = Ground(internal.port, DRONE, client_id="onboard-watcher")
+        try:
+            ground.wait_for(
+                "heartbeats", lambda m: m["fc"]["connected"] and m["position"], timeout=20
+            )
+            assert ground.command("arm")["ok"]
+            assert ground.command("takeoff", altitude=10)["ok"]
+            ground.wait_for("heartbeats", lambda m: _pos(m, "alt") > 9.5)
+            ground.close()
+            broker.stop()  # the ground goes away; the drone is on its own
+            down = onboard.wait_for(
+                "heartbeats", lambda m: m["armed"] and _pos(m, "alt", 99) < 0.2, timeout=20
+            )
+            assert down["position"]["lat"] == pytest.approx(HOME[0], abs=1e-5)
+            assert "ground link (bridge) down" in (tmp_path / "agent.log").read_text()
+        finally:
+            onboard.close()
+    finally:
+        internal.stop()

@@ -233,6 +233,10 @@ def test_the_bridge_relays_own_inputs_in_and_all_outputs_out() -> None:
     assert "remote_username REVOLUTION_94E041" in lines
     assert "remote_password s3cret" in lines
     assert "remote_clientid droneMosquitto-REVOLUTION_94E041" in lines
+    assert (
+        "notification_topic $SYS/broker/connection/droneMosquitto-REVOLUTION_94E041/state" in lines
+    )
+    assert "notifications_local_only true" in lines
     for channel in ("control", "mission", "gear"):
         assert f'topic REVOLUTION_94E041/{channel}/in in 1 "" ""' in lines
     outs = [line.split()[1] for line in lines if line.endswith('""') and " out " in line]
