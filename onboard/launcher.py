@@ -171,19 +171,24 @@ class Fleet:
     time_scale: float
     agent_args: list[str] = field(default_factory=list)
     _stopping: threading.Event = field(default_factory=threading.Event)
+    # watch() and stop() never interleave: a restart cannot slip in after a stop.
+    _lock: threading.Lock = field(default_factory=threading.Lock)
 
     def start(self) -> None:
-        from firmware.sim import start_simulator
-
         for drone in self.drones:
             drone.folder.mkdir(parents=True, exist_ok=True)
-            drone.sim = start_simulator(
-                home=drone.home,
-                time_scale=self.time_scale,
-                arming_line=drone.arming_line,
-                log_file=drone.folder / "sim.log",
-            )
+            self._start_sim(drone)
             self._start_agent(drone)
+
+    def _start_sim(self, drone: Drone) -> None:
+        from firmware.sim import start_simulator
+
+        drone.sim = start_simulator(
+            home=drone.home,
+            time_scale=self.time_scale,
+            arming_line=drone.arming_line,
+            log_file=drone.folder / "sim.log",
+        )
 
     def _start_agent(self, drone: Drone) -> None:
         args = [
@@ -214,20 +219,50 @@ class Fleet:
             )
 
     def watch(self) -> None:
-        """Restart agents that exit on their own, until stop() (one second backoff)."""
+        """Restart what exits on its own, until stop() (one second backoff).
+
+        A simulator that died comes back on a new pty, so its agent is restarted with it.
+        """
         while not self._stopping.wait(1.0):
-            for drone in self.drones:
-                if drone.agent is not None and drone.agent.poll() is not None:
-                    drone.restarts += 1
+            with self._lock:
+                if not self._stopping.is_set():
+                    self._revive()
+
+    def _revive(self) -> None:
+        for drone in self.drones:
+            if drone.sim is not None and not drone.sim.alive():  # type: ignore[attr-defined]
+                print(
+                    f"simulator of {drone.drone_id} exited; restarting it and its agent",
+                    file=sys.stderr,
+                    flush=True,
+                )
+                if drone.agent is not None and drone.agent.poll() is None:
+                    drone.agent.terminate()
+                    drone.agent.wait(10)
+                try:
+                    self._start_sim(drone)
+                except Exception as exc:
                     print(
-                        f"agent {drone.drone_id} exited ({drone.agent.returncode}); restarting",
+                        f"simulator of {drone.drone_id} did not restart: {exc}",
                         file=sys.stderr,
                         flush=True,
                     )
-                    self._start_agent(drone)
+                    continue
+            if drone.agent is not None and drone.agent.poll() is not None:
+                drone.restarts += 1
+                print(
+                    f"agent {drone.drone_id} exited ({drone.agent.returncode}); restarting",
+                    file=sys.stderr,
+                    flush=True,
+                )
+                self._start_agent(drone)
 
     def stop(self) -> None:
         self._stopping.set()
+        with self._lock:
+            self._stop_all()
+
+    def _stop_all(self) -> None:
         for drone in self.drones:
             if drone.agent is not None and drone.agent.poll() is None:
                 drone.agent.send_signal(signal.SIGTERM)

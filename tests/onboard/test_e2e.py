@@ -326,6 +326,7 @@ def test_a_plume_and_a_draining_battery_raise_one_alarm_each(tmp_path: Path) -> 
 def test_the_launcher_starts_a_fleet_with_provisioned_credentials(tmp_path: Path) -> None:
     import json
     import os
+    import signal
     import subprocess
     import sys
 
@@ -374,12 +375,19 @@ def test_the_launcher_starts_a_fleet_with_provisioned_credentials(tmp_path: Path
         a, b = (protocol.parse_heartbeat(m).position for m in beats)
         assert (a.lat, a.lon) != (b.lat, b.lon)
         assert grounds[1].command("objrequest", value="FlightStatus")["ok"]
+        lines = [launcher.stdout.readline().strip() for _ in range(2)]
+        agent_pid = int(lines[0].split("agent_pid=")[1].split()[0])
+        killed_at = time.time()
+        os.kill(agent_pid, signal.SIGKILL)  # the launcher brings the drone back
+        grounds[0].wait_for(
+            "heartbeats", lambda m: m["ts"] > killed_at + 0.5 and m["fc"]["connected"], timeout=30
+        )
     finally:
         for g in grounds:
             g.close()
         assert stop_process(launcher, timeout=20) == 0, launcher.stderr.read()
         broker.stop()
-    lines = launcher.stdout.read().splitlines()
+    lines += launcher.stdout.read().splitlines()
     assert [line.split()[1] for line in lines if line.startswith("drone:")] == ["SIM_A", "SIM_B"]
     assert (tmp_path / "fleet" / "SIM_B" / "gear" / "specs.json").exists()
 
