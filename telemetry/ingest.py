@@ -64,6 +64,9 @@ def _check_value(value: object, where: str) -> None:
             raise Rejected("bad_value", f"{where}: string longer than {MAX_STRING}")
         return
     if isinstance(value, int):
+        # Beyond this, PostgreSQL's float8 cast of the stored number would fail the query.
+        if abs(value) >= 2**63:
+            raise Rejected("bad_value", f"{where}: integer out of range")
         return
     if isinstance(value, float):
         if not math.isfinite(value):
@@ -400,7 +403,7 @@ class Ingestor:
                 table = "telemetry_stage"
             else:
                 table = "telemetry_sample"
-            with cursor.copy(f"COPY {table} (ts, drone_id, object, fields) FROM STDIN") as copy:
+            with cursor.copy(f"COPY {table} {storage.COPY_COLUMNS} FROM STDIN") as copy:
                 copy.write(text)
             if idempotent:
                 cursor.execute(

@@ -23,6 +23,29 @@ ROLLUP_1S_TABLE = "telemetry_rollup_1s"
 ROLLUP_1M_TABLE = "telemetry_rollup_1m"
 
 
+def split_fields(fields: dict) -> tuple[dict, dict | None]:
+    """(numbers, everything else or None): numbers go to `fields`, the rest to `labels`.
+
+    Keeping only numbers in `fields` lets range queries cast `fields->>'X'` to float8
+    without a per-row type check (migration 0002 has the measurement).
+    """
+    numbers: dict = {}
+    labels: dict | None = None
+    for name, value in fields.items():
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            numbers[name] = value
+        else:
+            if labels is None:
+                labels = {}
+            labels[name] = value
+    return numbers, labels
+
+
+def _copy_json(value: dict) -> str:
+    # JSON from json.dumps has no raw tabs or newlines; only backslashes need doubling.
+    return json.dumps(value, separators=(",", ":")).replace("\\", "\\\\")
+
+
 @dataclass(frozen=True)
 class Sample:
     """One flight-controller object as stored: its time, drone (pk), name and fields."""
@@ -35,9 +58,12 @@ class Sample:
     def copy_line(self) -> str:
         """This sample as one line of COPY text format (tab-separated, backslash-escaped)."""
         stamp = datetime.fromtimestamp(self.ts, UTC).isoformat()
-        # JSON from json.dumps has no raw tabs or newlines; only backslashes need doubling.
-        text = json.dumps(self.fields, separators=(",", ":")).replace("\\", "\\\\")
-        return f"{stamp}\t{self.drone_pk}\t{self.object}\t{text}\n"
+        numbers, labels = split_fields(self.fields)
+        extra = _copy_json(labels) if labels else "\\N"
+        return f"{stamp}\t{self.drone_pk}\t{self.object}\t{_copy_json(numbers)}\t{extra}\n"
+
+
+COPY_COLUMNS = "(ts, drone_id, object, fields, labels)"
 
 
 # ---------------------------------------------------------------------------------------
@@ -191,7 +217,7 @@ def copy_samples(conn: psycopg.Connection, samples: Sequence[Sample]) -> None:
     """COPY a batch into the sample table inside the caller's transaction."""
     with (
         conn.cursor() as cursor,
-        cursor.copy("COPY telemetry_sample (ts, drone_id, object, fields) FROM STDIN") as copy,
+        cursor.copy(f"COPY telemetry_sample {COPY_COLUMNS} FROM STDIN") as copy,
     ):
         copy.write("".join(s.copy_line() for s in samples))
 
@@ -207,7 +233,7 @@ def copy_samples_idempotent(conn: psycopg.Connection, samples: Sequence[Sample])
             "CREATE TEMP TABLE IF NOT EXISTS telemetry_stage "
             "(LIKE telemetry_sample) ON COMMIT DELETE ROWS"
         )
-        with cursor.copy("COPY telemetry_stage (ts, drone_id, object, fields) FROM STDIN") as copy:
+        with cursor.copy(f"COPY telemetry_stage {COPY_COLUMNS} FROM STDIN") as copy:
             copy.write("".join(s.copy_line() for s in samples))
         cursor.execute(
             "INSERT INTO telemetry_sample SELECT * FROM telemetry_stage "
@@ -220,10 +246,17 @@ def insert_samples_row_by_row(conn: psycopg.Connection, samples: Iterable[Sample
     """The naive connector, one INSERT per object: kept as the benchmark's baseline."""
     with conn.cursor() as cursor:
         for s in samples:
+            numbers, labels = split_fields(s.fields)
             cursor.execute(
-                "INSERT INTO telemetry_sample (ts, drone_id, object, fields) "
-                "VALUES (to_timestamp(%s), %s, %s, %s::jsonb)",
-                (s.ts, s.drone_pk, s.object, json.dumps(s.fields)),
+                "INSERT INTO telemetry_sample (ts, drone_id, object, fields, labels) "
+                "VALUES (to_timestamp(%s), %s, %s, %s::jsonb, %s::jsonb)",
+                (
+                    s.ts,
+                    s.drone_pk,
+                    s.object,
+                    json.dumps(numbers),
+                    json.dumps(labels) if labels else None,
+                ),
             )
             conn.commit()
 

@@ -17,7 +17,11 @@ from .support import Publisher, drone_messages, wait_until
 
 pytestmark = pytest.mark.e2e
 
-SCHEMA = importlib.import_module("telemetry.migrations.0001_partitioned_samples").SQL
+# The telemetry migrations' own SQL, in order: the same schema as a migrated database.
+SCHEMA = [
+    importlib.import_module(f"telemetry.migrations.{name}").SQL
+    for name in ("0001_partitioned_samples", "0002_labels_apart_from_numbers")
+]
 
 
 @pytest.fixture
@@ -27,7 +31,8 @@ def private_db():
         # The ingest reads only these two columns of the fleet's table.
         conn.execute("CREATE TABLE fleet_drone (id bigserial PRIMARY KEY, drone_id text UNIQUE)")
         conn.execute("INSERT INTO fleet_drone (drone_id) VALUES ('DRONE_A'), ('DRONE_B')")
-        conn.execute(SCHEMA)
+        for sql in SCHEMA:
+            conn.execute(sql)
     yield server
     server.destroy()
 
