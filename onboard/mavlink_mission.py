@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import queue
+import struct
 import threading
 import time
 from dataclasses import dataclass, field
@@ -42,9 +43,15 @@ class MissionUploadError(FlightControllerError):
     """The autopilot refused the mission (result named) or stopped answering."""
 
 
+def float32(value: float) -> float:
+    """The value a float field of a MAVLink message carries (single precision)."""
+    return struct.unpack("<f", struct.pack("<f", value))[0]
+
+
 @dataclass(frozen=True)
 class MissionItem:
-    """One MISSION_ITEM_INT as sent (x/y are degrees × 1e7 in global frames)."""
+    """One MISSION_ITEM_INT as sent (x/y are degrees × 1e7 in global frames; z and
+    params are single precision, so an item compares equal after a round trip)."""
 
     command: int
     frame: int = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
@@ -53,6 +60,10 @@ class MissionItem:
     y: int = 0
     z: float = 0.0
     autocontinue: int = 1
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "z", float32(self.z))
+        object.__setattr__(self, "params", tuple(float32(p) for p in self.params))
 
     @classmethod
     def from_message(cls, msg: Any) -> MissionItem:
