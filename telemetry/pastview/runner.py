@@ -59,28 +59,45 @@ def _settings_for(drone_id: str) -> PastViewSettings | None:
 
 class GroupPublisher:
     """Sends to Channels groups from any thread through one event-loop thread, so the MQTT
-    thread never waits for Redis."""
+    thread never waits for Redis.
 
-    def __init__(self) -> None:
+    One sender drains a queue in order: concurrent sends could overtake each other, and a
+    page must not get a frame's relative pose before the frame's image.
+    """
+
+    def __init__(self, max_queued: int = 10_000) -> None:
         self.layer = get_channel_layer()
         self.loop = asyncio.new_event_loop()
         self.failed = 0
-        threading.Thread(target=self.loop.run_forever, name="pastview-push", daemon=True).start()
+        self.overflowed = 0
+        self.queue: asyncio.Queue = asyncio.Queue(max_queued)
+        threading.Thread(target=self._run, name="pastview-push", daemon=True).start()
+
+    def _run(self) -> None:
+        asyncio.set_event_loop(self.loop)
+        self.loop.create_task(self._drain())
+        self.loop.run_forever()
 
     def __call__(self, drone_id: str, message: dict[str, Any]) -> None:
-        future = asyncio.run_coroutine_threadsafe(
-            self.layer.group_send(
-                group_name(drone_id), {"type": "pastview.message", "message": message}
-            ),
-            self.loop,
-        )
-        future.add_done_callback(self._done)
+        self.loop.call_soon_threadsafe(self._put, drone_id, message)
 
-    def _done(self, future) -> None:  # type: ignore[no-untyped-def]
-        if not future.cancelled() and future.exception() is not None:
-            self.failed += 1
-            if self.failed % 100 == 1:
-                log.warning("group send failed (%d so far): %s", self.failed, future.exception())
+    def _put(self, drone_id: str, message: dict[str, Any]) -> None:
+        try:
+            self.queue.put_nowait((drone_id, message))
+        except asyncio.QueueFull:
+            self.overflowed += 1  # Redis is away or slow: the latest state comes again soon
+
+    async def _drain(self) -> None:
+        while True:
+            drone_id, message = await self.queue.get()
+            try:
+                await self.layer.group_send(
+                    group_name(drone_id), {"type": "pastview.message", "message": message}
+                )
+            except Exception as exc:  # noqa: BLE001 - keep sending the next ones
+                self.failed += 1
+                if self.failed % 100 == 1:
+                    log.warning("group send failed (%d so far): %s", self.failed, exc)
 
     def close(self) -> None:
         self.loop.call_soon_threadsafe(self.loop.stop)
