@@ -32,6 +32,14 @@ def _home(text: str) -> tuple[float, float, float]:
     return lat, lon, alt
 
 
+def _param(text: str) -> tuple[str, float]:
+    name, _, value = text.partition("=")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError("a parameter is NAME=NUMBER") from None
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m firmware.sim", description=__doc__)
     p.add_argument("--home", type=_home, default=(38.736946, -9.142685, 100.0), help="LAT,LON,ALT")
@@ -57,6 +65,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="protocol personality; mavlink serves TCP (default port 5760, like ArduPilot SITL)",
     )
     p.add_argument("--serial", action="store_true", help="mavlink on a pty instead of TCP")
+    p.add_argument(
+        "--param",
+        type=_param,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="mavlink parameter at boot, e.g. SIM_CMD_MUTE=400 or BATT_CRT_PCT=30 (repeatable)",
+    )
     p.add_argument("-v", "--verbose", action="store_true")
     return p
 
@@ -87,6 +103,11 @@ def main(argv: list[str] | None = None) -> int:
         session = MavlinkSession(
             vehicle=Vehicle(config=config, receiver=receiver), time_scale=args.time_scale
         )
+        for name, value in args.param:
+            if name not in session.params:
+                print(f"unknown MAVLink parameter {name}", file=sys.stderr)
+                return 2
+            session.params[name] = value
         if args.tcp is None and not args.serial:
             args.tcp = 5760
     else:
