@@ -70,6 +70,7 @@ COMMAND_TRIES = 3
 # Position only: ignore velocity, acceleration, yaw and yaw rate (POSITION_TARGET_TYPEMASK).
 POSITION_ONLY_MASK = 0x0FF8
 COPTER_MODES = {name: number for number, name in mavutil.mode_mapping_acm.items()}
+NOT_ARMABLE_MODES = ("LAND", "RTL", "AUTO")
 # Wanted stream rates in Hz; SET_MESSAGE_INTERVAL per message, REQUEST_DATA_STREAM fallback.
 DEFAULT_RATES: dict[str, float] = {
     "GLOBAL_POSITION_INT": 10.0,
@@ -628,8 +629,9 @@ class MavlinkFlightController:
         with self._waiters_lock:
             acks, self._acks = self._acks, []
             msgs, self._msg_waiters = self._msg_waiters, []
-        for waiter in [*acks, *msgs]:
-            waiter.event.set()  # they see no answer and raise NotConnected
+        events = [w.event for w in acks] + [w.event for w in msgs]
+        for event in events:
+            event.set()  # the waiters see no answer and raise NotConnected
 
     def _resolve_ack(self, msg: Any) -> None:
         if msg.result == mavlink.MAV_RESULT_IN_PROGRESS:
@@ -982,6 +984,9 @@ class MavlinkFlightController:
         if self.state.armed == arm:
             return
         began = time.monotonic()
+        if arm and self.state.flight_mode in NOT_ARMABLE_MODES:
+            # ArduCopter refuses to arm in LAND, RTL and AUTO (the mode after a landing).
+            self.set_mode("GUIDED", timeout=min(timeout, self.ack_timeout_s))
         self.command_long(
             mavlink.MAV_CMD_COMPONENT_ARM_DISARM,
             1.0 if arm else 0.0,

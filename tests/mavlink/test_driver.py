@@ -46,6 +46,8 @@ def test_the_driver_arms_takes_off_flies_to_a_coordinate_and_lands(fc):
     assert wait_for(lambda: not fc.state.armed, 15), fc.state
     assert fc.state.alt == pytest.approx(0.0, abs=0.05)
     assert fc.state.flight_mode == "LAND"
+    fc.arm(timeout=5)  # ArduCopter will not arm in LAND: the driver switches to GUIDED
+    assert fc.state.armed and fc.state.flight_mode == "GUIDED"
 
 
 def test_a_disarm_in_the_air_is_refused_with_the_mavlink_result_named(fc):
