@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import threading
+from concurrent.futures import Future
 
 from asgiref.sync import async_to_sync
 from channels.layers import get_channel_layer
@@ -45,15 +46,16 @@ class _BackgroundPublisher:
                 self._loop = loop
             return self._loop
 
-    def publish(self, organisation_id: int, payload: dict) -> None:
+    def publish(self, organisation_id: int, payload: dict) -> Future | None:
         layer = get_channel_layer()
         if layer is None:
-            return
+            return None
         future = asyncio.run_coroutine_threadsafe(
             layer.group_send(_group(organisation_id), {"type": "fleet.event", "payload": payload}),
             self._ensure_loop(),
         )
         future.add_done_callback(_log_failure)
+        return future
 
 
 def _log_failure(future) -> None:  # type: ignore[no-untyped-def]
@@ -64,6 +66,10 @@ def _log_failure(future) -> None:  # type: ignore[no-untyped-def]
 _publisher = _BackgroundPublisher()
 
 
-def publish_nowait(organisation_id: int, payload: dict) -> None:
-    """Like publish_to_organisation, but returns at once (for the gateway's hot path)."""
-    _publisher.publish(organisation_id, payload)
+def publish_nowait(organisation_id: int, payload: dict) -> Future | None:
+    """Like publish_to_organisation, but returns at once (for the gateway's hot path).
+
+    Works from any thread, including one where an event loop runs; wait on the returned
+    future when the caller must know the message left.
+    """
+    return _publisher.publish(organisation_id, payload)

@@ -11,6 +11,7 @@ import json
 import logging
 import threading
 import time
+from concurrent import futures
 from datetime import datetime, timedelta
 
 from django.conf import settings
@@ -153,6 +154,7 @@ def sweep_offline(now: datetime | None = None) -> list[str]:
         "pk", "drone_id", "organisation_id", "last_seen"
     )
     marked = []
+    sent = []
     for pk, drone_id, organisation_id, last_seen in stale:
         if not Drone.objects.filter(pk=pk, online=True, last_seen=last_seen).update(online=False):
             continue
@@ -163,11 +165,14 @@ def sweep_offline(now: datetime | None = None) -> list[str]:
             at=now,
             reason=f"no heartbeat for {silent:.1f} s",
         )
-        events.publish_to_organisation(
-            organisation_id,
-            {"type": "drone", "drone": {"drone_id": drone_id, "online": False}},
+        sent.append(
+            events.publish_nowait(
+                organisation_id,
+                {"type": "drone", "drone": {"drone_id": drone_id, "online": False}},
+            )
         )
         marked.append(drone_id)
+    futures.wait([f for f in sent if f is not None], timeout=2)
     if marked:
         log.info("marked offline: %s", ", ".join(marked))
     return marked

@@ -14,6 +14,7 @@ import json
 import time
 import weakref
 from typing import Any
+from urllib.parse import urlsplit
 
 import redis
 import redis.asyncio as aredis
@@ -21,7 +22,7 @@ from django.conf import settings
 
 from onboard import protocol
 
-OUTBOX_KEY = "skyhive:gateway:outbox"
+OUTBOX_PREFIX = "skyhive:gateway:outbox:"
 PENDING_PREFIX = "skyhive:pending:"
 REPLY_PREFIX = "skyhive:reply:"
 # A reply nobody waits for any more is kept this long, then Redis forgets it.
@@ -48,6 +49,13 @@ def async_redis() -> aredis.Redis:
     return client
 
 
+def outbox_key(broker_url: str | None = None) -> str:
+    """The outbox of one broker: gateways on another broker (another deployment or test
+    sharing this Redis) never take its messages."""
+    url = urlsplit(broker_url or settings.MQTT_URL)
+    return f"{OUTBOX_PREFIX}{url.hostname or '127.0.0.1'}:{url.port or 1883}"
+
+
 def outbox_item(drone_id: str, channel: str, message: dict, *, ttl: float) -> bytes:
     """One outbox entry. `expires` stops a gateway that starts late from sending stale
     commands (a take-off nobody waits for any more)."""
@@ -65,14 +73,14 @@ def outbox_item(drone_id: str, channel: str, message: dict, *, ttl: float) -> by
 def send_to_drone(drone_id: str, channel: str, message: dict, *, ttl: float | None = None) -> None:
     """Queue `message` for `<drone_id>/<channel>/in`; a gateway publishes it."""
     ttl = settings.COMMAND_TIMEOUT_S if ttl is None else ttl
-    sync_redis().rpush(OUTBOX_KEY, outbox_item(drone_id, channel, message, ttl=ttl))
+    sync_redis().rpush(outbox_key(), outbox_item(drone_id, channel, message, ttl=ttl))
 
 
 async def asend_to_drone(
     drone_id: str, channel: str, message: dict, *, ttl: float | None = None
 ) -> None:
     ttl = settings.COMMAND_TIMEOUT_S if ttl is None else ttl
-    await async_redis().rpush(OUTBOX_KEY, outbox_item(drone_id, channel, message, ttl=ttl))
+    await async_redis().rpush(outbox_key(), outbox_item(drone_id, channel, message, ttl=ttl))
 
 
 async def arequest(
@@ -84,7 +92,7 @@ async def arequest(
     client = async_redis()
     pipe = client.pipeline(transaction=False)
     pipe.set(PENDING_PREFIX + request_id, drone_id, px=int((timeout + 5) * 1000))
-    pipe.rpush(OUTBOX_KEY, outbox_item(drone_id, channel, message, ttl=timeout))
+    pipe.rpush(outbox_key(), outbox_item(drone_id, channel, message, ttl=timeout))
     await pipe.execute()
     popped = await client.blpop([REPLY_PREFIX + request_id], timeout=timeout)
     if popped is None:
@@ -114,9 +122,9 @@ def deliver_reply(drone_id: str, request_id: str, reply: dict) -> str | None:
     return None
 
 
-def pop_outbox(timeout: float = 1.0) -> dict[str, Any] | None:
+def pop_outbox(key: str, timeout: float = 1.0) -> dict[str, Any] | None:
     """Gateway side: the next message to publish, or None after `timeout` seconds."""
-    popped = sync_redis().blpop([OUTBOX_KEY], timeout=timeout)
+    popped = sync_redis().blpop([key], timeout=timeout)
     if popped is None:
         return None
     return json.loads(popped[1])

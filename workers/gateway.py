@@ -54,6 +54,7 @@ class Gateway:
     ) -> None:
         url = urlsplit(broker_url)
         self.host = url.hostname or "127.0.0.1"
+        self.outbox = link.outbox_key(broker_url)
         self.port = url.port or 1883
         self.counters = counters or Counters("gateway")
         table = DISPATCH if dispatch is None else dispatch
@@ -176,7 +177,7 @@ class Gateway:
             if not self.connected.wait(0.5):
                 continue
             try:
-                item = link.pop_outbox(timeout=0.25)
+                item = link.pop_outbox(self.outbox, timeout=0.25)
             except redis.RedisError as exc:
                 self.counters.incr("outbox.redis_error")
                 log.warning("outbox unavailable: %s", exc)

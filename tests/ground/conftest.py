@@ -38,11 +38,11 @@ def broker(_shared_broker, settings):  # type: ignore[no-untyped-def]
 
 
 @pytest.fixture
-def fresh_redis():  # type: ignore[no-untyped-def]
+def fresh_redis(broker):  # type: ignore[no-untyped-def]
     """No outbox left over from an earlier run."""
     from fleet import link
 
-    link.sync_redis().delete(link.OUTBOX_KEY)
+    link.sync_redis().delete(link.outbox_key(broker.url))
     return link.sync_redis()
 
 
@@ -160,3 +160,38 @@ class Responder:
     def stop(self) -> None:
         self.client.disconnect()
         self.client.loop_stop()
+
+
+def _threaded_client_class():  # type: ignore[no-untyped-def]
+    from concurrent.futures import ThreadPoolExecutor
+
+    from django.db import connections
+    from django.test import Client
+
+    class ThreadedClient(Client):
+        """Django's test client with each request on a worker thread.
+
+        Async views run through async_to_sync, which refuses a thread where an event loop
+        runs, and Playwright's sync API keeps one in the main thread for the rest of the
+        session once any browser test has run.
+        """
+
+        def request(self, **request):  # type: ignore[no-untyped-def]
+            def run():  # type: ignore[no-untyped-def]
+                try:
+                    return Client.request(self, **request)
+                finally:
+                    connections.close_all()
+
+            with ThreadPoolExecutor(1) as pool:
+                return pool.submit(run).result()
+
+    return ThreadedClient
+
+
+def client_for(user=None):  # type: ignore[no-untyped-def]
+    """A test client logged in as `user` (anonymous when None)."""
+    client = _threaded_client_class()()
+    if user is not None:
+        client.force_login(user)
+    return client

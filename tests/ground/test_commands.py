@@ -6,12 +6,11 @@ import base64
 import json
 
 import pytest
-from django.test import Client
 
 from fleet import credentials
 from fleet.models import CommandLog, Drone
 
-from .conftest import Responder, wait_for
+from .conftest import Responder, client_for, wait_for
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -26,12 +25,6 @@ def online(world_tx, broker, gateway):  # type: ignore[no-untyped-def]
     )
     yield responder
     responder.stop()
-
-
-def client_for(user) -> Client:  # type: ignore[no-untyped-def]
-    client = Client()
-    client.force_login(user)
-    return client
 
 
 def test_an_operator_arms_a_drone_through_control_and_gets_its_reply(world_tx, online):
@@ -146,7 +139,7 @@ def test_getgear_answers_from_the_drone_identifier(world_tx):
 
 
 def test_control_needs_a_login(world_tx):
-    response = Client().get("/control", {"command": "discover"})
+    response = client_for().get("/control", {"command": "discover"})
     assert response.status_code in (401, 403)
     assert response.json()["ok"] is False
 
@@ -155,7 +148,8 @@ def test_a_token_client_commands_through_the_resource_api(world_tx, online):
     from rest_framework.authtoken.models import Token
 
     token = Token.objects.create(user=world_tx.operator)
-    client = Client(HTTP_AUTHORIZATION=f"Token {token.key}")
+    client = client_for()
+    client.defaults["HTTP_AUTHORIZATION"] = f"Token {token.key}"
     response = client.post(
         "/api/v1/drones/ACME_1/commands/",
         {"command": "changeE", "params": {"value": -3}},

@@ -9,12 +9,11 @@ import threading
 
 import pytest
 from django.core.management import call_command
-from django.test import Client
 
 from fleet import credentials
 from fleet.models import Drone
 
-from .conftest import mqtt_client, wait_for
+from .conftest import client_for, mqtt_client, wait_for
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -106,8 +105,7 @@ def test_a_drone_cannot_publish_on_another_drones_topics(world_tx, broker, gatew
 
 
 def test_revoking_through_the_api_cuts_the_drone_off(world_tx, broker):
-    owner = Client()
-    owner.force_login(world_tx.owner)
+    owner = client_for(world_tx.owner)
     issued = owner.post("/api/v1/drones/ACME_1/credentials/")
     assert issued.status_code == 201
     password = issued.json()["mqtt"]["password"]
@@ -125,11 +123,9 @@ def test_revoking_through_the_api_cuts_the_drone_off(world_tx, broker):
 
 
 def test_only_admins_manage_credentials(world_tx, broker):
-    operator = Client()
-    operator.force_login(world_tx.operator)
+    operator = client_for(world_tx.operator)
     assert operator.post("/api/v1/drones/ACME_1/credentials/").status_code == 403
-    outsider = Client()
-    outsider.force_login(world_tx.outsider)
+    outsider = client_for(world_tx.outsider)
     assert outsider.post("/api/v1/drones/ACME_1/credentials/").status_code == 404
 
 
@@ -142,8 +138,7 @@ def test_the_admin_shows_gateway_counters_and_issues_and_revokes_credentials(wor
     counters.incr("dropped.malformed", 3)
     counters.flush()
     admin_user = get_user_model().objects.create_superuser("root", "r@example.com", "pw")
-    client = Client()
-    client.force_login(admin_user)
+    client = client_for(admin_user)
     page = client.get("/admin/fleet/drone/").content.decode()
     assert "gateway-admin-test" in page and "dropped.malformed" in page
 

@@ -7,13 +7,12 @@ import json
 import time
 
 import pytest
-from django.test import Client
 
 from fleet import credentials
 from fleet.identifier import sweep_offline
 from fleet.models import ConnectionEvent, Drone
 
-from .conftest import wait_for
+from .conftest import client_for, wait_for
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
@@ -60,7 +59,7 @@ def fleet(world_tx, broker, gateway, tmp_path, settings):  # type: ignore[no-unt
         running.stop()
 
 
-def control(client: Client, **params: str) -> tuple[int, dict]:
+def control(client, **params: str) -> tuple[int, dict]:
     method = (
         client.get if params["command"] in ("discover", "getgear", "objrequest") else client.post
     )
@@ -69,8 +68,7 @@ def control(client: Client, **params: str) -> tuple[int, dict]:
 
 
 def test_two_simulated_drones_are_discovered_and_flown_through_control(world_tx, fleet):
-    client = Client()
-    client.force_login(world_tx.operator)
+    client = client_for(world_tx.operator)
 
     status, body = control(client, command="discover")
     assert status == 200
@@ -100,8 +98,7 @@ def test_two_simulated_drones_are_discovered_and_flown_through_control(world_tx,
 def test_a_drone_killed_mid_flight_goes_offline_within_three_heartbeats_and_comes_back(
     world_tx, fleet
 ):
-    client = Client()
-    client.force_login(world_tx.operator)
+    client = client_for(world_tx.operator)
     victim = fleet.drones[1]
     assert control(client, command="arm", droneID=victim.drone_id)[0] == 200
     assert control(client, command="takeoff", droneID=victim.drone_id, altitude="5")[0] == 200
