@@ -7,10 +7,16 @@ from django.conf import settings
 from django.contrib.auth.decorators import login_required
 from django.http import FileResponse, Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, render
+from django.urls import reverse
 
+from fleet.models import Role
+from fleet.permissions import require_role
 from onboard.protocol import STEP_COMMANDS
 
 from .models import Mission, MissionStatus, Picture
+
+# Stands for a mission id in URLs handed to the page's script.
+UUID_PLACEHOLDER = "00000000-0000-0000-0000-000000000000"
 
 
 def _organisation(request: HttpRequest):  # type: ignore[no-untyped-def]
@@ -20,10 +26,15 @@ def _organisation(request: HttpRequest):  # type: ignore[no-untyped-def]
     return organisation
 
 
-def _map_context() -> dict:
+def _map_config(organisation, **extra: object) -> dict:  # type: ignore[no-untyped-def]
+    """Tiles and a starting view for the page's map (a drone of the organisation, if any)."""
+    placed = organisation.drones.filter(lat__isnull=False).order_by("-online", "drone_id").first()
+    center = [placed.lat, placed.lon] if placed else [40.6303, -8.6575]
     return {
-        "map_tile_url": getattr(settings, "MAP_TILE_URL", ""),
-        "map_tile_attribution": getattr(settings, "MAP_TILE_ATTRIBUTION", ""),
+        "tileUrl": getattr(settings, "MAP_TILE_URL", ""),
+        "attribution": getattr(settings, "MAP_TILE_ATTRIBUTION", ""),
+        "center": center,
+        **extra,
     }
 
 
@@ -63,7 +74,15 @@ def mission_detail(request: HttpRequest, pk: str) -> HttpResponse:
             "steps": mission.steps.select_related("drone"),
             "assignments": mission.assignments.select_related("drone"),
             "events": mission.events.select_related("drone")[:500],
-            **_map_context(),
+            "pictures": mission.pictures.all()[:500],
+            "can_operate": require_role(request.user, mission.organisation, Role.OPERATOR),
+            "mission_config": _map_config(
+                mission.organisation,
+                missionId=str(mission.pk),
+                missionApi=reverse("api:mission-detail", args=[mission.pk]),
+                logApi=reverse("api:mission-log", args=[mission.pk]),
+                socket=f"/ws/missions/{mission.pk}/",
+            ),
         },
     )
 
@@ -77,7 +96,14 @@ def planner(request: HttpRequest) -> HttpResponse:
         {
             "drones": organisation.drones.all(),
             "commands": STEP_COMMANDS,
-            **_map_context(),
+            "planner_config": _map_config(
+                organisation,
+                coverageUrl=reverse("api:mission-coverage"),
+                createUrl=reverse("api:mission-list"),
+                startUrl=reverse("api:mission-start", args=[UUID_PLACEHOLDER]),
+                missionUrl=reverse("missions:detail", args=[UUID_PLACEHOLDER]),
+                placeholder=UUID_PLACEHOLDER,
+            ),
         },
     )
 
@@ -96,15 +122,33 @@ def log_viewer(request: HttpRequest) -> HttpResponse:
         {
             "mission": mission,
             "missions": Mission.objects.filter(organisation=organisation)[:50],
-            **_map_context(),
+            "viewer_config": _map_config(
+                organisation,
+                checkUrl=reverse("api:mission-check-log"),
+                logUrl=reverse("api:mission-log", args=[UUID_PLACEHOLDER]),
+                placeholder=UUID_PLACEHOLDER,
+                mission=str(mission.pk) if mission else None,
+            ),
         },
     )
 
 
 @login_required
 def panic_page(request: HttpRequest) -> HttpResponse:
-    _organisation(request)
-    return render(request, "missions/panic.html", {})
+    organisation = _organisation(request)
+    return render(
+        request,
+        "missions/panic.html",
+        {
+            "panic_config": {
+                "panicUrl": reverse("api:mission-panic"),
+                "missionApi": reverse("api:mission-detail", args=[UUID_PLACEHOLDER]),
+                "droneApi": reverse("api:drone-detail", args=["__DRONE__"]),
+                "placeholder": UUID_PLACEHOLDER,
+                "organisation": organisation.slug,
+            }
+        },
+    )
 
 
 def _picture(request: HttpRequest, pk: int) -> Picture:

@@ -1,0 +1,82 @@
+/* Shared helpers of the mission pages: the JSON API with CSRF, a Leaflet map with the
+   configured tiles (none in tests: no internet there), colours per drone. */
+(function () {
+  "use strict";
+
+  function csrfToken() {
+    const meta = document.querySelector('meta[name="csrf-token"]');
+    return meta ? meta.content : "";
+  }
+
+  async function api(method, url, body) {
+    const options = { method, headers: { Accept: "application/json", "X-CSRFToken": csrfToken() }, credentials: "same-origin" };
+    if (body instanceof FormData) {
+      options.body = body;
+    } else if (body !== undefined) {
+      options.headers["Content-Type"] = "application/json";
+      options.body = JSON.stringify(body);
+    }
+    const response = await fetch(url, options);
+    let data = null;
+    try { data = await response.json(); } catch (e) { data = null; }
+    if (!response.ok) {
+      const message = (data && data.error) || `${response.status} ${response.statusText}`;
+      const error = new Error(message);
+      error.status = response.status;
+      error.fields = (data && data.fields) || {};
+      throw error;
+    }
+    return data;
+  }
+
+  function escapeHtml(text) {
+    return String(text).replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" }[c]));
+  }
+
+  function makeMap(elementId, config) {
+    const map = L.map(elementId, { zoomControl: true });
+    if (config && config.tileUrl) {
+      L.tileLayer(config.tileUrl, { maxZoom: 21, maxNativeZoom: 19, attribution: config.attribution || "" }).addTo(map);
+    }
+    return map;
+  }
+
+  const PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b", "#e377c2"];
+  const assigned = new Map();
+  function colourFor(droneId) {
+    if (!assigned.has(droneId)) assigned.set(droneId, PALETTE[assigned.size % PALETTE.length]);
+    return assigned.get(droneId);
+  }
+
+  function seconds(value) {
+    return value === null || value === undefined ? "–" : `${Number(value).toFixed(1)} s`;
+  }
+
+  /* Great-circle distance in metres (the page only shows it). */
+  function distance(a, b) {
+    const r = 6371008.8, rad = Math.PI / 180;
+    const dLat = (b[0] - a[0]) * rad, dLon = (b[1] - a[1]) * rad;
+    const h = Math.sin(dLat / 2) ** 2 + Math.cos(a[0] * rad) * Math.cos(b[0] * rad) * Math.sin(dLon / 2) ** 2;
+    return 2 * r * Math.asin(Math.sqrt(h));
+  }
+
+  function liveSocket(path, onMessage, onState) {
+    const scheme = location.protocol === "https:" ? "wss" : "ws";
+    let closed = false;
+    let socket = null;
+    function open() {
+      socket = new WebSocket(`${scheme}://${location.host}${path}`);
+      socket.onopen = () => onState && onState(true);
+      socket.onmessage = (event) => onMessage(JSON.parse(event.data));
+      socket.onclose = (event) => {
+        onState && onState(false);
+        // 4401/4403: not allowed; retrying would not help.
+        if (!closed && event.code !== 4401 && event.code !== 4403) setTimeout(open, 2000);
+      };
+    }
+    open();
+    return { close() { closed = true; socket && socket.close(); } };
+  }
+
+  window.SkyhiveMissions = { api, escapeHtml, makeMap, colourFor, seconds, distance, liveSocket };
+})();

@@ -1,0 +1,211 @@
+/* The Mission Planner: three clicked corners → coverage from the API → an editable,
+   drag-and-drop step list → create and start the mission. */
+(function () {
+  "use strict";
+  const M = window.SkyhiveMissions;
+  const config = JSON.parse(document.getElementById("planner-config").textContent);
+  const $ = (id) => document.getElementById(id);
+
+  // Parameter forms per step command (PROTOCOL.md): name, kind, default.
+  const PARAMS = {
+    arm: [], land: [], takepic: [], rebuildtelemetry: [],
+    disarm: [["force", "bool", false]],
+    resetfc: [["force", "bool", false]],
+    takeoff: [["altitude", "number", 10]],
+    changeN: [["value", "number", 5]],
+    changeE: [["value", "number", 5]],
+    altitude: [["value", "number", 2]],
+    navigate: [["lat", "number", 0], ["lon", "number", 0], ["altitude_delta", "number", 0]],
+    objrequest: [["value", "text", "AttitudeActual"]],
+    wait_for_flight: [["horizontal_tolerance", "number", 2], ["vertical_tolerance", "number", 2]],
+    sleep: [["value", "number", 2]],
+    virtualalarm: [["level", ["CRITICAL", "OUT_MEASURE"], "CRITICAL"], ["message", "text", ""]],
+    sense: [["sensor", "text", "CO2"]],
+  };
+
+  const map = M.makeMap("planner-map", config);
+  map.setView(config.center, 18);
+  const layer = L.layerGroup().addTo(map);
+  let vertices = [];
+  let area = null;
+  let steps = [];
+
+  function showError(message) {
+    const box = $("planner-error");
+    box.textContent = message || "";
+    box.hidden = !message;
+  }
+
+  function intermediateAction() {
+    const kind = $("intermediate-action").value;
+    const value = $("action-param").value;
+    if (!kind) return null;
+    if (kind === "takepic") return "takepic";
+    if (kind === "sleep") return { command: "sleep", params: { value: Number(value) } };
+    return { command: "sense", params: { sensor: value } };
+  }
+
+  function defaults(command) {
+    const params = {};
+    for (const [name, , value] of PARAMS[command] || []) params[name] = value;
+    return params;
+  }
+
+  function buildSteps() {
+    if (!area) return;
+    const altitude = Number($("altitude").value);
+    const action = intermediateAction();
+    steps = [{ command: "arm", params: {} }, { command: "takeoff", params: { altitude } }];
+    for (const [lat, lon] of area.waypoints) {
+      steps.push({ command: "navigate", params: { lat, lon, altitude_delta: 0 } });
+      steps.push({ command: "wait_for_flight", params: { horizontal_tolerance: 2, vertical_tolerance: 2 } });
+      if (action === "takepic") steps.push({ command: "takepic", params: {} });
+      else if (action) steps.push({ command: action.command, params: { ...action.params } });
+    }
+    steps.push({ command: "land", params: {} });
+    renderSteps();
+  }
+
+  function paramInput(step, name, kind) {
+    const value = step.params[name];
+    let input;
+    if (Array.isArray(kind)) {
+      input = document.createElement("select");
+      for (const option of kind) input.add(new Option(option, option, false, option === value));
+    } else {
+      input = document.createElement("input");
+      if (kind === "bool") { input.type = "checkbox"; input.checked = Boolean(value); }
+      else { input.type = kind === "number" ? "number" : "text"; input.step = "any"; input.value = value ?? ""; }
+    }
+    input.name = name;
+    input.addEventListener("change", () => {
+      step.params[name] = kind === "bool" ? input.checked : kind === "number" ? Number(input.value) : input.value;
+    });
+    const label = document.createElement("label");
+    label.className = "param";
+    label.append(`${name} `, input);
+    return label;
+  }
+
+  function renderSteps() {
+    const list = $("step-list");
+    list.replaceChildren();
+    steps.forEach((step, i) => {
+      const item = document.createElement("li");
+      item.className = "step";
+      item.draggable = true;
+      item.dataset.index = String(i);
+      const command = document.createElement("select");
+      command.className = "command";
+      command.setAttribute("aria-label", `Command of step ${i}`);
+      for (const name of Object.keys(PARAMS)) command.add(new Option(name, name, false, name === step.command));
+      command.addEventListener("change", () => { step.command = command.value; step.params = defaults(step.command); renderSteps(); });
+      const remove = document.createElement("button");
+      remove.type = "button";
+      remove.className = "link remove";
+      remove.textContent = "✕";
+      remove.title = "Remove this step";
+      remove.addEventListener("click", () => { steps.splice(i, 1); renderSteps(); });
+      const handle = document.createElement("span");
+      handle.className = "handle";
+      handle.textContent = "⠿";
+      item.append(handle, command);
+      for (const [name, kind] of PARAMS[step.command] || []) item.append(paramInput(step, name, kind));
+      item.append(remove);
+      item.addEventListener("dragstart", (event) => { event.dataTransfer.setData("text/plain", String(i)); item.classList.add("dragging"); });
+      item.addEventListener("dragend", () => item.classList.remove("dragging"));
+      item.addEventListener("dragover", (event) => event.preventDefault());
+      item.addEventListener("drop", (event) => {
+        event.preventDefault();
+        const from = Number(event.dataTransfer.getData("text/plain"));
+        if (Number.isNaN(from) || from === i) return;
+        const [moved] = steps.splice(from, 1);
+        steps.splice(i, 0, moved);
+        renderSteps();
+      });
+      list.append(item);
+    });
+  }
+
+  function drawArea() {
+    layer.clearLayers();
+    vertices.forEach((v, i) => L.marker(v, { title: "ABC"[i] }).addTo(layer).bindTooltip("ABC"[i], { permanent: true }));
+    $("vertex-count").textContent = String(vertices.length);
+    if (!area) { $("waypoint-count").textContent = "0"; $("area").textContent = "–"; return; }
+    const [a, b, c] = vertices;
+    const d = [a[0] + (c[0] - b[0]), a[1] + (c[1] - b[1])];
+    L.polygon([a, b, c, d], { color: "#555", weight: 1, fillOpacity: 0.05 }).addTo(layer);
+    L.polyline(area.waypoints, { color: "#1f77b4", weight: 2 }).addTo(layer);
+    area.waypoints.forEach((p, i) => L.circleMarker(p, { radius: 3, color: i === 0 ? "#2ca02c" : "#1f77b4", className: "waypoint" }).addTo(layer));
+    $("waypoint-count").textContent = String(area.waypoints.length);
+    $("area").textContent = area.area_m2.toFixed(0);
+  }
+
+  async function requestCoverage() {
+    if (vertices.length !== 3) return;
+    showError("");
+    try {
+      area = await M.api("POST", config.coverageUrl, {
+        vertices, step_distance: Number($("step-distance").value), altitude: Number($("altitude").value),
+      });
+      buildSteps();
+    } catch (error) {
+      area = null;
+      showError(error.message);
+    }
+    drawArea();
+  }
+
+  map.on("click", (event) => {
+    if (vertices.length === 3) { vertices = []; area = null; }
+    vertices.push([event.latlng.lat, event.latlng.lng]);
+    drawArea();
+    requestCoverage();
+  });
+  $("clear-area").addEventListener("click", () => { vertices = []; area = null; steps = []; renderSteps(); drawArea(); });
+  $("step-distance").addEventListener("change", requestCoverage);
+  $("altitude").addEventListener("change", () => (area ? buildSteps() : null));
+  $("intermediate-action").addEventListener("change", () => {
+    const kind = $("intermediate-action").value;
+    $("action-param-label").hidden = !(kind === "sleep" || kind === "sense");
+    $("action-param-name").textContent = kind === "sense" ? "Sensor" : "Seconds";
+    $("action-param").value = kind === "sense" ? "CO2" : "2";
+    if (area) buildSteps();
+  });
+  $("action-param").addEventListener("change", () => (area ? buildSteps() : null));
+  $("add-step").addEventListener("click", () => {
+    const command = $("new-step-command").value;
+    steps.push({ command, params: defaults(command) });
+    renderSteps();
+  });
+
+  $("planner-form").addEventListener("submit", async (event) => {
+    event.preventDefault();
+    showError("");
+    if (!steps.length) { showError("Click three corners or add steps first."); return; }
+    const body = { name: $("mission-name").value, altitude: Number($("altitude").value), steps };
+    if (area) {
+      body.extensibility = { vertices, vectors: area.vectors, step_distance: area.step_distance,
+                             intermediate_action: intermediateAction() };
+    }
+    $("send-mission").disabled = true;
+    try {
+      const mission = await M.api("POST", config.createUrl, body);
+      const drone = $("drone-choice").value || null;
+      try {
+        await M.api("POST", config.startUrl.replace(config.placeholder, mission.id), { drone });
+      } catch (error) {
+        showError(`Saved as a draft, not started: ${error.message}`);
+        $("send-mission").disabled = false;
+        return;
+      }
+      location.href = config.missionUrl.replace(config.placeholder, mission.id);
+    } catch (error) {
+      showError(error.message);
+      $("send-mission").disabled = false;
+    }
+  });
+
+  // For tests and the console.
+  window.skyhivePlanner = { map, get steps() { return steps; }, get area() { return area; } };
+})();
