@@ -284,7 +284,6 @@ class MissionWorker:
 
     def _run_step(self, mission: RunningMission, step: protocol.Step) -> tuple[bool, str | None]:
         payload = mission.payload
-        started = time.monotonic()
         self._step_status(mission, step, "started")
         self.events(
             "step",
@@ -296,6 +295,7 @@ class MissionWorker:
                 "position": position_of(self.fc.state),
             },
         )
+        started = time.monotonic()  # after the started message: only the step is timed
         try:
             result = self._dispatch(mission, step)
         except (StepFailed, CommandError, MissionStopped) as exc:

@@ -194,7 +194,8 @@ def test_a_mission_survives_a_broker_restart_and_its_log_holds_every_step(
         completed = {m["index"]: m for m in steps if m["status"] == "completed"}
         assert completed[4]["position"]["lat"] == pytest.approx(HOME[0] + 100 / 111_320, abs=2e-5)
         assert completed[6]["result"]["reading"]["unit"] == "ppm"
-        assert completed[7]["duration_s"] == pytest.approx(4.0, abs=2.0)
+        # Flight seconds (wall x time scale): 4 s of sleep, plus scheduling on a busy host.
+        assert 3.9 <= completed[7]["duration_s"] < 15
         picture = ground.wait_for("pictures", lambda m: True)
         assert picture["name"] == completed[5]["result"]["name"] and picture["index"] == 5
     finally:

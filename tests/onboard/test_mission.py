@@ -190,9 +190,9 @@ def test_sleep_is_scaled_by_the_time_scale() -> None:
         h.send([{"index": 0, "command": "sleep", "params": {"value": 4}}])
         messages = h.until_mission_status()
         elapsed = time.monotonic() - began
-        assert 0.15 < elapsed < 1.5
+        assert 0.19 < elapsed < 3.0
         completed = [m for m in messages if isinstance(m, protocol.StepProgress)][-1]
-        assert completed.duration_s == pytest.approx(4.0, abs=1.0)
+        assert 3.9 <= completed.duration_s < 8.0  # flight seconds; slack for a busy host
     finally:
         h.worker.close()
 
