@@ -207,3 +207,36 @@ def test_outbox_messages_that_expired_are_not_sent(world_tx, broker, gateway):
     assert received == [{"fresh": True}]
     assert gateway.counters.get("outbox.expired") == 1
     drone.loop_stop()
+
+
+def test_the_gateway_command_connects_and_drains_on_sigterm(broker, tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from django.conf import settings as django_settings
+
+    env = dict(
+        os.environ,
+        DJANGO_SETTINGS_MODULE="config.settings.test",
+        TEST_WORKER_DB_NAME=django_settings.DATABASES["default"]["NAME"],
+        PYTHONUNBUFFERED="1",
+    )
+    process = subprocess.Popen(
+        [sys.executable, "manage.py", "gateway", "--broker", broker.url_for("ground")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        env=env,
+        text=True,
+    )
+    try:
+        lines = [process.stdout.readline() for _ in range(2)]
+        assert any("connected to 127.0.0.1" in line for line in lines), lines
+        process.send_signal(signal.SIGTERM)
+        output, _ = process.communicate(timeout=10)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0
+    assert "gateway: stopped" in output
