@@ -8,6 +8,7 @@ from django.conf import settings
 from django.db import transaction
 from rest_framework import exceptions, mixins, serializers, status, viewsets
 from rest_framework.decorators import action
+from rest_framework.permissions import SAFE_METHODS
 from rest_framework.request import Request
 from rest_framework.response import Response
 
@@ -26,6 +27,16 @@ class NotReady(exceptions.APIException):
     status_code = status.HTTP_409_CONFLICT
     default_code = "not_ready"
     default_detail = "The log is not ready: it is still processing or it failed."
+
+
+class LogPermission(OrganisationRole):
+    """Reads need no second membership query: the queryset only holds logs of the user's
+    organisations (outsiders get 404). Writes still need the operator role."""
+
+    def has_object_permission(self, request, view, obj) -> bool:  # type: ignore[no-untyped-def]
+        if request.method in SAFE_METHODS:
+            return True
+        return super().has_object_permission(request, view, obj)
 
 
 class FlightLogSerializer(serializers.ModelSerializer):
@@ -102,7 +113,7 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
     """Flight logs of the user's organisations. `?q=` searches names, formats and owners;
     `?status=` filters. Viewers read; operators upload and delete."""
 
-    permission_classes = [OrganisationRole]
+    permission_classes = [LogPermission]
     serializer_class = FlightLogSerializer
     lookup_value_regex = "[0-9a-fA-F-]{32,36}"
 

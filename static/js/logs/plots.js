@@ -7,7 +7,8 @@ import { debounce, formatDuration } from "./state.js";
 
 let firstPlotMarked = false;
 
-function markFirstPlot() {
+function markFirstPlot(viewer) {
+  viewer.dispatchEvent(new Event("plotted"));
   if (firstPlotMarked) return;
   firstPlotMarked = true;
   performance.mark("logs:first-plot");
@@ -53,6 +54,10 @@ export class Chart {
     if (!this.lines.length) { this.rebuild(); return; }
     const [start, end] = this.state.view;
     const points = Math.min(Math.max(Math.round(this.width), 100), 4000);
+    // A resize by a few pixels or a repeated event must not abort an identical request.
+    const key = `${start}|${end}|${Math.round(points / 50)}|${this.lines.map((l) => l.path).join(";")}`;
+    if (key === this.key) return;
+    this.key = key;
     this.controller?.abort();
     const controller = (this.controller = new AbortController());
     try {
@@ -64,6 +69,7 @@ export class Chart {
       this.lines.forEach((line, i) => this.raw.set(line.path, results[i]));
       this.rebuild();
     } catch (err) {
+      if (this.key === key) this.key = null;
       if (err.name !== "AbortError") this.viewer.warn(`Plot: ${err.message}`);
     }
   }
@@ -93,7 +99,7 @@ export class Chart {
       this.signature = signature;
       this.u = new uPlot(this.options(), data, this.el);
     }
-    if (this.lines.length && data[0].length) markFirstPlot();
+    if (this.lines.length && data[0].length) markFirstPlot(this.viewer);
   }
 
   setRange() {

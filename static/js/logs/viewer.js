@@ -2,7 +2,6 @@
 // plots, multi-plot, map and 3D attitude around one TimeState, and the replay controls.
 
 import { escapeHtml, getJSON, watchProgress } from "./api.js";
-import { AttitudeView } from "./attitude.js";
 import { MapView } from "./map.js";
 import { Chart } from "./plots.js";
 import { Replay } from "./replay.js";
@@ -82,12 +81,18 @@ export class LogViewer extends EventTarget {
     this.part("processing").hidden = true;
     this.part("body").hidden = false;
     this.bindToolbar();
-    this.timeline = new Timeline(this.part("timeline-canvas"), this);
-    this.tree = new ValuesTree(this.part("tree"), this.part("tree-filter"), this);
+    const plotted = new Promise((resolve) => this.addEventListener("plotted", resolve, { once: true }));
     this.buildQuickPlots();
     this.buildMultiPlot();
+    this.timeline = new Timeline(this.part("timeline-canvas"), this);
+    // The plots' series go first; the heavier requests (every value, the track, the
+    // attitude and three.js) follow once a plot is drawn, or shortly after in any case.
+    await Promise.race([plotted, new Promise((resolve) => setTimeout(resolve, 400))]);
+    this.tree = new ValuesTree(this.part("tree"), this.part("tree-filter"), this);
     this.map = new MapView(this.part("map"), this, { title: this.part("map-title"), note: this.part("map-note") });
-    this.attitude = new AttitudeView(this.part("attitude"), this.part("angles"), this);
+    import("./attitude.js").then(({ AttitudeView }) => {
+      this.attitude = new AttitudeView(this.part("attitude"), this.part("angles"), this);
+    });
     this.root.dataset.loaded = "true";
     this.dispatchEvent(new Event("loaded"));
   }
