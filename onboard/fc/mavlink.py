@@ -535,6 +535,11 @@ class MavlinkFlightController:
         with self._values_lock:
             self._latest[kind] = fields
         self._update_state(kind, msg, now)
+        if self._listeners:
+            self._queue_event(kind, fields)
+        # Platform objects are kept even without listeners: objrequest answers from them.
+        for name, values in self._platform_objects(kind, msg):
+            self._emit_platform(name, values)
         if kind == "COMMAND_ACK":
             self._resolve_ack(msg)
         elif kind == "STATUSTEXT":
@@ -546,10 +551,6 @@ class MavlinkFlightController:
             except Exception:
                 self.stats["handler_errors"] += 1
                 log.exception("MAVLink message handler failed on %s", kind)
-        if self._listeners:
-            self._queue_event(kind, fields)
-            for name, values in self._platform_objects(kind, msg):
-                self._emit_platform(name, values)
 
     def _is_vehicle(self, msg: Any) -> bool:
         return msg.type != mavlink.MAV_TYPE_GCS and msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID

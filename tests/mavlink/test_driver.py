@@ -143,13 +143,20 @@ def test_stream_rates_follow_set_message_interval(fc, recorder):
     assert 0.5 * TIME_SCALE <= recorder.counts["ATTITUDE"] - stopped_at <= 1.5 * TIME_SCALE
 
 
-def test_objrequest_answers_mavlink_names_and_platform_names(fc):
-    attitude = fc.request_object("ATTITUDE")
-    assert set(attitude) >= {"roll", "pitch", "yaw"}
-    home = fc.request_object("HomeLocation")
-    assert home["Latitude"] == round(HOME[0] * 1e7)
-    with pytest.raises(Exception, match="neither a MAVLink message"):
-        fc.request_object("NoSuchThing")
+def test_objrequest_answers_mavlink_names_and_platform_names(mav_sim):
+    fc = MavlinkFlightController(mav_sim.link_url)  # no listener: objects are kept anyway
+    fc.start()
+    try:
+        assert fc.wait_connected(5)
+        attitude = fc.request_object("ATTITUDE")
+        assert set(attitude) >= {"roll", "pitch", "yaw"}
+        home = fc.request_object("HomeLocation")
+        assert home["Latitude"] == round(HOME[0] * 1e7)
+        assert fc.request_object("PositionActual") == {"North": 0.0, "East": 0.0, "Down": 0.0}
+        with pytest.raises(Exception, match="neither a MAVLink message"):
+            fc.request_object("NoSuchThing")
+    finally:
+        fc.stop()
 
 
 def test_a_silent_vehicle_is_declared_lost_by_the_heartbeat_watchdog_and_found_again(mav_sim):
