@@ -1,9 +1,9 @@
 """The broker-to-database connector: MQTT telemetry in, COPY batches out, nothing lost.
 
 Three parts, each usable alone: `parse_message` (bytes → validated objects, or `Rejected`
-with a counter name), `SampleBuffer` (bounded, in memory, in rows) and `Ingestor` (the
-paho client feeding the buffer and a writer thread that COPYs it, retrying through a
-database restart). No Django here: the management command wires settings, the drone map
+with a counter name), `SampleBuffer` (bounded, in memory, in rows) and `Ingestor` (an MQTT
+reader feeding the buffer — see mqtt_reader for why not paho — and a writer thread that
+COPYs it, retrying through a database restart). No Django here: the management command wires settings, the drone map
 and the live publisher in.
 """
 
@@ -19,19 +19,19 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from datetime import UTC, date, datetime
-from urllib.parse import urlsplit
+from datetime import date, timedelta
 
-import paho.mqtt.client as mqtt
 import psycopg
 
 from onboard.protocol import OBJECT_NAME_RE, ProtocolError, parse_telemetry
 
 from . import storage
+from .mqtt_reader import Subscriber
 
 log = logging.getLogger(__name__)
 
 SUBSCRIPTION = "$share/ingest/+/telemetry/out"
+EPOCH = date(1970, 1, 1)
 MAX_FIELDS = 64
 MAX_ARRAY = 64
 MAX_STRING = 256
@@ -125,7 +125,7 @@ class Chunk:
     received: float  # monotonic
     rows: int
     text: str
-    days: frozenset[date]
+    days: frozenset[int]  # UTC days since the epoch, for the partitions they need
 
 
 class SampleBuffer:
@@ -290,36 +290,13 @@ class Ingestor:
         self._threads: list[threading.Thread] = []
         self._stored_window: deque[tuple[float, int]] = deque()
         self.stored = 0
-        self.client = self._make_client()
+        self.subscriber = self._make_subscriber()
 
     # -- MQTT side -------------------------------------------------------------------------
 
-    def _make_client(self) -> mqtt.Client:
-        url = urlsplit(self.config.mqtt_url)
+    def _make_subscriber(self) -> Subscriber:
         client_id = self.config.client_id or f"ingest-{socket.gethostname()}-{os.getpid()}"
-        client = mqtt.Client(
-            mqtt.CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=True
-        )
-        if url.username:
-            client.username_pw_set(url.username, url.password)
-        client.reconnect_delay_set(0.2, 5)
-        client.on_connect = self._on_connect
-        client.on_message = self._on_message
-        self._host, self._port = url.hostname or "127.0.0.1", url.port or 1883
-        return client
-
-    def _on_connect(self, client, userdata, flags, reason_code, properties) -> None:  # type: ignore[no-untyped-def]
-        if reason_code.is_failure:
-            log.error("broker refused the ingest connection: %s", reason_code)
-            return
-        sock = client.socket()
-        if sock is not None:
-            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        client.subscribe(SUBSCRIPTION, qos=1)
-        log.info("ingest subscribed to %s", SUBSCRIPTION)
-
-    def _on_message(self, client, userdata, message) -> None:  # type: ignore[no-untyped-def]
-        self.handle(message.topic, message.payload)
+        return Subscriber(self.config.mqtt_url, client_id, SUBSCRIPTION, self.handle, qos=1)
 
     def handle(self, topic: str, payload: bytes) -> bool:
         """One message from the broker: validate, buffer; False if it was dropped."""
@@ -346,7 +323,7 @@ class Ingestor:
             received=time.monotonic(),
             rows=len(samples),
             text="".join(s.copy_line() for s in samples),
-            days=frozenset(datetime.fromtimestamp(s.ts, UTC).date() for s in samples),
+            days=frozenset(int(s.ts // 86400) for s in samples),
         )
         if not self.buffer.put(chunk, self.config.put_wait):
             counters.incr("overflow")
@@ -378,8 +355,8 @@ class Ingestor:
                 pass
         self._conn = None
 
-    def _ensure_days(self, conn: psycopg.Connection, days: set[date]) -> None:
-        for day in days - self._known_days:
+    def _ensure_days(self, conn: psycopg.Connection, epoch_days: set[int]) -> None:
+        for day in {EPOCH + timedelta(days=d) for d in epoch_days} - self._known_days:
             try:
                 storage.ensure_partition(conn, storage.SAMPLE_TABLE, day)
             except psycopg.errors.Error as exc:
@@ -504,13 +481,11 @@ class Ingestor:
             )
         for thread in self._threads:
             thread.start()
-        self.client.connect_async(self._host, self._port, keepalive=30)
-        self.client.loop_start()
+        self.subscriber.start()
 
     def stop(self, drain_timeout: float = 30.0) -> bool:
         """Stop reading, then write what is buffered; True if everything was written."""
-        self.client.disconnect()
-        self.client.loop_stop()
+        self.subscriber.stop()
         self._stop_writing.set()
         deadline = time.monotonic() + drain_timeout
         for thread in self._threads:

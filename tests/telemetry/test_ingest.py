@@ -108,19 +108,8 @@ def _ingestor(conninfo: str, broker_url: str, **config: object) -> tuple[Ingesto
         drones=DroneMap(lambda: load_drone_ids(conninfo)),
         counters=counters,
     )
-    subscribed = threading.Event()
-    on_connect = ingestor.client.on_connect
-
-    def connected(*args: object) -> None:
-        on_connect(*args)
-        subscribed.set()
-
-    ingestor.client.on_connect = connected
-    ingestor.client.on_subscribe = lambda *args: subscribed.set()
-    subscribed.clear()
     ingestor.start()
-    assert wait_until(subscribed.is_set, 10)
-    time.sleep(0.2)  # the SUBACK; the broker drops QoS 0 messages sent before it
+    assert ingestor.subscriber.subscribed.wait(10)
     return ingestor, counters
 
 
