@@ -86,6 +86,7 @@ class Subscriber:
         self.qos = qos
         self.keepalive = keepalive
         self.subscribed = threading.Event()
+        self.sessions = 0  # subscriptions granted so far: 2 after one reconnect
         self._stop = threading.Event()
         self._sock: socket.socket | None = None
         self._thread: threading.Thread | None = None
@@ -190,6 +191,7 @@ class Subscriber:
             elif kind == 9:  # SUBACK
                 if buffer[i + length - 1] == 0x80:
                     raise ProtocolViolation(f"subscription to {self.topic_filter} refused")
+                self.sessions += 1
                 self.subscribed.set()
                 log.info("ingest subscribed to %s", self.topic_filter)
             pos = i + length

@@ -213,3 +213,29 @@ def test_a_full_buffer_counts_overflow_instead_of_growing(world_tx, tmp_path):
         ground.close()
         ingestor.stop(drain_timeout=0.5)
         broker.stop()
+
+
+def test_the_ingest_reconnects_after_a_broker_restart_and_keeps_storing(world_tx, tmp_path):
+    broker = start_broker(tmp_path, {"ground": "ground-pw"})
+    ingestor, counters = _ingestor(_conninfo(), broker.url_for("ground"))
+    try:
+        now = time.time()
+
+        def send(i: int) -> None:
+            ground = Publisher(broker.url_for("ground"))
+            ground.publish(
+                "ACME_1/telemetry/out",
+                {"ts": now, "objects": [{"name": "Gyros", "ts": now + i, "fields": {"x": i}}]},
+            )
+            ground.close()
+
+        send(0)
+        assert wait_until(lambda: ingestor.stored == 1, 10)
+        broker.restart(down_for=0.5)
+        assert wait_until(lambda: ingestor.subscriber.sessions == 2, 15)
+        send(1)
+        assert wait_until(lambda: ingestor.stored == 2, 10)
+        assert _stored(_conninfo(), world_tx.drone.pk) == (2, 2)
+    finally:
+        ingestor.stop()
+        broker.stop()
