@@ -18,7 +18,8 @@ UAVTalk personality; only the language differs:
   AUTO mode flying the items, MISSION_CURRENT and MISSION_ITEM_REACHED;
 - parameters (PARAM_SET/READ/LIST), including fault knobs in the style of SITL's SIM_*:
   SIM_CMD_MUTE (a command id never answered), SIM_JUNK_RATE (bad-CRC and unknown-id
-  frames per second sent to the ground), BATT_CRT_PCT (critical battery, % left).
+  frames per second sent to the ground), SIM_MSGINT_OFF (answer SET_MESSAGE_INTERVAL as
+  UNSUPPORTED, like old firmware), BATT_CRT_PCT (critical battery, % left).
 """
 
 from __future__ import annotations
@@ -72,6 +73,7 @@ DEFAULT_PARAMS = {
     "DISARM_DELAY": 2.0,
     "SIM_CMD_MUTE": 0.0,
     "SIM_JUNK_RATE": 0.0,
+    "SIM_MSGINT_OFF": 0.0,
     "WPNAV_SPEED": 1000.0,
 }
 NAV_POSITION_ITEMS = (
@@ -394,6 +396,8 @@ class MavlinkSession:
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _cmd_interval(self, p: list[float], frame: int | None) -> int:
+        if self.params["SIM_MSGINT_OFF"]:
+            return mavlink.MAV_RESULT_UNSUPPORTED  # as firmware older than the command
         name = STREAM_IDS.get(int(p[0]))
         if name is None:
             return mavlink.MAV_RESULT_UNSUPPORTED if int(p[0]) else mavlink.MAV_RESULT_DENIED

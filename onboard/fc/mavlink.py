@@ -354,7 +354,6 @@ class MavlinkFlightController:
         command_tries: int = COMMAND_TRIES,
         stream_rates: dict[str, float] | None = None,
         goto_frame: str = "global",
-        time_scale: float = 1.0,
     ) -> None:
         if goto_frame not in ("global", "local"):
             raise ValueError("goto_frame must be 'global' or 'local'")
@@ -367,7 +366,6 @@ class MavlinkFlightController:
         self.command_tries = command_tries
         self.stream_rates = dict(DEFAULT_RATES if stream_rates is None else stream_rates)
         self.goto_frame = goto_frame
-        self.time_scale = time_scale
         self.target_system = 0
         self.target_component = 0
         self.autopilot: int | None = None
@@ -380,6 +378,7 @@ class MavlinkFlightController:
             "command_timeouts": 0,
             "commands_refused": 0,
             "foreign": 0,
+            "stream_fallbacks": 0,
             "listener_errors": 0,
             "handler_errors": 0,
         }
@@ -590,6 +589,7 @@ class MavlinkFlightController:
         for stream, names in DATA_STREAMS.items():
             rates = [self.stream_rates[n] for n in names if n in fallback]
             if rates:
+                self.stats["stream_fallbacks"] += 1
                 with contextlib.suppress(LinkDown):
                     self.send(
                         "request_data_stream",

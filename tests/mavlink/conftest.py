@@ -57,7 +57,7 @@ def recorder() -> Recorder:
 
 @pytest.fixture
 def fc(mav_sim, recorder) -> Iterator[MavlinkFlightController]:  # type: ignore[no-untyped-def]
-    driver = MavlinkFlightController(mav_sim.link_url, time_scale=TIME_SCALE)
+    driver = MavlinkFlightController(mav_sim.link_url)
     driver.add_listener(recorder)
     driver.start()
     try:

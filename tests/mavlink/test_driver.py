@@ -12,7 +12,12 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from firmware.sim import start_simulator
 from onboard.fc.base import CommandTimeout
-from onboard.fc.mavlink import CommandRejected, MavlinkCodec, MavlinkFlightController
+from onboard.fc.mavlink import (
+    DATA_STREAMS,
+    CommandRejected,
+    MavlinkCodec,
+    MavlinkFlightController,
+)
 from onboard.navigation import lla_to_ned
 
 from .conftest import HOME, TIME_SCALE, wait_for
@@ -141,6 +146,25 @@ def test_stream_rates_follow_set_message_interval(fc, recorder):
     fc.command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_ATTITUDE, 1e6)
     time.sleep(1.0)
     assert 0.5 * TIME_SCALE <= recorder.counts["ATTITUDE"] - stopped_at <= 1.5 * TIME_SCALE
+
+
+def test_old_firmware_without_set_message_interval_gets_request_data_stream(tmp_path):
+    sim = start_simulator(
+        home=HOME,
+        time_scale=TIME_SCALE,
+        fc="mavlink",
+        extra_args=["--param", "SIM_MSGINT_OFF=1"],
+        log_file=tmp_path / "sim.log",
+    )
+    fc = MavlinkFlightController(sim.link_url)
+    try:
+        fc.start()
+        assert fc.wait_connected(5)
+        assert wait_for(lambda: fc.state.ned is not None and fc.state.roll is not None, 15)
+        assert fc.stats["stream_fallbacks"] == len(DATA_STREAMS)
+    finally:
+        fc.stop()
+        sim.stop()
 
 
 def test_objrequest_answers_mavlink_names_and_platform_names(mav_sim):
