@@ -71,12 +71,16 @@ class GroupPublisher:
         self.failed = 0
         self.overflowed = 0
         self.queue: asyncio.Queue = asyncio.Queue(max_queued)
-        threading.Thread(target=self._run, name="pastview-push", daemon=True).start()
+        self.thread = threading.Thread(target=self._run, name="pastview-push", daemon=True)
+        self.thread.start()
 
     def _run(self) -> None:
         asyncio.set_event_loop(self.loop)
-        self.loop.create_task(self._drain())
+        drain = self.loop.create_task(self._drain())
         self.loop.run_forever()
+        drain.cancel()
+        self.loop.run_until_complete(asyncio.gather(drain, return_exceptions=True))
+        self.loop.close()
 
     def __call__(self, drone_id: str, message: dict[str, Any]) -> None:
         self.loop.call_soon_threadsafe(self._put, drone_id, message)
@@ -100,7 +104,15 @@ class GroupPublisher:
                     log.warning("group send failed (%d so far): %s", self.failed, exc)
 
     def close(self) -> None:
-        self.loop.call_soon_threadsafe(self.loop.stop)
+        """Stop after what is queued now has been sent (or two seconds)."""
+        self.loop.call_soon_threadsafe(self._stop_when_drained)
+        self.thread.join(2.0)
+
+    def _stop_when_drained(self) -> None:
+        if self.queue.empty():
+            self.loop.stop()
+        else:
+            self.loop.call_later(0.01, self._stop_when_drained)
 
 
 class PastViewProcess:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import base64
+import functools
 import json
 import math
 import threading
@@ -143,3 +144,30 @@ def wait_until(predicate, timeout: float = 10.0, interval: float = 0.02) -> bool
 
 def close(a: list[float], b: list[float], tol: float = 1e-6) -> bool:
     return all(math.isclose(x, y, abs_tol=tol) for x, y in zip(a, b, strict=True))
+
+
+def in_own_loop(test):  # type: ignore[no-untyped-def]
+    """Run an async test on a fresh event loop in its own thread.
+
+    The session's Playwright browser keeps an event loop running in the main thread once a
+    browser test has run, and pytest-asyncio cannot start another there.
+    """
+
+    @functools.wraps(test)
+    def run(*args, **kwargs):  # type: ignore[no-untyped-def]
+        outcome: dict[str, Any] = {}
+
+        def target() -> None:
+            try:
+                outcome["value"] = asyncio.run(test(*args, **kwargs))
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the test's thread
+                outcome["error"] = exc
+
+        thread = threading.Thread(target=target, name=test.__name__)
+        thread.start()
+        thread.join()
+        if "error" in outcome:
+            raise outcome["error"]
+        return outcome.get("value")
+
+    return run

@@ -9,6 +9,8 @@ import pytest
 from channels.testing import WebsocketCommunicator
 from rest_framework.test import APIClient
 
+from .support import in_own_loop
+
 pytestmark = pytest.mark.django_db(transaction=True)
 
 
@@ -64,12 +66,14 @@ def update(yaw_quaternion: list[float] | None = None) -> dict:
     }
 
 
+@in_own_loop
 async def test_anonymous_visitors_are_refused(world_tx):
     communicator, connected, code = await connect(None)
     assert not connected and code == 4401
     await communicator.disconnect()
 
 
+@in_own_loop
 async def test_another_organisations_drone_is_as_unknown_as_none(world_tx):
     communicator, connected, code = await connect(world_tx.outsider, "ACME_1")
     assert not connected and code == 4404
@@ -79,6 +83,7 @@ async def test_another_organisations_drone_is_as_unknown_as_none(world_tx):
     await communicator.disconnect()
 
 
+@in_own_loop
 async def test_a_member_gets_the_settings_then_the_drones_updates_only(world_tx):
     mine, connected, _ = await connect(world_tx.viewer, "ACME_1")
     theirs, their_connected, _ = await connect(world_tx.outsider, "GLOBEX_1")
@@ -97,6 +102,7 @@ async def test_a_member_gets_the_settings_then_the_drones_updates_only(world_tx)
         await theirs.disconnect()
 
 
+@in_own_loop
 async def test_a_page_that_connects_gets_the_last_snapshot_at_once(world_tx):
     import redis.asyncio as aredis
     from django.conf import settings
@@ -117,6 +123,7 @@ async def test_a_page_that_connects_gets_the_last_snapshot_at_once(world_tx):
         await client.aclose()
 
 
+@in_own_loop
 async def test_a_viewer_cannot_teleoperate(world_tx):
     communicator, connected, _ = await connect(world_tx.viewer)
     try:
@@ -133,6 +140,7 @@ async def test_a_viewer_cannot_teleoperate(world_tx):
         await communicator.disconnect()
 
 
+@in_own_loop
 async def test_an_operators_move_goes_through_the_drone_manager(world_tx):
     from asgiref.sync import sync_to_async
 
@@ -157,6 +165,7 @@ async def test_an_operators_move_goes_through_the_drone_manager(world_tx):
         await communicator.disconnect()
 
 
+@in_own_loop
 async def test_malformed_teleop_input_is_answered_not_sent(world_tx):
     communicator, connected, _ = await connect(world_tx.operator)
     try:

@@ -19,7 +19,7 @@ from firmware.sim import start_simulator
 from tests.onboard.ground import REPO_ROOT, Ground, stop_process
 from tests.support.mosquitto import start_broker
 
-from .support import ServiceThread, wait_until
+from .support import ServiceThread, in_own_loop, wait_until
 from .test_consumer import connect
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
@@ -103,6 +103,7 @@ async def updates_until(communicator, done, timeout: float) -> list[dict]:  # ty
     return seen
 
 
+@in_own_loop
 async def test_a_square_flight_reaches_the_page_as_frames_and_relative_poses(
     drone, broker, ground_services, world_tx
 ):

@@ -11,7 +11,15 @@ import pytest
 
 from tests.support.mosquitto import start_broker
 
-from .support import DronePublisher, GroupListener, ServiceThread, close, level, wait_until
+from .support import (
+    DronePublisher,
+    GroupListener,
+    ServiceThread,
+    close,
+    in_own_loop,
+    level,
+    wait_until,
+)
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -39,6 +47,7 @@ def drone(broker):
     publisher.close()
 
 
+@in_own_loop
 async def test_a_pose_after_a_frame_reaches_the_page_with_the_frame_and_the_relative_pose(
     service, drone
 ):
@@ -58,6 +67,7 @@ async def test_a_pose_after_a_frame_reaches_the_page_with_the_frame_and_the_rela
     assert close(update["relative"]["orientation"], [0.0, 0.0, 0.0, 1.0])
 
 
+@in_own_loop
 async def test_the_frame_image_is_sent_only_when_the_choice_changes(service, drone):
     t0 = time.time()
     async with GroupListener(DRONE) as pages:
@@ -80,6 +90,7 @@ async def test_the_frame_image_is_sent_only_when_the_choice_changes(service, dro
     assert close(switched["relative"]["position"], [2.5, 0.0, 0.0])
 
 
+@in_own_loop
 async def test_tracking_lost_and_found_are_pushed_when_they_happen(service, drone):
     t0 = time.time()
     still = [1.0, 2.0, -10.0]
@@ -93,6 +104,7 @@ async def test_tracking_lost_and_found_are_pushed_when_they_happen(service, dron
     assert found["tracking"] == "tracked"
 
 
+@in_own_loop
 async def test_bad_input_is_counted_and_the_view_keeps_running(service, drone):
     t0 = time.time()
     drone.raw("camera", b"\xff\xfe not json")
@@ -127,6 +139,7 @@ async def test_bad_input_is_counted_and_the_view_keeps_running(service, drone):
     assert close(update["relative"]["position"], [2.5, 0.0, 0.0])
 
 
+@in_own_loop
 async def test_settings_edited_in_the_database_switch_the_evaluation_function(
     service, drone, world_tx
 ):
@@ -154,6 +167,7 @@ async def test_settings_edited_in_the_database_switch_the_evaluation_function(
     assert after["frame"]["score"] == pytest.approx(0.8, abs=1e-6)
 
 
+@in_own_loop
 async def test_one_drones_frames_never_reach_another_drones_page(service, broker, drone):
     other = DronePublisher(broker.port, "GLOBEX_1", "gpw")
     try:
