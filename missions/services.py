@@ -403,6 +403,12 @@ def apply_progress(
     return _apply_mission_status(mission, drone, assignment, message)
 
 
+def _lock(mission: Mission) -> None:
+    """Every writer locks the mission row first, then its assignments and steps: one
+    order everywhere, so a stop, a replacement and progress never deadlock."""
+    Mission.objects.select_for_update().filter(pk=mission.pk).values_list("pk", flat=True).first()
+
+
 def _apply_step(
     mission: Mission, drone: Drone, assignment: Assignment | None, message: protocol.StepProgress
 ) -> str | None:
@@ -413,6 +419,7 @@ def _apply_step(
         return "step_not_assigned"
     position = _position(message.position)
     with transaction.atomic():
+        _lock(mission)
         step = Step.objects.select_for_update().filter(mission=mission, index=message.index).first()
         if step is None:
             return "unknown_step"
@@ -465,6 +472,7 @@ def _apply_mission_status(
     message: protocol.MissionProgress,
 ) -> str | None:
     with transaction.atomic():
+        _lock(mission)
         if assignment is not None:
             assignment = Assignment.objects.select_for_update().get(pk=assignment.pk)
             _move_assignment(assignment, message)
