@@ -60,17 +60,17 @@ def outbox(settings):  # type: ignore[no-untyped-def]
     settings.REDIS_URL = redis_url_with_db(settings.REDIS_URL, OUTBOX_DB)
     link._sync_client = None
     client = link.sync_redis()
-    client.delete(link.OUTBOX_KEY)
+    client.delete(link.outbox_key())
 
     class Outbox:
         url = settings.REDIS_URL
 
         def items(self) -> list[dict]:
-            return [json.loads(raw) for raw in client.lrange(link.OUTBOX_KEY, 0, -1)]
+            return [json.loads(raw) for raw in client.lrange(link.outbox_key(), 0, -1)]
 
         def clear(self) -> None:
-            client.delete(link.OUTBOX_KEY)
+            client.delete(link.outbox_key())
 
     yield Outbox()
-    client.delete(link.OUTBOX_KEY)
+    client.delete(link.outbox_key())
     link._sync_client = None

@@ -57,7 +57,7 @@ def stop_process(process: subprocess.Popen, timeout: float = 10.0) -> None:
 class Worker:
     """`celery worker` on the test database, consuming our own queue only."""
 
-    def __init__(self, database_name: str, log_dir: Path) -> None:
+    def __init__(self, database_name: str, log_dir: Path, broker_url: str) -> None:
         from config.celery import app
 
         self.queue = f"h9-missions-{uuid.uuid4().hex[:8]}"
@@ -68,6 +68,8 @@ class Worker:
             DJANGO_SETTINGS_MODULE="config.settings.test",
             TEST_WORKER_DB_NAME=database_name,
             REDIS_URL=redis_url_with_db(settings.REDIS_URL, OUTBOX_DB),
+            # The outbox is per broker: the worker must queue for the test's broker.
+            MQTT_URL=broker_url,
             CELERY_BROKER_URL=str(app.conf.broker_url),
             CELERY_RESULT_BACKEND=str(app.conf.result_backend),
             PYTHONUNBUFFERED="1",
@@ -124,29 +126,22 @@ class SimDrone:
             self.sim.stop()
 
 
-@dataclass
-class Sky:
-    """One test's broker, gateway and drones (the worker is shared by the module)."""
+class Ground:
+    """The module's private broker, the settings pointing at it, and the Celery worker."""
 
-    tmp_path: Path
-    organisation_slug: str
-    time_scale: float = TIME_SCALE
-    broker: Broker | None = None
-    gateway: Any = None
-    drones: list[SimDrone] = field(default_factory=list)
-    _saved: dict = field(default_factory=dict)
-
-    def start(self) -> Sky:
+    def __init__(self, directory: Path, database_name: str) -> None:
         from fleet import link
 
-        directory = self.tmp_path / "mosquitto"
+        self.directory = directory
+        mosquitto = directory / "mosquitto"
         self.broker = start_broker(
-            directory,
+            mosquitto,
             {"ground": GROUND_PASSWORD},
-            extra_config=f"pid_file {directory / 'mosquitto.pid'}\n",
+            extra_config=f"pid_file {mosquitto / 'mosquitto.pid'}\n",
         )
+        self._saved: dict[str, Any] = {}
         overrides = {
-            "MOSQUITTO_DIR": str(directory),
+            "MOSQUITTO_DIR": str(mosquitto),
             "MQTT_URL": self.broker.url_for("ground"),
             "MQTT_PUBLIC_HOST": "127.0.0.1",
             "MQTT_PUBLIC_PORT": self.broker.port,
@@ -156,7 +151,37 @@ class Sky:
             self._saved[name] = getattr(settings, name)
             setattr(settings, name, value)
         link._sync_client = None
-        link.sync_redis().delete(link.OUTBOX_KEY)
+        self.worker = Worker(database_name, directory, self.broker.url_for("ground"))
+
+    def close(self) -> None:
+        from fleet import link
+
+        self.worker.stop()
+        self.broker.stop()
+        for name, value in self._saved.items():
+            setattr(settings, name, value)
+        link._sync_client = None
+
+
+@dataclass
+class Sky:
+    """One test's gateway and drones, on the module's broker and worker."""
+
+    tmp_path: Path
+    organisation_slug: str
+    ground: Ground
+    time_scale: float = TIME_SCALE
+    gateway: Any = None
+    drones: list[SimDrone] = field(default_factory=list)
+
+    @property
+    def broker(self) -> Broker:
+        return self.ground.broker
+
+    def start(self) -> Sky:
+        from fleet import link
+
+        link.sync_redis().delete(link.outbox_key())
         self.start_gateway()
         return self
 
@@ -249,17 +274,10 @@ class Sky:
         )
 
     def close(self) -> None:
-        from fleet import link
-
         for drone in self.drones:
             drone.stop()
         if self.gateway is not None:
             self.gateway.stop()
-        if self.broker is not None:
-            self.broker.stop()
-        for name, value in self._saved.items():
-            setattr(settings, name, value)
-        link._sync_client = None
 
 
 def metres(a: tuple[float, float], b: tuple[float, float]) -> float:

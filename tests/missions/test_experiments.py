@@ -11,25 +11,25 @@ from rest_framework.test import APIClient
 from missions.models import Assignment, Event, Mission, MissionStatus, Picture, StepStatus
 
 from .conftest import point_at, rectangle
-from .sky import Sky, Worker, metres, wait_for
+from .sky import Ground, Sky, metres, wait_for
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
 
 @pytest.fixture(scope="module")
-def worker(django_db_setup, django_db_blocker, tmp_path_factory):  # type: ignore[no-untyped-def]
+def ground(django_db_setup, django_db_blocker, tmp_path_factory):  # type: ignore[no-untyped-def]
     from django.db import connection
 
     with django_db_blocker.unblock():
         name = connection.settings_dict["NAME"]
-    w = Worker(name, tmp_path_factory.mktemp("worker"))
-    yield w
-    w.stop()
+    g = Ground(tmp_path_factory.mktemp("ground"), name)
+    yield g
+    g.close()
 
 
 @pytest.fixture
-def sky(world_tx, worker, tmp_path):  # type: ignore[no-untyped-def]
-    s = Sky(tmp_path, world_tx.org.slug).start()
+def sky(world_tx, ground, tmp_path):  # type: ignore[no-untyped-def]
+    s = Sky(tmp_path, world_tx.org.slug, ground).start()
     yield s
     s.close()
 
