@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import base64
 import io
+import json
 import time
 from pathlib import Path
 
@@ -97,3 +98,51 @@ def test_a_viewer_gets_the_view_without_controls(service, live_asgi, page):
     assert page.locator("#pv-canvas").is_visible()
     assert page.locator("#pv-control").count() == 0
     assert page.locator("#pv-save").is_disabled()
+
+
+def test_an_operator_flies_by_keyboard_and_edits_the_evaluation_function(
+    service, broker, live_asgi, page
+):
+    drone = DronePublisher(broker.port, DRONE, "dpw")
+    try:
+        login(page, live_asgi, "operator")
+        page.goto(f"{live_asgi.url}/pastview/{DRONE}/")
+        page.wait_for_function("window.pastview.socket && window.pastview.socket.readyState === 1")
+        page.wait_for_timeout(300)
+        t0 = time.time()
+        drone.frame(t0, [0.0, 0.0, -10.0], level(90.0))
+        drone.poses((t0 + 0.1, [0.0, 2.5, -10.0], level(90.0)))
+        page.wait_for_function("window.pastview.updates > 0")
+
+        sent = []
+        page.on("websocket", lambda ws: ws.on("framesent", lambda payload: sent.append(payload)))
+        page.reload()
+        page.wait_for_function("window.pastview.socket && window.pastview.socket.readyState === 1")
+        page.click("#pv-control")
+        assert page.locator("#pv-control").get_attribute("aria-pressed") == "true"
+        page.keyboard.down("KeyW")
+        # The world's drone is offline: the Drone Manager's refusal shows on the page.
+        page.wait_for_function(
+            "document.getElementById('pv-teleop-message').textContent.includes('offline')"
+        )
+        page.keyboard.up("KeyW")
+        page.wait_for_timeout(300)
+        moves = [json.loads(p) for p in sent]
+        assert {"type": "teleop", "forward": 1, "right": 0, "up": 0} in moves
+        assert moves[-1] == {"type": "stop"}
+
+        page.select_option("#pv-function", "murata")
+        page.fill("#pv-params input[name=coeff_tilt]", "3")
+        page.click("#pv-save")
+        page.wait_for_function(
+            "document.getElementById('pv-settings-message').textContent.startsWith('Applied')"
+        )
+        page.check("#pv-show-live")
+        assert page.locator("#pv-live").get_attribute("src").startswith("data:image/jpeg")
+    finally:
+        drone.close()
+
+    from telemetry.pastview.models import ViewSettings
+
+    stored = ViewSettings.objects.get(drone__drone_id=DRONE).settings["evaluation"]
+    assert stored["function"] == "murata" and stored["coeff_tilt"] == 3.0

@@ -4,6 +4,10 @@ drone's Channels group (real Redis), bad input counted while the view keeps runn
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -181,3 +185,51 @@ async def test_one_drones_frames_never_reach_another_drones_page(service, broker
             assert service.service.counters["dropped.malformed"] == 0
     finally:
         other.close()
+
+
+@pytest.fixture
+def command_process(broker, world_tx, tmp_path: Path):
+    """`manage.py pastview` as the platform runs it, on the test database and broker."""
+    from django.db import connection
+
+    env = dict(
+        os.environ,
+        DJANGO_SETTINGS_MODULE="config.settings.test",
+        TEST_WORKER_DB_NAME=connection.settings_dict["NAME"],
+        PYTHONUNBUFFERED="1",
+    )
+    with open(tmp_path / "pastview.log", "wb") as log:
+        process = subprocess.Popen(
+            [sys.executable, "manage.py", "pastview", "--broker", broker.url_for("ground")],
+            cwd=Path(__file__).resolve().parents[2],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=log,
+        )
+    assert process.stdout is not None
+    assert process.stdout.readline().startswith(b"pastview: 127.0.0.1:")
+    yield process
+    if process.poll() is None:
+        process.kill()
+        process.wait()
+
+
+@in_own_loop
+async def test_the_management_command_serves_pages_and_stops_on_sigterm(command_process, drone):
+    async with GroupListener(DRONE) as pages:
+        t0 = time.time()
+        deadline = time.monotonic() + 10
+        # The command subscribes shortly after it starts: send until a frame gets through.
+        while True:
+            drone.frame(t0, [0.0, 0.0, -10.0], level(0.0))
+            try:
+                await pages.next(lambda m: m["type"] == "live", timeout=0.5)
+                break
+            except AssertionError:
+                assert time.monotonic() < deadline, "manage.py pastview never took a frame"
+        drone.poses((t0 + 0.1, [2.5, 0.0, -10.0], level(0.0)))
+        update = await pages.next(lambda m: m["type"] == "update")
+    assert close(update["relative"]["position"], [2.5, 0.0, 0.0])
+    command_process.send_signal(signal.SIGTERM)
+    assert command_process.wait(10) == 0
+    assert b"pastview: stopped" in command_process.stdout.read()
