@@ -4,7 +4,9 @@ set -uo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 cd "$ROOT"
 started=""
-if scripts/services.sh status test | grep -q down; then scripts/services.sh start test || exit 1; started=yes; fi
+status=$(scripts/services.sh status test)
+if grep -q down <<<"$status"; then started=yes; fi
+scripts/services.sh start test || exit 1
 trap '[ -n "$started" ] && scripts/services.sh stop test' EXIT
 export DJANGO_SETTINGS_MODULE=config.settings.test
 status=0

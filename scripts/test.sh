@@ -5,13 +5,12 @@ ROOT=$(cd "$(dirname "$0")/.." && pwd)
 cd "$ROOT"
 PY=.venv/bin/python
 
+# Stop at the end only what this run started: when every service was already up (a
+# developer's own `make test-services-up`), leave them running.
 started=""
-if ! scripts/services.sh status test | grep -q "down"; then
-  echo "[test] reusing the test services already running"
-else
-  scripts/services.sh start test || exit 1
-  started=yes
-fi
+status=$(scripts/services.sh status test)
+if grep -q "down" <<<"$status"; then started=yes; else echo "[test] reusing the running test services"; fi
+scripts/services.sh start test || exit 1
 cleanup() { [ -n "$started" ] && scripts/services.sh stop test; }
 trap cleanup EXIT
 
