@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from urllib.parse import parse_qs, urlparse
+
 import pytest
 from playwright.sync_api import expect
 
@@ -98,3 +100,45 @@ def test_two_logs_open_side_by_side_with_linked_cursors(
     expect(first.locator('[data-part="clock"]')).to_have_text(
         second.locator('[data-part="clock"]').inner_text()
     )
+
+
+def test_zoom_requeries_series_by_range_and_replay_plays_only_the_selection(
+    world_tx, worker, live_logs, page, tmp_path
+):
+    client = client_for(world_tx.operator)
+    path = tmp_path / "replay.ulg"
+    synthetic_ulog(path, seconds=20)
+    created = upload(client, path).json()
+    info = wait_until_processed(client, created["id"])
+    login(page, live_logs, "viewer")
+    page.goto(f"{live_logs.url}/logs/{created['id']}/")
+    viewer = page.locator("[data-log-viewer]")
+    expect(viewer).to_have_attribute("data-loaded", "true", timeout=15_000)
+    canvas = viewer.locator('[data-part="timeline-canvas"]')
+    box = canvas.bounding_box()
+
+    with page.expect_request(lambda r: "/series/" in r.url and "start=" in r.url) as request:
+        page.mouse.move(box["x"] + box["width"] / 2, box["y"] + 60)
+        page.mouse.wheel(0, -800)
+    query = parse_qs(urlparse(request.value.url).query)
+    start, end = float(query["start"][0]), float(query["end"][0])
+    assert info["start"] < start < end < info["end"]
+    assert end - start < (info["end"] - info["start"]) / 2
+    assert 100 <= int(query["points"][0]) <= 4000
+
+    page.mouse.move(box["x"] + box["width"] * 0.4, box["y"] + 60)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] * 0.6, box["y"] + 60, steps=5)
+    page.mouse.up()
+    expect(viewer.locator('[data-part="selection-text"]')).to_contain_text("selected")
+    selection = page.evaluate("window.logViewers[0].state.selection")
+
+    # At 1x the interval (a fifth of a view zoomed to about 6 s) takes about a second.
+    viewer.locator('[data-part="speed"]').select_option("1")
+    viewer.get_by_role("button", name="Play").click()
+    expect(viewer.get_by_role("button", name="Pause")).to_be_visible()
+    expect(viewer.get_by_role("button", name="Play")).to_be_visible(timeout=10_000)
+    cursor = page.evaluate("window.logViewers[0].state.cursor")
+    assert cursor == pytest.approx(selection[1])
+    # The values tree followed the cursor to the end of the interval.
+    expect(viewer.locator('[data-part="tree"]')).to_have_attribute("data-t", str(cursor))

@@ -71,8 +71,10 @@ if (zone) {
           bar.value = 1;
           item.classList.add("ready");
           state.innerHTML = `Ready — <a href="${escapeHtml(page)}">open the log</a>`;
+          refreshList();
         } else {
           fail(event.error || "The file could not be processed.");
+          refreshList();
         }
       });
     });
@@ -80,9 +82,22 @@ if (zone) {
   }
 }
 
-// Compare: enabled once two or more ready logs are ticked.
-const compareForm = document.getElementById("compare-form");
-if (compareForm) {
+/** Replace the table with the server's current one, so finished uploads appear in it. */
+async function refreshList() {
+  const response = await fetch(location.href, { credentials: "same-origin" });
+  if (!response.ok) return;
+  const fresh = new DOMParser().parseFromString(await response.text(), "text/html").getElementById("log-list");
+  const current = document.getElementById("log-list");
+  if (fresh && current) {
+    current.replaceWith(fresh);
+    bindCompare();
+  }
+}
+
+// Compare: enabled once two to four ready logs are ticked.
+function bindCompare() {
+  const compareForm = document.getElementById("compare-form");
+  if (!compareForm) return;
   const button = document.getElementById("compare-button");
   const update = () => {
     const ticked = compareForm.querySelectorAll('input[name="pick"]:checked').length;
@@ -92,3 +107,5 @@ if (compareForm) {
   compareForm.addEventListener("change", update);
   update();
 }
+
+bindCompare();
