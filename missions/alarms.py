@@ -9,7 +9,7 @@ from django.db import transaction
 from fleet.models import Drone
 from missions import tasks
 from missions.models import Assignment, Event, MissionStatus
-from missions.services import _position, find_assignment, find_mission, record
+from missions.services import find_assignment, find_mission, position_dict, record
 from onboard import protocol
 
 
@@ -53,7 +53,7 @@ def apply_alarm(drone: Drone, alarm: protocol.Alarm) -> str | None:
             data={
                 "level": alarm.level,
                 "message": alarm.message,
-                "position": _position(alarm.position),
+                "position": position_dict(alarm.position),
                 "index": alarm.index,
                 "sensor": alarm.sensor,
                 "value": alarm.value,

@@ -7,6 +7,7 @@ offending field named.
 
 from __future__ import annotations
 
+from django.conf import settings
 from django.http import HttpResponse
 from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiParameter, extend_schema, inline_serializer
@@ -202,8 +203,6 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     @action(detail=False, methods=["post"], url_path="coverage")
     def coverage(self, request: Request) -> Response:
         """Serpentine waypoints over the parallelogram of three consecutive vertices."""
-        from django.conf import settings
-
         body = _body(request)
         if "altitude" in body:
             _altitude(body)
@@ -221,8 +220,6 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     @action(detail=False, methods=["post"], url_path="coverage/extend")
     def coverage_extend(self, request: Request) -> Response:
         """The same shape around a new centre, +50 % area per joining drone, split in parts."""
-        from django.conf import settings
-
         body = _body(request)
         if "altitude" in body:
             _altitude(body)
@@ -244,8 +241,6 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     def create(self, request: Request) -> Response:
         """A draft mission from `steps`, or from a `coverage` (which also keeps the
         extensibility parameters a collaboration needs)."""
-        from django.conf import settings
-
         body = _body(request)
         organisation = _organisation_for_write(request, body.get("organisation"))
         altitude = _altitude(body)

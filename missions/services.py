@@ -33,7 +33,6 @@ from missions.models import (
     Step,
     StepStatus,
 )
-from missions.planning import PlanningError
 from missions.selection import Candidate, select_drones
 from onboard import protocol
 
@@ -380,7 +379,7 @@ def find_assignment(mission: Mission, drone: Drone, assignment_id: str | None) -
     return Assignment.objects.filter(pk=assignment_id, mission=mission, drone=drone).first()
 
 
-def _position(position: protocol.Position | None) -> dict | None:
+def position_dict(position: protocol.Position | None) -> dict | None:
     if position is None:
         return None
     return {"lat": position.lat, "lon": position.lon, "alt": position.alt}
@@ -417,7 +416,7 @@ def _apply_step(
     given = set(assignment.step_indexes) | set(assignment.preparation)
     if message.index not in given:
         return "step_not_assigned"
-    position = _position(message.position)
+    position = position_dict(message.position)
     with transaction.atomic():
         _lock(mission)
         step = Step.objects.select_for_update().filter(mission=mission, index=message.index).first()
@@ -572,7 +571,3 @@ def dispatch_queued(mission: Mission, drone: Drone) -> None:
     queued.status = Assignment.Status.SENT
     queued.save(update_fields=["status"])
     transaction.on_commit(lambda: send_assignment(queued))
-
-
-def planning_error(exc: PlanningError) -> MissionError:
-    return MissionError(exc.field, exc.message)

@@ -347,3 +347,21 @@ def test_the_odm_archive_holds_every_picture_and_geo_txt(world):
     assert geo[0] == "EPSG:4326" and len(geo) == 4
     listed = client_for(world.viewer).get(f"/api/v1/missions/{mission.pk}/pictures/").json()
     assert len(listed) == 3 and listed[0]["thumbnail_url"].endswith("/thumbnail/")
+
+
+def test_the_mission_list_filters_by_status_name_and_drone(world, outbox):
+    from django.test import Client
+
+    online_drone(world.org, "ACME_1")
+    client = client_for(world.operator)
+    flown = client.post("/api/v1/missions/", _mission_body(name="flown"), format="json").json()
+    client.post("/api/v1/missions/", _mission_body(name="draft only"), format="json")
+    client.post(f"/api/v1/missions/{flown['id']}/start/", {"drone": "ACME_1"}, format="json")
+    browser = Client()
+    browser.force_login(world.viewer)
+    by_drone = browser.get("/missions/", {"drone": "ACME_1"}).content.decode()
+    assert "flown" in by_drone and "draft only" not in by_drone
+    by_status = browser.get("/missions/", {"status": "draft"}).content.decode()
+    assert "draft only" in by_status and ">flown<" not in by_status
+    by_name = browser.get("/missions/", {"q": "draft"}).content.decode()
+    assert "draft only" in by_name and ">flown<" not in by_name
