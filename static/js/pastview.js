@@ -11,6 +11,7 @@ const state = {
   frame: null, // the chosen frame's id
   tracking: "none", // "none" (no pose yet), "tracked", "lost"
   updates: 0,
+  beeps: 0,
   socket: null,
 };
 window.pastview = state; // for tests and the curious
@@ -25,6 +26,7 @@ const scene = new DroneScene($("pv-canvas"), {
 let audio = null;
 function beep() {
   if (!$("pv-sound").checked) return;
+  state.beeps += 1;
   try {
     audio = audio || new AudioContext();
     const oscillator = audio.createOscillator();
@@ -48,6 +50,8 @@ function showWarning() {
   else if (state.frame === null) text = "No frame yet";
   else if (state.tracking === "none") text = "No pose yet";
   const warning = $("pv-warning");
+  // Beep when a warning appears or changes (lost, or no frame to draw on), not on every pose.
+  if (text !== "" && text !== warning.textContent) beep();
   warning.textContent = text;
   warning.hidden = text === "";
   const badge = $("pv-tracking");
@@ -60,9 +64,7 @@ function showWarning() {
 function applyUpdate(update) {
   if (!update) return;
   state.updates += 1;
-  const wasLost = state.tracking === "lost";
   state.tracking = update.tracking;
-  if (update.event === "lost" || (update.tracking === "lost" && !wasLost)) beep();
   if (update.frame) {
     if (update.jpeg) $("pv-frame").src = `data:image/jpeg;base64,${update.jpeg}`;
     state.frame = update.frame.id;

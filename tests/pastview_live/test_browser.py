@@ -84,6 +84,7 @@ def test_the_view_draws_the_drone_over_the_chosen_frame_and_warns_when_tracking_
         )
         page.wait_for_function("window.pastview.tracking === 'lost'")
         assert "Tracking lost" in page.locator("#pv-warning").inner_text()
+        assert page.evaluate("window.pastview.beeps") == 1
         drone.poses((t0 + 0.4, [2.6, 0.0, -10.0], level(0.0)))
         page.wait_for_function("window.pastview.tracking === 'tracked'")
         assert page.locator("#pv-warning").is_hidden()

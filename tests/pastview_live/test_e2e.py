@@ -7,16 +7,13 @@ from __future__ import annotations
 
 import asyncio
 import math
-import os
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 
 from firmware.sim import start_simulator
-from tests.onboard.ground import REPO_ROOT, Ground, stop_process
+from tests.onboard.ground import Ground, start_agent, stop_process
 from tests.support.mosquitto import start_broker
 
 from .support import ServiceThread, in_own_loop, wait_until
@@ -37,26 +34,6 @@ def broker(tmp_path: Path):
     b.stop()
 
 
-def start_agent(tmp_path: Path, *, link: str, broker_url: str) -> subprocess.Popen:
-    """The agent process with a 10 Hz camera and a 50 Hz pose stream, its log in tmp_path."""
-    gear = tmp_path / "gear"
-    gear.mkdir()
-    for name in ("specs.json", "sensors.json"):
-        (gear / name).write_text((REPO_ROOT / "onboard" / "gear_example" / name).read_text())
-    args = [
-        sys.executable, "-m", "tests.pastview_live.agent_with_video",
-        "--video-rate", "10", "--pose-rate", "50",
-        "--drone-id", DRONE, "--link", link, "--broker", broker_url,
-        "--arming", f"sim-line:{tmp_path / 'arming_line'}", "--gear-dir", str(gear),
-        "--time-scale", str(SCALE), "--heartbeat-interval", "0.5",
-    ]  # fmt: skip
-    with open(tmp_path / "agent.log", "ab") as log:
-        return subprocess.Popen(
-            args, stdout=subprocess.DEVNULL, stderr=log, cwd=REPO_ROOT,
-            env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
-        )  # fmt: skip
-
-
 @pytest.fixture
 def drone(tmp_path: Path, broker):
     """The simulator and the agent process, with a 10 Hz camera and a 50 Hz pose stream."""
@@ -66,7 +43,15 @@ def drone(tmp_path: Path, broker):
         arming_line=tmp_path / "arming_line",
         log_file=tmp_path / "sim.log",
     )
-    agent = start_agent(tmp_path, link=sim.url, broker_url=broker.url_for(DRONE))
+    agent = start_agent(
+        tmp_path,
+        drone_id=DRONE,
+        link=sim.url,
+        broker_url=broker.url_for(DRONE),
+        arming_line=tmp_path / "arming_line",
+        time_scale=SCALE,
+        extra=["--video-rate", "10", "--pose-rate", "50"],
+    )
     yield agent
     stop_process(agent)
     sim.stop()
