@@ -224,13 +224,28 @@ def test_self_replacement_hands_the_remaining_waypoints_to_a_second_drone(world_
 
 
 def test_collaborative_sensing_extends_the_area_to_56_waypoints_flown_by_three(world_tx, sky):
-    sky.add_drone("ACME_C1", north=-10)
-    sky.add_drone("ACME_C2", north=-30, east=20)
-    sky.add_drone("ACME_C3", north=-30, east=45)
+    from missions.planning import coverage, mission_steps
+
+    # A CO2 plume over waypoint 15 only (its neighbours are 7 m away, outside its 5 m
+    # radius); the fail-safe raises OUT_MEASURE above 1000 ppm (seed 5.4).
+    area = coverage(rectangle(35, 28), 7)
+    assert len(area.waypoints) == 30
+    plume_lat, plume_lon = area.waypoints[14]
+    sensing = ["--plume", f"{plume_lat},{plume_lon},5,2000,CO2", "--bounds", "CO2::1000"]
+    sky.add_drone("ACME_C1", north=-10, extra=sensing)
+    sky.add_drone("ACME_C2", north=-30, east=20, extra=sensing)
+    sky.add_drone("ACME_C3", north=-30, east=45, extra=sensing)
     sky.wait_online()
-    hold = {"command": "sleep", "params": {"value": 2}}
-    steps, extensibility = _survey_with_alarm("OUT_MEASURE", 35, 28, 7, after=15, action=hold)
-    assert sum(s["command"] == "navigate" for s in steps) == 30
+    action = [
+        {"command": "sense", "params": {"sensor": "CO2"}},
+        {"command": "sleep", "params": {"value": 2}},
+    ]
+    steps = mission_steps(area.waypoints, altitude=10, intermediate_action=action)
+    extensibility = {
+        "vectors": area.vectors.to_dict(),
+        "step_distance": 7,
+        "intermediate_action": action,
+    }
     client = api(world_tx.operator)
     created = client.post(
         "/api/v1/missions/",
@@ -260,6 +275,19 @@ def test_collaborative_sensing_extends_the_area_to_56_waypoints_flown_by_three(w
     original = mission.steps.filter(command="navigate").exclude(pk__in=new_navigates)
     assert original.filter(status=StepStatus.COMPLETED).count() >= 15
     assert not original.exclude(status__in=[StepStatus.COMPLETED, StepStatus.SUPERSEDED]).exists()
+    # The first alarm came from the reading over waypoint 15; drones crossing the plume
+    # again in the new area raise more, which are noted and change nothing.
+    first = mission.events.filter(kind="alarm").order_by("at").first()
+    assert first.data["level"] == "OUT_MEASURE" and first.data["sensor"] == "CO2"
+    assert first.data["value"] > 1000
+    wp15 = mission.steps.filter(command="navigate").order_by("index")[14]
+    assert (
+        metres(
+            (first.data["position"]["lat"], first.data["position"]["lon"]),
+            (wp15.params["lat"], wp15.params["lon"]),
+        )
+        < 3
+    )
 
 
 def test_replacement_with_no_drone_available_pauses_then_resumes_when_one_comes_online(
