@@ -25,21 +25,48 @@ from .models import ConnectionEvent, Drone
 
 log = logging.getLogger(__name__)
 
-# One statement: update the state and learn whether the drone was offline before (the
-# sub-select reads the old row under lock), so a reconnection is noticed without a second
-# round trip on the hot path. Revoked drones are not updated: they are unknown here.
-_HEARTBEAT_SQL = """
+# One statement for a whole batch: update each drone's state and learn whether it was
+# offline before (the sub-select reads the old rows under lock), so reconnections are
+# noticed without another round trip on the hot path. Revoked drones are not updated:
+# they are unknown here.
+_ROW = (
+    "(%s, %s::timestamptz, %s::float8, %s::float8, %s::float8, %s::float8, %s::float8,"
+    " %s::boolean, %s::boolean, %s, %s::jsonb, %s::jsonb)"
+)
+_HEARTBEATS_SQL = """
 UPDATE fleet_drone AS d SET
-    online = TRUE, last_seen = %s, lat = %s, lon = %s, alt = %s,
-    battery_voltage = %s, battery_remaining = %s, armed = %s, airborne = %s,
-    flight_mode = %s, mission = %s::jsonb, fc = %s::jsonb
-FROM (
+    online = TRUE, last_seen = v.seen, lat = v.lat, lon = v.lon, alt = v.alt,
+    battery_voltage = v.voltage, battery_remaining = v.remaining, armed = v.armed,
+    airborne = v.airborne, flight_mode = v.mode, mission = v.mission, fc = v.fc
+FROM (VALUES {rows}) AS v(
+    drone_id, seen, lat, lon, alt, voltage, remaining, armed, airborne, mode, mission, fc
+), (
     SELECT id, online FROM fleet_drone
-    WHERE drone_id = %s AND NOT credentials_revoked FOR UPDATE
+    WHERE drone_id = ANY(%s) AND NOT credentials_revoked
+    ORDER BY id FOR UPDATE
 ) AS old
-WHERE d.id = old.id
-RETURNING d.id, d.organisation_id, old.online
+WHERE d.drone_id = v.drone_id AND d.id = old.id
+RETURNING d.drone_id, d.id, d.organisation_id, old.online
 """
+
+
+def _row(heartbeat: Heartbeat, seen: datetime) -> list:
+    position = heartbeat.position
+    mission = heartbeat.mission
+    return [
+        heartbeat.drone_id,
+        seen,
+        None if position is None else position.lat,
+        None if position is None else position.lon,
+        None if position is None else position.alt,
+        heartbeat.battery_voltage,
+        heartbeat.battery_remaining,
+        heartbeat.armed,
+        heartbeat.airborne,
+        heartbeat.flight_mode[:40],
+        None if mission is None else json.dumps(mission.to_dict()),
+        json.dumps({"protocol": heartbeat.fc_protocol, "connected": heartbeat.fc_connected}),
+    ]
 
 
 class _Throttle:
@@ -81,44 +108,51 @@ def live_state(heartbeat: Heartbeat, seen: datetime) -> dict:
 
 
 def handle_heartbeat(drone_id: str, heartbeat: Heartbeat) -> str | None:
-    """Record a heartbeat: one UPDATE; an `online` event if the drone was offline."""
-    if heartbeat.drone_id != drone_id:
-        return "drone_id_mismatch"
+    """Record one heartbeat (see handle_heartbeats)."""
+    return handle_heartbeats([(drone_id, heartbeat)])[0]
+
+
+def handle_heartbeats(batch: list[tuple[str, Heartbeat]]) -> list[str | None]:
+    """Record heartbeats with one UPDATE; an `online` event for each drone that was offline.
+
+    Only the newest heartbeat of a drone in the batch is written (the older ones would be
+    overwritten in the same instant). Returns, per heartbeat, None or why it was dropped.
+    """
     seen = timezone.now()
-    position = heartbeat.position
-    mission = None if heartbeat.mission is None else json.dumps(heartbeat.mission.to_dict())
-    fc = json.dumps({"protocol": heartbeat.fc_protocol, "connected": heartbeat.fc_connected})
+    reasons: list[str | None] = [None] * len(batch)
+    latest: dict[str, Heartbeat] = {}
+    for i, (drone_id, heartbeat) in enumerate(batch):
+        if heartbeat.drone_id != drone_id:
+            reasons[i] = "drone_id_mismatch"
+        else:
+            latest[drone_id] = heartbeat
+    if not latest:
+        return reasons
+    params: list = []
+    for heartbeat in latest.values():
+        params += _row(heartbeat, seen)
+    params.append(list(latest))
+    sql = _HEARTBEATS_SQL.format(rows=", ".join([_ROW] * len(latest)))
     with connection.cursor() as cursor:
-        cursor.execute(
-            _HEARTBEAT_SQL,
-            [
-                seen,
-                None if position is None else position.lat,
-                None if position is None else position.lon,
-                None if position is None else position.alt,
-                heartbeat.battery_voltage,
-                heartbeat.battery_remaining,
-                heartbeat.armed,
-                heartbeat.airborne,
-                heartbeat.flight_mode[:40],
-                mission,
-                fc,
-                drone_id,
-            ],
-        )
-        row = cursor.fetchone()
-    if row is None:
-        return "unknown_drone"
-    pk, organisation_id, was_online = row
-    if not was_online:
-        ConnectionEvent.objects.create(
-            drone_id=pk, kind=ConnectionEvent.Kind.ONLINE, at=seen, reason="heartbeat"
-        )
-    if _throttle.allow(drone_id, force=not was_online):
-        events.publish_nowait(
-            organisation_id, {"type": "drone", "drone": live_state(heartbeat, seen)}
-        )
-    return None
+        cursor.execute(sql, params)
+        rows = cursor.fetchall()
+    stored = {drone_id for drone_id, *_ in rows}
+    for i, (drone_id, _heartbeat) in enumerate(batch):
+        if reasons[i] is None and drone_id not in stored:
+            reasons[i] = "unknown_drone"
+    came_online = [
+        ConnectionEvent(drone_id=pk, kind=ConnectionEvent.Kind.ONLINE, at=seen, reason="heartbeat")
+        for _drone_id, pk, _org, was_online in rows
+        if not was_online
+    ]
+    if came_online:
+        ConnectionEvent.objects.bulk_create(came_online)
+    for drone_id, _pk, organisation_id, was_online in rows:
+        if _throttle.allow(drone_id, force=not was_online):
+            events.publish_nowait(
+                organisation_id, {"type": "drone", "drone": live_state(latest[drone_id], seen)}
+            )
+    return reasons
 
 
 def handle_gear(drone_id: str, message: GearAnnouncement | GearReply) -> str | None:

@@ -26,3 +26,14 @@ MAX_PAYLOAD_BYTES: dict[str, int] = {
     "camera": 4 * 1024 * 1024,
 }
 DEFAULT_MAX_PAYLOAD_BYTES = 256 * 1024
+
+# Channels whose handler takes a whole batch:
+# `handler(batch: list[tuple[str, message]]) -> list[str | None]` (a reason per message).
+# The gateway feeds them from a worker thread, so a flood costs one statement per batch
+# and paho's network thread never waits on the database.
+BATCH_DISPATCH: dict[str, str] = {
+    "heartbeats": "fleet.identifier.handle_heartbeats",
+}
+MAX_BATCH = 500
+# Parsed messages waiting for a batch handler; beyond this they are dropped as overload.
+MAX_QUEUED = 50_000

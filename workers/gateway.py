@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import queue
 import socket
 import threading
 import time
@@ -30,7 +31,16 @@ from fleet import link
 from onboard import protocol
 from workers.counters import Counters
 
-from .dispatch import DEFAULT_MAX_PAYLOAD_BYTES, DISPATCH, MAX_PAYLOAD_BYTES
+from .dispatch import (
+    BATCH_DISPATCH,
+    DEFAULT_MAX_PAYLOAD_BYTES,
+    DISPATCH,
+    MAX_BATCH,
+    MAX_PAYLOAD_BYTES,
+    MAX_QUEUED,
+)
+
+QUEUED = "queued"
 
 log = logging.getLogger("gateway")
 
@@ -49,6 +59,7 @@ class Gateway:
         broker_url: str,
         *,
         dispatch: dict[str, str | None] | None = None,
+        batch_dispatch: dict[str, str] | None = None,
         client_id: str | None = None,
         counters: Counters | None = None,
     ) -> None:
@@ -58,9 +69,23 @@ class Gateway:
         self.port = url.port or 1883
         self.counters = counters or Counters("gateway")
         table = DISPATCH if dispatch is None else dispatch
+        batch_table = (
+            (BATCH_DISPATCH if dispatch is None else {})
+            if batch_dispatch is None
+            else batch_dispatch
+        )
         self.handlers: dict[str, Callable[[str, Any], str | None] | None] = {
             channel: import_string(path) if path else None for channel, path in table.items()
         }
+        self.batch_handlers: dict[str, Callable[[list[tuple[str, Any]]], list[str | None]]] = {
+            channel: import_string(path) for channel, path in batch_table.items()
+        }
+        self.channels = sorted(set(self.handlers) | set(self.batch_handlers))
+        self._queue: queue.Queue[tuple[str, str, Any]] = queue.Queue(maxsize=MAX_QUEUED)
+        self._finish = threading.Event()
+        self._batch_thread = threading.Thread(
+            target=self._run_batches, name="gateway-batches", daemon=True
+        )
         self.connected = threading.Event()
         self.stopping = threading.Event()
         self.client = mqtt.Client(
@@ -86,6 +111,7 @@ class Gateway:
         self.client.connect_async(self.host, self.port, keepalive=30)
         self.client.loop_start()
         self._outbox_thread.start()
+        self._batch_thread.start()
 
     def stop(self, timeout: float = 5.0) -> None:
         """Drain: stop taking outbox work, finish the message in hand, disconnect."""
@@ -93,6 +119,8 @@ class Gateway:
         self._outbox_thread.join(timeout)
         self.client.disconnect()
         self.client.loop_stop()
+        self._finish.set()  # nothing new arrives now: the batch thread empties the queue
+        self._batch_thread.join(timeout)
         self.counters.flush()
         close_old_connections()
 
@@ -110,7 +138,7 @@ class Gateway:
         if sock is not None:
             # Nagle + delayed ACKs add ~40 ms per command round trip (UAVTALK.md).
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        client.subscribe([(subscription(ch), protocol.QOS[ch]) for ch in self.handlers])
+        client.subscribe([(subscription(ch), protocol.QOS[ch]) for ch in self.channels])
         self.counters.incr("connects")
         self.connected.set()
         log.info("connected to %s:%s", self.host, self.port)
@@ -135,6 +163,11 @@ class Gateway:
         """Process one message; returns None if handled, else why it was dropped/skipped."""
         self.counters.incr("received")
         reason = self._handle(topic_name, payload)
+        if reason != QUEUED:
+            self._count(reason)
+        return reason
+
+    def _count(self, reason: str | None) -> None:
         if reason is None:
             self.counters.incr("handled")
         elif reason.startswith("unhandled."):
@@ -142,32 +175,68 @@ class Gateway:
         else:
             self.counters.incr("dropped")
             self.counters.incr(f"dropped.{reason}")
-            log.debug("dropped %s: %s", topic_name, reason)
-        return reason
 
     def _handle(self, topic_name: str, payload: bytes) -> str | None:
         try:
             drone_id, channel, direction = protocol.split_topic(topic_name)
         except protocol.ProtocolError:
             return "bad_topic"
-        if direction != "out" or channel not in self.handlers:
+        if direction != "out" or channel not in self.channels:
             return "bad_topic"
         if len(payload) > MAX_PAYLOAD_BYTES.get(channel, DEFAULT_MAX_PAYLOAD_BYTES):
             return "too_large"
-        handler = self.handlers[channel]
-        if handler is None:
+        handler = self.handlers.get(channel)
+        if handler is None and channel not in self.batch_handlers:
             return f"unhandled.{channel}"
         try:
             message = protocol.PARSERS[(channel, "out")](protocol.decode_json(payload))
         except protocol.ProtocolError as exc:
             log.debug("malformed %s: %s", topic_name, exc)
             return "malformed"
+        if channel in self.batch_handlers:
+            try:
+                self._queue.put_nowait((channel, drone_id, message))
+            except queue.Full:
+                return "overload"
+            return QUEUED
+        assert handler is not None
         try:
             return handler(drone_id, message)
         except (InterfaceError, DatabaseError):
             # A dropped database connection: let Django open a fresh one for the next message.
             connection.close()
             raise
+
+    def _run_batches(self) -> None:
+        """Hand queued messages to their batch handlers, as many at once as are waiting."""
+        while not (self._finish.is_set() and self._queue.empty()):
+            try:
+                items = [self._queue.get(timeout=0.1)]
+            except queue.Empty:
+                continue
+            while len(items) < MAX_BATCH:
+                try:
+                    items.append(self._queue.get_nowait())
+                except queue.Empty:
+                    break
+            by_channel: dict[str, list[tuple[str, Any]]] = {}
+            for channel, drone_id, message in items:
+                by_channel.setdefault(channel, []).append((drone_id, message))
+            for channel, batch in by_channel.items():
+                self._run_batch(channel, batch)
+            self.counters.maybe_flush()
+        connection.close()
+
+    def _run_batch(self, channel: str, batch: list[tuple[str, Any]]) -> None:
+        try:
+            reasons = self.batch_handlers[channel](batch)
+        except Exception:  # noqa: BLE001 - the gateway must outlive any bug in a handler
+            log.exception("batch handler for %s failed", channel)
+            reasons = ["handler_error"] * len(batch)
+            # A dropped database connection: let Django open a fresh one next time.
+            connection.close()
+        for reason in reasons:
+            self._count(reason)
 
     # -- outbound ---------------------------------------------------------------------------
 

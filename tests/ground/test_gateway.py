@@ -91,7 +91,7 @@ def test_malformed_and_unauthorised_input_is_dropped_counted_and_changes_nothing
     for topic, payload, _reason in BAD_INPUT:
         ground.publish(topic, payload, qos=1).wait_for_publish()
 
-    wait_for(lambda: gateway.counters.get("received") >= len(BAD_INPUT) or None)
+    wait_for(lambda: gateway.counters.get("dropped") >= len(BAD_INPUT) or None)
     for _topic, _payload, reason in BAD_INPUT:
         assert gateway.counters.get(f"dropped.{reason}") >= 1, reason
     assert gateway.counters.get("dropped") == len(BAD_INPUT)
@@ -240,3 +240,31 @@ def test_the_gateway_command_connects_and_drains_on_sigterm(broker, tmp_path):
             process.kill()
     assert process.returncode == 0
     assert "gateway: stopped" in output
+
+
+def test_a_batch_of_heartbeats_is_one_update_keeping_each_drones_newest(world_tx):
+    from django.db import connection
+    from django.test.utils import CaptureQueriesContext
+
+    from fleet.identifier import handle_heartbeats
+    from onboard.protocol import parse_heartbeat
+
+    def beat(drone_id: str, lat: float, sender: str | None = None):  # type: ignore[no-untyped-def]
+        position = {"lat": lat, "lon": 0.0, "alt": 0.0}
+        return (sender or drone_id, parse_heartbeat(heartbeat(drone_id, position=position)))
+
+    batch = [
+        beat("ACME_1", 1.0),
+        beat("GLOBEX_1", 2.0),
+        beat("ACME_1", 3.0),
+        beat("NOBODY_9", 4.0),
+        beat("GLOBEX_1", 5.0, sender="ACME_1"),
+    ]
+    with CaptureQueriesContext(connection) as queries:
+        reasons = handle_heartbeats(batch)
+    assert reasons == [None, None, None, "unknown_drone", "drone_id_mismatch"]
+    updates = [q for q in queries.captured_queries if q["sql"].lstrip().startswith("UPDATE")]
+    assert len(updates) == 1
+    assert Drone.objects.get(drone_id="ACME_1").lat == 3.0
+    assert Drone.objects.get(drone_id="GLOBEX_1").lat == 2.0
+    assert ConnectionEvent.objects.filter(kind="online").count() == 2
