@@ -13,14 +13,14 @@ from typing import Any
 
 from asgiref.sync import sync_to_async
 from django.conf import settings
+from django.db.models import F
 from django.utils import timezone
 from django.utils.module_loading import import_string
 
 from onboard import protocol
 
 from . import link
-from .models import CommandLog, Drone, Role
-from .permissions import require_role
+from .models import ROLE_RANK, CommandLog, Drone, Role
 
 log = logging.getLogger(__name__)
 
@@ -78,18 +78,27 @@ def handle_control_reply(drone_id: str, response: protocol.ControlResponse) -> s
 
 
 def find_drone(user: Any, drone_id: str) -> Drone:
-    """The user's drone, or 404 (another organisation's drone is as unknown as none)."""
+    """The user's drone, or 404 (another organisation's drone is as unknown as none).
+
+    The user's role in the drone's organisation comes with it (`drone.member_role`), in
+    the same query: this is on every command's path.
+    """
     if not isinstance(drone_id, str) or not protocol.is_drone_id(drone_id):
         raise CommandRefused(404, f"Unknown drone {drone_id!r}.", "droneID")
     drone = (
         Drone.objects.for_user(user)
         .select_related("organisation")
+        .annotate(member_role=F("organisation__memberships__role"))
         .filter(drone_id=drone_id)
         .first()
     )
     if drone is None:
         raise CommandRefused(404, f"Unknown drone {drone_id!r}.", "droneID")
     return drone
+
+
+def _may_operate(drone: Drone) -> bool:
+    return ROLE_RANK[Role(drone.member_role)] >= ROLE_RANK[Role.OPERATOR]  # type: ignore[attr-defined]
 
 
 def _refuse(entry_fields: dict, refusal: CommandRefused) -> CommandRefused:
@@ -110,7 +119,7 @@ def prepare(user: Any, drone_id: str, command: str, params: dict | None) -> Prep
     """
     drone = find_drone(user, drone_id)
     base = {"drone": drone, "user": user, "command": str(command)[:40], "params": params or {}}
-    if not require_role(user, drone.organisation, Role.OPERATOR):
+    if not _may_operate(drone):
         raise _refuse(base, CommandRefused(403, "Only operators and admins may command drones."))
     try:
         clean = protocol.validate_command(command, params or {})
@@ -203,7 +212,7 @@ def chain_hook(command: str):  # type: ignore[no-untyped-def]
 def prepare_chain(user: Any, drone_id: str) -> Drone:
     """The checks every chain command shares: drone (404), role (403), online (409)."""
     drone = find_drone(user, drone_id)
-    if not require_role(user, drone.organisation, Role.OPERATOR):
+    if not _may_operate(drone):
         raise CommandRefused(403, "Only operators and admins may command drones.")
     if not drone.online:
         raise CommandRefused(409, f"Drone {drone.drone_id} is offline.")

@@ -1,0 +1,482 @@
+"""Ground link (issue 4): command round trip REST → drone → REST, and heartbeat rate.
+
+    .venv/bin/python -m bench.bench_ground
+
+Runs against the test profile's services (`scripts/services.sh start test`): its own
+database `test_bench_ground` (created and dropped here), its own Redis database, a
+private Mosquitto, the real gateway (`manage.py gateway`) and the real ASGI app
+(uvicorn) as subprocesses, with N drones provisioned through fleet.credentials.
+
+Drones are lightweight MQTT responders in this process (one paho client each, TCP_NODELAY,
+answering `<id>/control/in` on `<id>/control/out` as the agent does): 100 full
+simulator + agent pairs do not fit on two cores next to the ground, and the agent's own
+command execution time is not what this measures.
+
+Keys:
+- ground.command_rtt_p50_1 / _p50_100 / _p99_100: `POST /api/v1/drones/{id}/commands/`
+  (token auth, keep-alive) until the drone's reply is in the HTTP answer, with 1 and 100
+  drones connected. Baseline: a bare MQTT request/response through the same broker (a
+  ground paho client publishing to `<id>/control/in` and receiving `<id>/control/out`).
+- ground.heartbeats_per_s: heartbeats one gateway validates and stores per second (one
+  UPDATE each) under a flood. Baseline: the raw rate one paho client receives the same
+  flood doing nothing with it (a separate process, like the gateway).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from urllib.parse import urlsplit, urlunsplit
+
+ROOT = Path(__file__).resolve().parents[1]
+DB_NAME = "bench_ground"
+REDIS_DB = 11
+SAMPLES_1 = int(os.environ.get("BENCH_GROUND_SAMPLES", 300))
+SAMPLES_100 = int(os.environ.get("BENCH_GROUND_SAMPLES_100", 500))
+FLOOD_S = 5.0
+HOME = (38.736946, -9.142685)
+
+
+def _test_env() -> dict[str, str]:
+    values = {}
+    for line in (ROOT / ".data" / "test" / "env").read_text().splitlines():
+        if "=" in line and not line.startswith("#"):
+            key, value = line.split("=", 1)
+            values[key.strip()] = value.strip()
+    return values
+
+
+def setup_django() -> None:
+    os.environ["DJANGO_SETTINGS_MODULE"] = "config.settings.test"
+    os.environ["TEST_DB_NAME"] = f"test_{DB_NAME}"
+    parts = urlsplit(_test_env()["REDIS_URL"])
+    os.environ["REDIS_URL"] = urlunsplit(parts._replace(path=f"/{REDIS_DB}"))
+    import django
+
+    django.setup()
+
+
+def drone_id(i: int) -> str:
+    return f"BENCH_G{i:03d}"
+
+
+def _client(user: str, password: str, port: int, client_id: str):  # type: ignore[no-untyped-def]
+    import paho.mqtt.client as mqtt
+
+    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=client_id)
+    client.username_pw_set(user, password)
+    connected = threading.Event()
+
+    def on_connect(c, userdata, flags, reason_code, properties):  # type: ignore[no-untyped-def]
+        c.socket().setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        connected.set()
+
+    client.on_connect = on_connect
+    client.connect("127.0.0.1", port, keepalive=30)
+    client.loop_start()
+    if not connected.wait(10):
+        raise RuntimeError(f"{user} could not connect")
+    return client
+
+
+class Responder:
+    """A drone's control side: every request answered at once, like the agent's replies."""
+
+    def __init__(self, name: str, password: str, port: int) -> None:
+        self.name = name
+        self.client = _client(name, password, port, f"resp-{name}")
+        self.client.on_message = self._on_message
+        done = threading.Event()
+        self.client.on_subscribe = lambda *args: done.set()
+        self.client.subscribe(f"{name}/control/in", qos=1)
+        done.wait(5)
+
+    def _on_message(self, client, userdata, message) -> None:  # type: ignore[no-untyped-def]
+        request = json.loads(message.payload)
+        reply = {
+            "request_id": request["request_id"],
+            "command": request["command"],
+            "ok": True,
+            "result": {},
+            "error": None,
+            "ts": time.time(),
+        }
+        client.publish(f"{self.name}/control/out", json.dumps(reply), qos=1)
+
+    def heartbeat(self) -> None:
+        self.client.publish(f"{self.name}/heartbeats/out", json.dumps(heartbeat(self.name)), qos=1)
+
+    def stop(self) -> None:
+        self.client.disconnect()
+        self.client.loop_stop()
+
+
+def heartbeat(name: str) -> dict:
+    return {
+        "type": "heartbeat",
+        "drone_id": name,
+        "ts": time.time(),
+        "position": {"lat": HOME[0], "lon": HOME[1], "alt": 0.0},
+        "battery": {"voltage": 16.4, "remaining": 0.95},
+        "armed": False,
+        "airborne": False,
+        "flight_mode": "POSITIONHOLD",
+        "mission": None,
+        "fc": {"protocol": "uavtalk", "connected": True},
+    }
+
+
+def bare_mqtt_rtt(port: int, ground_password: str, names: list[str], samples: int) -> list[float]:
+    """Ground publishes a control request, the responder answers, the ground receives it."""
+    ground = _client("ground", ground_password, port, "bench-ground-bare")
+    got = threading.Event()
+    ground.on_message = lambda c, u, m: got.set()
+    subscribed = threading.Event()
+    ground.on_subscribe = lambda *args: subscribed.set()
+    ground.subscribe("+/control/out", qos=1)
+    subscribed.wait(5)
+    rtts = []
+    for i in range(samples + 20):
+        name = names[i % len(names)]
+        request = {
+            "request_id": os.urandom(16).hex(),
+            "command": "arm",
+            "params": {},
+            "ts": time.time(),
+        }
+        got.clear()
+        began = time.perf_counter()
+        ground.publish(f"{name}/control/in", json.dumps(request), qos=1)
+        if not got.wait(5):
+            raise RuntimeError("no bare reply")
+        if i >= 20:
+            rtts.append((time.perf_counter() - began) * 1000)
+    ground.disconnect()
+    ground.loop_stop()
+    return rtts
+
+
+def rest_rtt(base_url: str, token: str, names: list[str], samples: int) -> list[float]:
+    import requests
+
+    session = requests.Session()
+    session.headers.update({"Authorization": f"Token {token}", "Content-Type": "application/json"})
+    body = json.dumps({"command": "arm", "params": {}})
+    rtts = []
+    for i in range(samples + 20):
+        name = names[i % len(names)]
+        began = time.perf_counter()
+        response = session.post(f"{base_url}/api/v1/drones/{name}/commands/", data=body, timeout=20)
+        elapsed = (time.perf_counter() - began) * 1000
+        if response.status_code != 200 or not response.json()["ok"]:
+            raise RuntimeError(f"{name}: {response.status_code} {response.text[:200]}")
+        if i >= 20:
+            rtts.append(elapsed)
+    return rtts
+
+
+def rest_read_rtt(base_url: str, token: str, name: str, samples: int) -> list[float]:
+    """The same HTTP stack without a drone: GET the drone's gear (one query)."""
+    import requests
+
+    session = requests.Session()
+    session.headers.update({"Authorization": f"Token {token}"})
+    rtts = []
+    for i in range(samples + 20):
+        began = time.perf_counter()
+        response = session.get(f"{base_url}/api/v1/drones/{name}/gear/", timeout=20)
+        if response.status_code != 200:
+            raise RuntimeError(response.text[:200])
+        if i >= 20:
+            rtts.append((time.perf_counter() - began) * 1000)
+    return rtts
+
+
+def flood(port: int, ground_password: str, names: list[str], seconds: float) -> int:
+    """Publish valid heartbeats as fast as paho will for `seconds`; returns how many."""
+    publisher = _client("ground", ground_password, port, f"bench-flood-{time.monotonic_ns()}")
+    payloads = [(f"{n}/heartbeats/out", json.dumps(heartbeat(n))) for n in names]
+    sent = 0
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        for topic, payload in payloads:
+            publisher.publish(topic, payload, qos=0)
+        sent += len(payloads)
+        # Keep paho's own buffer bounded: the receiver, not the publisher, is measured.
+        time.sleep(0.002)
+    publisher.disconnect()
+    publisher.loop_stop()
+    return sent
+
+
+RAW_RECEIVER = """
+import json, socket, sys, threading, time
+import paho.mqtt.client as mqtt
+port, password, seconds = int(sys.argv[1]), sys.argv[2], float(sys.argv[3])
+count = [0]; first = [None]
+def on_message(c, u, m):
+    if first[0] is None: first[0] = time.perf_counter()
+    count[0] += 1
+def on_connect(c, u, f, rc, p):
+    c.socket().setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    c.subscribe("$share/raw/+/heartbeats/out", qos=0)
+c = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="bench-raw")
+c.username_pw_set("ground", password)
+c.on_message = on_message; c.on_connect = on_connect
+c.connect("127.0.0.1", port); c.loop_start()
+print("ready", flush=True)
+while first[0] is None: time.sleep(0.01)
+time.sleep(seconds)
+n = count[0]; elapsed = time.perf_counter() - first[0]
+print(json.dumps({"rate": n / elapsed}), flush=True)
+c.loop_stop()
+"""
+
+
+def gateway_counter(name: str) -> float:
+    from workers.counters import snapshot
+
+    return snapshot().get("gateway", {}).get(name, 0.0)
+
+
+def main() -> None:
+    setup_django()
+    from django.conf import settings
+    from django.contrib.auth import get_user_model
+    from django.db import connection
+    from rest_framework.authtoken.models import Token
+
+    from bench.common import percentile, record
+    from fleet import credentials, link
+    from fleet.models import Membership, Organisation, Role
+    from tests.support.live import free_port
+    from tests.support.mosquitto import start_broker
+    from workers.counters import KEY_PREFIX
+    from workers.counters import _client as counters_redis
+
+    db_name = connection.creation.create_test_db(verbosity=0, autoclobber=True, keepdb=False)
+    tmp = Path(tempfile.mkdtemp(prefix="bench-ground-"))
+    ground_password = "bench-ground"
+    broker = start_broker(
+        tmp / "mosquitto",
+        {"ground": ground_password},
+        extra_config=f"pid_file {tmp / 'mosquitto' / 'mosquitto.pid'}\n",
+    )
+    settings.MOSQUITTO_DIR = str(broker.directory)
+    settings.MQTT_URL = broker.url_for("ground")
+    settings.MQTT_PUBLIC_HOST, settings.MQTT_PUBLIC_PORT = "127.0.0.1", broker.port
+    counters_redis().delete(KEY_PREFIX + "gateway")
+    link.sync_redis().delete(link.outbox_key())
+
+    organisation = Organisation.objects.create(name="Bench", slug="bench")
+    user = get_user_model().objects.create_user("bench-operator", password="x")
+    Membership.objects.create(user=user, organisation=organisation, role=Role.OPERATOR)
+    token = Token.objects.create(user=user).key
+    names = [drone_id(i) for i in range(100)]
+    passwords = {name: credentials.provision(name, "bench").password for name in names}
+
+    env = dict(
+        os.environ,
+        TEST_WORKER_DB_NAME=db_name,
+        MQTT_URL=broker.url_for("ground"),
+        MOSQUITTO_DIR=str(broker.directory),
+        PYTHONUNBUFFERED="1",
+        LOG_LEVEL="WARNING",
+    )
+    processes = []
+    responders: list[Responder] = []
+    try:
+        gateway = subprocess.Popen(
+            [sys.executable, "manage.py", "gateway"],
+            cwd=ROOT,
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        processes.append(gateway)
+        web_port = free_port()
+        web = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "uvicorn",
+                "config.asgi:application",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(web_port),
+                "--no-access-log",
+                "--log-level",
+                "warning",
+            ],
+            cwd=ROOT,
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        processes.append(web)
+        base_url = f"http://127.0.0.1:{web_port}"
+        _wait_port(web_port)
+
+        results: dict[str, tuple[list[float], list[float]]] = {}
+        for count in (1, 100):
+            while len(responders) < count:
+                name = names[len(responders)]
+                responders.append(Responder(name, passwords[name], broker.port))
+            active = names[:count]
+            _wait_online(responders[:count])
+            samples = SAMPLES_1 if count == 1 else SAMPLES_100
+            bare = bare_mqtt_rtt(broker.port, ground_password, active, samples)
+            rest = rest_rtt(base_url, token, active, samples)
+            if count == 1:
+                read = rest_read_rtt(base_url, token, active[0], samples)
+            results[str(count)] = (rest, bare)
+
+        rest1, bare1 = results["1"]
+        rest100, bare100 = results["100"]
+        goal_p50 = "p50 overhead under 3x the bare MQTT round trip"
+        record(
+            "ground.command_rtt_p50_1",
+            value=statistics.median(rest1),
+            unit="ms",
+            baseline_name="bare MQTT request/response p50, same broker, 1 drone",
+            baseline_value=statistics.median(bare1),
+            higher_is_better=False,
+            goal=goal_p50,
+        )
+        record(
+            "ground.command_rtt_p50_100",
+            value=statistics.median(rest100),
+            unit="ms",
+            baseline_name="bare MQTT request/response p50, same broker, 100 drones",
+            baseline_value=statistics.median(bare100),
+            higher_is_better=False,
+            goal=goal_p50,
+        )
+        record(
+            "ground.command_rtt_p99_100",
+            value=percentile(rest100, 99),
+            unit="ms",
+            baseline_name="bare MQTT request/response p99, same broker, 100 drones",
+            baseline_value=percentile(bare100, 99),
+            higher_is_better=False,
+            goal="p99 under 50 ms on loopback",
+        )
+
+        for responder in responders:
+            responder.stop()
+        responders.clear()
+        gateway_rate = _gateway_heartbeat_rate(broker.port, ground_password, names)
+        gateway.terminate()  # the baseline receiver gets the broker and the CPU to itself
+        gateway.wait(10)
+        raw_rate = _raw_rate(broker.port, ground_password, names)
+        record(
+            "ground.heartbeats_per_s",
+            value=gateway_rate,
+            unit="heartbeats/s",
+            baseline_name="raw paho receive rate of the same flood (one client, no work)",
+            baseline_value=raw_rate,
+            higher_is_better=True,
+            goal="as close to the raw paho rate as one UPDATE per heartbeat allows",
+        )
+        print(
+            json.dumps(
+                {
+                    "rest_p50_1": statistics.median(rest1),
+                    "rest_read_p50_no_drone": statistics.median(read),
+                    "bare_p50_1": statistics.median(bare1),
+                    "rest_p50_100": statistics.median(rest100),
+                    "rest_p99_100": percentile(rest100, 99),
+                    "bare_p50_100": statistics.median(bare100),
+                    "bare_p99_100": percentile(bare100, 99),
+                    "gateway_heartbeats_per_s": gateway_rate,
+                    "raw_paho_per_s": raw_rate,
+                },
+                indent=1,
+            )
+        )
+    finally:
+        for responder in responders:
+            responder.stop()
+        for process in processes:
+            process.terminate()
+        for process in processes:
+            try:
+                process.wait(10)
+            except subprocess.TimeoutExpired:
+                process.kill()
+        broker.stop()
+        connection.creation.destroy_test_db(db_name, verbosity=0)
+
+
+def _wait_port(port: int, timeout: float = 30) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
+                return
+        except OSError:
+            time.sleep(0.1)
+    raise RuntimeError(f"nothing listens on {port}")
+
+
+def _wait_online(responders: list[Responder], timeout: float = 30) -> None:
+    """Heartbeat until the gateway (still starting, maybe) has marked them all online."""
+    from fleet.models import Drone
+
+    names = [r.name for r in responders]
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if Drone.objects.filter(drone_id__in=names, online=True).count() == len(names):
+            return
+        for responder in responders:
+            responder.heartbeat()
+        time.sleep(0.5)
+    raise RuntimeError("drones did not come online (is the gateway running?)")
+
+
+def _gateway_heartbeat_rate(port: int, password: str, names: list[str]) -> float:
+    """Handled heartbeats per second over a window in the middle of the flood."""
+    samples: list[tuple[float, float]] = []
+    stop = threading.Event()
+
+    def watch() -> None:
+        while not stop.wait(0.5):
+            samples.append((time.monotonic(), gateway_counter("handled")))
+
+    watcher = threading.Thread(target=watch, daemon=True)
+    watcher.start()
+    flood(port, password, names, FLOOD_S)
+    stop.set()
+    watcher.join()
+    # Counters flush once a second: take the steady part, skipping the ramp-up.
+    (t0, n0), (t1, n1) = samples[2], samples[-1]
+    return (n1 - n0) / (t1 - t0)
+
+
+def _raw_rate(port: int, password: str, names: list[str]) -> float:
+    receiver = subprocess.Popen(
+        [sys.executable, "-c", RAW_RECEIVER, str(port), password, str(FLOOD_S - 1.5)],
+        stdout=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    assert receiver.stdout is not None
+    receiver.stdout.readline()
+    time.sleep(0.3)
+    flood(port, password, names, FLOOD_S)
+    line = receiver.stdout.readline()
+    receiver.wait(10)
+    return json.loads(line)["rate"]
+
+
+if __name__ == "__main__":
+    main()
