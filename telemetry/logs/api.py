@@ -239,8 +239,9 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
             return Response({"start": start, "end": end, "layers": []})
         edges = np.linspace(start, end, bins + 1) * 1e9
         layers = []
+        times_by_layer = services.layer_times(store)
         for layer in index["layers"]:
-            times = _layer_times(store, layer["name"])
+            times = times_by_layer.get(layer["name"])
             if times is None:
                 continue
             cuts = np.searchsorted(times, edges)
@@ -261,14 +262,3 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
         store = self._store(self.get_object())
         points = _points(request.query_params.get("points"), default=4000) or 4000
         return Response(services.attitude(store, points=points))
-
-
-def _layer_times(store: LogStore, layer: str) -> np.ndarray | None:
-    """The densest time array among the layer's series (a message's fields share one)."""
-    best, count = None, -1
-    for path, info in store.index["series"].items():
-        if path.split("/", 1)[0] == layer and info["count"] > count:
-            best, count = path, info["count"]
-    if best is None:
-        return None
-    return store.read_ns(best)[0]

@@ -10,7 +10,9 @@ import logging
 import math
 import os
 import shutil
+import threading
 import time
+from collections import OrderedDict
 from collections.abc import Callable
 
 import numpy as np
@@ -25,7 +27,7 @@ from telemetry.logs.analysis import trajectory_of, values_at, values_tree
 from telemetry.logs.importers import import_log
 from telemetry.logs.importers.base import Limits, LogFormatError
 from telemetry.logs.models import FlightLog, LogStatus
-from telemetry.logs.store import LogStore, open_store, write_store
+from telemetry.logs.store import LogStore, write_store
 from telemetry.logs.uploads import StoredUpload
 
 logger = logging.getLogger(__name__)
@@ -65,6 +67,7 @@ def create_log(*, organisation, owner, upload: StoredUpload) -> FlightLog:  # ty
 
 def delete_log(log: FlightLog) -> None:
     directory = log.directory
+    forget_store(log)
     log.delete()
     transaction.on_commit(lambda: shutil.rmtree(directory, ignore_errors=True))
 
@@ -158,8 +161,47 @@ def process_log(log_id: str) -> str:
 # --- reading a ready log ---
 
 
+class CachedStore(LogStore):
+    """A store whose memory maps stay open: a log with a thousand series would otherwise
+    re-open a thousand files for every values-at-time request of a replay."""
+
+    def __init__(self, directory) -> None:  # type: ignore[no-untyped-def]
+        super().__init__(directory)
+        self._maps: dict[str, np.ndarray] = {}
+
+    def _load(self, name: str) -> np.ndarray:
+        mapped = self._maps.get(name)
+        if mapped is None:
+            mapped = self._maps[name] = super()._load(name)
+        return mapped
+
+
+_STORES: OrderedDict[tuple[str, int], CachedStore] = OrderedDict()
+_STORES_LOCK = threading.Lock()
+STORE_CACHE_SIZE = 8
+
+
 def store_of(log: FlightLog) -> LogStore:
-    return open_store(log.store_path)
+    """The log's store, kept open per process for the few logs being looked at."""
+    index = log.store_path / "index.json"
+    key = (str(log.store_path), index.stat().st_mtime_ns)
+    with _STORES_LOCK:
+        store = _STORES.get(key)
+        if store is not None:
+            _STORES.move_to_end(key)
+            return store
+    store = CachedStore(log.store_path)
+    with _STORES_LOCK:
+        _STORES[key] = store
+        while len(_STORES) > STORE_CACHE_SIZE:
+            _STORES.popitem(last=False)
+    return store
+
+
+def forget_store(log: FlightLog) -> None:
+    with _STORES_LOCK:
+        for key in [k for k in _STORES if k[0] == str(log.store_path)]:
+            del _STORES[key]
 
 
 def series_list(store: LogStore) -> list[dict]:
@@ -179,7 +221,26 @@ def series_list(store: LogStore) -> list[dict]:
 
 
 def values_at_time(store: LogStore, t: float) -> dict:
-    return values_tree(values_at(store, t))
+    """Every value at or before t, nested by group; NaN and infinities become None (JSON)."""
+    flat = values_at(store, t)
+    for entry in flat.values():
+        if (
+            entry is not None
+            and isinstance(entry["value"], float)
+            and not math.isfinite(entry["value"])
+        ):
+            entry["value"] = None
+    return values_tree(flat)
+
+
+def layer_times(store: LogStore) -> dict[str, np.ndarray]:
+    """Per layer, the time stamps of its densest series (a message's fields share them)."""
+    best: dict[str, tuple[int, str]] = {}
+    for path, info in store.index["series"].items():
+        layer = path.split("/", 1)[0]
+        if info["count"] > best.get(layer, (-1, ""))[0]:
+            best[layer] = (info["count"], path)
+    return {layer: store.read_ns(path)[0] for layer, (_, path) in best.items()}
 
 
 def _decimate(n: int, points: int) -> np.ndarray:

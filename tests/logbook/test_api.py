@@ -5,6 +5,7 @@ from __future__ import annotations
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 from django.test import Client
 
@@ -16,6 +17,7 @@ from tests.logs.test_rosbag import write_bag
 from tests.logs.test_tlog import write_tlog
 
 pytestmark = pytest.mark.e2e
+REAL_LOGS = Path("/work/shared/testdata/ulog")
 
 
 def client_for(user) -> Client:  # type: ignore[no-untyped-def]
@@ -333,3 +335,31 @@ def test_a_member_of_zip_member_extension_is_taken_from_the_upload(world_tx, wor
     assert zipfile.is_zipfile(path)
     body = processed(client_for(world_tx.operator), path)
     assert body["status"] == "ready" and body["format"] == "dfi"
+
+
+@pytest.mark.parametrize("name", ["sample_log_small.ulg", "sample_appended_multiple.ulg"])
+def test_real_px4_logs_serve_the_values_pyulog_reads(world_tx, worker, tmp_path, name):
+    from pyulog import ULog
+
+    source = REAL_LOGS / name
+    path = tmp_path / name
+    path.write_bytes(source.read_bytes())
+    client = client_for(world_tx.operator)
+    body = processed(client, path)
+    assert body["status"] == "ready", body
+    base = f"/api/v1/logs/{body['id']}"
+
+    reference = ULog(str(source)).get_dataset("vehicle_attitude")
+    layer = next(x["name"] for x in body["layers"] if x["name"].startswith("vehicle_attitude"))
+    served = client.get(f"{base}/series/", {"path": f"{layer}/q[0]"}).json()
+    assert served["v"] == reference.data["q[0]"].tolist()
+    assert served["t"] == pytest.approx((reference.data["timestamp"] / 1e6).tolist())
+
+    stamps = reference.data["timestamp"].astype(np.int64)
+    gaps = np.flatnonzero(np.diff(stamps) > 0)
+    last = int(gaps[len(gaps) // 2])  # a sample followed by a later one
+    at = (stamps[last] + stamps[last + 1]) / 2e6  # between two samples: no rounding at the edge
+    values = client.get(f"{base}/values/", {"t": at})
+    assert values.status_code == 200  # NaNs in real logs come back as null, not a 500
+    assert values.json()["values"][layer]["q[0]"]["value"] == reference.data["q[0]"][last].item()
+    assert client.get(f"{base}/attitude/").json()["t"]
