@@ -55,7 +55,10 @@ def _test_env() -> dict[str, str]:
 
 
 def setup_django() -> None:
-    os.environ["DJANGO_SETTINGS_MODULE"] = "config.settings.test"
+    # BENCH_GROUND_SETTINGS compares another settings module (e.g. a pooled database).
+    os.environ["DJANGO_SETTINGS_MODULE"] = os.environ.get(
+        "BENCH_GROUND_SETTINGS", "config.settings.test"
+    )
     os.environ["TEST_DB_NAME"] = f"test_{DB_NAME}"
     parts = urlsplit(_test_env()["REDIS_URL"])
     os.environ["REDIS_URL"] = urlunsplit(parts._replace(path=f"/{REDIS_DB}"))

@@ -268,3 +268,17 @@ def test_a_batch_of_heartbeats_is_one_update_keeping_each_drones_newest(world_tx
     assert Drone.objects.get(drone_id="ACME_1").lat == 3.0
     assert Drone.objects.get(drone_id="GLOBEX_1").lat == 2.0
     assert ConnectionEvent.objects.filter(kind="online").count() == 2
+
+
+def test_the_offline_sweep_is_a_beat_task(world_tx, settings):
+    from config.celery import app
+    from workers.tasks import sweep_offline_drones
+
+    schedule = settings.CELERY_BEAT_SCHEDULE["fleet.sweep_offline"]
+    assert schedule["task"] == "fleet.sweep_offline" == sweep_offline_drones.name
+    assert schedule["schedule"] <= settings.HEARTBEAT_INTERVAL_S
+    assert "fleet.sweep_offline" in app.tasks
+    stale = timezone.now() - timedelta(seconds=60)
+    Drone.objects.filter(drone_id="ACME_1").update(online=True, last_seen=stale)
+    assert sweep_offline_drones.apply().get() == ["ACME_1"]
+    assert ConnectionEvent.objects.get(drone__drone_id="ACME_1").kind == "offline"
