@@ -24,12 +24,12 @@ from channels.db import database_sync_to_async
 from channels.generic.websocket import AsyncJsonWebsocketConsumer
 from django.conf import settings
 
-from fleet import commands
+from fleet import commands, link
 from fleet.models import Drone, Role
 from fleet.permissions import require_role
 
 from .models import ViewSettings
-from .runner import load_snapshot
+from .runner import WATCH_TTL_S, amark_watched, load_snapshot
 from .service import group_name
 from .teleop import BadInput, Stick, commands_for, heading_of
 
@@ -79,6 +79,7 @@ class PastViewConsumer(AsyncJsonWebsocketConsumer):
         self.worker: asyncio.Task | None = None
         self.group = group_name(drone.drone_id)
         await self.channel_layer.group_add(self.group, self.channel_name)
+        self.watch = asyncio.ensure_future(self._keep_watching(drone.drone_id))
         await self.accept()
         await self.send_json(
             {
@@ -100,8 +101,19 @@ class PastViewConsumer(AsyncJsonWebsocketConsumer):
     async def disconnect(self, code: int) -> None:
         if self.group:
             await self.channel_layer.group_discard(self.group, self.channel_name)
-        if getattr(self, "worker", None) is not None:
-            self.worker.cancel()
+        for task in (getattr(self, "worker", None), getattr(self, "watch", None)):
+            if task is not None:
+                task.cancel()
+
+    async def _keep_watching(self, drone_id: str) -> None:
+        """Renew the drone's watch mark while the page is open, so the service pushes."""
+        client = link.async_redis()
+        while True:
+            try:
+                await amark_watched(client, drone_id)
+            except Exception:  # noqa: BLE001 - without the mark the page only misses pushes
+                log.warning("watch mark of %s not renewed", drone_id, exc_info=True)
+            await asyncio.sleep(WATCH_TTL_S / 3)
 
     async def pastview_message(self, event: dict) -> None:
         """What the service pushed to the drone's group, passed on as it is."""

@@ -37,6 +37,10 @@ log = logging.getLogger("pastview")
 
 SNAPSHOT_PREFIX = "skyhive:pastview:snapshot:"
 SNAPSHOT_TTL_S = 3600
+# Pages mark their drone as watched (drone id -> expiry, epoch seconds) and renew the mark
+# every third of this; the service pushes only for marked drones.
+WATCH_KEY = "skyhive:pastview:watched"
+WATCH_TTL_S = 60.0
 TOPICS = ("+/camera/out", "+/telemetry/out")
 
 
@@ -48,6 +52,28 @@ def load_snapshot(drone_id: str) -> dict[str, Any] | None:
     """The latest state the service stored for a drone (for a page that just connected)."""
     raw = redis.Redis.from_url(settings.REDIS_URL, socket_timeout=2).get(snapshot_key(drone_id))
     return None if raw is None else json.loads(raw)
+
+
+def mark_watched(client: Any, drone_id: str) -> None:
+    """Called by a page's consumer on connect and then every WATCH_TTL_S / 3 (sync client)."""
+    client.hset(WATCH_KEY, drone_id, time.time() + WATCH_TTL_S)
+
+
+async def amark_watched(client: Any, drone_id: str) -> None:
+    await client.hset(WATCH_KEY, drone_id, time.time() + WATCH_TTL_S)
+
+
+def watched_drones(client: Any) -> set[str]:
+    """Drones with a live mark; expired marks are removed on the way."""
+    now = time.time()
+    marks = {
+        k.decode() if isinstance(k, bytes) else k: float(v)
+        for k, v in client.hgetall(WATCH_KEY).items()
+    }
+    expired = [d for d, until in marks.items() if until <= now]
+    if expired:
+        client.hdel(WATCH_KEY, *expired)
+    return {d for d, until in marks.items() if until > now}
 
 
 def _settings_for(drone_id: str) -> PastViewSettings | None:
@@ -147,8 +173,10 @@ class PastViewProcess:
         self._settings_seen = time.time()
         self._applied: dict[str, Any] = {}  # drone id -> updated_at of the settings applied
         self._next_status = 0.0
+        self._next_watch = 0.0
 
     def start(self) -> None:
+        self.refresh_watched()
         self.client.connect_async(self.host, self.port, keepalive=30)
         self.client.loop_start()
 
@@ -181,14 +209,26 @@ class PastViewProcess:
         self.redis.set(snapshot_key(drone_id), json.dumps(snapshot), ex=SNAPSHOT_TTL_S)
 
     def tick(self) -> None:
-        """Push held-back updates; every two seconds, apply edited settings and send status."""
+        """Push held-back updates; four times a second, read which drones pages are open on
+        (a new page waits at most that long for pushes); every two seconds, apply edited
+        settings and send status."""
         self.service.flush()
         now = time.monotonic()
+        if now >= self._next_watch:
+            self._next_watch = now + 0.25
+            self.refresh_watched()
         if now < self._next_status:
             return
         self._next_status = now + 2.0
         self.reload_settings()
         self.service.publish_status()
+
+    def refresh_watched(self) -> None:
+        try:
+            self.service.watched = watched_drones(self.redis)
+        except redis.RedisError as exc:
+            log.warning("watched drones unknown (%s): pushing for all", exc)
+            self.service.watched = None
 
     def reload_settings(self) -> int:
         """Apply settings edited since the last look; how many drones changed."""

@@ -93,6 +93,9 @@ class PastViewService:
         self.idle_after_s = idle_after_s
         self.drones: dict[str, DroneView] = {}
         self.counters: Counter[str] = Counter()
+        # Drones a page is open on; None pushes for every drone. Unwatched drones are still
+        # evaluated (their buffers must fill) and remembered, just not pushed.
+        self.watched: set[str] | None = None
         self._lock = threading.Lock()
 
     # -- inbound ----------------------------------------------------------------------------
@@ -239,6 +242,9 @@ class PastViewService:
         return sent
 
     def _send(self, drone_id: str, message: dict[str, Any]) -> None:
+        if self.watched is not None and drone_id not in self.watched:
+            self.counters["unwatched"] += 1
+            return
         try:
             self.publish(drone_id, message)
             self.counters[f"pushed.{message['type']}"] += 1

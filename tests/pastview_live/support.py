@@ -86,12 +86,20 @@ class GroupListener:
         from telemetry.pastview.service import group_name
 
         self.layer = get_channel_layer()
+        self.drone_id = drone_id
         self.group = group_name(drone_id)
         self.channel: str | None = None
 
     async def __aenter__(self) -> GroupListener:
+        from fleet import link
+        from telemetry.pastview.runner import amark_watched
+
         self.channel = await self.layer.new_channel()
         await self.layer.group_add(self.group, self.channel)
+        # As a page's consumer does: the service pushes only for watched drones, and looks
+        # four times a second.
+        await amark_watched(link.async_redis(), self.drone_id)
+        await asyncio.sleep(0.3)
         return self
 
     async def __aexit__(self, *exc: object) -> None:

@@ -3,6 +3,7 @@ drone's Channels group (real Redis), bad input counted while the view keeps runn
 
 from __future__ import annotations
 
+import asyncio
 import json
 import os
 import signal
@@ -233,3 +234,32 @@ async def test_the_management_command_serves_pages_and_stops_on_sigterm(command_
     command_process.send_signal(signal.SIGTERM)
     assert command_process.wait(10) == 0
     assert b"pastview: stopped" in command_process.stdout.read()
+
+
+@in_own_loop
+async def test_a_drone_no_page_watches_is_evaluated_and_remembered_but_not_pushed(service, drone):
+    from asgiref.sync import sync_to_async
+    from channels.layers import get_channel_layer
+
+    from telemetry.pastview.runner import load_snapshot
+    from telemetry.pastview.service import group_name
+
+    layer = get_channel_layer()
+    channel = await layer.new_channel()
+    await layer.group_add(group_name(DRONE), channel)  # listening, but no watch mark
+    try:
+        t0 = time.time()
+        drone.frame(t0, [0.0, 0.0, -10.0], level(0.0))
+        drone.poses((t0 + 0.1, [2.5, 0.0, -10.0], level(0.0)))
+        for _ in range(100):
+            status = service.service.status(DRONE)
+            if status and status["poses_received"] == 1:
+                break
+            await asyncio.sleep(0.05)
+        assert service.service.counters["unwatched"] >= 2  # the live frame and the update
+        with pytest.raises(TimeoutError):
+            await asyncio.wait_for(layer.receive(channel), 0.5)
+        snapshot = await sync_to_async(load_snapshot)(DRONE)
+        assert snapshot["update"]["jpeg"] and snapshot["live"]["ts"] == t0
+    finally:
+        await layer.group_discard(group_name(DRONE), channel)
