@@ -167,7 +167,11 @@ class PastViewConsumer(AsyncJsonWebsocketConsumer):
             if stick is None:  # stopped while waiting for the slot
                 continue
             last = time.monotonic()
-            await self._move(stick)
+            try:
+                await self._move(stick)
+            except Exception:  # noqa: BLE001 - one failed move must not end teleoperation
+                log.exception("teleoperation move for %s failed", self.drone)
+                await self._teleop_reply(False, "The move failed on the ground; try again.")
 
     async def _move(self, stick: Stick) -> None:
         if self.heading is None:

@@ -226,3 +226,12 @@ def test_the_page_shows_controls_to_operators_only(client, world_tx):
     page = client.get("/pastview/ACME_1/")
     assert page.status_code == 200 and b'id="pv-teleop"' not in page.content
     assert client.get("/pastview/GLOBEX_1/").status_code == 404
+
+
+def test_the_drawn_box_has_the_frames_proportions():
+    from telemetry.pastview.views import frame_box
+
+    box = frame_box({"FRAME_SIZE": "550"})
+    assert box["length"] == box["width"] == pytest.approx(0.55 / 2**0.5)
+    assert box["height"] == pytest.approx(box["width"] / 5)
+    assert frame_box({"FRAME_SIZE": "huge"}) == frame_box({})

@@ -263,3 +263,32 @@ async def test_a_drone_no_page_watches_is_evaluated_and_remembered_but_not_pushe
         assert snapshot["update"]["jpeg"] and snapshot["live"]["ts"] == t0
     finally:
         await layer.group_discard(group_name(DRONE), channel)
+
+
+@in_own_loop
+async def test_without_a_pose_stream_the_flight_controllers_attitude_and_position_are_used(
+    service, drone
+):
+    t0 = time.time()
+    yaw90 = level(90.0)  # (qx, qy, qz, qw); dRonin sends q1 = qw first
+    attitude = {"q1": yaw90[3], "q2": yaw90[0], "q3": yaw90[1], "q4": yaw90[2]}
+    async with GroupListener(DRONE) as pages:
+        drone.frame(t0, [0.0, 0.0, -10.0], level(90.0))
+        drone.raw(
+            "telemetry",
+            json.dumps(
+                {
+                    "ts": t0 + 0.1,
+                    "objects": [
+                        {"name": "PositionActual", "ts": t0 + 0.1,
+                         "fields": {"North": 0.0, "East": 2.5, "Down": -10.0}},
+                        {"name": "AttitudeActual", "ts": t0 + 0.1,
+                         "fields": {**attitude, "Roll": 0.0, "Pitch": 0.0, "Yaw": 90.0}},
+                        {"name": "FlightStatus", "ts": t0 + 0.1, "fields": {"Armed": "Armed"}},
+                    ],
+                }
+            ),
+        )  # fmt: skip
+        update = await pages.next(lambda m: m["type"] == "update")
+    assert close(update["pose"]["orientation"], yaw90)
+    assert close(update["relative"]["position"], [2.5, 0.0, 0.0])
