@@ -30,7 +30,8 @@ DEFAULT_MAX_PAYLOAD_BYTES = 256 * 1024
 # Channels whose handler takes a whole batch:
 # `handler(batch: list[tuple[str, message]]) -> list[str | None]` (a reason per message).
 # The gateway feeds them from a worker thread, so a flood costs one statement per batch
-# and paho's network thread never waits on the database.
+# and paho's network thread never waits on the database. A channel in both tables goes to
+# its batch handler (the single one serves gateways built with a custom `dispatch`).
 BATCH_DISPATCH: dict[str, str] = {
     "heartbeats": "fleet.identifier.handle_heartbeats",
 }
