@@ -146,7 +146,13 @@ export class Chart {
           font: "11px system-ui",
           grid: { stroke: "#eef0f3" },
         },
-        { size: 48, font: "11px system-ui", grid: { stroke: "#eef0f3" }, values: (u, ticks) => (ticks || []).map(formatAxis) },
+        {
+          // Wide enough for the longest tick label (about 6.5 px a character at 11 px).
+          size: (u, values) => Math.max(34, ...(values || []).map((v) => String(v).length * 6.5 + 14)),
+          font: "11px system-ui",
+          grid: { stroke: "#eef0f3" },
+          values: (u, ticks) => (ticks || []).map(formatAxis),
+        },
       ],
       cursor: { drag: { x: true, y: false, setScale: false }, points: { size: 5 } },
       select: { show: true },

@@ -25,6 +25,7 @@ export class Timeline {
     this.fetchSoon = debounce(() => this.fetch(), 90);
     this.bindEvents();
     new ResizeObserver(() => this.resize()).observe(canvas.parentElement);
+    canvas.parentElement.addEventListener("scroll", () => this.draw(), { passive: true });
     this.state.on("cursor", () => this.draw());
     this.state.on("selection", () => this.draw());
     this.state.on("view", () => { this.draw(); this.fetchSoon(); });
@@ -81,67 +82,76 @@ export class Timeline {
     const ctx = this.ctx;
     if (!ctx) return;
     const { width, height } = this;
+    // The canvas scrolls inside its card when there are many layers; the ruler stays on top.
+    const top = this.canvas.parentElement.scrollTop;
     ctx.clearRect(0, 0, width, height);
     ctx.fillStyle = "#fff";
     ctx.fillRect(0, 0, width, height);
-    this.drawRuler(ctx);
+    const ticks = this.ticks();
+    ctx.fillStyle = "#f0f2f5";
+    for (const { x } of ticks) ctx.fillRect(x, RULER, 1, height - RULER);
     this.drawLanes(ctx);
-    const lanesTop = RULER;
-    const lanesBottom = height - 4;
+    this.drawRuler(ctx, top, ticks);
+    const bottom = height - 4;
     const selection = this.state.selection;
     if (selection) {
       const x0 = Math.max(this.x(selection[0]), this.labelWidth);
       const x1 = Math.min(this.x(selection[1]), this.labelWidth + this.laneWidth);
       if (x1 > x0) {
         ctx.fillStyle = "rgba(35, 88, 214, 0.14)";
-        ctx.fillRect(x0, 0, x1 - x0, lanesBottom);
+        ctx.fillRect(x0, 0, x1 - x0, bottom);
         ctx.fillStyle = "rgba(35, 88, 214, 0.7)";
-        ctx.fillRect(x0, 0, 1, lanesBottom);
-        ctx.fillRect(x1 - 1, 0, 1, lanesBottom);
+        ctx.fillRect(x0, 0, 1, bottom);
+        ctx.fillRect(x1 - 1, 0, 1, bottom);
       }
     }
     if (this.drag?.mode === "select" && this.drag.moved) {
       const x0 = Math.min(this.drag.x0, this.drag.x1);
       ctx.fillStyle = "rgba(35, 88, 214, 0.2)";
-      ctx.fillRect(x0, lanesTop, Math.abs(this.drag.x1 - this.drag.x0), lanesBottom - lanesTop);
+      ctx.fillRect(x0, top + RULER, Math.abs(this.drag.x1 - this.drag.x0), bottom - top - RULER);
     }
     if (this.hover !== null && !this.drag) {
       ctx.fillStyle = "rgba(16, 24, 40, 0.25)";
-      ctx.fillRect(Math.round(this.hover), RULER, 1, lanesBottom - RULER);
+      ctx.fillRect(Math.round(this.hover), top + RULER, 1, bottom - top - RULER);
     }
     const cx = this.x(this.state.cursor);
     if (cx >= this.labelWidth && cx <= this.labelWidth + this.laneWidth) {
       ctx.fillStyle = "#d92d20";
-      ctx.fillRect(Math.round(cx) - 1, 0, 2, lanesBottom);
+      ctx.fillRect(Math.round(cx) - 1, 0, 2, bottom);
       ctx.beginPath();
-      ctx.moveTo(cx - 5, 0);
-      ctx.lineTo(cx + 5, 0);
-      ctx.lineTo(cx, 7);
+      ctx.moveTo(cx - 5, top);
+      ctx.lineTo(cx + 5, top);
+      ctx.lineTo(cx, top + 7);
       ctx.fill();
     }
   }
 
-  drawRuler(ctx) {
+  ticks() {
     const [a, b] = this.state.view;
+    const step = niceStep((b - a) / Math.max(this.laneWidth / 90, 1));
+    const digits = step >= 1 ? 0 : Math.min(Math.ceil(-Math.log10(step) - 1e-9), 6);
+    const first = Math.ceil((a - this.state.start) / step) * step + this.state.start;
+    const out = [];
+    for (let t = first; t <= b + step * 1e-9; t += step) {
+      out.push({ x: Math.round(this.x(t)), label: formatDuration(t - this.state.start, digits) });
+    }
+    return out;
+  }
+
+  drawRuler(ctx, top, ticks) {
     ctx.fillStyle = "#f6f7f9";
-    ctx.fillRect(0, 0, this.width, RULER);
+    ctx.fillRect(0, top, this.width, RULER);
     ctx.fillStyle = "#e3e6eb";
-    ctx.fillRect(0, RULER - 1, this.width, 1);
+    ctx.fillRect(0, top + RULER - 1, this.width, 1);
     ctx.fillStyle = "#667085";
     ctx.font = "11px system-ui, sans-serif";
     ctx.textBaseline = "middle";
-    ctx.fillText("time since start", 8, RULER / 2);
-    const step = niceStep((b - a) / Math.max(this.laneWidth / 90, 1));
-    const digits = step >= 1 ? 0 : Math.min(Math.ceil(-Math.log10(step)), 6);
-    const first = Math.ceil((a - this.state.start) / step) * step + this.state.start;
-    for (let t = first; t <= b + step * 1e-9; t += step) {
-      const x = Math.round(this.x(t));
+    ctx.fillText(`time since start · ${this.layers.length} streams`, 8, top + RULER / 2);
+    for (const { x, label } of ticks) {
       ctx.fillStyle = "#c5cbd5";
-      ctx.fillRect(x, RULER - 6, 1, 6);
-      ctx.fillStyle = "#f0f2f5";
-      ctx.fillRect(x, RULER, 1, this.height - RULER);
+      ctx.fillRect(x, top + RULER - 6, 1, 6);
       ctx.fillStyle = "#475467";
-      ctx.fillText(formatDuration(t - this.state.start, digits), x + 3, RULER / 2);
+      ctx.fillText(label, x + 3, top + RULER / 2);
     }
   }
 
@@ -185,7 +195,7 @@ export class Timeline {
     canvas.addEventListener("pointerdown", (event) => {
       const { x, y } = pos(event);
       canvas.setPointerCapture(event.pointerId);
-      const pan = y < RULER || event.shiftKey || event.button === 1 || event.button === 2;
+      const pan = y - canvas.parentElement.scrollTop < RULER || event.shiftKey || event.button === 1 || event.button === 2;
       this.drag = { mode: pan ? "pan" : "select", x0: x, x1: x, moved: false, view: [...this.state.view] };
       if (pan) canvas.classList.add("panning");
       event.preventDefault();
@@ -222,9 +232,10 @@ export class Timeline {
     canvas.addEventListener("contextmenu", (event) => event.preventDefault());
     canvas.addEventListener("dblclick", () => this.state.setView(this.state.start, this.state.end));
     canvas.addEventListener("wheel", (event) => {
-      event.preventDefault();
       const { x } = pos(event);
-      const around = x >= this.labelWidth ? this.t(x) : undefined;
+      if (x < this.labelWidth) return; // over the stream names the wheel scrolls the list
+      event.preventDefault();
+      const around = this.t(x);
       if (Math.abs(event.deltaX) > Math.abs(event.deltaY)) {
         const [a, b] = this.state.view;
         this.state.pan((event.deltaX / this.laneWidth) * (b - a));

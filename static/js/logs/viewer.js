@@ -78,6 +78,13 @@ export class LogViewer extends EventTarget {
     const info = this.info;
     this.units = new Map(info.series.map((s) => [s.path, s]));
     this.state = new TimeState(info.start ?? 0, info.end ?? 1);
+    // Open on the span of the streams with data, not on a lone early or late stamp (real
+    // PX4 logs have topics stamped once, far from the flight); "Whole log" shows it all.
+    const dense = info.layers.filter((l) => l.count >= 10 && l.start !== null);
+    if (dense.length) {
+      this.state.setView(Math.min(...dense.map((l) => l.start)), Math.max(...dense.map((l) => l.end)));
+      this.state.setCursor(this.state.view[0], "force");
+    }
     this.part("processing").hidden = true;
     this.part("body").hidden = false;
     this.bindToolbar();
