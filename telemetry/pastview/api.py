@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 
+from drf_spectacular.types import OpenApiTypes
+from drf_spectacular.utils import extend_schema
 from rest_framework import exceptions
 from rest_framework.decorators import api_view
 from rest_framework.request import Request
@@ -47,6 +49,7 @@ def _camera(data: object, row: ViewSettings) -> dict[str, float]:
     return out
 
 
+@extend_schema(request=OpenApiTypes.OBJECT, responses=OpenApiTypes.OBJECT)
 @api_view(["GET", "PUT"])
 def view_settings(request: Request, drone_id: str) -> Response:
     """GET the settings; PUT ``{"evaluation": {"function": ..., coefficients...}, "camera":
