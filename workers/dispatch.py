@@ -17,7 +17,8 @@ DISPATCH: dict[str, str | None] = {
     "mission": "missions.gateway.handle_mission",
     "alarms": "missions.gateway.handle_alarm",
     "pictures": "missions.gateway.handle_picture",
-    "camera": None,
+    # "camera" is not here: `manage.py pastview` (telemetry/pastview/runner.py) reads the
+    # frames with the pose stream, so the gateway need not receive them at all.
 }
 
 # Bigger payloads are dropped before parsing (pictures carry a JPEG, base64-encoded).
