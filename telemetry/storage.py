@@ -32,7 +32,7 @@ def split_fields(fields: dict) -> tuple[dict, dict | None]:
     numbers: dict = {}
     labels: dict | None = None
     for name, value in fields.items():
-        if isinstance(value, int | float) and not isinstance(value, bool):
+        if type(value) is float or type(value) is int:  # bool is an int subclass: a label
             numbers[name] = value
         else:
             if labels is None:
@@ -56,11 +56,15 @@ class Sample:
     fields: dict
 
     def copy_line(self) -> str:
-        """This sample as one line of COPY text format (tab-separated, backslash-escaped)."""
-        stamp = datetime.fromtimestamp(self.ts, UTC).isoformat()
-        numbers, labels = split_fields(self.fields)
-        extra = _copy_json(labels) if labels else "\\N"
-        return f"{stamp}\t{self.drone_pk}\t{self.object}\t{_copy_json(numbers)}\t{extra}\n"
+        return copy_line(self.ts, self.drone_pk, self.object, self.fields)
+
+
+def copy_line(ts: float, drone_pk: int, object_name: str, fields: dict) -> str:
+    """One sample as a line of COPY text format (tab-separated, backslash-escaped)."""
+    stamp = datetime.fromtimestamp(ts, UTC).isoformat()
+    numbers, labels = split_fields(fields)
+    extra = _copy_json(labels) if labels else "\\N"
+    return f"{stamp}\t{drone_pk}\t{object_name}\t{_copy_json(numbers)}\t{extra}\n"
 
 
 COPY_COLUMNS = "(ts, drone_id, object, fields, labels)"

@@ -179,3 +179,16 @@ def test_maintenance_creates_partitions_ahead_rolls_up_and_drops_old_days(world_
                 if day.year == 2031:
                     storage.drop_partition(conn, table, name)
         conn.execute("DELETE FROM telemetry_rollup_done WHERE day >= '2031-01-01'")
+
+
+def test_the_beat_task_creates_todays_and_tomorrows_partitions(world):
+    from django.db import connection
+
+    from telemetry.tasks import maintain_partitions
+
+    result = maintain_partitions()
+    connection.ensure_connection()
+    days = _partition_days(connection.connection, storage.SAMPLE_TABLE)
+    today = datetime.now(UTC).date()
+    assert {today, today + timedelta(days=1)} <= days
+    assert isinstance(result["created"], list)
