@@ -262,6 +262,8 @@ LOGS_MAX_UNCOMPRESSED_BYTES = env_int("LOGS_MAX_UNCOMPRESSED_BYTES", 2 * 1024**3
 LOGS_MAX_COMPRESSION_RATIO = env_float("LOGS_MAX_COMPRESSION_RATIO", 200.0)
 # The most points one series request may ask for with `points` (min/max buckets).
 LOGS_MAX_PLOT_POINTS = env_int("LOGS_MAX_PLOT_POINTS", 20_000)
+# The log status enum in the OpenAPI schema (other apps also have a "status").
+SPECTACULAR_SETTINGS["ENUM_NAME_OVERRIDES"]["FlightLogStatusEnum"] = "telemetry.logs.models.LogStatus"
 
 # --- past view ---
 INSTALLED_APPS += ["telemetry.pastview"]  # app label "pastview"
