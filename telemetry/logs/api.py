@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 from django.conf import settings
 from django.db import transaction
+from drf_spectacular.types import OpenApiTypes
+from drf_spectacular.utils import OpenApiParameter, extend_schema, inline_serializer
 from rest_framework import exceptions, mixins, serializers, status, viewsets
 from rest_framework.decorators import action
 from rest_framework.permissions import SAFE_METHODS
@@ -27,6 +29,28 @@ class NotReady(exceptions.APIException):
     status_code = status.HTTP_409_CONFLICT
     default_code = "not_ready"
     default_detail = "The log is not ready: it is still processing or it failed."
+
+
+def _query(name: str, kind: OpenApiTypes, text: str, required: bool = False) -> OpenApiParameter:
+    return OpenApiParameter(name, kind, OpenApiParameter.QUERY, required=required, description=text)
+
+
+START = _query("start", OpenApiTypes.DOUBLE, "From this time (seconds on the log's clock).")
+END = _query("end", OpenApiTypes.DOUBLE, "Up to this time (seconds on the log's clock).")
+NUMBERS = serializers.ListField(child=serializers.FloatField(allow_null=True))
+SERIES_INFO = inline_serializer(
+    "FlightLogSeriesInfo",
+    {
+        "path": serializers.CharField(),
+        "unit": serializers.CharField(),
+        "count": serializers.IntegerField(),
+        "start": serializers.FloatField(allow_null=True),
+        "end": serializers.FloatField(allow_null=True),
+        "kind": serializers.CharField(),
+        "time_source": serializers.CharField(),
+        "labels": serializers.DictField(child=serializers.CharField(), allow_null=True),
+    },
+)
 
 
 class LogPermission(OrganisationRole):
@@ -140,6 +164,27 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
                 queryset = queryset.filter(status=wanted)
         return queryset
 
+    @extend_schema(
+        request={
+            "multipart/form-data": inline_serializer(
+                "FlightLogUpload",
+                {
+                    "file": serializers.FileField(),
+                    "organisation": serializers.SlugField(required=False),
+                },
+            )
+        },
+        responses={
+            201: inline_serializer(
+                "FlightLogUploaded",
+                {
+                    "id": serializers.UUIDField(),
+                    "status": serializers.CharField(),
+                    "url": serializers.CharField(),
+                },
+            )
+        },
+    )
     def create(self, request: Request) -> Response:
         upload = request.FILES.get(uploads.FIELD)
         if upload is None:
@@ -167,6 +212,22 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
             status=status.HTTP_201_CREATED,
         )
 
+    @extend_schema(
+        responses=inline_serializer(
+            "FlightLogDetail",
+            {
+                **FlightLogSerializer().get_fields(),
+                "owner": serializers.CharField(allow_null=True),
+                "organisation": serializers.CharField(),
+                "series": serializers.ListField(child=SERIES_INFO),
+                "layers": serializers.ListField(child=serializers.DictField()),
+                "special": serializers.DictField(
+                    child=serializers.ListField(child=serializers.CharField())
+                ),
+                "warnings": serializers.ListField(child=serializers.CharField()),
+            },
+        )
+    )
     def retrieve(self, request: Request, pk: str | None = None) -> Response:
         log = self.get_object()
         body = dict(FlightLogSerializer(log).data)
@@ -195,6 +256,25 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
                 "The processed data of this log is missing; upload it again."
             ) from exc
 
+    @extend_schema(
+        parameters=[
+            _query("path", OpenApiTypes.STR, "The series, e.g. navdata/Altitude.", required=True),
+            START,
+            END,
+            _query(
+                "points",
+                OpenApiTypes.INT,
+                "Buckets for min/max level of detail; all samples when absent.",
+            ),
+        ],
+        responses=inline_serializer(
+            "FlightLogSeriesData",
+            {
+                "t": serializers.ListField(child=serializers.FloatField()),
+                "v": serializers.ListField(),
+            },
+        ),
+    )
     @action(detail=True, methods=["get"])
     def series(self, request: Request, pk: str | None = None) -> Response:
         """`?path=&start=&end=&points=` → {"t": [seconds], "v": [values]}: every sample in
@@ -214,6 +294,12 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
             )
         )
 
+    @extend_schema(
+        parameters=[_query("t", OpenApiTypes.DOUBLE, "The time (seconds).", required=True)],
+        responses=inline_serializer(
+            "FlightLogValuesAt", {"t": serializers.FloatField(), "values": serializers.DictField()}
+        ),
+    )
     @action(detail=True, methods=["get"])
     def values(self, request: Request, pk: str | None = None) -> Response:
         """`?t=` → every value at or before t, nested by group: {"t", "values": {...}}."""
@@ -223,6 +309,22 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
             raise exceptions.ValidationError({"t": ["Give the time in seconds."]})
         return Response({"t": t, "values": services.values_at_time(store, t)})
 
+    @extend_schema(
+        parameters=[
+            START,
+            END,
+            _query("bins", OpenApiTypes.INT, "Equal time slices (default 1000)."),
+        ],
+        responses=inline_serializer(
+            "FlightLogTimeline",
+            {
+                "start": serializers.FloatField(allow_null=True),
+                "end": serializers.FloatField(allow_null=True),
+                "bins": serializers.IntegerField(),
+                "layers": serializers.ListField(child=serializers.DictField()),
+            },
+        ),
+    )
     @action(detail=True, methods=["get"])
     def timeline(self, request: Request, pk: str | None = None) -> Response:
         """`?start=&end=&bins=` → per layer, how many samples fall in each of `bins` equal
@@ -249,6 +351,23 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
             layers.append({"name": layer["name"], "counts": np.diff(cuts).tolist()})
         return Response({"start": start, "end": end, "bins": bins, "layers": layers})
 
+    @extend_schema(
+        parameters=[
+            _query("points", OpenApiTypes.INT, "At most this many positions (default 2000).")
+        ],
+        responses=inline_serializer(
+            "FlightLogTrack",
+            {
+                "source": serializers.ChoiceField(["gps", "estimated"], allow_null=True),
+                "t": NUMBERS,
+                "lat": NUMBERS,
+                "lon": NUMBERS,
+                "x": NUMBERS,
+                "y": NUMBERS,
+                "unit": serializers.CharField(),
+            },
+        ),
+    )
     @action(detail=True, methods=["get"])
     def track(self, request: Request, pk: str | None = None) -> Response:
         """The GPS path, or the trajectory estimated from velocity and yaw without GPS."""
@@ -256,6 +375,15 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
         points = _points(request.query_params.get("points"), default=2000) or 2000
         return Response(services.track(store, points=points))
 
+    @extend_schema(
+        parameters=[
+            _query("points", OpenApiTypes.INT, "At most this many samples (default 4000).")
+        ],
+        responses=inline_serializer(
+            "FlightLogAttitude",
+            {"t": NUMBERS, "roll": NUMBERS, "pitch": NUMBERS, "yaw": NUMBERS},
+        ),
+    )
     @action(detail=True, methods=["get"])
     def attitude(self, request: Request, pk: str | None = None) -> Response:
         """Roll, pitch and yaw in radians for the 3D view (applied yaw, then pitch, then roll)."""
