@@ -45,7 +45,7 @@ def _rate(counter: Counter, names, window: float) -> float:  # type: ignore[no-u
 def main() -> None:
     mav_sim = start_simulator(fc="mavlink", time_scale=1.0)
     uav_sim = start_simulator(time_scale=1.0)
-    mav = MavlinkFlightController(mav_sim.link_url)
+    mav = MavlinkFlightController(mav_sim.url)
     uav = UAVTalkFlightController(uav_sim.url)
     mav_counts: Counter[str] = Counter()
     uav_counts: Counter[str] = Counter()
