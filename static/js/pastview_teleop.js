@@ -28,7 +28,16 @@ export class Teleop {
     this.timer = null;
     window.addEventListener("keydown", (event) => this.key(event, true));
     window.addEventListener("keyup", (event) => this.key(event, false));
-    window.addEventListener("blur", () => this.release());
+    // Away from the page (another window, another tab) nothing is sent, even with a
+    // gamepad stick still deflected, until the page has the focus again.
+    this.focused = true;
+    window.addEventListener("blur", () => {
+      this.focused = false;
+      this.release();
+    });
+    window.addEventListener("focus", () => {
+      this.focused = true;
+    });
     document.addEventListener("visibilitychange", () => {
       if (document.hidden) this.release();
     });
@@ -81,7 +90,7 @@ export class Teleop {
   }
 
   tick() {
-    if (!this.enabled) return;
+    if (!this.enabled || !this.focused || document.hidden) return;
     const input = this.stick();
     const active = input.forward !== 0 || input.right !== 0 || input.up !== 0;
     if (active) {

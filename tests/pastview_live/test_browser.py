@@ -147,3 +147,38 @@ def test_an_operator_flies_by_keyboard_and_edits_the_evaluation_function(
 
     stored = ViewSettings.objects.get(drone__drone_id=DRONE).settings["evaluation"]
     assert stored["function"] == "murata" and stored["coeff_tilt"] == 3.0
+
+
+def test_a_gamepad_stick_flies_and_letting_go_or_leaving_the_page_stops(service, live_asgi, page):
+    # Headless Chromium has no gamepad: stand one in for the browser's Gamepad API.
+    page.add_init_script(
+        "window.stick = [0, 0, 0, 0];"
+        "navigator.getGamepads = () => [{connected: true, axes: window.stick}];"
+    )
+    sent = []
+    page.on("websocket", lambda ws: ws.on("framesent", lambda payload: sent.append(payload)))
+    login(page, live_asgi, "operator")
+    page.goto(f"{live_asgi.url}/pastview/{DRONE}/")
+    page.wait_for_function("window.pastview.socket && window.pastview.socket.readyState === 1")
+    page.click("#pv-control")
+    page.evaluate("window.stick[0] = 0.5; window.stick[1] = -1.0")  # half right, full forward
+    page.wait_for_function("window.pastview.socket.bufferedAmount === 0")
+    page.wait_for_timeout(600)
+    page.evaluate("window.stick[0] = 0.05; window.stick[1] = 0.1")  # inside the dead zone
+    page.wait_for_timeout(600)
+    moves = [json.loads(p) for p in sent]
+    assert {"type": "teleop", "forward": 1, "right": 0.5, "up": 0} in moves
+    assert moves[-1] == {"type": "stop"}
+    # Back on the stick, then the window loses focus with the stick still held: one stop,
+    # and nothing after it until the page has the focus again.
+    page.evaluate("window.stick[1] = -1.0")
+    page.wait_for_timeout(400)
+    assert json.loads(sent[-1])["type"] == "teleop"
+    page.evaluate("window.dispatchEvent(new Event('blur'))")
+    page.wait_for_timeout(100)
+    count = len(sent)
+    page.wait_for_timeout(700)
+    assert json.loads(sent[-1]) == {"type": "stop"} and len(sent) == count
+    page.evaluate("window.dispatchEvent(new Event('focus'))")
+    page.wait_for_timeout(400)
+    assert json.loads(sent[-1])["type"] == "teleop"
