@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from urllib.parse import parse_qs, urlparse
 
+import numpy as np
 import pytest
 from playwright.sync_api import expect
 
@@ -142,3 +143,54 @@ def test_zoom_requeries_series_by_range_and_replay_plays_only_the_selection(
     assert cursor == pytest.approx(selection[1])
     # The values tree followed the cursor to the end of the interval.
     expect(viewer.locator('[data-part="tree"]')).to_have_attribute("data-t", str(cursor))
+
+
+def test_the_multi_plot_applies_scale_offset_and_colour_per_line(
+    world_tx, worker, live_logs, page, tmp_path
+):
+    client = client_for(world_tx.operator)
+    created = upload(client, write_dfi(tmp_path / "multi.dfi")).json()
+    wait_until_processed(client, created["id"])
+    login(page, live_logs, "viewer")
+    page.goto(f"{live_logs.url}/logs/{created['id']}/")
+    viewer = page.locator("[data-log-viewer]")
+    expect(viewer).to_have_attribute("data-loaded", "true", timeout=15_000)
+    plotted = "window.logViewers[0].multi.u.data.slice(1)"
+    # The altitude is ticked to start with.
+    page.wait_for_function(f"{plotted}.length === 1 && {plotted}[0].length === 3")
+    assert page.evaluate(plotted) == [[0.5, 0.75, 1.25]]
+
+    row = viewer.locator('[data-part="lines"] tr[data-path="navdata/Altitude"]')
+    row.get_by_label("Scale of navdata/Altitude").fill("2")
+    row.get_by_label("Offset of navdata/Altitude").fill("-1")
+    page.wait_for_function(f"{plotted}[0][0] === 0")
+    assert page.evaluate(plotted) == [[0.0, 0.5, 1.5]]
+
+    row.get_by_label("Colour of navdata/Altitude").fill("#ff0000")
+    page.wait_for_function(
+        "(() => { const u = window.logViewers[0].multi.u; return u.series[1].stroke(u, 1) === '#ff0000'; })()"
+    )
+
+    viewer.locator('[data-part="picker"] input[value="navdata/Rotation/yaw"]').check()
+    page.wait_for_function(f"{plotted}.length === 2 && {plotted}[1][2] === 93")
+    assert viewer.locator('[data-part="lines"] tbody tr').count() == 2
+
+
+def test_the_3d_view_turns_the_drone_yaw_then_pitch_then_roll_like_the_core(
+    world_tx, live_logs, page
+):
+    from telemetry.logs.analysis import rotation_matrix
+
+    login(page, live_logs, "viewer")
+    page.goto(f"{live_logs.url}/logs/")
+    angles = [(0.3, 0.2, -0.4), (1.2, -0.5, 0.9), (-2.0, 0.1, 0.0), (3.0, 1.0, -1.4)]
+    matrices = page.evaluate(
+        """async (angles) => {
+            const m = await import('/static/js/logs/attitude.js');
+            return angles.map(([y, p, r]) => m.rotationNED(y, p, r));
+        }""",
+        angles,
+    )
+    for (yaw, pitch, roll), matrix in zip(angles, matrices, strict=True):
+        expected = rotation_matrix(yaw, pitch, roll)
+        assert np.allclose(matrix, expected, atol=1e-12), (matrix, expected)
