@@ -191,6 +191,29 @@ class Assignment(models.Model):
     def __str__(self) -> str:
         return f"{self.mission} → {self.drone} ({self.reason})"
 
+    def transition(self, new: str) -> None:
+        """The one place assignment states change; refuses illegal moves."""
+        if new not in ASSIGNMENT_TRANSITIONS[Assignment.Status(self.status)]:
+            raise IllegalTransition(f"assignment cannot go from {self.status} to {new}")
+        self.status = new
+
+
+ASSIGNMENT_TRANSITIONS: dict[str, set[str]] = {
+    Assignment.Status.QUEUED: {Assignment.Status.SENT, Assignment.Status.STOPPED},
+    # A lost "accepted" must not block "completed" (QoS 1 is at least once, not in order
+    # across a gateway restart).
+    Assignment.Status.SENT: {
+        Assignment.Status.ACCEPTED,
+        Assignment.Status.REJECTED,
+        Assignment.Status.COMPLETED,
+        Assignment.Status.STOPPED,
+    },
+    Assignment.Status.ACCEPTED: {Assignment.Status.COMPLETED, Assignment.Status.STOPPED},
+    Assignment.Status.REJECTED: set(),
+    Assignment.Status.COMPLETED: set(),
+    Assignment.Status.STOPPED: set(),
+}
+
 
 class Event(models.Model):
     """Every progress message, alarm, handover and decision of a mission."""

@@ -37,15 +37,16 @@ from missions.services import (
 log = logging.getLogger(__name__)
 
 
-def planner_view(mission: Mission, own: set[int]) -> list[dict]:
+def planner_view(mission: Mission, own: set[int], done_too: set[int] = frozenset()) -> list[dict]:
     """The mission's steps for the handover planner: only `own` steps may be left to do.
 
     Steps of other drones (and superseded ones) count as done, so the replacement takes
     over the failing drone's work only, while indexes stay in the mission's index space.
+    `done_too` are steps done although their report may still be on its way.
     """
     view = []
     for step in mission.steps.order_by("index"):
-        done = step.status in STEP_DONE or step.index not in own
+        done = step.status in STEP_DONE or step.index not in own or step.index in done_too
         view.append(
             {
                 "index": step.index,
@@ -93,7 +94,7 @@ def replace_drone(
         alarm = Event.objects.filter(pk=alarm_event_id, mission=mission).first()
         failing_id = failing.drone.drone_id
         if failing.status in Assignment.ACTIVE:
-            failing.status = Assignment.Status.STOPPED
+            failing.transition(Assignment.Status.STOPPED)
             failing.save(update_fields=["status"])
             record(
                 mission,
@@ -105,7 +106,7 @@ def replace_drone(
             transaction.on_commit(lambda: send_stop(failing_id, str(mission.pk)))
             transaction.on_commit(lambda: send_control(failing_id, "land"))
         own = set(failing.step_indexes) | set(failing.preparation)
-        view = planner_view(mission, own)
+        view = planner_view(mission, own, _raising_step(mission, alarm))
         stop_position = _stop_position(alarm, failing)
         remaining = [s for s in view if s["status"] != StepStatus.COMPLETED]
         if not remaining:
@@ -118,7 +119,13 @@ def replace_drone(
             return None
         select_began = time.perf_counter()
         target = stop_position or _first_navigation(remaining)
-        found = nearest_available(mission.organisation_id, target=target, exclude=[failing_id])
+        # A drone this mission already had to replace is not brought back into it.
+        replaced = mission.assignments.filter(replaced_by__isnull=False).values_list(
+            "drone__drone_id", flat=True
+        )
+        found = nearest_available(
+            mission.organisation_id, target=target, exclude=[failing_id, *replaced]
+        )
         select_ms = (time.perf_counter() - select_began) * 1000
         if not found:
             _pause(mission, failing, stop_position, alarm)
@@ -197,6 +204,18 @@ def replace_drone(
         )
         transaction.on_commit(lambda: send_assignment(replacement))
     return replacement
+
+
+def _raising_step(mission: Mission, alarm: Event | None) -> set[int]:
+    """A virtualalarm step did its work by raising the alarm: it is not handed over, even
+    if its completion report arrives after the alarm (it does: the alarm comes first)."""
+    index = alarm.data.get("index") if alarm is not None else None
+    if (
+        isinstance(index, int)
+        and mission.steps.filter(index=index, command="virtualalarm").exists()
+    ):
+        return {index}
+    return set()
 
 
 def _first_navigation(steps: list[dict]) -> tuple[float, float] | None:

@@ -503,24 +503,15 @@ def _apply_mission_status(
     return None
 
 
-_ASSIGNMENT_MOVES = {
-    "accepted": ({Assignment.Status.SENT}, Assignment.Status.ACCEPTED),
-    "rejected": ({Assignment.Status.SENT}, Assignment.Status.REJECTED),
-    "completed": (
-        {Assignment.Status.SENT, Assignment.Status.ACCEPTED},
-        Assignment.Status.COMPLETED,
-    ),
-    "stopped": ({Assignment.Status.SENT, Assignment.Status.ACCEPTED}, Assignment.Status.STOPPED),
-}
-
-
 def _move_assignment(assignment: Assignment, message: protocol.MissionProgress) -> None:
-    allowed, new = _ASSIGNMENT_MOVES[message.status]
-    if assignment.status in allowed:
-        assignment.status = new
-        if message.decode_ms is not None:
-            assignment.decode_ms = message.decode_ms
-        assignment.save(update_fields=["status", "decode_ms"])
+    """Follow the drone's report; a late or repeated one (stopped, then accepted) is noise."""
+    try:
+        assignment.transition(message.status)
+    except IllegalTransition:
+        return
+    if message.decode_ms is not None:
+        assignment.decode_ms = message.decode_ms
+    assignment.save(update_fields=["status", "decode_ms"])
 
 
 def _complete_steps(mission: Mission, drone: Drone, assignment: Assignment) -> None:
@@ -568,6 +559,6 @@ def dispatch_queued(mission: Mission, drone: Drone) -> None:
     )
     if queued is None or mission.status not in (MissionStatus.RUNNING, MissionStatus.PAUSED):
         return
-    queued.status = Assignment.Status.SENT
+    queued.transition(Assignment.Status.SENT)
     queued.save(update_fields=["status"])
     transaction.on_commit(lambda: send_assignment(queued))

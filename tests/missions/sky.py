@@ -12,6 +12,7 @@ import os
 import shutil
 import subprocess
 import sys
+import threading
 import time
 import uuid
 from collections.abc import Callable
@@ -32,6 +33,7 @@ GROUND_PASSWORD = "ground-e2e-password"
 # Simulated seconds per real second: the seed's five-minute survey takes about 15 s.
 TIME_SCALE = 20.0
 HOME_ALT_MSL = 12.0
+BEAT_INTERVAL_S = 1.0
 
 
 def wait_for(predicate: Callable[[], Any], timeout: float, interval: float = 0.05) -> Any:
@@ -152,10 +154,24 @@ class Ground:
             setattr(settings, name, value)
         link._sync_client = None
         self.worker = Worker(database_name, directory, self.broker.url_for("ground"))
+        self._beating = threading.Event()
+        self._beat = threading.Thread(target=self._beat_loop, daemon=True)
+        self._beat.start()
+
+    def _beat_loop(self) -> None:
+        """Stands in for Celery beat, which sends missions.resume_paused every
+        MISSIONS_RESUME_INTERVAL_S in production, to our own queue (a real beat would
+        also send other apps' periodic tasks to the shared one)."""
+        from missions import tasks
+
+        while not self._beating.wait(BEAT_INTERVAL_S):
+            tasks.resume_paused.delay()
 
     def close(self) -> None:
         from fleet import link
 
+        self._beating.set()
+        self._beat.join()
         self.worker.stop()
         self.broker.stop()
         for name, value in self._saved.items():

@@ -265,3 +265,51 @@ def test_out_measure_extends_the_seed_area_and_splits_it_among_three_drones(worl
     apply_progress(alarming, stopped)
     mine.refresh_from_db()
     assert mine.status == Assignment.Status.SENT
+
+
+def test_the_virtual_alarm_step_is_not_handed_over_though_its_report_comes_after_the_alarm(
+    world, outbox
+):
+    first = online_drone(world.org, "ACME_A")
+    online_drone(world.org, "ACME_B", north=50)
+    steps = [{"command": s["command"], "params": s["params"]} for s in _steps(3)]
+    steps.insert(4, {"command": "virtualalarm", "params": {"level": "CRITICAL", "message": "test"}})
+    mission = create_mission(organisation=world.org, name="x", steps=steps)
+    assignment = start_mission(mission, drone=first).assignment
+    _complete(first, mission, assignment, [0, 1, 2, 3])
+    apply_progress(first, _progress(mission, assignment, 4, "started", "virtualalarm"))
+    alarm = _alarm_event(mission, first)
+    alarm.data["index"] = 4
+    alarm.save()
+
+    replacing = replacement.replace_drone(
+        mission_id=str(mission.pk), assignment_id=str(assignment.pk), alarm_event_id=alarm.pk
+    )
+    assert 4 not in replacing.step_indexes and replacing.step_indexes[0] == 5
+    # The late report from the stopped drone still counts.
+    apply_progress(first, _progress(mission, assignment, 4, "completed", "virtualalarm"))
+    step = mission.steps.get(index=4)
+    assert step.status == StepStatus.COMPLETED and step.drone == first
+
+
+def test_a_drone_the_mission_already_replaced_is_not_brought_back(world, outbox):
+    first = online_drone(world.org, "ACME_A")
+    second = online_drone(world.org, "ACME_B", north=50)
+    mission = create_mission(organisation=world.org, name="x", steps=_steps(4))
+    assignment = start_mission(mission, drone=first).assignment
+    _complete(first, mission, assignment, [0, 1, 2])
+    replacing = replacement.replace_drone(
+        mission_id=str(mission.pk),
+        assignment_id=str(assignment.pk),
+        alarm_event_id=_alarm_event(mission, first).pk,
+    )
+    assert replacing.drone == second
+    # Now the replacement fails too: the first drone (still online) is not chosen again.
+    again = replacement.replace_drone(
+        mission_id=str(mission.pk),
+        assignment_id=str(replacing.pk),
+        alarm_event_id=_alarm_event(mission, second).pk,
+    )
+    assert again is None
+    mission.refresh_from_db()
+    assert mission.status == MissionStatus.PAUSED
