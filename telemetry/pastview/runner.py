@@ -29,6 +29,7 @@ from channels.layers import get_channel_layer
 from django.conf import settings
 from django.db import close_old_connections
 
+from fleet import link
 from telemetry.pastview.models import ViewSettings
 from telemetry.pastview.selection import PastViewSettings
 from telemetry.pastview.service import PastViewService, group_name
@@ -50,16 +51,12 @@ def snapshot_key(drone_id: str) -> str:
 
 def load_snapshot(drone_id: str) -> dict[str, Any] | None:
     """The latest state the service stored for a drone (for a page that just connected)."""
-    raw = redis.Redis.from_url(settings.REDIS_URL, socket_timeout=2).get(snapshot_key(drone_id))
+    raw = link.sync_redis().get(snapshot_key(drone_id))
     return None if raw is None else json.loads(raw)
 
 
-def mark_watched(client: Any, drone_id: str) -> None:
-    """Called by a page's consumer on connect and then every WATCH_TTL_S / 3 (sync client)."""
-    client.hset(WATCH_KEY, drone_id, time.time() + WATCH_TTL_S)
-
-
 async def amark_watched(client: Any, drone_id: str) -> None:
+    """Called by a page's consumer on connect and then every WATCH_TTL_S / 3."""
     await client.hset(WATCH_KEY, drone_id, time.time() + WATCH_TTL_S)
 
 
@@ -227,7 +224,8 @@ class PastViewProcess:
         try:
             self.service.watched = watched_drones(self.redis)
         except redis.RedisError as exc:
-            log.warning("watched drones unknown (%s): pushing for all", exc)
+            if self.service.watched is not None:  # say it once per outage, not 4 times a second
+                log.warning("watched drones unknown (%s): pushing for all", exc)
             self.service.watched = None
 
     def reload_settings(self) -> int:
