@@ -66,6 +66,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--serial", action="store_true", help="mavlink on a pty instead of TCP")
     p.add_argument(
+        "--autopilot",
+        choices=["ardupilot", "px4"],
+        default="ardupilot",
+        help="mavlink flavour: ArduCopter's modes or PX4's",
+    )
+    p.add_argument(
         "--param",
         type=_param,
         action="append",
@@ -101,7 +107,9 @@ def main(argv: list[str] | None = None) -> int:
     session: BoardSession | MavlinkSession
     if args.fc == "mavlink":
         session = MavlinkSession(
-            vehicle=Vehicle(config=config, receiver=receiver), time_scale=args.time_scale
+            vehicle=Vehicle(config=config, receiver=receiver),
+            time_scale=args.time_scale,
+            autopilot=args.autopilot,
         )
         for name, value in args.param:
             if name not in session.params:

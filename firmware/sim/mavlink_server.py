@@ -1,4 +1,4 @@
-"""The simulator's MAVLink personality: an ArduCopter-like autopilot, sans-I/O.
+"""The simulator's MAVLink personality: an ArduCopter-like (or PX4-like) autopilot, sans-I/O.
 
 `MavlinkSession` has BoardSession's shape (`receive(data, now)`, `tick(now)`,
 `take_output()`, `on_reboot`), so `firmware.sim.server.serve` runs it over TCP (like
@@ -16,6 +16,8 @@ UAVTalk personality; only the language differs:
 - SET_POSITION_TARGET_GLOBAL_INT / LOCAL_NED in GUIDED;
 - the mission protocol (upload and download, MISSION_ITEM_INT and legacy MISSION_ITEM),
   AUTO mode flying the items, MISSION_CURRENT and MISSION_ITEM_REACHED;
+- with `autopilot="px4"`: PX4's HEARTBEAT and main/sub modes, NAV_TAKEOFF from any mode
+  to an AMSL altitude, DO_REPOSITION into hold, setpoints ignored (no OFFBOARD);
 - parameters (PARAM_SET/READ/LIST), including fault knobs in the style of SITL's SIM_*:
   SIM_CMD_MUTE (a command id never answered), SIM_JUNK_RATE (bad-CRC and unknown-id
   frames per second sent to the ground), SIM_MSGINT_OFF (answer SET_MESSAGE_INTERVAL as
@@ -50,6 +52,18 @@ BOOT_TIME_S = 2.0
 MODE_NAMES = {number: name for name, number in COPTER_MODES.items()}
 FLYING_MODES = ("GUIDED", "AUTO", "LOITER", "RTL", "LAND", "BRAKE", "POSHOLD")
 NOT_ARMABLE = ("AUTO", "RTL", "LAND")
+# The PX4 flavour: internal (ArduCopter) mode ↔ PX4 (main mode, sub mode).
+PX4_MODES = {
+    "STABILIZE": (1, 0),  # MANUAL
+    "GUIDED": (4, 3),  # AUTO.LOITER, hold: where DO_REPOSITION flies
+    "AUTO": (4, 4),  # AUTO.MISSION
+    "RTL": (4, 5),
+    "LAND": (4, 6),
+}
+PX4_TO_INTERNAL = {pair: name for name, pair in PX4_MODES.items()} | {
+    (3, 0): "GUIDED",  # POSCTL holds position like hold does here
+    (4, 2): "GUIDED",  # AUTO.TAKEOFF
+}
 STREAM_GROUPS = {
     mavlink.MAV_DATA_STREAM_RAW_SENSORS: ("HIGHRES_IMU", "GPS_RAW_INT"),
     mavlink.MAV_DATA_STREAM_EXTENDED_STATUS: ("SYS_STATUS", "BATTERY_STATUS", "MISSION_CURRENT"),
@@ -135,6 +149,7 @@ class MavlinkSession:
     vehicle: Vehicle
     time_scale: float = 1.0
     link_timeout_s: float = GCS_TIMEOUT_S
+    autopilot: str = "ardupilot"  # or "px4": PX4's modes, AMSL take-off, DO_REPOSITION
     on_reboot: Callable[[], None] | None = None
     stats: SimStats = field(default_factory=SimStats)
 
@@ -342,7 +357,16 @@ class MavlinkSession:
         self.statustext(mavlink.MAV_SEVERITY_INFO, "Disarming motors")
         return mavlink.MAV_RESULT_ACCEPTED
 
+    @property
+    def px4(self) -> bool:
+        return self.autopilot == "px4"
+
     def _cmd_set_mode(self, p: list[float], frame: int | None) -> int:
+        if self.px4:
+            internal = PX4_TO_INTERNAL.get((int(p[1]), int(p[2])))
+            if not int(p[0]) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED or internal is None:
+                return mavlink.MAV_RESULT_DENIED
+            return self._mode_result(internal)
         name = MODE_NAMES.get(int(p[1]))
         if not int(p[0]) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED or name is None:
             return mavlink.MAV_RESULT_DENIED
@@ -354,6 +378,15 @@ class MavlinkSession:
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _cmd_takeoff(self, p: list[float], frame: int | None) -> int:
+        if self.px4 and self.armed and not self.vehicle.airborne:
+            # PX4: from any mode, param7 metres above mean sea level (NaN: 2.5 m up).
+            altitude = p[6] - self.vehicle.home[2] if math.isfinite(p[6]) else 2.5
+            if not altitude > 0:
+                return mavlink.MAV_RESULT_DENIED
+            self.set_mode("GUIDED")
+            v = self.vehicle
+            v.target = PathTarget("Endpoint", (v.ned[0], v.ned[1], -altitude))
+            return mavlink.MAV_RESULT_ACCEPTED
         if self.mode != "GUIDED" or not self.armed:
             self.statustext(mavlink.MAV_SEVERITY_WARNING, "Takeoff: arm in GUIDED first")
             return mavlink.MAV_RESULT_FAILED
@@ -386,6 +419,9 @@ class MavlinkSession:
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _cmd_reposition(self, p: list[float], frame: int | None) -> int:
+        change_mode = int(p[1]) & mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
+        if self.armed and change_mode and self.mode != "GUIDED":
+            self.set_mode("GUIDED")
         if not self.armed or self.mode != "GUIDED":
             return mavlink.MAV_RESULT_FAILED
         lat, lon = (p[4] / 1e7, p[5] / 1e7) if frame is not None else (p[4], p[5])
@@ -444,7 +480,8 @@ class MavlinkSession:
         self._out.clear()
 
     def _setpoint(self, frame: int, mask: int, x: float, y: float, z: float) -> None:
-        if not self.armed or self.mode != "GUIDED" or mask & 0b111:
+        # PX4 follows setpoints only in OFFBOARD, which this simulator does not fly.
+        if self.px4 or not self.armed or self.mode != "GUIDED" or mask & 0b111:
             self.stats.setpoints_ignored += 1
             return
         self.stats.setpoints += 1
@@ -752,14 +789,11 @@ class MavlinkSession:
         status = mavlink.MAV_STATE_ACTIVE if self.armed else mavlink.MAV_STATE_STANDBY
         if self._was_critical:
             status = mavlink.MAV_STATE_CRITICAL
-        self._send(
-            "heartbeat",
-            mavlink.MAV_TYPE_QUADROTOR,
-            mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
-            base,
-            COPTER_MODES[self.mode],
-            status,
-        )
+        autopilot, custom = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, COPTER_MODES[self.mode]
+        if self.px4:
+            main, sub = PX4_MODES.get(self.mode, PX4_MODES["GUIDED"])
+            autopilot, custom = mavlink.MAV_AUTOPILOT_PX4, (main << 16) | (sub << 24)
+        self._send("heartbeat", mavlink.MAV_TYPE_QUADROTOR, autopilot, base, custom, status)
 
     def _stream(self, now: float) -> None:
         board = self.vehicle.time

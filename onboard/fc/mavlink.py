@@ -28,7 +28,9 @@ Commands: arming by COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (force = 21196 in 
 take-off in GUIDED with MAV_CMD_NAV_TAKEOFF, MAV_CMD_NAV_LAND, goto by
 SET_POSITION_TARGET_GLOBAL_INT (or LOCAL_NED with `goto_frame="local"`). A COMMAND_ACK
 that is not ACCEPTED raises `CommandRejected` naming the MAV_RESULT; no ACK raises
-`CommandTimeout`. Flight modes are ArduCopter's custom modes (GUIDED, AUTO, LAND, ...).
+`CommandTimeout`. Flight modes are ArduCopter's custom modes (GUIDED, AUTO, LAND, ...);
+with a PX4 autopilot (told by its HEARTBEAT) the driver uses PX4's main/sub modes, takes
+off to an AMSL altitude and flies to points with MAV_CMD_DO_REPOSITION in hold (LOITER).
 """
 
 from __future__ import annotations
@@ -71,6 +73,8 @@ COMMAND_TRIES = 3
 POSITION_ONLY_MASK = 0x0FF8
 COPTER_MODES = {name: number for number, name in mavutil.mode_mapping_acm.items()}
 NOT_ARMABLE_MODES = ("LAND", "RTL", "AUTO")
+# The platform's mode words → PX4's (hold is where PX4 flies to repositioned points).
+PX4_NAMES = {"GUIDED": "LOITER", "AUTO": "MISSION", "STABILIZE": "MANUAL"}
 # Wanted stream rates in Hz; SET_MESSAGE_INTERVAL per message, REQUEST_DATA_STREAM fallback.
 DEFAULT_RATES: dict[str, float] = {
     "GLOBAL_POSITION_INT": 10.0,
@@ -833,8 +837,58 @@ class MavlinkFlightController:
     ) -> int:
         """Send COMMAND_LONG and wait for its COMMAND_ACK; return MAV_RESULT_ACCEPTED or
         raise CommandRejected (the result named) / CommandTimeout / NotConnected."""
-        self._require_connected()
         values = [float(p) for p in params] + [0.0] * (7 - len(params))
+
+        def send(confirmation: int) -> None:
+            self.send(
+                "command_long",
+                self.target_system,
+                self.target_component,
+                command,
+                confirmation,
+                *values,
+            )
+
+        return self._command(command, send, timeout, tries)
+
+    def command_int(
+        self,
+        command: int,
+        frame: int,
+        params: tuple[float, float, float, float],
+        lat: float,
+        lon: float,
+        z: float,
+        *,
+        timeout: float | None = None,
+    ) -> int:
+        """COMMAND_INT (positions as 1e7 degrees) with the same ACK handling as command_long."""
+
+        def send(confirmation: int) -> None:
+            self.send(
+                "command_int",
+                self.target_system,
+                self.target_component,
+                frame,
+                command,
+                0,
+                0,
+                *params,
+                round(lat * 1e7),
+                round(lon * 1e7),
+                z,
+            )
+
+        return self._command(command, send, timeout, None)
+
+    def _command(
+        self,
+        command: int,
+        send: Callable[[int], None],
+        timeout: float | None,
+        tries: int | None,
+    ) -> int:
+        self._require_connected()
         timeout = self.ack_timeout_s if timeout is None else timeout
         tries = max(1, self.command_tries if tries is None else tries)
         sent_at = time.monotonic()
@@ -848,14 +902,7 @@ class MavlinkFlightController:
                     if waiter not in self._acks:
                         self._acks.append(waiter)
                 try:
-                    self.send(
-                        "command_long",
-                        self.target_system,
-                        self.target_component,
-                        command,
-                        confirmation,
-                        *values,
-                    )
+                    send(confirmation)
                 except LinkDown as exc:
                     raise NotConnected(str(exc)) from exc
                 left = min(timeout / tries, deadline - time.monotonic())
@@ -957,8 +1004,33 @@ class MavlinkFlightController:
             self._require_connected()
         raise CommandTimeout(f"PARAM_SET {name} was not confirmed within {timeout:.1f} s")
 
+    @property
+    def is_px4(self) -> bool:
+        return self.autopilot == mavlink.MAV_AUTOPILOT_PX4
+
+    @property
+    def guided_mode(self) -> str:
+        """The mode that flies to commanded positions: GUIDED, or PX4's hold (LOITER)."""
+        return PX4_NAMES["GUIDED"] if self.is_px4 else "GUIDED"
+
     def set_mode(self, mode: str, timeout: float | None = None) -> None:
-        """MAV_CMD_DO_SET_MODE with an ArduCopter custom mode (GUIDED, AUTO, LAND, ...)."""
+        """MAV_CMD_DO_SET_MODE: an ArduCopter custom mode (GUIDED, AUTO, LAND, ...), or on
+        PX4 its main/sub mode (GUIDED → LOITER, AUTO → MISSION; PX4 names work too)."""
+        if self.is_px4:
+            name = PX4_NAMES.get(mode, mode)
+            entry = mavutil.px4_map.get(name)
+            if entry is None:
+                raise FlightControllerError(f"unknown PX4 flight mode {mode!r}")
+            _, main, sub = entry
+            self.command_long(
+                mavlink.MAV_CMD_DO_SET_MODE,
+                mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                main,
+                sub,
+                timeout=timeout,
+            )
+            self._holder.update(flight_mode=name)
+            return
         number = COPTER_MODES.get(mode)
         if number is None:
             raise FlightControllerError(f"unknown flight mode {mode!r}")
@@ -985,7 +1057,7 @@ class MavlinkFlightController:
         if self.state.armed == arm:
             return
         began = time.monotonic()
-        if arm and self.state.flight_mode in NOT_ARMABLE_MODES:
+        if arm and not self.is_px4 and self.state.flight_mode in NOT_ARMABLE_MODES:
             # ArduCopter refuses to arm in LAND, RTL and AUTO (the mode after a landing).
             self.set_mode("GUIDED", timeout=min(timeout, self.ack_timeout_s))
         self.command_long(
@@ -1007,7 +1079,7 @@ class MavlinkFlightController:
         raise CommandTimeout(f"the flight controller accepted {word} but did not {word}")
 
     def _ensure_guided(self) -> None:
-        if self.state.flight_mode != "GUIDED":
+        if self.state.flight_mode != self.guided_mode:
             self.set_mode("GUIDED")
 
     def takeoff(self, altitude: float) -> None:
@@ -1019,6 +1091,15 @@ class MavlinkFlightController:
             north, east, _ = state.ned or (0.0, 0.0, 0.0)
             self.goto_ned(north, east, -altitude)
             return
+        if self.is_px4:
+            # PX4 takes off from any mode, to an altitude above mean sea level.
+            if state.home is None:
+                raise FlightControllerError("PX4 take-off needs the home position first")
+            self.command_long(
+                mavlink.MAV_CMD_NAV_TAKEOFF, -1, 0, 0, math.nan, math.nan, math.nan,
+                state.home[2] + altitude,
+            )  # fmt: skip
+            return
         self._ensure_guided()
         self.command_long(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, 0, 0, altitude)
 
@@ -1029,6 +1110,12 @@ class MavlinkFlightController:
         self._require_connected()
         self._ensure_guided()
         home = self.state.home
+        if self.is_px4:
+            if home is None:
+                raise FlightControllerError("PX4 goto needs the home position first")
+            lat, lon, alt_msl = ned_to_lla(north, east, down, home)
+            self.goto_global(lat, lon, alt_msl - home[2])
+            return
         if self.goto_frame == "local" or home is None:
             self.send(
                 "set_position_target_local_ned",
@@ -1047,8 +1134,19 @@ class MavlinkFlightController:
         self.goto_global(lat, lon, alt_msl - home[2])
 
     def goto_global(self, lat: float, lon: float, relative_alt: float) -> None:
-        """SET_POSITION_TARGET_GLOBAL_INT at an altitude above home (GUIDED)."""
+        """SET_POSITION_TARGET_GLOBAL_INT at an altitude above home (GUIDED); on PX4,
+        whose setpoints need OFFBOARD, MAV_CMD_DO_REPOSITION (acknowledged) instead."""
         self._require_connected()
+        if self.is_px4:
+            self.command_int(
+                mavlink.MAV_CMD_DO_REPOSITION,
+                mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                (-1.0, float(mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE), 0.0, math.nan),
+                lat,
+                lon,
+                relative_alt,
+            )
+            return
         self._ensure_guided()
         self.send(
             "set_position_target_global_int",

@@ -264,3 +264,38 @@ def test_the_codec_counts_bad_crc_unknown_ids_and_noise_without_raising():
     assert receiver.stats.bad_crc == 1
     assert receiver.stats.unknown == 1
     assert receiver.stats.bad_data >= 1
+
+
+def test_a_px4_autopilot_is_flown_with_its_own_modes_and_reposition(tmp_path):
+    sim = start_simulator(
+        home=HOME,
+        time_scale=TIME_SCALE,
+        fc="mavlink",
+        extra_args=["--autopilot", "px4"],
+        log_file=tmp_path / "sim.log",
+    )
+    fc = MavlinkFlightController(sim.link_url)
+    try:
+        fc.start()
+        assert fc.wait_connected(5)
+        assert wait_for(lambda: fc.state.home is not None, 5)
+        assert fc.is_px4 and fc.state.flight_mode == "MANUAL"
+        fly_up(fc, 12.0)  # NAV_TAKEOFF to home + 12 m above mean sea level
+        assert fc.state.flight_mode == "LOITER"
+        fc.goto_ned(25.0, -10.0, -15.0)  # MAV_CMD_DO_REPOSITION, acknowledged
+        assert wait_for(
+            lambda: (
+                fc.state.ned[0] == pytest.approx(25.0, abs=0.3)
+                and fc.state.ned[1] == pytest.approx(-10.0, abs=0.3)
+                and fc.state.alt == pytest.approx(15.0, abs=0.3)
+            ),
+            15,
+        ), fc.state
+        fc.set_mode("AUTO")
+        assert wait_for(lambda: fc.state.flight_mode == "MISSION", 3)
+        fc.land()
+        assert wait_for(lambda: not fc.state.armed, 15), fc.state
+        assert fc.state.flight_mode == "LAND"
+    finally:
+        fc.stop()
+        sim.stop()
