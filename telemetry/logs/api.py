@@ -365,6 +365,7 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
                 "x": NUMBERS,
                 "y": NUMBERS,
                 "unit": serializers.CharField(),
+                "tracks": serializers.ListField(child=serializers.DictField()),
             },
         ),
     )

@@ -262,25 +262,64 @@ def _degrees(values: np.ndarray) -> np.ndarray:
     return values
 
 
+MAX_TRACKS = 8
+_LAT = {"lat", "latitude"}
+_LON = {"lon", "lng", "longitude"}
+
+
+def _gps_pairs(store: LogStore) -> list[tuple[str, str, str]]:
+    """(name, lat path, lon path) of every group recording a position: the special GPS
+    first, then, e.g., each drone of a mission log."""
+    pairs: list[tuple[str, str, str]] = []
+    special = store.special.get("gps") or []
+    if len(special) >= 2:
+        pairs.append((special[0].rsplit("/", 1)[0], special[0], special[1]))
+    groups: dict[str, dict[str, str]] = {}
+    for path, info in store.index["series"].items():
+        if info["kind"] not in ("int", "double") or "/" not in path:
+            continue
+        group, name = path.rsplit("/", 1)
+        key = name.lower()
+        if key in _LAT:
+            groups.setdefault(group, {}).setdefault("lat", path)
+        elif key in _LON:
+            groups.setdefault(group, {}).setdefault("lon", path)
+    for group, found in groups.items():
+        if "lat" in found and "lon" in found and found["lat"] not in {p[1] for p in pairs}:
+            pairs.append((group, found["lat"], found["lon"]))
+    return pairs[:MAX_TRACKS]
+
+
+def _gps_track(store: LogStore, name: str, lat_path: str, lon_path: str, points: int) -> dict:
+    t, lat = store.read(lat_path)
+    _, lon = store.read(lon_path)
+    n = min(len(lat), len(lon))
+    lat, lon, t = _degrees(lat[:n]), _degrees(lon[:n]), t[:n]
+    ok = np.isfinite(lat) & np.isfinite(lon) & ~((lat == 0) & (lon == 0))
+    t, lat, lon = t[ok], lat[ok], lon[ok]
+    idx = _decimate(len(t), points)
+    return {"name": name, "t": t[idx].tolist(), "lat": lat[idx].tolist(), "lon": lon[idx].tolist()}
+
+
 def track(store: LogStore, *, points: int = 2000) -> dict:
-    """The path to draw on the map: GPS when recorded, else the trajectory estimated from
-    velocity and yaw (metres north and west of the start), else nothing."""
-    gps = store.special.get("gps") or []
-    if len(gps) >= 2:
-        t, lat = store.read(gps[0])
-        t_lon, lon = store.read(gps[1])
-        n = min(len(lat), len(lon))
-        lat, lon, t = _degrees(lat[:n]), _degrees(lon[:n]), t[:n]
-        ok = np.isfinite(lat) & np.isfinite(lon) & ~((lat == 0) & (lon == 0))
-        t, lat, lon = t[ok], lat[ok], lon[ok]
-        if len(t):
-            idx = _decimate(len(t), points)
-            return {
-                "source": "gps",
-                "t": t[idx].tolist(),
-                "lat": lat[idx].tolist(),
-                "lon": lon[idx].tolist(),
-            }
+    """The paths to draw on the map: every GPS track recorded (the main one first, then
+    e.g. the other drones of a mission log), else the trajectory estimated from velocity
+    and yaw (north and west of the start), else nothing. The first track's t/lat/lon are
+    also at the top level."""
+    tracks = [
+        found
+        for found in (_gps_track(store, *pair, points) for pair in _gps_pairs(store))
+        if len(found["t"]) >= 1
+    ]
+    if tracks:
+        first = tracks[0]
+        return {
+            "source": "gps",
+            "t": first["t"],
+            "lat": first["lat"],
+            "lon": first["lon"],
+            "tracks": tracks,
+        }
     trajectory = trajectory_of(store)
     if trajectory is not None and len(trajectory.t):
         idx = _decimate(len(trajectory.t), points)

@@ -363,3 +363,13 @@ def test_real_px4_logs_serve_the_values_pyulog_reads(world_tx, worker, tmp_path,
     assert values.status_code == 200  # NaNs in real logs come back as null, not a 500
     assert values.json()["values"][layer]["q[0]"]["value"] == reference.data["q[0]"][last].item()
     assert client.get(f"{base}/attitude/").json()["t"]
+
+
+def test_a_mission_log_gives_one_gps_track_per_drone(world_tx, worker, tmp_path):
+    client = client_for(world_tx.operator)
+    body = processed(client, make_log("json", tmp_path))
+    track = client.get(f"/api/v1/logs/{body['id']}/track/").json()
+    assert track["source"] == "gps"
+    assert [t["name"] for t in track["tracks"]] == ["drone Alpha", "drone Bravo"]
+    assert track["tracks"][1]["lat"][0] == pytest.approx(51.0)
+    assert track["lat"] == track["tracks"][0]["lat"]

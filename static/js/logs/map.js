@@ -1,9 +1,11 @@
-// The flight path on a map (GPS), or the trajectory estimated from velocity and yaw on a
-// plain metric plane when the log has no GPS; a marker follows the time cursor.
+// The flight paths on a map (every GPS track: several drones in a mission log), or the
+// trajectory estimated from velocity and yaw on a plain metric plane when the log has no
+// GPS; a marker per path follows the time cursor, the selected interval is highlighted.
 
-import { getJSON } from "./api.js";
+import { escapeHtml, getJSON } from "./api.js";
+import { PALETTE } from "./state.js";
 
-function lastIndexAtOrBefore(times, t) {
+export function lastIndexAtOrBefore(times, t) {
   let lo = 0;
   let hi = times.length - 1;
   if (hi < 0 || t < times[0]) return -1;
@@ -15,76 +17,82 @@ function lastIndexAtOrBefore(times, t) {
   return lo;
 }
 
-export { lastIndexAtOrBefore };
-
 export class MapView {
   constructor(el, viewer, { title, note }) {
     this.el = el;
     this.viewer = viewer;
     this.title = title;
     this.note = note;
-    this.track = null;
+    this.paths = [];
     this.load();
   }
 
   async load() {
+    let track;
     try {
-      this.track = await getJSON(`${this.viewer.api}track/`, { points: 3000 });
+      track = await getJSON(`${this.viewer.api}track/`, { points: 3000 });
     } catch (err) {
       this.viewer.warn(`Map: ${err.message}`);
       return;
     }
-    const track = this.track;
     if (!track.source) {
       this.el.innerHTML = '<p class="lv-missing">No position in this log: neither GPS nor velocity with yaw.</p>';
       this.el.style.height = "auto";
       return;
     }
-    let points;
+    let tracks;
     if (track.source === "gps") {
       this.title.textContent = "Map";
-      this.note.textContent = "GPS";
+      this.note.textContent = track.tracks.length > 1 ? `GPS · ${track.tracks.length} tracks` : "GPS";
       this.map = L.map(this.el, { attributionControl: Boolean(this.viewer.tileUrl), zoomSnap: 0.25 });
       if (this.viewer.tileUrl) {
         L.tileLayer(this.viewer.tileUrl, { attribution: this.viewer.tileAttribution, maxZoom: 19 }).addTo(this.map);
       }
-      points = track.lat.map((lat, i) => [lat, track.lon[i]]);
+      tracks = track.tracks.map((one) => ({ name: one.name, t: one.t, points: one.lat.map((lat, i) => [lat, one.lon[i]]) }));
     } else {
       this.title.textContent = "Trajectory";
       this.note.textContent = `estimated, no GPS · ${track.unit || "units"} from the start, north up`;
       this.map = L.map(this.el, { crs: L.CRS.Simple, minZoom: -30, maxZoom: 10, zoomSnap: 0.25, attributionControl: false });
       // x is north and y is west (seed 000, 5.2.1): north up, east to the right.
-      points = track.x.map((x, i) => [x ?? 0, -(track.y[i] ?? 0)]);
+      tracks = [{ name: "estimated", t: track.t, points: track.x.map((x, i) => [x ?? 0, -(track.y[i] ?? 0)]) }];
     }
-    this.points = points;
-    this.path = L.polyline(points, { color: "#2358d6", weight: 2.5, opacity: 0.85 }).addTo(this.map);
-    this.part = L.polyline([], { color: "#f79009", weight: 5, opacity: 0.9 }).addTo(this.map);
-    L.circleMarker(points[0], { radius: 5, color: "#17803d", fillOpacity: 1 }).bindTooltip("start").addTo(this.map);
-    L.circleMarker(points[points.length - 1], { radius: 5, color: "#475467", fillOpacity: 1 }).bindTooltip("end").addTo(this.map);
-    this.marker = L.circleMarker(points[0], { radius: 7, color: "#fff", weight: 2, fillColor: "#d92d20", fillOpacity: 1 }).addTo(this.map);
-    this.fit();
-    new ResizeObserver(() => this.map.invalidateSize()).observe(this.el);
-    this.viewer.state.on("cursor", () => this.moveMarker());
-    this.viewer.state.on("selection", () => this.showSelection());
-    this.moveMarker();
-    this.showSelection();
-  }
-
-  fit() {
-    const bounds = this.path.getBounds();
+    const bounds = L.latLngBounds([]);
+    tracks.forEach((one, i) => {
+      const colour = PALETTE[i % PALETTE.length];
+      const line = L.polyline(one.points, { color: colour, weight: 2.5, opacity: 0.85 }).addTo(this.map);
+      if (tracks.length > 1) line.bindTooltip(escapeHtml(one.name), { sticky: true });
+      const part = L.polyline([], { color: "#f79009", weight: 5, opacity: 0.9 }).addTo(this.map);
+      L.circleMarker(one.points[0], { radius: 4, color: "#17803d", fillOpacity: 1 }).bindTooltip(`${escapeHtml(one.name)}: start`).addTo(this.map);
+      const marker = L.circleMarker(one.points[0], { radius: 7, color: "#fff", weight: 2, fillColor: tracks.length > 1 ? colour : "#d92d20", fillOpacity: 1 })
+        .bindTooltip(escapeHtml(one.name))
+        .addTo(this.map);
+      bounds.extend(line.getBounds());
+      this.paths.push({ ...one, line, part, marker });
+    });
     if (bounds.isValid()) this.map.fitBounds(bounds.pad(0.15), { animate: false, maxZoom: 18 });
+    new ResizeObserver(() => this.map.invalidateSize()).observe(this.el);
+    this.viewer.state.on("cursor", () => this.moveMarkers());
+    this.viewer.state.on("selection", () => this.showSelection());
+    this.moveMarkers();
+    this.showSelection();
+    this.el.dataset.tracks = String(this.paths.length);
   }
 
-  moveMarker() {
-    const i = lastIndexAtOrBefore(this.track.t, this.viewer.state.cursor);
-    this.marker.setLatLng(this.points[Math.max(i, 0)]);
+  moveMarkers() {
+    for (const path of this.paths) {
+      const i = lastIndexAtOrBefore(path.t, this.viewer.state.cursor);
+      path.marker.setLatLng(path.points[Math.max(i, 0)]);
+      path.marker.setStyle({ opacity: i < 0 ? 0.35 : 1, fillOpacity: i < 0 ? 0.35 : 1 });
+    }
   }
 
   showSelection() {
     const selection = this.viewer.state.selection;
-    if (!selection) { this.part.setLatLngs([]); return; }
-    const from = Math.max(lastIndexAtOrBefore(this.track.t, selection[0]), 0);
-    const to = Math.max(lastIndexAtOrBefore(this.track.t, selection[1]), 0);
-    this.part.setLatLngs(this.points.slice(from, to + 1));
+    for (const path of this.paths) {
+      if (!selection) { path.part.setLatLngs([]); continue; }
+      const from = Math.max(lastIndexAtOrBefore(path.t, selection[0]), 0);
+      const to = Math.max(lastIndexAtOrBefore(path.t, selection[1]), 0);
+      path.part.setLatLngs(path.points.slice(from, to + 1));
+    }
   }
 }

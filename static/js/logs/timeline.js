@@ -146,7 +146,8 @@ export class Timeline {
     ctx.fillStyle = "#667085";
     ctx.font = "11px system-ui, sans-serif";
     ctx.textBaseline = "middle";
-    ctx.fillText(`time since start · ${this.layers.length} streams`, 8, top + RULER / 2);
+    const caption = `time since start · ${this.layers.length} stream${this.layers.length === 1 ? "" : "s"}`;
+    ctx.fillText(ellipsis(ctx, caption, this.labelWidth - 12), 8, top + RULER / 2);
     for (const { x, label } of ticks) {
       ctx.fillStyle = "#c5cbd5";
       ctx.fillRect(x, top + RULER - 6, 1, 6);
