@@ -20,6 +20,11 @@ const scene = new DroneScene($("pv-canvas"), {
   box: config.box,
   camera: config.settings.camera,
 });
+// The canvas must cover exactly the picture: follow the frames' own proportions.
+$("pv-frame").addEventListener("load", (event) => {
+  const { naturalWidth: width, naturalHeight: height } = event.target;
+  if (width && height) $("pv-stage").style.aspectRatio = `${width} / ${height}`;
+});
 
 // -- warnings and sound -----------------------------------------------------------------
 
