@@ -299,3 +299,25 @@ def test_a_px4_autopilot_is_flown_with_its_own_modes_and_reposition(tmp_path):
     finally:
         fc.stop()
         sim.stop()
+
+
+def test_a_plain_pymavlink_script_connects_to_the_simulator_as_to_sitl(mav_sim):
+    from pymavlink import mavutil
+
+    host, port = mav_sim.tcp_address
+    conn = mavutil.mavlink_connection(f"tcp:{host}:{port}", source_system=255)
+    try:
+        heartbeat = conn.wait_heartbeat(timeout=5)
+        assert heartbeat is not None and conn.flightmode == "STABILIZE"
+        conn.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        conn.arducopter_arm()
+        ack = conn.recv_match(type="COMMAND_ACK", blocking=True, timeout=5)
+        assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED
+        assert conn.recv_match(
+            type="HEARTBEAT",
+            blocking=True,
+            timeout=5,
+            condition="HEARTBEAT.base_mode & 128",
+        )
+    finally:
+        conn.close()
