@@ -9,7 +9,7 @@ import logging
 import signal
 import subprocess
 import sys
-import threading
+import time
 
 from django.conf import settings
 from django.core.management.base import BaseCommand
@@ -63,13 +63,16 @@ class Command(BaseCommand):
             counters=Counters("ingest"),
             live=None if options["no_live"] else ChannelsLivePublisher(),
         )
-        stop = threading.Event()
+        # A plain flag, not an Event: Event.set() takes a lock, and a signal handler that
+        # runs while the main thread holds that same lock would deadlock.
+        stopping: list[int] = []
         for sig in (signal.SIGTERM, signal.SIGINT):
-            signal.signal(sig, lambda *_: stop.set())
+            signal.signal(sig, lambda signum, frame: stopping.append(signum))
         ingestor.start()
         self.stdout.write(f"ingest_telemetry: reading {config.mqtt_url.split('@')[-1]}")
         self.stdout.flush()
-        stop.wait()
+        while not stopping:
+            time.sleep(0.2)
         drained = ingestor.stop(drain_timeout=options["drain_timeout"])
         self.stdout.write(
             f"ingest_telemetry: stopped, {ingestor.stored} objects stored"
