@@ -21,13 +21,15 @@ UAVTalk personality; only the language differs:
 - parameters (PARAM_SET/READ/LIST), including fault knobs in the style of SITL's SIM_*:
   SIM_CMD_MUTE (a command id never answered), SIM_JUNK_RATE (bad-CRC and unknown-id
   frames per second sent to the ground), SIM_MSGINT_OFF (answer SET_MESSAGE_INTERVAL as
-  UNSUPPORTED, like old firmware), BATT_CRT_PCT (critical battery, % left).
+  UNSUPPORTED, like old firmware), SIM_LOSS_PCT (ground-to-vehicle messages lost, %),
+  BATT_CRT_PCT (critical battery, % left).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import random
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -88,6 +90,7 @@ DEFAULT_PARAMS = {
     "SIM_CMD_MUTE": 0.0,
     "SIM_JUNK_RATE": 0.0,
     "SIM_MSGINT_OFF": 0.0,
+    "SIM_LOSS_PCT": 0.0,
     "WPNAV_SPEED": 1000.0,
 }
 NAV_POSITION_ITEMS = (
@@ -128,6 +131,7 @@ class SimStats:
     commands: int = 0
     acks: int = 0
     muted: int = 0
+    lost_in: int = 0
     junk_sent: int = 0
     setpoints: int = 0
     setpoints_ignored: int = 0
@@ -179,6 +183,7 @@ class MavlinkSession:
         self._send_heartbeat_now = False
         self._reboot_due: float | None = None
         self._rx_now = 0.0
+        self._rng = random.Random(1)  # repeatable losses
 
     # --- helpers ------------------------------------------------------------------------
     @property
@@ -254,6 +259,12 @@ class MavlinkSession:
             return
         self._rx_now = now
         for msg in self.codec.feed(data):
+            if (
+                self.params["SIM_LOSS_PCT"]
+                and self._rng.random() * 100 < self.params["SIM_LOSS_PCT"]
+            ):
+                self.stats.lost_in += 1  # a weak radio link: the message never arrived
+                continue
             self.stats.messages_in += 1
             if msg.get_type() == "HEARTBEAT":
                 self.gcs_heard = now

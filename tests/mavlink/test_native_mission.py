@@ -8,8 +8,10 @@ import time
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from firmware.sim import start_simulator
 from onboard import protocol
 from onboard.controller import Controller
+from onboard.fc.mavlink import MavlinkFlightController
 from onboard.mavlink_mission import (
     MissionItem,
     MissionUploader,
@@ -178,3 +180,28 @@ def test_stopping_a_native_mission_leaves_auto_and_holds(worker, fc):
     north = fc.state.ned[0]
     time.sleep(0.5)
     assert fc.state.ned[0] < 400 - 50 and abs(fc.state.ned[0] - north) < 15
+
+
+def test_a_mission_uploads_intact_over_a_link_that_loses_a_third_of_the_messages(tmp_path):
+    sim = start_simulator(
+        home=HOME,
+        time_scale=TIME_SCALE,
+        fc="mavlink",
+        extra_args=["--param", "SIM_LOSS_PCT=33"],
+        log_file=tmp_path / "sim.log",
+    )
+    fc = MavlinkFlightController(sim.link_url)
+    items = [MissionItem(mavlink.MAV_CMD_NAV_TAKEOFF, z=10.0)] + [
+        MissionItem(mavlink.MAV_CMD_NAV_WAYPOINT, x=406303000 + 100 * i, y=-86575000, z=10.0)
+        for i in range(15)
+    ]
+    try:
+        fc.start()
+        assert fc.wait_connected(5)
+        uploader = MissionUploader(fc, item_timeout=0.3, retries=10)
+        uploader.upload(items)
+        assert uploader.stats["resends"] > 0 or uploader.stats["items_sent"] > len(items)
+        assert uploader.download() == items
+    finally:
+        fc.stop()
+        sim.stop()
