@@ -110,6 +110,7 @@ def main(argv: list[str] | None = None) -> int:
             vehicle=Vehicle(config=config, receiver=receiver),
             time_scale=args.time_scale,
             autopilot=args.autopilot,
+            link_timeout_s=args.link_timeout,
         )
         for name, value in args.param:
             if name not in session.params:
