@@ -85,10 +85,11 @@ def live_asgi(request):  # type: ignore[no-untyped-def]
     server.stop()
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser():  # type: ignore[no-untyped-def]
     """Headless Debian Chromium through Playwright (its own browser download does not work
-    here)."""
+    here). Module-scoped: Playwright's sync API holds an event loop in the main thread
+    while it runs, which asyncio tests elsewhere must not inherit."""
     import os
 
     from playwright.sync_api import sync_playwright
