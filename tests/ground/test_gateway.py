@@ -16,7 +16,7 @@ from fleet.models import ConnectionEvent, Drone
 from workers.counters import Counters, snapshot
 from workers.gateway import Gateway
 
-from .conftest import heartbeat, mqtt_client, wait_for
+from .conftest import client_for, heartbeat, mqtt_client, wait_for
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -107,6 +107,8 @@ def test_malformed_and_unauthorised_input_is_dropped_counted_and_changes_nothing
     assert gateway.client.is_connected()
     gateway.counters.flush()
     assert snapshot()[gateway.counters.process]["dropped.malformed"] >= 4
+    health = client_for().get("/health").json()
+    assert health["processes"][gateway.counters.process]["dropped.too_large"] == 1
     ground.loop_stop()
 
 
