@@ -82,8 +82,9 @@ def publish(log: FlightLog, payload: dict) -> None:
         async_to_sync(layer.group_send)(
             log.group_name, {"type": "flightlog.event", "payload": payload}
         )
-    except Exception:  # noqa: BLE001 - progress is best effort; the import goes on
-        logger.warning("could not publish progress of log %s", log.pk, exc_info=True)
+    except Exception as exc:  # noqa: BLE001 - progress is best effort; the import goes on
+        # No traceback kept: its frames would pin the reader's memory-mapped buffers.
+        logger.warning("could not publish progress of log %s: %s", log.pk, exc)
 
 
 def _progress_reporter(log: FlightLog) -> Callable[[float], None]:

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import json
+from concurrent.futures import ThreadPoolExecutor
 from urllib.parse import parse_qs, urlparse
 
 import numpy as np
 import pytest
 from playwright.sync_api import expect
 
-from telemetry.logs.synth import synthetic_ulog
+from telemetry.logs.synth import synthetic_dataflash, synthetic_ulog
 from tests.conftest import login
 from tests.logbook.conftest import upload, wait_until_processed
 from tests.logbook.test_api import client_for
@@ -194,3 +196,59 @@ def test_the_3d_view_turns_the_drone_yaw_then_pitch_then_roll_like_the_core(
     for (yaw, pitch, roll), matrix in zip(angles, matrices, strict=True):
         expected = rotation_matrix(yaw, pitch, roll)
         assert np.allclose(matrix, expected, atol=1e-12), (matrix, expected)
+
+
+def test_a_log_page_opened_while_processing_shows_live_progress_then_the_viewer(
+    world_tx, live_logs, page, tmp_path, monkeypatch
+):
+    """No worker here: the test runs the import itself once the page is watching."""
+    from telemetry.logs import services
+    from telemetry.logs.models import FlightLog
+
+    source = tmp_path / "slow.bin"
+    synthetic_dataflash(source, seconds=60)
+    log = FlightLog.objects.create(
+        organisation=world_tx.org, owner=world_tx.operator, name="slow.bin", size=1
+    )
+    log.upload_path.parent.mkdir(parents=True)
+    source.rename(log.upload_path)
+
+    frames: list[dict] = []
+
+    def follow(ws):  # type: ignore[no-untyped-def]
+        if "/ws/logs/" in ws.url:  # the portal's own sockets (fleet) say other things
+            ws.on("framereceived", lambda payload: frames.append(json.loads(payload)))
+
+    page.on("websocket", follow)
+    login(page, live_logs, "viewer")
+    page.goto(f"{live_logs.url}/logs/{log.pk}/")
+    processing = page.locator('[data-part="processing"]')
+    expect(processing).to_be_visible()
+    expect(processing.locator("progress")).to_have_attribute("value", "0")
+    # The socket's first frame is the status snapshot: from then on no event is missed.
+    for _ in range(200):
+        if any(f.get("type") == "status" for f in frames):
+            break
+        page.wait_for_timeout(50)  # lets Playwright deliver the frames
+    assert frames and frames[0]["status"] == "processing"
+
+    monkeypatch.setattr(services, "PROGRESS_INTERVAL_S", 0.0)
+
+    def process() -> str:
+        # Its own thread: publishing progress needs a thread without Playwright's loop.
+        from django.db import connection
+
+        try:
+            return services.process_log(str(log.pk))
+        finally:
+            connection.close()
+
+    with ThreadPoolExecutor(1) as pool:
+        assert pool.submit(process).result() == "ready"
+
+    viewer = page.locator("[data-log-viewer]")
+    expect(viewer).to_have_attribute("data-loaded", "true", timeout=15_000)
+    expect(processing).to_be_hidden()
+    progress = [f["progress"] for f in frames if f.get("type") == "progress"]
+    assert len(progress) >= 3 and progress == sorted(progress)
+    assert frames[-1]["status"] == "ready"
