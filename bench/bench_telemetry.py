@@ -4,8 +4,9 @@
 
 Runs against the test profile's PostgreSQL (`scripts/services.sh start test`) in its own
 database `bench_telemetry`, a private Mosquitto with 1 000 drone users, and the real
-`manage.py ingest_telemetry` process. The load generator is 4 processes, each holding 250
-raw MQTT 3.1.1 connections (CONNECT as the drone, then QoS 0 PUBLISH packets written
+`manage.py ingest_telemetry --processes 2` (two readers sharing the subscription; set
+BENCH_TELEMETRY_INGEST_PROCESSES=1 for the single process `make run` starts). The load
+generator is 4 processes, each holding 250 raw MQTT 3.1.1 connections (CONNECT as the drone, then QoS 0 PUBLISH packets written
 straight to the socket): paho's per-client threads would cost more CPU than the ingest on
 a 2-core machine. A blocking socket write is the broker's back-pressure.
 
@@ -46,7 +47,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DB_NAME = "bench_telemetry"
 DRONES = 1000
 WORKERS = 4
-INGEST_PROCESSES = int(os.environ.get("BENCH_TELEMETRY_INGEST_PROCESSES", 1))
+INGEST_PROCESSES = int(os.environ.get("BENCH_TELEMETRY_INGEST_PROCESSES", 2))
 # Lag samples from the first seconds (1 000 CONNECTs, cold caches) are reported apart.
 WARMUP_S = 5.0
 STEADY_S = float(os.environ.get("BENCH_TELEMETRY_STEADY_S", 60))
