@@ -7,7 +7,9 @@ its final folder at once and stops reading as soon as the upload is over the lim
 
 from __future__ import annotations
 
+import logging
 import os
+import time
 import uuid
 from pathlib import Path
 
@@ -17,6 +19,8 @@ from django.core.files.uploadhandler import FileUploadHandler, SkipFile
 from django.http import HttpRequest
 from rest_framework import status
 from rest_framework.exceptions import APIException
+
+logger = logging.getLogger(__name__)
 
 FIELD = "file"
 # Multipart headers and boundaries around the file add a little to Content-Length.
@@ -49,6 +53,27 @@ def incoming_dir() -> Path:
     path = Path(settings.LOGS_DIR) / "incoming"
     path.mkdir(parents=True, exist_ok=True)
     return path
+
+
+# A `.part` file this old belongs to an upload whose connection died mid-body (the parser
+# never got to tell the handler); live uploads touch theirs with every chunk.
+STALE_PART_S = 24 * 3600
+
+
+def sweep_stale_parts(directory: Path, *, now: float | None = None) -> int:
+    """Delete abandoned partial uploads; returns how many went."""
+    now = time.time() if now is None else now
+    removed = 0
+    for part in directory.glob("*.part"):
+        try:
+            if now - part.stat().st_mtime > STALE_PART_S:
+                part.unlink()
+                removed += 1
+        except FileNotFoundError:
+            continue  # finished or swept by a concurrent upload
+    if removed:
+        logger.info("removed %d abandoned partial uploads from %s", removed, directory)
+    return removed
 
 
 def check_content_length(request: HttpRequest) -> None:
@@ -103,7 +128,9 @@ class LogUploadHandler(FileUploadHandler):
         if field_name != FIELD or self._path is not None:
             raise SkipFile()  # one log per request; other file fields are not read
         super().new_file(field_name, file_name, content_type, content_length, charset)
-        self._path = incoming_dir() / f"{uuid.uuid4().hex}.part"
+        directory = incoming_dir()
+        sweep_stale_parts(directory)
+        self._path = directory / f"{uuid.uuid4().hex}.part"
         self._file = open(self._path, "wb")  # noqa: SIM115 - closed in file_complete/abort
 
     def receive_data_chunk(self, raw_data: bytes, start: int) -> bytes | None:

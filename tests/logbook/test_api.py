@@ -373,3 +373,21 @@ def test_a_mission_log_gives_one_gps_track_per_drone(world_tx, worker, tmp_path)
     assert [t["name"] for t in track["tracks"]] == ["drone Alpha", "drone Bravo"]
     assert track["tracks"][1]["lat"][0] == pytest.approx(51.0)
     assert track["lat"] == track["tracks"][0]["lat"]
+
+
+def test_partial_uploads_abandoned_for_a_day_are_swept_by_the_next_upload(
+    world_tx, tmp_path, logs_dir
+):
+    import os
+    import time
+
+    incoming = logs_dir / "incoming"
+    incoming.mkdir(exist_ok=True)
+    abandoned, recent = incoming / "abandoned.part", incoming / "recent.part"
+    abandoned.write_bytes(b"x" * 100)
+    recent.write_bytes(b"y" * 100)
+    two_days_ago = time.time() - 2 * 86400
+    os.utime(abandoned, (two_days_ago, two_days_ago))
+    assert upload(client_for(world_tx.operator), make_log("dfi", tmp_path)).status_code == 201
+    assert not abandoned.exists() and recent.exists()
+    recent.unlink()
