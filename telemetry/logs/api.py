@@ -119,12 +119,15 @@ def _upload_organisation(request: Request) -> Organisation:
     the one the portal acts for, else the user's only membership; operators and up."""
     memberships = Membership.objects.for_user(request.user)
     slug = request.data.get("organisation") or ""
+    current = getattr(request._request, "organisation", None)
     if slug:
         memberships = memberships.filter(organisation__slug=slug)
-    else:
-        current = getattr(request._request, "organisation", None)
-        if current is not None:
-            memberships = memberships.filter(organisation=current)
+    elif current is not None:
+        memberships = memberships.filter(organisation=current)
+    elif memberships.count() > 1:
+        raise exceptions.ValidationError(
+            {"organisation": ["You belong to several organisations: name one (its slug)."]}
+        )
     membership = memberships.first()
     if membership is None:
         raise exceptions.NotFound("You are not a member of that organisation.")

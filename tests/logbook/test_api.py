@@ -391,3 +391,26 @@ def test_partial_uploads_abandoned_for_a_day_are_swept_by_the_next_upload(
     assert upload(client_for(world_tx.operator), make_log("dfi", tmp_path)).status_code == 201
     assert not abandoned.exists() and recent.exists()
     recent.unlink()
+
+
+def test_token_clients_in_several_organisations_must_name_one(world_tx, tmp_path):
+    from rest_framework.authtoken.models import Token
+    from rest_framework.test import APIClient
+
+    from fleet.models import Membership, Role
+
+    Membership.objects.create(
+        user=world_tx.operator, organisation=world_tx.other_org, role=Role.OPERATOR
+    )
+    client = APIClient()
+    client.credentials(HTTP_AUTHORIZATION=f"Token {Token.objects.create(user=world_tx.operator)}")
+    path = make_log("dfi", tmp_path)
+    with open(path, "rb") as f:
+        ambiguous = client.post("/api/v1/logs/", {"file": f}, format="multipart")
+    assert ambiguous.status_code == 400 and "organisation" in ambiguous.json()["fields"]
+    with open(path, "rb") as f:
+        named = client.post(
+            "/api/v1/logs/", {"file": f, "organisation": "globex"}, format="multipart"
+        )
+    assert named.status_code == 201
+    assert client.get(f"/api/v1/logs/{named.json()['id']}/").json()["organisation"] == "globex"
