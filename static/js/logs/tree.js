@@ -55,7 +55,8 @@ export class ValuesTree {
             const shown = typeof entry.value === "number" ? formatNumber(entry.value) : String(entry.value);
             const label = entry.label ? ` (${escapeHtml(entry.label)})` : "";
             value = `<span class="v" data-value="${escapeHtml(entry.value)}">${escapeHtml(shown)}${label}${unit ? `<span class="u">${escapeHtml(unit)}</span>` : ""}</span>`;
-            title = `${path} — sample at ${(entry.t - this.viewer.state.start).toFixed(3)} s`;
+            const clock = units.get(path)?.time_source === "board" ? "on-board clock" : "recorder clock";
+            title = `${path} — sample at ${(entry.t - this.viewer.state.start).toFixed(3)} s (${clock})`;
           }
           html.push(`<div class="row" data-path="${escapeHtml(path)}" title="${escapeHtml(title)}"><span class="k">${escapeHtml(name)}</span>${value}</div>`);
         }

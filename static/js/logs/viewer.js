@@ -55,7 +55,7 @@ export class LogViewer extends EventTarget {
     if (event.status === "processing") {
       const value = Number(event.progress) || 0;
       this.part("progress").value = value;
-      this.part("progress-text").textContent = `${Math.round(value * 100)} %`;
+      this.part("progress-text").textContent = value ? `${Math.round(value * 100)} %` : "Waiting for the import to start…";
       return;
     }
     this.part("processing").hidden = true;
@@ -107,8 +107,15 @@ export class LogViewer extends EventTarget {
   bindToolbar() {
     const state = this.state;
     const clock = this.part("clock");
+    const wall = this.part("wall");
     const selectionText = this.part("selection-text");
-    const showClock = () => { clock.textContent = `t = ${formatDuration(state.rel(state.cursor))}`; };
+    // Logs stamped with Unix time (recorders, .tlog) also show the wall-clock time.
+    const wallClock = state.start > 946684800;
+    const showClock = () => {
+      const since = `t = ${formatDuration(state.rel(state.cursor))}`;
+      clock.textContent = since;
+      if (wallClock) wall.textContent = new Date(state.cursor * 1000).toISOString().replace("T", " ").replace("Z", " UTC");
+    };
     state.on("cursor", showClock);
     showClock();
     state.on("selection", ({ selection }) => {
