@@ -1,0 +1,71 @@
+"""The minimal MQTT reader's framing: packets split across reads, QoS 1 acks, refusals."""
+
+from __future__ import annotations
+
+import socket
+import struct
+
+import pytest
+
+from telemetry.mqtt_reader import ProtocolViolation, Subscriber, _string, _varint
+
+
+def publish(topic: str, payload: bytes, packet_id: int | None = None) -> bytes:
+    body = _string(topic) + (struct.pack("!H", packet_id) if packet_id else b"") + payload
+    header = 0x32 if packet_id else 0x30
+    return bytes([header]) + _varint(len(body)) + body
+
+
+def _reader(received: list) -> Subscriber:
+    return Subscriber(
+        "mqtt://u:p@127.0.0.1:1",
+        "t",
+        "+/telemetry/out",
+        lambda topic, payload: received.append((topic, payload)),
+    )
+
+
+def test_packets_split_anywhere_across_reads_are_delivered_whole_and_acked():
+    received: list = []
+    reader = _reader(received)
+    big = b"x" * 300  # a two-byte remaining length
+    stream = (
+        publish("A/telemetry/out", b'{"a":1}')
+        + publish("B/telemetry/out", big, packet_id=7)
+        + b"\xd0\x00"  # PINGRESP
+        + publish("C/telemetry/out", b"{}")
+    )
+    ours, broker = socket.socketpair()
+    try:
+        buffer = bytearray()
+        for cut in range(0, len(stream), 5):
+            buffer += stream[cut : cut + 5]
+            consumed, _ = reader._parse(ours, buffer, True)
+            del buffer[:consumed]
+        assert not buffer
+        assert received == [
+            ("A/telemetry/out", b'{"a":1}'),
+            ("B/telemetry/out", big),
+            ("C/telemetry/out", b"{}"),
+        ]
+        assert broker.recv(16) == b"\x40\x02\x00\x07"
+    finally:
+        ours.close()
+        broker.close()
+
+
+def test_a_refused_connection_or_subscription_is_a_protocol_violation():
+    reader = _reader([])
+    ours, broker = socket.socketpair()
+    try:
+        with pytest.raises(ProtocolViolation, match="refused the connection"):
+            reader._parse(ours, bytearray(b"\x20\x02\x00\x05"), False)
+        with pytest.raises(ProtocolViolation, match="subscription"):
+            reader._parse(ours, bytearray(b"\x90\x03\x00\x01\x80"), True)
+        consumed, connected = reader._parse(
+            ours, bytearray(b"\x20\x02\x00\x00\x90\x03\x00\x01\x01"), False
+        )
+        assert consumed == 9 and connected and reader.subscribed.is_set()
+    finally:
+        ours.close()
+        broker.close()
