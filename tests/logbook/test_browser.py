@@ -23,7 +23,10 @@ def click_timeline_at(page, viewer, seconds: float, start: float, end: float) ->
     """Click the timeline where `seconds` lies, from the lane geometry timeline.js draws."""
     canvas = viewer.locator('[data-part="timeline-canvas"]')
     box = canvas.bounding_box()
-    label = 110 if "lv-compact" in (viewer.get_attribute("class") or "") else 150
+    label = min(
+        110 if "lv-compact" in (viewer.get_attribute("class") or "") else 150,
+        round(box["width"] * 0.28),
+    )
     lane = box["width"] - label - 8
     x = label + (seconds - start) / (end - start) * lane
     canvas.click(position={"x": x, "y": box["height"] - 10})

@@ -41,6 +41,8 @@ export class Timeline {
     if (!width) return;
     const height = RULER + this.layers.length * (LANE + GAP) + 8;
     const dpr = window.devicePixelRatio || 1;
+    // Names take at most 28 % of a narrow (phone, side-by-side) timeline.
+    this.labelWidth = Math.min(this.viewer.compact ? 110 : LABEL, Math.round(width * 0.28));
     this.width = width;
     this.height = height;
     this.canvas.width = Math.round(width * dpr);
