@@ -11,6 +11,7 @@ urlpatterns = [
     path("", views.log_list, name="list"),
     path("compare/", views.log_compare, name="compare"),
     path("<uuid:pk>/", views.log_detail, name="detail"),
+    path("<uuid:pk>/download/", views.log_download, name="download"),
 ]
 
 # The REST resources, included at /api/v1/logs/.

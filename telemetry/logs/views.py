@@ -6,7 +6,7 @@ import uuid
 
 from django.conf import settings
 from django.contrib.auth.decorators import login_required
-from django.http import Http404, HttpRequest, HttpResponse
+from django.http import FileResponse, Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, render
 
 from fleet.models import Role
@@ -71,6 +71,17 @@ def log_detail(request: HttpRequest, pk: uuid.UUID) -> HttpResponse:
             **_viewer_settings(),
         },
     )
+
+
+@login_required
+def log_download(request: HttpRequest, pk: uuid.UUID) -> FileResponse:
+    """The file as it was uploaded, for members of the log's organisation."""
+    log = get_object_or_404(FlightLog.objects.for_user(request.user), pk=pk)
+    try:
+        handle = open(log.upload_path, "rb")  # noqa: SIM115 - FileResponse closes it
+    except FileNotFoundError:
+        raise Http404("The uploaded file is no longer stored.") from None
+    return FileResponse(handle, as_attachment=True, filename=log.name)
 
 
 @login_required

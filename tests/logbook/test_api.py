@@ -414,3 +414,13 @@ def test_token_clients_in_several_organisations_must_name_one(world_tx, tmp_path
         )
     assert named.status_code == 201
     assert client.get(f"/api/v1/logs/{named.json()['id']}/").json()["organisation"] == "globex"
+
+
+def test_members_download_the_original_file_and_outsiders_get_404(world_tx, tmp_path):
+    path = make_log("dfi", tmp_path)
+    created = upload(client_for(world_tx.operator), path).json()
+    response = client_for(world_tx.viewer).get(f"/logs/{created['id']}/download/")
+    assert response.status_code == 200
+    assert b"".join(response.streaming_content) == path.read_bytes()
+    assert 'filename="flight.dfi"' in response["Content-Disposition"]
+    assert client_for(world_tx.outsider).get(f"/logs/{created['id']}/download/").status_code == 404
