@@ -32,8 +32,14 @@ def mark_watched(drone_pk: int) -> None:
 
 
 def watched_drones() -> set[int]:
+    """Drones a dashboard marked in the last WATCH_TTL_S; forgets the expired marks."""
+    client = _redis()
     now = time.time()
-    return {int(pk) for pk, until in _redis().hgetall(WATCH_KEY).items() if float(until) > now}
+    marks = client.hgetall(WATCH_KEY)
+    expired = [pk for pk, until in marks.items() if float(until) <= now]
+    if expired:
+        client.hdel(WATCH_KEY, *expired)
+    return {int(pk) for pk, until in marks.items() if float(until) > now}
 
 
 class ChannelsLivePublisher:
