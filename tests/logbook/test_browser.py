@@ -255,3 +255,39 @@ def test_a_log_page_opened_while_processing_shows_live_progress_then_the_viewer(
     progress = [f["progress"] for f in frames if f.get("type") == "progress"]
     assert len(progress) >= 3 and progress == sorted(progress)
     assert frames[-1]["status"] == "ready"
+
+
+def test_the_upload_zone_explains_files_it_refuses(world_tx, page, tmp_path, logs_dir):
+    from django.db import connection
+
+    from tests.logbook.conftest import QUEUE
+    from tests.support.live import LiveServer
+
+    server = LiveServer(
+        connection.settings_dict["NAME"],
+        extra_env={
+            "LOGS_DIR": str(logs_dir),
+            "LOGS_IMPORT_QUEUE": QUEUE,
+            "LOG_UPLOAD_MAX_BYTES": "50000",
+        },
+    )
+    try:
+        login(page, server, "operator")
+        page.goto(f"{server.url}/logs/")
+        expect(page.locator("#dropzone")).to_contain_text("up to 48.8 KB each")
+        big = tmp_path / "big.ulg"
+        synthetic_ulog(big, seconds=10)
+        photo = tmp_path / "holiday.jpg"
+        photo.write_bytes(b"\xff\xd8\xff\xe0 not a flight log" * 10)
+        page.set_input_files("#log-file", [str(big), str(photo)])
+        items = page.locator("#uploads li")
+        size = f"{big.stat().st_size / 1024:.1f} KB"
+        expect(items.filter(has_text="big.ulg")).to_contain_text(
+            f"Too large: {size}, over the limit of 48.8 KB."
+        )
+        expect(items.filter(has_text="holiday.jpg")).to_contain_text(
+            "is not a flight log format we can read"
+        )
+        expect(page.locator("#uploads li.failed")).to_have_count(2)
+    finally:
+        server.stop()
