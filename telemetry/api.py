@@ -11,7 +11,12 @@ from datetime import UTC, datetime, timedelta
 from django.http import StreamingHttpResponse
 from django.shortcuts import get_object_or_404
 from drf_spectacular.types import OpenApiTypes
-from drf_spectacular.utils import OpenApiParameter, extend_schema, inline_serializer
+from drf_spectacular.utils import (
+    OpenApiParameter,
+    extend_schema,
+    extend_schema_field,
+    inline_serializer,
+)
 from rest_framework import serializers
 from rest_framework.decorators import api_view
 from rest_framework.request import Request
@@ -26,6 +31,7 @@ from . import queries, status
 MAX_RANGE = timedelta(days=400)
 
 
+@extend_schema_field(OpenApiTypes.STR)
 class EpochOrIsoField(serializers.Field):
     """A time as epoch seconds or ISO 8601 (UTC unless it says otherwise)."""
 

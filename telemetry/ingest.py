@@ -208,10 +208,10 @@ class SampleBuffer:
 
 
 class DroneMap:
-    """drone_id → primary key, cached; refreshed periodically and soon after a miss."""
+    """drone_id → primary key, cached; refreshed periodically and at once on a miss."""
 
     def __init__(
-        self, loader: Callable[[], dict[str, int]], every: float = 30.0, after_miss: float = 2.0
+        self, loader: Callable[[], dict[str, int]], every: float = 30.0, after_miss: float = 0.5
     ) -> None:
         self.loader = loader
         self.every = every
@@ -223,7 +223,13 @@ class DroneMap:
     def get(self, drone_id: str) -> int | None:
         pk = self.ids.get(drone_id)
         if pk is None:
+            # A drone provisioned since the last load: look again now rather than drop its
+            # first samples. Rate-limited, so a flood from a bogus topic costs one query
+            # per `after_miss` seconds.
             self._missed = True
+            if time.monotonic() - self._loaded_at >= self.after_miss:
+                self.refresh()
+                pk = self.ids.get(drone_id)
         return pk
 
     def maybe_refresh(self) -> None:

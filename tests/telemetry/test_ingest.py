@@ -239,3 +239,24 @@ def test_the_ingest_reconnects_after_a_broker_restart_and_keeps_storing(world_tx
     finally:
         ingestor.stop()
         broker.stop()
+
+
+def test_a_drone_provisioned_after_the_ingest_started_loses_no_first_sample(world_tx, tmp_path):
+    from tests.factories import drone
+
+    broker = start_broker(tmp_path, {"ground": "ground-pw"})
+    conninfo = _conninfo()
+    ingestor, counters = _ingestor(conninfo, broker.url_for("ground"))
+    ground = Publisher(broker.url_for("ground"))
+    try:
+        time.sleep(0.6)  # past the miss rate limit, as a drone provisioned later would be
+        newcomer = drone(world_tx.org, "LATE_1")
+        now = time.time()
+        message = {"ts": now, "objects": [{"name": "Gyros", "ts": now, "fields": {"x": 1.0}}]}
+        ground.publish("LATE_1/telemetry/out", json.dumps(message).encode())
+        assert wait_until(lambda: ingestor.stored >= 1, 10)
+        assert counters.counts.get("dropped.unknown_drone", 0) == 0
+        assert _stored(conninfo, newcomer.pk) == (1, 1)
+    finally:
+        ground.close()
+        ingestor.stop()
