@@ -86,6 +86,10 @@ def replace_drone(
             return None
         existing = Assignment.objects.filter(replaces=failing).first()
         if existing is not None:
+            if not _dispatched(existing):
+                # A run that died between its commit and the send: send now. Should the
+                # first send have gone out after all, the busy drone rejects this one.
+                transaction.on_commit(lambda: dispatch(existing))
             return existing
         if mission.status not in (MissionStatus.RUNNING, MissionStatus.PAUSED):
             return None
@@ -202,8 +206,28 @@ def replace_drone(
                 "reason": "replacement",
             },
         )
-        transaction.on_commit(lambda: send_assignment(replacement))
+        transaction.on_commit(lambda: dispatch(replacement))
     return replacement
+
+
+def dispatch(assignment: Assignment) -> None:
+    """Send the assignment, then note that it went (a re-run sends only what never went)."""
+    send_assignment(assignment)
+    Event.objects.create(
+        mission_id=assignment.mission_id,
+        drone=assignment.drone,
+        kind=Event.Kind.DECISION,
+        message=f"steps sent to {assignment.drone.drone_id}",
+        data={"decision": "dispatched", "assignment": str(assignment.pk)},
+    )
+
+
+def _dispatched(assignment: Assignment) -> bool:
+    return Event.objects.filter(
+        mission_id=assignment.mission_id,
+        data__decision="dispatched",
+        data__assignment=str(assignment.pk),
+    ).exists()
 
 
 def _raising_step(mission: Mission, alarm: Event | None) -> set[int]:

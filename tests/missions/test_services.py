@@ -313,3 +313,30 @@ def test_a_drone_the_mission_already_replaced_is_not_brought_back(world, outbox)
     assert again is None
     mission.refresh_from_db()
     assert mission.status == MissionStatus.PAUSED
+
+
+def test_a_replacement_rerun_after_a_worker_died_before_sending_sends_it_once(
+    world, outbox, django_capture_on_commit_callbacks
+):
+    first = online_drone(world.org, "ACME_A")
+    online_drone(world.org, "ACME_B", north=50)
+    mission = create_mission(organisation=world.org, name="x", steps=_steps(4))
+    assignment = start_mission(mission, drone=first).assignment
+    _complete(first, mission, assignment, [0, 1, 2])
+    alarm = _alarm_event(mission, first)
+    kwargs = {
+        "mission_id": str(mission.pk),
+        "assignment_id": str(assignment.pk),
+        "alarm_event_id": alarm.pk,
+    }
+    # The first run commits but its worker dies before the after-commit send.
+    replacing = replacement.replace_drone(**kwargs)
+    assert outbox.items() == []
+
+    with django_capture_on_commit_callbacks(execute=True):
+        assert replacement.replace_drone(**kwargs) == replacing
+    with django_capture_on_commit_callbacks(execute=True):
+        assert replacement.replace_drone(**kwargs) == replacing
+    starts = [i for i in outbox.items() if i["payload"].get("action") == "start"]
+    assert [s["topic"] for s in starts] == ["ACME_B/mission/in"]
+    assert starts[0]["payload"]["assignment_id"] == str(replacing.pk)
