@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from concurrent.futures import ThreadPoolExecutor
 from urllib.parse import parse_qs, urlparse
 
@@ -291,3 +292,32 @@ def test_the_upload_zone_explains_files_it_refuses(world_tx, page, tmp_path, log
         expect(page.locator("#uploads li.failed")).to_have_count(2)
     finally:
         server.stop()
+
+
+def test_the_address_carries_the_view_so_a_shared_link_opens_the_same_moment(
+    world_tx, worker, live_logs, page, tmp_path
+):
+    client = client_for(world_tx.operator)
+    created = upload(client, write_dfi(tmp_path / "moment.dfi")).json()
+    wait_until_processed(client, created["id"])
+    login(page, live_logs, "viewer")
+    page.goto(
+        f"{live_logs.url}/logs/{created['id']}/#t=0.0017&sel=0.001~0.004&plot=navdata%2FRotation%2Fyaw"
+    )
+    viewer = page.locator("[data-log-viewer]")
+    expect(viewer).to_have_attribute("data-loaded", "true", timeout=15_000)
+    expect(viewer.locator('[data-part="clock"]')).to_have_text("t = 00:00.002")
+    expect(viewer.locator('[data-part="selection-text"]')).to_contain_text("(0.003 s)")
+    expect(viewer.locator('[data-part="lines"] tbody tr')).to_have_count(1)
+    expect(viewer.locator('[data-part="lines"] tbody tr')).to_have_attribute(
+        "data-path", "navdata/Rotation/yaw"
+    )
+    expect(viewer.locator('[data-path="navdata/Rotation/yaw"] .v')).to_have_attribute(
+        "data-value", "91.5"
+    )
+
+    viewer.locator('[data-action="clear-selection"]').click()
+    share = page.locator("#share-url")
+    expect(share).to_have_value(
+        re.compile(r"/logs/[0-9a-f-]+/#t=0\.0017&plot=navdata%2FRotation%2Fyaw$")
+    )

@@ -1,11 +1,20 @@
 // Entry point of a log's page and of the comparison page.
 
 import { send } from "./api.js";
+import { applyHash, followView } from "./permalink.js";
 import { LogViewer } from "./viewer.js";
 
 const viewers = [...document.querySelectorAll("[data-log-viewer]")].map((root) => new LogViewer(root));
 window.logViewers = viewers;
 for (const viewer of viewers) viewer.start();
+
+// One log's page: the address (and the share box) carries the view, to open it again.
+if (viewers.length === 1) {
+  viewers[0].addEventListener("loaded", () => {
+    applyHash(viewers[0]);
+    followView(viewers[0], document.getElementById("share-url"));
+  });
+}
 
 // Comparison: a cursor moved in one log moves the others to the same time since start.
 const link = document.getElementById("link-cursors");

@@ -215,6 +215,14 @@ export class LogViewer extends EventTarget {
       lines = paths.map((p, i) => old.get(p) || this.line(p, lines.length + i));
       renderRows();
       chart.setLines(lines.map((l) => ({ ...l, label: l.path })));
+      this.dispatchEvent(new Event("plotchange"));
+    };
+    this.plotPaths = () => lines.map((l) => l.path);
+    /** Plot exactly these quantities (unknown or unplottable paths are skipped). */
+    this.setPlotPaths = (paths) => {
+      const wanted = new Set(paths);
+      for (const box of picker.querySelectorAll("input")) box.checked = wanted.has(box.value);
+      setPaths(paths.filter((p) => PLOTTABLE.has(this.units.get(p)?.kind)));
     };
     picker.addEventListener("change", () => {
       setPaths([...picker.querySelectorAll("input:checked")].map((box) => box.value));
