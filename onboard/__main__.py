@@ -65,7 +65,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--broker", required=True, help="mqtt://user:pass@host:port")
     p.add_argument(
-        "--fc", default="uavtalk", choices=["uavtalk"], help="flight-controller protocol"
+        "--fc",
+        default="uavtalk",
+        choices=["uavtalk", "mavlink"],
+        help="flight-controller protocol: uavtalk (dRonin) or mavlink (PX4, ArduPilot)",
+    )
+    p.add_argument(
+        "--native-missions",
+        action="store_true",
+        help="mavlink: fly mission steps as native MAVLink missions (for weak links)",
     )
     p.add_argument(
         "--arming",
@@ -133,6 +141,12 @@ def build_flight_controller(kind: str, link: str, arming: Any, time_scale: float
         if isinstance(arming, UAVTalkReceiverSwitch):
             arming.attach(fc)
         return fc
+    if kind == "mavlink":
+        from .fc.mavlink import MavlinkFlightController
+
+        if arming is not None:
+            raise ValueError("--arming is for UAVTalk boards; MAVLink arms by COMMAND_LONG")
+        return MavlinkFlightController(link)  # timeouts are wall-clock: no time scale
     raise ValueError(f"unknown flight controller protocol {kind!r}")
 
 
@@ -178,6 +192,10 @@ def main(argv: list[str] | None = None) -> int:
         arming = build_arming(args.arming)
         fc = build_flight_controller(args.fc, args.link, arming, args.time_scale)
         agent = Agent(config, fc)
+        if args.native_missions:
+            from .mavlink_mission import install_native_missions
+
+            install_native_missions(agent)
     except (ArmingError, SensorConfigError, ValueError, OSError) as exc:
         print(f"onboard: {exc}", file=sys.stderr)
         return 2
