@@ -20,6 +20,10 @@ files, flight logs, pictures, arming line, process logs). Broker credentials com
 - neither: every agent uses `--broker-url` as given.
 
 `--broker-url` host and port, when given, override the ones in the credentials.
+
+`--fc-mix uavtalk,mavlink` (or the FC_MIX environment variable, as in
+`make run DRONES=4 FC_MIX=uavtalk,mavlink`) gives the drones flight controllers of those
+protocols in turn: UAVTalk simulators with an arming line, MAVLink ones on TCP.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ from .navigation import ned_to_lla
 PACKAGE_DIR = Path(__file__).resolve().parent
 REPO_ROOT = PACKAGE_DIR.parent
 GEAR_EXAMPLE = PACKAGE_DIR / "gear_example"
+FC_PROTOCOLS = ("uavtalk", "mavlink")
 
 
 class LaunchError(RuntimeError):
@@ -159,6 +164,7 @@ class Drone:
     sim: object = None  # firmware.sim.SimulatorProcess
     agent: subprocess.Popen | None = None
     restarts: int = 0
+    fc: str = "uavtalk"
 
     @property
     def arming_line(self) -> Path:
@@ -186,8 +192,9 @@ class Fleet:
         drone.sim = start_simulator(
             home=drone.home,
             time_scale=self.time_scale,
-            arming_line=drone.arming_line,
+            arming_line=drone.arming_line if drone.fc == "uavtalk" else None,
             log_file=drone.folder / "sim.log",
+            fc=drone.fc,
         )
 
     def _start_agent(self, drone: Drone) -> None:
@@ -201,8 +208,9 @@ class Fleet:
             drone.sim.url,  # type: ignore[attr-defined]
             "--broker",
             drone.broker_url,
-            "--arming",
-            f"sim-line:{drone.arming_line}",
+            "--fc",
+            drone.fc,
+            *(["--arming", f"sim-line:{drone.arming_line}"] if drone.fc == "uavtalk" else []),
             "--gear-dir",
             str(drone.folder / "gear"),
             "--log-dir",
@@ -290,6 +298,7 @@ def plan_fleet(
     time_scale: float = 1.0,
     gear_template: Path = GEAR_EXAMPLE,
     agent_args: list[str] | None = None,
+    fc_mix: tuple[str, ...] = ("uavtalk",),
 ) -> Fleet:
     """Decide ids, credentials, homes and folders (no process is started)."""
     if count < 1:
@@ -306,13 +315,26 @@ def plan_fleet(
             chosen = [Credentials(drone_id, None, None) for drone_id in ids]
         else:
             raise LaunchError("give --credentials-file, --provision or --broker-url")
+    unknown = [fc for fc in fc_mix if fc not in FC_PROTOCOLS]
+    if not fc_mix or unknown:
+        raise LaunchError(f"the protocol mix takes {' and '.join(FC_PROTOCOLS)}, not {unknown}")
     drones = []
-    for creds, position in zip(chosen, spread(home, count, spacing), strict=True):
+    for number, (creds, position) in enumerate(
+        zip(chosen, spread(home, count, spacing), strict=True)
+    ):
         folder = workdir / creds.drone_id
         gear = folder / "gear"
         if not gear.exists():
             shutil.copytree(gear_template, gear)
-        drones.append(Drone(creds.drone_id, folder, position, broker_url_for(creds, broker_url)))
+        drones.append(
+            Drone(
+                creds.drone_id,
+                folder,
+                position,
+                broker_url_for(creds, broker_url),
+                fc=fc_mix[number % len(fc_mix)],
+            )
+        )
     return Fleet(drones, time_scale, list(agent_args or []))
 
 
@@ -342,6 +364,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--time-scale", type=float, default=1.0)
     p.add_argument("--workdir", type=Path, default=Path(".data/fleet"))
     p.add_argument("--gear-template", type=Path, default=GEAR_EXAMPLE)
+    p.add_argument(
+        "--fc-mix",
+        default=os.environ.get("FC_MIX") or "uavtalk",
+        help="flight-controller protocols given in turn, e.g. uavtalk,mavlink (env FC_MIX)",
+    )
     p.add_argument("agent_args", nargs="*", help="extra agent flags, after --")
     args = p.parse_args(argv)
     try:
@@ -360,6 +387,7 @@ def main(argv: list[str] | None = None) -> int:
             time_scale=args.time_scale,
             gear_template=args.gear_template,
             agent_args=args.agent_args,
+            fc_mix=tuple(p.strip() for p in args.fc_mix.split(",") if p.strip()),
         )
     except (LaunchError, OSError, ValueError) as exc:
         print(f"onboard.launcher: {exc}", file=sys.stderr)
@@ -375,7 +403,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     for drone in fleet.drones:
         print(
-            f"drone: {drone.drone_id} link={drone.sim.url} "  # type: ignore[attr-defined]
+            f"drone: {drone.drone_id} fc={drone.fc} link={drone.sim.url} "  # type: ignore[attr-defined]
             f"agent_pid={drone.agent.pid if drone.agent else None} folder={drone.folder}",
             flush=True,
         )
