@@ -59,7 +59,8 @@ export function watchProgress(wsPath, apiUrl, onEvent) {
     } catch (err) {
       if (err.status === 404) deliver({ status: "deleted", error: "This log was deleted." });
     }
-    if (!done) timer = setTimeout(poll, 1500);
+    // Keep polling only while the socket is not delivering.
+    if (!done && (!socket || socket.readyState !== WebSocket.OPEN)) timer = setTimeout(poll, 1500);
   };
   const stop = () => {
     done = true;
