@@ -181,6 +181,11 @@ def test_the_multi_plot_applies_scale_offset_and_colour_per_line(
     page.wait_for_function(f"{plotted}.length === 2 && {plotted}[1][2] === 93")
     assert viewer.locator('[data-part="lines"] tbody tr').count() == 2
 
+    # A click on a value in the tree plots it too.
+    viewer.locator('[data-part="tree"] [data-path="navdata/Motor powers/motor 1"]').click()
+    expect(viewer.locator('[data-part="lines"] tbody tr')).to_have_count(3)
+    page.wait_for_function(f"{plotted}.length === 3 && {plotted}[2][0] === 100")
+
 
 def test_the_3d_view_turns_the_drone_yaw_then_pitch_then_roll_like_the_core(
     world_tx, live_logs, page

@@ -15,6 +15,14 @@ export class ValuesTree {
     this.load = throttle((t) => this.fetch(t), 120);
     viewer.state.on("cursor", ({ t }) => this.load(t));
     filter.addEventListener("input", () => this.applyFilter());
+    // A click on a value adds its quantity to the multi-plot (or takes it out again).
+    el.addEventListener("click", (event) => {
+      const row = event.target.closest(".row");
+      if (!row || !viewer.setPlotPaths) return;
+      const paths = viewer.plotPaths();
+      const path = row.dataset.path;
+      viewer.setPlotPaths(paths.includes(path) ? paths.filter((p) => p !== path) : [...paths, path]);
+    });
     el.addEventListener("toggle", (event) => {
       const path = event.target.dataset?.group;
       if (path === undefined) return;
@@ -56,7 +64,7 @@ export class ValuesTree {
             const label = entry.label ? ` (${escapeHtml(entry.label)})` : "";
             value = `<span class="v" data-value="${escapeHtml(entry.value)}">${escapeHtml(shown)}${label}${unit ? `<span class="u">${escapeHtml(unit)}</span>` : ""}</span>`;
             const clock = units.get(path)?.time_source === "board" ? "on-board clock" : "recorder clock";
-            title = `${path} — sample at ${(entry.t - this.viewer.state.start).toFixed(3)} s (${clock})`;
+            title = `${path} — sample at ${(entry.t - this.viewer.state.start).toFixed(3)} s (${clock}); click to plot`;
           }
           html.push(`<div class="row" data-path="${escapeHtml(path)}" title="${escapeHtml(title)}"><span class="k">${escapeHtml(name)}</span>${value}</div>`);
         }
