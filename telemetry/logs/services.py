@@ -24,10 +24,9 @@ from django.db import transaction
 from django.utils import timezone
 
 from telemetry.logs.analysis import trajectory_of, values_at, values_tree
-from telemetry.logs.importers import import_log
 from telemetry.logs.importers.base import Limits, LogFormatError
 from telemetry.logs.models import FlightLog, LogStatus
-from telemetry.logs.store import LogStore, write_store
+from telemetry.logs.store import LogStore, import_to_store
 from telemetry.logs.uploads import StoredUpload
 
 logger = logging.getLogger(__name__)
@@ -128,8 +127,9 @@ def process_log(log_id: str) -> str:
         return log.status if log else "deleted"
     publish(log, {"type": "progress", "progress": 0.0, "status": LogStatus.PROCESSING})
     try:
-        data = import_log(log.upload_path, limits=limits(), progress=_progress_reporter(log))
-        index = write_store(data, log.store_path)
+        index = import_to_store(
+            log.upload_path, log.store_path, limits=limits(), progress=_progress_reporter(log)
+        ).index
     except LogFormatError as exc:
         fail(log, str(exc))
         return LogStatus.FAILED
@@ -147,7 +147,7 @@ def process_log(log_id: str) -> str:
         log,
         status=LogStatus.READY,
         progress=1.0,
-        format=data.format,
+        format=index["format"],
         series_count=len(index["series"]),
         start_s=index["start"],
         end_s=index["end"],
@@ -264,30 +264,19 @@ def _degrees(values: np.ndarray) -> np.ndarray:
 
 
 MAX_TRACKS = 8
-_LAT = {"lat", "latitude"}
-_LON = {"lon", "lng", "longitude"}
 
 
 def _gps_pairs(store: LogStore) -> list[tuple[str, str, str]]:
-    """(name, lat path, lon path) of every group recording a position: the special GPS
-    first, then, e.g., each drone of a mission log."""
+    """(name, lat path, lon path) of every GPS track the core found: the log's main one
+    first, then one per layer (each drone of a mission log)."""
+    candidates = [store.special.get("gps") or []]
+    candidates += [
+        found.get("gps") or [] for found in store.index.get("special_by_layer", {}).values()
+    ]
     pairs: list[tuple[str, str, str]] = []
-    special = store.special.get("gps") or []
-    if len(special) >= 2:
-        pairs.append((special[0].rsplit("/", 1)[0], special[0], special[1]))
-    groups: dict[str, dict[str, str]] = {}
-    for path, info in store.index["series"].items():
-        if info["kind"] not in ("int", "double") or "/" not in path:
-            continue
-        group, name = path.rsplit("/", 1)
-        key = name.lower()
-        if key in _LAT:
-            groups.setdefault(group, {}).setdefault("lat", path)
-        elif key in _LON:
-            groups.setdefault(group, {}).setdefault("lon", path)
-    for group, found in groups.items():
-        if "lat" in found and "lon" in found and found["lat"] not in {p[1] for p in pairs}:
-            pairs.append((group, found["lat"], found["lon"]))
+    for gps in candidates:
+        if len(gps) >= 2 and gps[0] not in {p[1] for p in pairs}:
+            pairs.append((gps[0].rsplit("/", 1)[0], gps[0], gps[1]))
     return pairs[:MAX_TRACKS]
 
 
