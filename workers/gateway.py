@@ -88,10 +88,13 @@ class Gateway:
         )
         self.connected = threading.Event()
         self.stopping = threading.Event()
+        # With a stable client id the session is persistent: while this gateway restarts,
+        # the broker queues the drones' QoS 1 messages (mission progress, alarms, replies)
+        # for it instead of dropping them. A throw-away id gets a clean session.
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2,
             client_id=client_id or f"gateway-{socket.gethostname()}-{os.getpid()}",
-            clean_session=True,
+            clean_session=client_id is None,
         )
         if url.username:
             self.client.username_pw_set(url.username, url.password)

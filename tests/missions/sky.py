@@ -205,7 +205,9 @@ class Sky:
         from workers.counters import Counters
         from workers.gateway import Gateway
 
-        tag = uuid.uuid4().hex[:8]
+        # The same identity across restarts, as `manage.py gateway` has: the broker keeps
+        # its session and queues what arrives while it is down.
+        self._gateway_tag = tag = getattr(self, "_gateway_tag", None) or uuid.uuid4().hex[:8]
         self.gateway = Gateway(
             self.broker.url_for("ground"),  # type: ignore[union-attr]
             client_id=f"gw-h9-{tag}",

@@ -342,3 +342,6 @@ def test_a_gateway_restart_mid_mission_loses_no_progress(world_tx, sky):
     assert mission.status == MissionStatus.COMPLETED
     assert set(mission.steps.values_list("status", flat=True)) == {StepStatus.COMPLETED}
     assert set(mission.steps.values_list("drone__drone_id", flat=True)) == {"ACME_G1"}
+    # Every step's own report arrived (queued by the broker for the gateway's persistent
+    # session), not just the final "mission completed" that implies them.
+    assert not mission.steps.filter(duration_s__isnull=True).exists()

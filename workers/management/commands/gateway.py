@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import signal
+import socket
 import threading
 
 from django.conf import settings
@@ -18,13 +20,24 @@ class Command(BaseCommand):
         parser.add_argument(
             "--broker", default=settings.MQTT_URL, help="mqtt://user:pass@host:port"
         )
-        parser.add_argument("--client-id", default=None)
+        parser.add_argument(
+            "--client-id",
+            default=None,
+            help="stable MQTT client id (default gateway-<host>-<instance>); its session is "
+            "persistent, so messages that arrive during a restart are delivered afterwards",
+        )
+        parser.add_argument(
+            "--instance",
+            default=os.environ.get("GATEWAY_INSTANCE", "0"),
+            help="distinguishes several gateways on one host (each its own session)",
+        )
 
     def handle(self, *args, **options) -> None:  # type: ignore[no-untyped-def]
         stopping = threading.Event()
         for signum in (signal.SIGTERM, signal.SIGINT):
             signal.signal(signum, lambda *_: stopping.set())
-        gateway = Gateway(options["broker"], client_id=options["client_id"])
+        client_id = options["client_id"] or f"gateway-{socket.gethostname()}-{options['instance']}"
+        gateway = Gateway(options["broker"], client_id=client_id)
         gateway.start()
         self.stdout.write(f"gateway: {gateway.host}:{gateway.port}", ending="\n")
         self.stdout.flush()
