@@ -22,6 +22,7 @@ from onboard.protocol import GearAnnouncement, GearReply, Heartbeat
 
 from . import events, link
 from .models import ConnectionEvent, Drone
+from .signals import drones_came_online
 
 log = logging.getLogger(__name__)
 
@@ -147,6 +148,11 @@ def handle_heartbeats(batch: list[tuple[str, Heartbeat]]) -> list[str | None]:
     ]
     if came_online:
         ConnectionEvent.objects.bulk_create(came_online)
+        drones_came_online.send(
+            sender=ConnectionEvent,
+            organisation_ids={org for _d, _pk, org, was in rows if not was},
+            drone_ids=[drone_id for drone_id, _pk, _org, was in rows if not was],
+        )
     for drone_id, _pk, organisation_id, was_online in rows:
         if _throttle.allow(drone_id, force=not was_online):
             events.publish_nowait(

@@ -5,3 +5,10 @@ class MissionsConfig(AppConfig):
     name = "missions"
     verbose_name = "Missions"
     default_auto_field = "django.db.models.BigAutoField"
+
+    def ready(self) -> None:
+        from fleet.signals import drones_came_online
+
+        from .signals import resume_when_drones_come_online
+
+        drones_came_online.connect(resume_when_drones_come_online, dispatch_uid="missions-resume")

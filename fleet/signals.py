@@ -1,0 +1,7 @@
+"""Fleet happenings other apps react to, without the fleet app importing them."""
+
+from django.dispatch import Signal
+
+# Sent by the Drone Identifier after drones that were offline sent a heartbeat.
+# Arguments: organisation_ids (set[int]), drone_ids (list[str]).
+drones_came_online = Signal()

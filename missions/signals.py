@@ -1,0 +1,16 @@
+"""React at once when a drone comes online: a paused mission may take it (no beat wait)."""
+
+from __future__ import annotations
+
+from django.db import transaction
+
+from .models import Mission, MissionStatus
+
+
+def resume_when_drones_come_online(sender, organisation_ids, **kwargs) -> None:  # type: ignore[no-untyped-def]
+    if Mission.objects.filter(
+        status=MissionStatus.PAUSED, organisation_id__in=organisation_ids
+    ).exists():
+        from .tasks import resume_paused
+
+        transaction.on_commit(resume_paused.delay)
