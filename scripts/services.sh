@@ -156,6 +156,8 @@ log_type error
 log_type warning
 log_type notice
 max_queued_messages 100000
+# Sessions of clients gone for good (a retired gateway instance) stop queueing.
+persistent_client_expiration 1d
 $([ "$(id -u)" = 0 ] && echo "user root")
 CONF
   if port_open "$MQTT_PORT"; then log "Mosquitto already up on $MQTT_PORT"; return 0; fi

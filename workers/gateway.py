@@ -62,6 +62,7 @@ class Gateway:
         batch_dispatch: dict[str, str] | None = None,
         client_id: str | None = None,
         counters: Counters | None = None,
+        persistent: bool = False,
     ) -> None:
         url = urlsplit(broker_url)
         self.host = url.hostname or "127.0.0.1"
@@ -88,13 +89,16 @@ class Gateway:
         )
         self.connected = threading.Event()
         self.stopping = threading.Event()
-        # With a stable client id the session is persistent: while this gateway restarts,
-        # the broker queues the drones' QoS 1 messages (mission progress, alarms, replies)
-        # for it instead of dropping them. A throw-away id gets a clean session.
+        # A persistent session (with a stable client id) makes the broker queue the
+        # drones' QoS 1 messages (mission progress, alarms, replies) while this gateway
+        # restarts, instead of dropping them. Mosquitto expires abandoned sessions
+        # (`persistent_client_expiration`), so a retired instance does not keep its share.
+        if persistent and not client_id:
+            raise ValueError("a persistent gateway session needs a stable client_id")
         self.client = mqtt.Client(
             mqtt.CallbackAPIVersion.VERSION2,
             client_id=client_id or f"gateway-{socket.gethostname()}-{os.getpid()}",
-            clean_session=client_id is None,
+            clean_session=not persistent,
         )
         if url.username:
             self.client.username_pw_set(url.username, url.password)

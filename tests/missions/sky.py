@@ -211,6 +211,7 @@ class Sky:
         self.gateway = Gateway(
             self.broker.url_for("ground"),  # type: ignore[union-attr]
             client_id=f"gw-h9-{tag}",
+            persistent=True,
             counters=Counters(f"gateway-h9-{tag}", flush_every=1e9),
         )
         self.gateway.start()

@@ -37,7 +37,7 @@ class Command(BaseCommand):
         for signum in (signal.SIGTERM, signal.SIGINT):
             signal.signal(signum, lambda *_: stopping.set())
         client_id = options["client_id"] or f"gateway-{socket.gethostname()}-{options['instance']}"
-        gateway = Gateway(options["broker"], client_id=client_id)
+        gateway = Gateway(options["broker"], client_id=client_id, persistent=True)
         gateway.start()
         self.stdout.write(f"gateway: {gateway.host}:{gateway.port}", ending="\n")
         self.stdout.flush()
