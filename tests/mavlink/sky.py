@@ -8,6 +8,7 @@ import os
 import shutil
 import subprocess
 import sys
+import uuid
 from typing import Any
 
 from firmware.sim import start_simulator
@@ -17,6 +18,22 @@ from tests.missions.sky import HOME_ALT_MSL, ROOT, SimDrone, Sky
 
 
 class MixedSky(Sky):
+    def start_gateway(self) -> None:
+        """A gateway with a clean session: these experiments never restart it, and a
+        persistent session left by an earlier test's gateway on the module's broker keeps
+        its share of the shared subscription (its messages would be lost to this one)."""
+        from workers.counters import Counters
+        from workers.gateway import Gateway
+
+        tag = uuid.uuid4().hex[:8]
+        self.gateway = Gateway(
+            self.broker.url_for("ground"),
+            client_id=f"gw-h12-{tag}",
+            counters=Counters(f"gateway-h12-{tag}", flush_every=1e9),
+        )
+        self.gateway.start()
+        assert self.gateway.wait_connected(10), "the gateway did not connect"
+
     def add_drone(  # type: ignore[override]
         self,
         drone_id: str,
