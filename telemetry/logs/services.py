@@ -163,18 +163,33 @@ def process_log(log_id: str) -> str:
 
 
 class CachedStore(LogStore):
-    """A store whose memory maps stay open: a log with a thousand series would otherwise
-    re-open a thousand files for every values-at-time request of a replay."""
+    """A store that keeps its small arrays in memory: a log with a thousand series would
+    otherwise re-open a thousand files for every values-at-time request of a replay.
+
+    Copies, not memory maps: every map holds a file descriptor, and thousands of them push
+    a process's descriptors past what select() can watch. Large arrays stay memory-mapped
+    per request, and the copies of one store stay within CACHE_BYTES."""
+
+    ARRAY_BYTES = 4 * 1024 * 1024
+    CACHE_BYTES = 96 * 1024 * 1024
 
     def __init__(self, directory) -> None:  # type: ignore[no-untyped-def]
         super().__init__(directory)
-        self._maps: dict[str, np.ndarray] = {}
+        self._arrays: dict[str, np.ndarray] = {}
+        self._bytes = 0
 
     def _load(self, name: str) -> np.ndarray:
-        mapped = self._maps.get(name)
-        if mapped is None:
-            mapped = self._maps[name] = super()._load(name)
-        return mapped
+        cached = self._arrays.get(name)
+        if cached is not None:
+            return cached
+        mapped = super()._load(name)
+        if mapped.nbytes > self.ARRAY_BYTES or self._bytes + mapped.nbytes > self.CACHE_BYTES:
+            return mapped
+        copy = np.array(mapped)  # the map (and its descriptor) goes with `mapped`
+        copy.setflags(write=False)
+        self._arrays[name] = copy
+        self._bytes += copy.nbytes
+        return copy
 
 
 _STORES: OrderedDict[tuple[str, int], CachedStore] = OrderedDict()

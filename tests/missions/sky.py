@@ -205,9 +205,10 @@ class Sky:
         from workers.counters import Counters
         from workers.gateway import Gateway
 
-        # The same identity across restarts, as `manage.py gateway` has: the broker keeps
-        # its session and queues what arrives while it is down.
-        self._gateway_tag = tag = getattr(self, "_gateway_tag", None) or uuid.uuid4().hex[:8]
+        # One identity per broker, as `manage.py gateway` has one per host: the broker
+        # keeps its session and queues what arrives while it is down. Per broker, not per
+        # test, or a finished test's session would keep its share of the subscriptions.
+        tag = f"{self.broker.port}"  # type: ignore[union-attr]
         self.gateway = Gateway(
             self.broker.url_for("ground"),  # type: ignore[union-attr]
             client_id=f"gw-h9-{tag}",
