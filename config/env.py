@@ -52,7 +52,11 @@ def database_from_url(url: str) -> dict:
         "PORT": str(parts.port or 5432),
         # Under ASGI every request would otherwise open a new connection (~20 ms under
         # load); a pool per process keeps them. Django requires CONN_MAX_AGE 0 with a pool.
-        "OPTIONS": {"pool": {"min_size": 1, "max_size": 16, "timeout": 10}, **options},
+        "OPTIONS": (
+            {"pool": {"min_size": 1, "max_size": 16, "timeout": 10}, **options}
+            if env_bool("DB_POOL", True)
+            else options
+        ),
         "CONN_MAX_AGE": 0,
     }
 

@@ -43,6 +43,19 @@ def ned_to_lla(north: float, east: float, down: float, home: Home) -> tuple[floa
     return lat, lon, home_alt - down
 
 
+def euler_to_quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
+    """(w, x, y, z) from roll, pitch, yaw in degrees (aerospace Z-Y-X order)."""
+    cr, sr = math.cos(math.radians(roll) / 2), math.sin(math.radians(roll) / 2)
+    cp, sp = math.cos(math.radians(pitch) / 2), math.sin(math.radians(pitch) / 2)
+    cy, sy = math.cos(math.radians(yaw) / 2), math.sin(math.radians(yaw) / 2)
+    return (
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    )
+
+
 @dataclass(frozen=True)
 class Target:
     """A navigation target: what to do and where (NED metres from home)."""

@@ -9,6 +9,7 @@ if grep -q down <<<"$status"; then started=yes; fi
 scripts/services.sh start test || exit 1
 trap '[ -n "$started" ] && scripts/services.sh stop test' EXIT
 export DJANGO_SETTINGS_MODULE=config.settings.test
+export DB_POOL=true  # measure the production database configuration
 status=0
 for module in bench/bench_*.py; do
   name=$(basename "$module" .py)

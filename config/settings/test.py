@@ -5,6 +5,10 @@ import os
 from config.env import BASE_DIR, read_data_env
 
 read_data_env(BASE_DIR / ".data" / "test" / "env")
+# The suite starts and stops many threads that touch the ORM; with a pool each finished
+# thread would keep its connection checked out. Benchmarks turn the pool back on
+# (scripts/bench.sh) to measure what production runs.
+os.environ.setdefault("DB_POOL", "false")
 os.environ.setdefault("MEDIA_ROOT", str(BASE_DIR / ".data" / "test" / "media"))
 
 from .base import *  # noqa: E402,F403

@@ -12,7 +12,9 @@ from dataclasses import dataclass, field
 
 from firmware.sim.receiver import ARMED, ARMING, DISARMED, ReceiverArming
 
-EARTH_RADIUS = 6_378_137.0  # m, the sphere dRonin linearises about home (UAVTALK.md)
+# One LLA↔NED for the whole project: the sphere dRonin linearises about home (UAVTALK.md).
+from onboard.navigation import euler_to_quaternion, lla_to_ned, ned_to_lla
+
 AUTONOMOUS_MODES = ("PositionHold", "PathPlanner", "ReturnToHome", "TabletControl")
 # 4S LiPo open-circuit voltage per cell against charge left (fraction), coarse but monotonic.
 CELL_CURVE = ((0.0, 3.30), (0.05, 3.50), (0.2, 3.68), (0.5, 3.80), (0.8, 3.98), (1.0, 4.20))
@@ -240,35 +242,6 @@ def _approach(value: float, goal: float, max_change: float) -> float:
     if value < goal:
         return min(goal, value + max_change)
     return max(goal, value - max_change)
-
-
-def lla_to_ned(lat: float, lon: float, alt: float, home: tuple[float, float, float]):
-    home_lat, home_lon, home_alt = home
-    radius = home_alt + EARTH_RADIUS
-    north = radius * math.radians(lat - home_lat)
-    east = math.cos(math.radians(home_lat)) * radius * math.radians(lon - home_lon)
-    return north, east, home_alt - alt
-
-
-def ned_to_lla(north: float, east: float, down: float, home: tuple[float, float, float]):
-    home_lat, home_lon, home_alt = home
-    radius = home_alt + EARTH_RADIUS
-    lat = home_lat + math.degrees(north / radius)
-    lon = home_lon + math.degrees(east / (radius * math.cos(math.radians(home_lat))))
-    return lat, lon, home_alt - down
-
-
-def euler_to_quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
-    """(w, x, y, z) from roll, pitch, yaw in degrees (aerospace Z-Y-X order)."""
-    cr, sr = math.cos(math.radians(roll) / 2), math.sin(math.radians(roll) / 2)
-    cp, sp = math.cos(math.radians(pitch) / 2), math.sin(math.radians(pitch) / 2)
-    cy, sy = math.cos(math.radians(yaw) / 2), math.sin(math.radians(yaw) / 2)
-    return (
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    )
 
 
 __all__ = ["ARMED", "ARMING", "DISARMED", "Vehicle", "VehicleConfig", "euler_to_quaternion"]

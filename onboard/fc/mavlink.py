@@ -60,10 +60,10 @@ from onboard.fc.base import (
     VehicleState,
 )
 from onboard.links import LinkDown, LinkError, ReopeningLink
+from onboard.navigation import euler_to_quaternion, ned_to_lla
 
 log = logging.getLogger(__name__)
 
-EARTH_RADIUS = 6_378_137.0
 FORCE_MAGIC = 21196.0  # param2 of MAV_CMD_COMPONENT_ARM_DISARM that overrides checks
 GCS_HEARTBEAT_S = 1.0
 HEARTBEAT_TIMEOUT_S = 3.0  # ArduPilot's and PX4's GCS failsafes use 3-5 s
@@ -700,7 +700,7 @@ class MavlinkFlightController:
             changes.update(ned=(m.x, m.y, m.z), velocity_ned=(m.vx, m.vy, m.vz))
         elif kind == "ATTITUDE":
             roll, pitch, yaw = (math.degrees(v) for v in (m.roll, m.pitch, m.yaw))
-            w, x, y, z = _quaternion(roll, pitch, yaw)
+            w, x, y, z = euler_to_quaternion(roll, pitch, yaw)
             changes.update(roll=roll, pitch=pitch, yaw=yaw % 360.0, quaternion=(x, y, z, w))
         elif kind == "GPS_RAW_INT":
             changes.update(gps_fix=m.fix_type >= 3, satellites=int(m.satellites_visible))
@@ -732,7 +732,7 @@ class MavlinkFlightController:
             ]
         if kind == "ATTITUDE":
             roll, pitch, yaw = (math.degrees(v) for v in (m.roll, m.pitch, m.yaw))
-            w, x, y, z = _quaternion(roll, pitch, yaw)
+            w, x, y, z = euler_to_quaternion(roll, pitch, yaw)
             return [
                 (
                     "AttitudeActual",
@@ -1180,27 +1180,3 @@ def _param_id(msg: Any) -> str:
     if isinstance(value, bytes | bytearray):
         value = bytes(value).decode(errors="replace")
     return str(value).rstrip("\0")
-
-
-def ned_to_lla(
-    north: float, east: float, down: float, home: tuple[float, float, float]
-) -> tuple[float, float, float]:
-    """The platform's NED → WGS84 (the same sphere as onboard.navigation), alt MSL."""
-    home_lat, home_lon, home_alt = home
-    radius = home_alt + EARTH_RADIUS
-    lat = home_lat + math.degrees(north / radius)
-    lon = home_lon + math.degrees(east / (radius * math.cos(math.radians(home_lat))))
-    return lat, lon, home_alt - down
-
-
-def _quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
-    """(w, x, y, z) from roll, pitch, yaw in degrees (Z-Y-X)."""
-    cr, sr = math.cos(math.radians(roll) / 2), math.sin(math.radians(roll) / 2)
-    cp, sp = math.cos(math.radians(pitch) / 2), math.sin(math.radians(pitch) / 2)
-    cy, sy = math.cos(math.radians(yaw) / 2), math.sin(math.radians(yaw) / 2)
-    return (
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    )
