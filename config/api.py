@@ -8,6 +8,7 @@ from __future__ import annotations
 from django.core.exceptions import PermissionDenied
 from django.http import Http404
 from rest_framework import exceptions, serializers
+from rest_framework.pagination import LimitOffsetPagination
 from rest_framework.response import Response
 from rest_framework.views import exception_handler as drf_exception_handler
 
@@ -70,3 +71,11 @@ class StrictSerializer(serializers.Serializer):
 
 class StrictModelSerializer(StrictSerializer, serializers.ModelSerializer):
     pass
+
+
+class Pagination(LimitOffsetPagination):
+    """`?limit=&offset=`, with a cap: an unbounded limit would reach the database as an
+    out-of-range LIMIT."""
+
+    default_limit = 100
+    max_limit = 1000

@@ -80,3 +80,13 @@ def test_the_openapi_schema_and_docs_are_served(world):
     assert "/api/v1/drones/" in body["paths"]
     client.force_login(world.owner)
     assert client.get("/api/docs/").status_code == 200
+
+
+def test_an_absurd_page_size_is_capped_not_a_server_error(world):
+    from rest_framework.test import APIClient
+
+    client = APIClient()
+    client.force_authenticate(world.owner)
+    response = client.get("/api/v1/drones/", {"limit": "11682993727542969499648", "offset": "-5"})
+    assert response.status_code == 200
+    assert [d["drone_id"] for d in response.json()["results"]] == ["ACME_1"]

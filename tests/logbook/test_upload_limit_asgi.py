@@ -105,3 +105,21 @@ def test_uploads_within_the_limit_and_other_paths_pass_through(settings):
         UploadLimitMiddleware(inner), path="/api/v1/missions/", headers=[], chunks=[b"y" * 10**6]
     )
     assert status == 201 and len(inner.body) == 10**6
+
+
+def test_the_served_application_refuses_an_announced_oversized_upload_at_once(live_asgi, world_tx):
+    """Through uvicorn and config.asgi: 413 before any body byte is sent."""
+    import http.client
+    from urllib.parse import urlsplit
+
+    from django.conf import settings
+
+    url = urlsplit(live_asgi.url)
+    connection = http.client.HTTPConnection(url.hostname, url.port, timeout=10)
+    connection.putrequest("POST", "/api/v1/logs/")
+    connection.putheader("Content-Type", "multipart/form-data; boundary=x")
+    connection.putheader("Content-Length", str(settings.LOG_UPLOAD_MAX_BYTES * 2))
+    connection.endheaders()
+    response = connection.getresponse()
+    assert response.status == 413
+    connection.close()
