@@ -15,9 +15,10 @@ from tests.logs.dfi_builder import DESCRIPTION, write_dfi
 from tests.logs.test_mission_log import mission_log
 from tests.logs.test_rosbag import write_bag
 from tests.logs.test_tlog import write_tlog
+from tests.support.paths import REAL_ULOGS
 
 pytestmark = pytest.mark.e2e
-REAL_LOGS = Path("/work/shared/testdata/ulog")
+REAL_LOGS = REAL_ULOGS
 
 
 def client_for(user) -> Client:  # type: ignore[no-untyped-def]

@@ -7,8 +7,11 @@ from pyulog import ULog
 from telemetry.logs import LogFormatError, find_special, import_log
 from telemetry.logs.analysis import quaternion
 from telemetry.logs.synth import synthetic_ulog, write_ulog
+from tests.support.paths import REAL_ULOGS
 
-REAL_LOGS = sorted(Path("/work/shared/testdata/ulog").glob("*.ulg"))
+REAL_LOGS = sorted(REAL_ULOGS.glob("*.ulg"))
+# Both real logs must be found: an empty list would silently parametrise nothing.
+assert len(REAL_LOGS) == 2, f"expected the two PX4 logs in {REAL_ULOGS}"
 
 
 def _assert_equal_to_pyulog(path: Path) -> None:

@@ -1,4 +1,4 @@
-"""DFI recordings (seed 000, attachment 4; /work/shared/DFI_FORMAT.md): a ZIP archive with
+"""DFI recordings (seed 000, attachment 4; ../shared/DFI_FORMAT.md): a ZIP archive with
 description.xml and comma- or tab-separated value files, one per timeline layer."""
 
 from __future__ import annotations
