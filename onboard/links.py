@@ -46,7 +46,7 @@ class Link(Protocol):
 
 @dataclass(frozen=True)
 class LinkSpec:
-    kind: str  # "serial" or "tcp"
+    kind: str  # "serial", "tcp" or "udp"
     path: str = ""
     baud: int = DEFAULT_BAUD
     host: str = ""
@@ -75,7 +75,13 @@ def parse_link_url(url: str) -> LinkSpec:
         if not parts.hostname or not parts.port:
             raise LinkError(f"{url!r}: tcp link needs host and port, e.g. tcp://127.0.0.1:9000")
         return LinkSpec("tcp", host=parts.hostname, port=parts.port)
-    raise LinkError(f"{url!r}: unknown link; use serial:/dev/...?baud=N, /dev/..., or tcp://h:p")
+    if parts.scheme in ("udp", "udpin", "udpout"):
+        if not parts.port:
+            raise LinkError(f"{url!r}: udp link needs a port, e.g. udp://127.0.0.1:14550")
+        return LinkSpec("udp", host=parts.hostname or "0.0.0.0", port=parts.port)
+    raise LinkError(
+        f"{url!r}: unknown link; use serial:/dev/...?baud=N, /dev/..., tcp://h:p or udp://h:p"
+    )
 
 
 class SerialLink:
@@ -148,11 +154,67 @@ class TcpLink:
             self.sock.close()
 
 
+class UdpLink:
+    """`udp://HOST:PORT` listens there and answers whoever sent last (a GCS on 14550);
+    `udpout://HOST:PORT` (or `udp://HOST:PORT?connect`) sends to that address."""
+
+    def __init__(self, url: str) -> None:
+        parts = urlsplit(url)
+        if not parts.port:
+            raise LinkError(f"{url!r}: udp link needs a port, e.g. udp://127.0.0.1:14550")
+        host = parts.hostname or "0.0.0.0"
+        self.url = url
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.peer: tuple[str, int] | None = None
+        self.unsent = 0
+        connect = parts.scheme == "udpout" or "connect" in parse_qs(parts.query, True)
+        try:
+            if connect:
+                self.peer = (host, parts.port)
+                self.sock.bind(("0.0.0.0", 0))
+            else:
+                self.sock.bind((host, parts.port))
+        except OSError as exc:
+            self.sock.close()
+            raise LinkDown(f"{url}: {exc}") from exc
+        self.sock.setblocking(False)
+        self.address = self.sock.getsockname()
+
+    def read(self, max_bytes: int = 4096, timeout: float = 0.1) -> bytes:
+        try:
+            ready, _, _ = select.select([self.sock], [], [], timeout)
+            if not ready:
+                return b""
+            data, addr = self.sock.recvfrom(65535)
+        except (BlockingIOError, InterruptedError):
+            return b""
+        except OSError as exc:
+            raise LinkDown(f"{self.url}: {exc}") from exc
+        self.peer = addr
+        return data
+
+    def write(self, data: bytes) -> None:
+        if self.peer is None:
+            self.unsent += 1  # nobody has spoken yet: nowhere to answer
+            return
+        with contextlib.suppress(BlockingIOError):
+            try:
+                self.sock.sendto(data, self.peer)
+            except OSError as exc:
+                raise LinkDown(f"{self.url}: {exc}") from exc
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            self.sock.close()
+
+
 def open_link(url: str) -> Link:
     """Open the link a URL names; raise LinkError for a bad URL, LinkDown when it is absent."""
     spec = parse_link_url(url)
     if spec.kind == "tcp":
         return TcpLink(url, spec)
+    if spec.kind == "udp":
+        return UdpLink(url)
     return SerialLink(url, spec)
 
 

@@ -39,14 +39,12 @@ import contextlib
 import logging
 import math
 import queue
-import socket
 import threading
 import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
 
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -199,111 +197,9 @@ def _jsonable(value: Any) -> Any:
 # --- links -------------------------------------------------------------------------------
 
 
-class UdpLink:
-    """`udp://HOST:PORT` listens there and answers whoever sent last (a GCS on 14550);
-    `udpout://HOST:PORT` (or `udp://HOST:PORT?connect`) sends to that address."""
-
-    def __init__(self, url: str) -> None:
-        parts = urlsplit(url)
-        if not parts.port:
-            raise LinkError(f"{url!r}: udp link needs a port, e.g. udp://127.0.0.1:14550")
-        host = parts.hostname or "0.0.0.0"
-        self.url = url
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.peer: tuple[str, int] | None = None
-        self.unsent = 0
-        connect = parts.scheme == "udpout" or "connect" in parse_qs(parts.query, True)
-        try:
-            if connect:
-                self.peer = (host, parts.port)
-                self.sock.bind(("0.0.0.0", 0))
-            else:
-                self.sock.bind((host, parts.port))
-        except OSError as exc:
-            self.sock.close()
-            raise LinkDown(f"{url}: {exc}") from exc
-        self.sock.setblocking(False)
-        self.address = self.sock.getsockname()
-
-    def read(self, max_bytes: int = 4096, timeout: float = 0.1) -> bytes:
-        import select
-
-        try:
-            ready, _, _ = select.select([self.sock], [], [], timeout)
-            if not ready:
-                return b""
-            data, addr = self.sock.recvfrom(65535)
-        except (BlockingIOError, InterruptedError):
-            return b""
-        except OSError as exc:
-            raise LinkDown(f"{self.url}: {exc}") from exc
-        self.peer = addr
-        return data
-
-    def write(self, data: bytes) -> None:
-        if self.peer is None:
-            self.unsent += 1  # nobody has spoken yet: nowhere to answer
-            return
-        with contextlib.suppress(BlockingIOError):
-            try:
-                self.sock.sendto(data, self.peer)
-            except OSError as exc:
-                raise LinkDown(f"{self.url}: {exc}") from exc
-
-    def close(self) -> None:
-        with contextlib.suppress(OSError):
-            self.sock.close()
-
-
-class _UdpReopening:
-    """The ReopeningLink interface for UDP (a datagram socket never 'vanishes')."""
-
-    def __init__(self, url: str) -> None:
-        self.url = url
-        self.generation = 0
-        self._link: UdpLink | None = None
-        self._lock = threading.Lock()
-        self._closed = False
-
-    @property
-    def is_open(self) -> bool:
-        return self._link is not None
-
-    def _ensure(self) -> UdpLink:
-        with self._lock:
-            if self._closed:
-                raise LinkDown(f"{self.url}: closed")
-            if self._link is None:
-                self._link = UdpLink(self.url)
-                self.generation += 1
-            return self._link
-
-    def read(self, max_bytes: int = 4096, timeout: float = 0.1) -> bytes:
-        return self._ensure().read(max_bytes, timeout)
-
-    def write(self, data: bytes) -> None:
-        self._ensure().write(data)
-
-    def reopen(self) -> None:
-        with self._lock:
-            link, self._link = self._link, None
-        if link is not None:
-            link.close()
-
-    def close(self) -> None:
-        with self._lock:
-            self._closed = True
-            link, self._link = self._link, None
-        if link is not None:
-            link.close()
-
-
-def open_mavlink_link(url: str) -> Any:
-    """A reopening link for `serial:`/`tcp://` (onboard.links) or `udp://`/`udpout://`."""
-    scheme = urlsplit(url.strip()).scheme
-    if scheme in ("udp", "udpin", "udpout"):
-        return _UdpReopening(url.strip())
-    return ReopeningLink(url)
+def open_mavlink_link(url: str) -> ReopeningLink:
+    """A reopening link: `serial:`, a device path, `tcp://`, `udp://` or `udpout://`."""
+    return ReopeningLink(url.strip())
 
 
 # --- errors ------------------------------------------------------------------------------

@@ -73,14 +73,18 @@ def fc(sim, line):
     driver.stop()
 
 
-def test_link_urls_name_serial_ports_ptys_and_tcp():
+def test_link_urls_name_serial_ports_ptys_tcp_and_udp():
     assert parse_link_url("serial:/dev/ttyACM0?baud=57600").baud == 57600
     assert parse_link_url("serial:/dev/ttyACM0").path == "/dev/ttyACM0"
     assert parse_link_url("/dev/pts/5").path == "/dev/pts/5"
     tcp = parse_link_url("tcp://127.0.0.1:9000")
     assert (tcp.kind, tcp.host, tcp.port) == ("tcp", "127.0.0.1", 9000)
+    udp = parse_link_url("udp://127.0.0.1:14550")
+    assert (udp.kind, udp.port) == ("udp", 14550)
     with pytest.raises(LinkError):
-        parse_link_url("udp://x:1")
+        parse_link_url("udp://127.0.0.1")
+    with pytest.raises(LinkError):
+        parse_link_url("ftp://x:1")
     with pytest.raises(LinkError):
         parse_link_url("serial:/dev/ttyACM0?baud=fast")
 
