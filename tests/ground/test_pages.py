@@ -57,3 +57,15 @@ def test_the_drone_page_offers_every_command_to_operators_only(world):
     viewer.force_login(world.viewer)
     assert "data-command=" not in viewer.get("/drones/ACME_1/").content.decode()
     assert viewer.get("/drones/GLOBEX_1/").status_code == 404
+
+
+def test_the_drone_page_lists_announced_specs_and_sensors_readably(client, world):
+    world.drone.specs = {"TYPE": "HEXACOPTER", "BATTERY": {"CELL_COUNT": 4, "CAPACITY": 5500}}
+    world.drone.sensors = {"GAS": {"CO2": "<b>Sensirion</b> SCD30"}}
+    world.drone.save()
+    client.force_login(world.viewer)
+    page = client.get("/drones/ACME_1/").content.decode()
+    assert "<dt>Cell count</dt><dd>4</dd>" in page
+    assert "<dt>Type</dt><dd>HEXACOPTER</dd>" in page
+    # Announced by the drone, so escaped like any other input.
+    assert "&lt;b&gt;Sensirion&lt;/b&gt; SCD30" in page
