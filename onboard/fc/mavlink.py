@@ -53,11 +53,9 @@ from onboard.fc.base import (
     CommandTimeout,
     FlightControllerError,
     NotConnected,
-    ObjectListener,
-    StateHolder,
-    VehicleState,
 )
-from onboard.links import LinkDown, LinkError, ReopeningLink
+from onboard.fc.driver import LinkDriver
+from onboard.links import LinkDown, ReopeningLink
 from onboard.navigation import euler_to_quaternion, ned_to_lla
 
 log = logging.getLogger(__name__)
@@ -238,7 +236,7 @@ class _MessageWaiter:
 MessageHandler = Callable[[Any], None]
 
 
-class MavlinkFlightController:
+class MavlinkFlightController(LinkDriver):
     """FlightController over MAVLink 2 (see onboard.fc.base for the interface)."""
 
     protocol = "mavlink"
@@ -258,7 +256,9 @@ class MavlinkFlightController:
         if goto_frame not in ("global", "local"):
             raise ValueError("goto_frame must be 'global' or 'local'")
         self.link_url = link_url
-        self.link = open_mavlink_link(link_url)
+        self._init_link_driver(open_mavlink_link(link_url), "mavlink")
+        # MAVLink streams more objects than a UAVTalk board: a deeper listener queue.
+        self._events = queue.Queue(maxsize=20_000)
         self.codec = MavlinkCodec(system_id, component_id)
         self.system_id = system_id
         self.heartbeat_timeout_s = heartbeat_timeout_s
@@ -269,67 +269,35 @@ class MavlinkFlightController:
         self.target_system = 0
         self.target_component = 0
         self.autopilot: int | None = None
-        self.stats = {
-            "link_drops": 0,
-            "link_lost": 0,
-            "connects": 0,
-            "statustext": 0,
-            "commands": 0,
-            "command_timeouts": 0,
-            "commands_refused": 0,
-            "foreign": 0,
-            "stream_fallbacks": 0,
-            "listener_errors": 0,
-            "handler_errors": 0,
-        }
-        self._holder = StateHolder(VehicleState(protocol="mavlink"))
+        self.stats.update(
+            {
+                "link_lost": 0,
+                "connects": 0,
+                "statustext": 0,
+                "commands": 0,
+                "command_timeouts": 0,
+                "commands_refused": 0,
+                "foreign": 0,
+                "stream_fallbacks": 0,
+                "handler_errors": 0,
+            }
+        )
         self._latest: dict[str, dict] = {}  # MAVLink message name → fields
         self._platform: dict[str, dict] = {}  # platform object name → merged fields
         self._values_lock = threading.Lock()
-        self._listeners: list[ObjectListener] = []
         self._handlers: list[MessageHandler] = []
         self._acks: list[_AckWaiter] = []
         self._msg_waiters: list[_MessageWaiter] = []
         self._waiters_lock = threading.Lock()
         self._command_lock = threading.Lock()
         self._statustexts: deque[tuple[float, int, str]] = deque(maxlen=20)
-        self._connected = threading.Event()
-        self._stop = threading.Event()
-        self._rebuild = threading.Event()
-        self._events: queue.Queue = queue.Queue(maxsize=20_000)
-        self._threads: list[threading.Thread] = []
-        self._start_lock = threading.Lock()
-        self._generation = 0
         self._last_vehicle_heartbeat = 0.0
         self._last_gcs_heartbeat = 0.0
         self._last_link_stats = 0.0
 
-    # --- lifecycle --------------------------------------------------------------------
-    def start(self) -> None:
-        with self._start_lock:
-            if self._threads:
-                return
-            self._stop.clear()
-            for target, name in ((self._io_loop, "mavlink-io"), (self._dispatch, "mavlink-out")):
-                thread = threading.Thread(target=target, name=name, daemon=True)
-                thread.start()
-                self._threads.append(thread)
-
-    def stop(self) -> None:
-        self._stop.set()
-        for thread in self._threads:
-            if thread is not threading.current_thread():
-                thread.join(timeout=3)
-        self._threads = []
-        self.link.close()
-        self._set_disconnected()
-
-    @property
-    def state(self) -> VehicleState:
-        return self._holder.get()
-
-    def add_listener(self, listener: ObjectListener) -> None:
-        self._listeners.append(listener)
+    # --- the protocol's part of the link skeleton (onboard/fc/driver.py) -----------------
+    LINK_NAME = "MAVLink"
+    THREAD_PREFIX = "mavlink"
 
     def add_message_handler(self, handler: MessageHandler) -> None:
         """Call handler(msg) on the I/O thread for every message from the vehicle
@@ -340,48 +308,19 @@ class MavlinkFlightController:
         with contextlib.suppress(ValueError):
             self._handlers.remove(handler)
 
-    def wait_connected(self, timeout: float) -> bool:
-        return self._connected.wait(timeout)
-
     @property
     def decoder_stats(self) -> dict:
         return self.codec.stats.as_dict()
 
-    # --- I/O thread -------------------------------------------------------------------
-    def _io_loop(self) -> None:
-        while not self._stop.is_set():
-            if self._rebuild.is_set():
-                self._rebuild.clear()
-                self.link.reopen()
-                self._set_disconnected()
+    def _on_new_line(self, now: float) -> None:
+        self.codec = MavlinkCodec(self.codec.mav.srcSystem, self.codec.mav.srcComponent)
+
+    def _on_data(self, data: bytes, now: float) -> None:
+        for msg in self.codec.feed(data):
             try:
-                data = self.link.read(4096, 0.05)
-            except LinkDown as exc:
-                if self._connected.is_set():
-                    log.warning("MAVLink link lost: %s", exc)
-                    self.stats["link_drops"] += 1
-                self._set_disconnected()
-                continue
-            except LinkError as exc:
-                log.error("MAVLink link unusable: %s", exc)
-                self._stop.wait(1.0)
-                continue
-            now = time.monotonic()
-            if self.link.generation != self._generation:
-                self._generation = self.link.generation
-                self.codec = MavlinkCodec(self.codec.mav.srcSystem, self.codec.mav.srcComponent)
-                self._set_disconnected()
-            if data:
-                for msg in self.codec.feed(data):
-                    try:
-                        self._on_message(msg, now)
-                    except Exception:  # one odd message must not kill the link thread
-                        log.exception("could not handle MAVLink %s", msg.get_type())
-            try:
-                self._housekeeping(now)
-            except LinkDown as exc:
-                log.warning("MAVLink link lost while sending: %s", exc)
-                self._set_disconnected()
+                self._on_message(msg, now)
+            except Exception:  # one odd message must not kill the link thread
+                log.exception("could not handle MAVLink %s", msg.get_type())
 
     def _housekeeping(self, now: float) -> None:
         if not self.link.is_open:
@@ -567,19 +506,6 @@ class MavlinkFlightController:
             snapshot = dict(merged)
         if self._listeners:
             self._queue_event(name, snapshot)
-
-    def _dispatch(self) -> None:
-        while not self._stop.is_set():
-            try:
-                name, ts, values = self._events.get(timeout=0.2)
-            except queue.Empty:
-                continue
-            for listener in list(self._listeners):
-                try:
-                    listener(name, ts, values)
-                except Exception:
-                    self.stats["listener_errors"] += 1
-                    log.exception("telemetry listener failed on %s", name)
 
     # --- state ------------------------------------------------------------------------
     def _update_state(self, kind: str, m: Any, now: float) -> None:
@@ -1059,10 +985,6 @@ class MavlinkFlightController:
 
     def _boot_ms(self) -> int:
         return int(time.monotonic() * 1000) & 0xFFFFFFFF
-
-    def rebuild_link(self) -> None:
-        """`rebuildtelemetry`: close the link and open it again; streams are re-requested."""
-        self._rebuild.set()
 
     def reset(self) -> None:
         """`resetfc`: MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN (param1 1 = reboot the autopilot)."""

@@ -29,11 +29,9 @@ from onboard.fc.base import (
     CommandTimeout,
     FlightControllerError,
     NotConnected,
-    ObjectListener,
-    StateHolder,
-    VehicleState,
 )
-from onboard.links import LinkDown, LinkError, ReopeningLink
+from onboard.fc.driver import LinkDriver
+from onboard.links import LinkDown, ReopeningLink
 from onboard.uavtalk import (
     Codec,
     EncodeError,
@@ -67,7 +65,7 @@ class _Waiter:
     nacked: bool = False
 
 
-class UAVTalkFlightController:
+class UAVTalkFlightController(LinkDriver):
     """FlightController over UAVTalk (see onboard.fc.base for the interface)."""
 
     protocol = "uavtalk"
@@ -86,7 +84,7 @@ class UAVTalkFlightController:
         cruise_speed: float = 5.0,
     ) -> None:
         self.link_url = link_url
-        self.link = ReopeningLink(link_url)
+        self._init_link_driver(ReopeningLink(link_url), "uavtalk")
         self.registry = registry or ObjectRegistry.load(objects_dir)
         self.codec = Codec(self.registry)
         self.decoder = FrameDecoder(self.registry)
@@ -98,104 +96,45 @@ class UAVTalkFlightController:
         self.silence_timeout_s = silence_timeout_s
         self.write_retries = write_retries
         self.cruise_speed = cruise_speed
-        self.stats = {"acks_sent": 0, "link_drops": 0, "handshakes": 0, "listener_errors": 0}
-        self._holder = StateHolder(VehicleState(protocol="uavtalk"))
+        self.stats.update({"acks_sent": 0, "handshakes": 0})
         self._values: dict[tuple[str, int], dict] = {}
         self._values_lock = threading.Lock()
-        self._listeners: list[ObjectListener] = []
         self._waiters: list[_Waiter] = []
         self._waiters_lock = threading.Lock()
-        self._connected = threading.Event()
-        self._stop = threading.Event()
-        self._events: queue.Queue = queue.Queue(maxsize=10_000)
-        self._threads: list[threading.Thread] = []
-        self._start_lock = threading.Lock()
         self._link_status = "Disconnected"  # the flight side's FlightTelemetryStats.Status
-        self._generation = 0
         self._last_heard = 0.0
         self._last_sent = 0.0
         self._last_handshake = 0.0
-        self._rebuild = threading.Event()
 
-    # --- lifecycle --------------------------------------------------------------------
-    def start(self) -> None:
-        with self._start_lock:
-            if self._threads:
-                return  # exactly one session per driver
-            self._stop.clear()
-            for target, name in (
-                (self._io_loop, "uavtalk-io"),
-                (self._dispatch, "uavtalk-listeners"),
-            ):
-                thread = threading.Thread(target=target, name=name, daemon=True)
-                thread.start()
-                self._threads.append(thread)
+    # --- the protocol's part of the link skeleton (onboard/fc/driver.py) -----------------
+    LINK_NAME = "flight controller"
+    THREAD_PREFIX = "uavtalk"
 
-    def stop(self) -> None:
-        self._stop.set()
+    def _on_stop(self) -> None:
         if self.arming_switch is not None:
             try:
                 self.arming_switch.release()
             except Exception:
                 log.exception("arming switch release failed")
-        for thread in self._threads:
-            if thread is not threading.current_thread():
-                thread.join(timeout=3)
-        self._threads = []
-        self.link.close()
-        self._set_disconnected()
-
-    @property
-    def state(self) -> VehicleState:
-        return self._holder.get()
-
-    def add_listener(self, listener: ObjectListener) -> None:
-        self._listeners.append(listener)
-
-    def wait_connected(self, timeout: float) -> bool:
-        return self._connected.wait(timeout)
 
     @property
     def decoder_stats(self) -> dict:
         return self.decoder.stats.as_dict()
 
-    # --- I/O thread -------------------------------------------------------------------
-    def _io_loop(self) -> None:
-        while not self._stop.is_set():
-            if self._rebuild.is_set():
-                self._rebuild.clear()
-                self.link.reopen()
-                self._set_disconnected()
+    def _link_was_up(self) -> bool:
+        return self._connected.is_set() or self._link_status != "Disconnected"
+
+    def _on_new_line(self, now: float) -> None:
+        self.decoder = FrameDecoder(self.registry)
+        self._last_heard = now
+
+    def _on_data(self, data: bytes, now: float) -> None:
+        self._last_heard = now
+        for frame in self.decoder.feed(data):
             try:
-                data = self.link.read(4096, 0.05)
-            except LinkDown as exc:
-                if self._connected.is_set() or self._link_status != "Disconnected":
-                    log.warning("flight controller link lost: %s", exc)
-                    self.stats["link_drops"] += 1
-                self._set_disconnected()
-                continue
-            except LinkError as exc:
-                log.error("flight controller link unusable: %s", exc)
-                self._stop.wait(1.0)
-                continue
-            now = time.monotonic()
-            if self.link.generation != self._generation:
-                self._generation = self.link.generation
-                self.decoder = FrameDecoder(self.registry)
-                self._set_disconnected()
-                self._last_heard = now
-            if data:
-                self._last_heard = now
-                for frame in self.decoder.feed(data):
-                    try:
-                        self._on_frame(frame, now)
-                    except Exception:  # never let one odd frame kill the link thread
-                        log.exception("could not handle frame %s", frame.name)
-            try:
-                self._housekeeping(now)
-            except LinkDown as exc:
-                log.warning("flight controller link lost while sending: %s", exc)
-                self._set_disconnected()
+                self._on_frame(frame, now)
+            except Exception:  # never let one odd frame kill the link thread
+                log.exception("could not handle frame %s", frame.name)
 
     def _housekeeping(self, now: float) -> None:
         if not self.link.is_open:
@@ -307,19 +246,6 @@ class UAVTalkFlightController:
                     waiter.nacked = nacked
                     waiter.event.set()
                     self._waiters.remove(waiter)
-
-    def _dispatch(self) -> None:
-        while not self._stop.is_set():
-            try:
-                name, ts, values = self._events.get(timeout=0.2)
-            except queue.Empty:
-                continue
-            for listener in list(self._listeners):
-                try:
-                    listener(name, ts, values)
-                except Exception:
-                    self.stats["listener_errors"] += 1
-                    log.exception("telemetry listener failed on %s", name)
 
     # --- state ------------------------------------------------------------------------
     def _update_state(self, name: str, v: dict, now: float) -> None:
@@ -525,10 +451,6 @@ class UAVTalkFlightController:
     def land(self) -> None:
         north, east, _ = self.state.ned or (0.0, 0.0, 0.0)
         self._path((north, east, 0.0), "Land")
-
-    def rebuild_link(self) -> None:
-        """`rebuildtelemetry`: close the line and open it again with a fresh handshake."""
-        self._rebuild.set()
 
     def reset(self) -> None:
         """`resetfc`: the firmware's reset sequence on FirmwareIAPObj; the board reboots."""
