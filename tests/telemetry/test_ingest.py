@@ -260,3 +260,4 @@ def test_a_drone_provisioned_after_the_ingest_started_loses_no_first_sample(worl
     finally:
         ground.close()
         ingestor.stop()
+        broker.stop()
