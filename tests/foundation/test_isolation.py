@@ -5,6 +5,7 @@ from channels.testing import WebsocketCommunicator
 from rest_framework.test import APIClient
 
 from missions.models import Mission
+from tests.support.websocket import connect_websocket
 
 
 @pytest.fixture
@@ -106,30 +107,11 @@ async def test_the_fleet_websocket_refuses_anonymous_visitors():
 async def test_the_fleet_websocket_refuses_an_organisation_the_user_is_not_in(world_tx):
     from config.asgi import application
 
-    communicator = await _connect(application, world_tx.owner, query="?org=globex",
-                                  expect=False)
+    communicator = await _connect(application, world_tx.owner, query="?org=globex", expect=False)
     await communicator.disconnect()
 
 
 async def _connect(application, user, query: str = "", expect: bool = True):
-    from asgiref.sync import sync_to_async
-    from django.contrib.auth import BACKEND_SESSION_KEY, HASH_SESSION_KEY, SESSION_KEY
-    from django.contrib.sessions.backends.db import SessionStore
-
-    def make_session() -> str:
-        session = SessionStore()
-        session[SESSION_KEY] = str(user.pk)
-        session[BACKEND_SESSION_KEY] = "django.contrib.auth.backends.ModelBackend"
-        session[HASH_SESSION_KEY] = user.get_session_auth_hash()
-        session.save()
-        return session.session_key
-
-    key = await sync_to_async(make_session)()
-    communicator = WebsocketCommunicator(
-        application,
-        f"/ws/fleet/{query}",
-        headers=[(b"origin", b"http://127.0.0.1"), (b"cookie", f"sessionid={key}".encode())],
-    )
-    connected, _ = await communicator.connect(timeout=5)
+    communicator, connected, _ = await connect_websocket(f"/ws/fleet/{query}", user)
     assert connected is expect
     return communicator

@@ -8,6 +8,8 @@ import re
 import pytest
 from django.test import Client
 
+from onboard.protocol import CONTROL_COMMANDS
+
 pytestmark = pytest.mark.django_db
 
 
@@ -35,20 +37,7 @@ def test_the_drone_page_offers_every_command_to_operators_only(world):
     client = Client()
     client.force_login(world.operator)
     html = client.get("/drones/ACME_1/").content.decode()
-    for command in (
-        "arm",
-        "disarm",
-        "takeoff",
-        "land",
-        "changeN",
-        "changeE",
-        "altitude",
-        "navigate",
-        "takepic",
-        "objrequest",
-        "resetfc",
-        "rebuildtelemetry",
-    ):
+    for command in CONTROL_COMMANDS:  # every command of PROTOCOL.md has a form
         assert f'data-command="{command}"' in html, command
     assert html.count("data-confirm=") == 2  # disarm and resetfc ask first
     assert _config(html)["commandUrl"] == "/api/v1/drones/ACME_1/commands/"

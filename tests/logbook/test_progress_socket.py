@@ -14,33 +14,13 @@ from asgiref.sync import sync_to_async
 from channels.testing import WebsocketCommunicator
 
 from telemetry.logs.synth import synthetic_dataflash
+from tests.support.websocket import connect_websocket
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
 
-def _session_cookie(user) -> bytes:  # type: ignore[no-untyped-def]
-    from django.contrib.auth import BACKEND_SESSION_KEY, HASH_SESSION_KEY, SESSION_KEY
-    from django.contrib.sessions.backends.db import SessionStore
-
-    session = SessionStore()
-    session[SESSION_KEY] = str(user.pk)
-    session[BACKEND_SESSION_KEY] = "django.contrib.auth.backends.ModelBackend"
-    session[HASH_SESSION_KEY] = user.get_session_auth_hash()
-    session.save()
-    return f"sessionid={session.session_key}".encode()
-
-
 async def _connect(user, log_id: str) -> tuple[WebsocketCommunicator, bool, int | None]:  # type: ignore[no-untyped-def]
-    from config.asgi import application
-
-    cookie = await sync_to_async(_session_cookie)(user)
-    communicator = WebsocketCommunicator(
-        application,
-        f"/ws/logs/{log_id}/",
-        headers=[(b"origin", b"http://127.0.0.1"), (b"cookie", cookie)],
-    )
-    connected, code = await communicator.connect()
-    return communicator, connected, code
+    return await connect_websocket(f"/ws/logs/{log_id}/", user)
 
 
 def _uploaded_log(world, tmp_path):  # type: ignore[no-untyped-def]

@@ -8,11 +8,12 @@ import pytest
 
 from missions.models import Assignment, MissionStatus, Picture, StepStatus
 from tests.missions.conftest import point_at, rectangle
-from tests.missions.sky import Ground, metres, wait_for
-from tests.missions.test_experiments import (
+from tests.missions.sky import metres, wait_for
+from tests.missions.test_experiments import (  # noqa: F401 - `ground` is a shared fixture
     _survey_with_alarm,
     api,
     completed_waypoints,
+    ground,
     wait_status,
 )
 
@@ -21,19 +22,8 @@ from .sky import MixedSky
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
 
-@pytest.fixture(scope="module")
-def ground(django_db_setup, django_db_blocker, tmp_path_factory):  # type: ignore[no-untyped-def]
-    from django.db import connection
-
-    with django_db_blocker.unblock():
-        name = connection.settings_dict["NAME"]
-    g = Ground(tmp_path_factory.mktemp("ground"), name)
-    yield g
-    g.close()
-
-
 @pytest.fixture
-def sky(world_tx, ground, tmp_path):  # type: ignore[no-untyped-def]
+def sky(world_tx, ground, tmp_path):  # type: ignore[no-untyped-def]  # noqa: F811
     s = MixedSky(tmp_path, world_tx.org.slug, ground).start()
     yield s
     s.close()

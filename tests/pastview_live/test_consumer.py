@@ -9,36 +9,15 @@ import pytest
 from channels.testing import WebsocketCommunicator
 from rest_framework.test import APIClient
 
+from tests.support.websocket import connect_websocket
+
 from .support import in_own_loop
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
 
-async def _session(user) -> str:  # type: ignore[no-untyped-def]
-    from asgiref.sync import sync_to_async
-    from django.contrib.auth import BACKEND_SESSION_KEY, HASH_SESSION_KEY, SESSION_KEY
-    from django.contrib.sessions.backends.db import SessionStore
-
-    def make() -> str:
-        session = SessionStore()
-        session[SESSION_KEY] = str(user.pk)
-        session[BACKEND_SESSION_KEY] = "django.contrib.auth.backends.ModelBackend"
-        session[HASH_SESSION_KEY] = user.get_session_auth_hash()
-        session.save()
-        return session.session_key
-
-    return await sync_to_async(make)()
-
-
 async def connect(user, drone_id: str = "ACME_1") -> tuple[WebsocketCommunicator, bool, int]:  # type: ignore[no-untyped-def]
-    from config.asgi import application
-
-    headers = [(b"origin", b"http://127.0.0.1")]
-    if user is not None:
-        headers.append((b"cookie", f"sessionid={await _session(user)}".encode()))
-    communicator = WebsocketCommunicator(application, f"/ws/pastview/{drone_id}/", headers=headers)
-    connected, code = await communicator.connect(timeout=5)
-    return communicator, connected, code
+    return await connect_websocket(f"/ws/pastview/{drone_id}/", user)  # type: ignore[return-value]
 
 
 async def push(drone_id: str, message: dict) -> None:

@@ -9,11 +9,11 @@ from datetime import UTC, datetime
 
 import psycopg
 import pytest
-from channels.testing import WebsocketCommunicator
 from rest_framework.test import APIClient
 
 from telemetry import queries, storage
 from telemetry.storage import Sample
+from tests.support.websocket import connect_websocket
 
 # Within raw retention, on a whole minute.
 T0 = float(int(time.time() // 60 * 60) - 3600)
@@ -114,28 +114,7 @@ def test_the_api_schema_documents_the_telemetry_endpoints(world):
 
 
 async def _connect(user, drone_id: str):
-    from asgiref.sync import sync_to_async
-    from django.contrib.auth import BACKEND_SESSION_KEY, HASH_SESSION_KEY, SESSION_KEY
-    from django.contrib.sessions.backends.db import SessionStore
-
-    from config.asgi import application
-
-    def make_session() -> str:
-        session = SessionStore()
-        session[SESSION_KEY] = str(user.pk)
-        session[BACKEND_SESSION_KEY] = "django.contrib.auth.backends.ModelBackend"
-        session[HASH_SESSION_KEY] = user.get_session_auth_hash()
-        session.save()
-        return session.session_key
-
-    key = await sync_to_async(make_session)()
-    communicator = WebsocketCommunicator(
-        application,
-        f"/ws/telemetry/{drone_id}/",
-        headers=[(b"origin", b"http://127.0.0.1"), (b"cookie", f"sessionid={key}".encode())],
-    )
-    connected, code = await communicator.connect(timeout=5)
-    return communicator, connected, code
+    return await connect_websocket(f"/ws/telemetry/{drone_id}/", user)
 
 
 @pytest.mark.django_db(transaction=True)
