@@ -18,6 +18,9 @@ have_cmd redis-server || [ -x /usr/bin/redis-server ] || need+=(redis-server)
 have_cmd mosquitto || [ -x /usr/sbin/mosquitto ] || need+=(mosquitto)
 have_cmd mosquitto_passwd || need+=(mosquitto-clients)
 have_cmd g++ || need+=(g++)
+# RabbitMQ (MQTT plugin): the clusterable ground broker (`make run BROKER=rabbitmq`, the
+# scale-out tests); Mosquitto stays the default.
+[ -x /usr/lib/rabbitmq/bin/rabbitmq-server ] || need+=(rabbitmq-server)
 have_cmd make || need+=(make)
 python3.11 -c 'import venv, ensurepip' >/dev/null 2>&1 || python3 -c 'import sys, venv, ensurepip; assert sys.version_info[:2] == (3, 11)' >/dev/null 2>&1 || need+=(python3-venv python3-dev)
 if [ "$PROFILE" = test ]; then
@@ -29,7 +32,7 @@ if [ ${#need[@]} -gt 0 ]; then
   $SUDO apt-get update -qq
   $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
   # Debian starts the packaged services on install; we run our own instances instead.
-  for svc in postgresql redis-server mosquitto; do
+  for svc in postgresql redis-server mosquitto rabbitmq-server; do
     $SUDO systemctl disable --now "$svc" >/dev/null 2>&1 || $SUDO service "$svc" stop >/dev/null 2>&1 || true
   done
 fi

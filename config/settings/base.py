@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from django.core.exceptions import ImproperlyConfigured
+
 from config.env import (
     BASE_DIR,
     database_from_url,
@@ -76,6 +78,18 @@ DEFAULT_AUTO_FIELD = "django.db.models.BigAutoField"
 
 REDIS_URL = env_str("REDIS_URL", "redis://127.0.0.1:63790/0")
 MQTT_URL = env_str("MQTT_URL", "mqtt://ground:ground@127.0.0.1:1883")
+# The ground broker: "mosquitto" (one node, the default) or "rabbitmq" (MQTT plugin,
+# clusterable; docs/scaling.md). With several nodes, MQTT_URLS lists every node's MQTT
+# listener in the order clients try them; AMQP_URLS are the same nodes' AMQP listeners
+# (the gateway and ingest consume from shared queues there, as RabbitMQ 3.10's MQTT
+# plugin has no shared subscriptions); RABBITMQ_API_URLS their management APIs (per-drone
+# users and permissions, queue depths on the status page).
+MQTT_BROKER = env_str("MQTT_BROKER", "mosquitto")
+if MQTT_BROKER not in ("mosquitto", "rabbitmq"):
+    raise ImproperlyConfigured(f"MQTT_BROKER must be mosquitto or rabbitmq, not {MQTT_BROKER!r}")
+MQTT_URLS = env_list("MQTT_URLS", [MQTT_URL])
+AMQP_URLS = env_list("AMQP_URLS", [])
+RABBITMQ_API_URLS = env_list("RABBITMQ_API_URLS", [])
 # Where Mosquitto's password and ACL files live, and its pid file for the SIGHUP reload.
 MOSQUITTO_DIR = env_str("MOSQUITTO_DIR", str(BASE_DIR / ".data" / "run" / "mosquitto"))
 DATA_DIR = env_str("DATA_DIR", str(BASE_DIR / ".data" / "run"))
@@ -263,7 +277,9 @@ LOGS_MAX_COMPRESSION_RATIO = env_float("LOGS_MAX_COMPRESSION_RATIO", 200.0)
 # The most points one series request may ask for with `points` (min/max buckets).
 LOGS_MAX_PLOT_POINTS = env_int("LOGS_MAX_PLOT_POINTS", 20_000)
 # The log status enum in the OpenAPI schema (other apps also have a "status").
-SPECTACULAR_SETTINGS["ENUM_NAME_OVERRIDES"]["FlightLogStatusEnum"] = "telemetry.logs.models.LogStatus"
+SPECTACULAR_SETTINGS["ENUM_NAME_OVERRIDES"]["FlightLogStatusEnum"] = (
+    "telemetry.logs.models.LogStatus"
+)
 
 # --- past view ---
 INSTALLED_APPS += ["telemetry.pastview"]  # app label "pastview"
