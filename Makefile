@@ -4,9 +4,10 @@ PY := .venv/bin/python
 DRONES ?= 0
 WEB_PORT ?= 8000
 MQTT_PORT ?= 1883
-export WEB_PORT MQTT_PORT
+BROKER ?= mosquitto
+export WEB_PORT MQTT_PORT BROKER
 
-.PHONY: run test bench lint format services-up services-down test-services-up test-services-down firmware-test
+.PHONY: run test bench loadtest lint format services-up services-down test-services-up test-services-down firmware-test
 
 run:
 	@scripts/bootstrap.sh run
@@ -19,6 +20,11 @@ test:
 bench:
 	@scripts/bootstrap.sh test
 	@scripts/bench.sh
+
+# A fleet of lightweight load drones against the whole ground side (docs/scaling.md).
+loadtest:
+	@scripts/bootstrap.sh test
+	@$(PY) scripts/loadtest.py --drones $(if $(filter 0,$(DRONES)),1000,$(DRONES)) --broker $(BROKER)
 
 lint:
 	@$(PY) -m ruff check .

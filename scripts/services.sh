@@ -3,6 +3,9 @@
 #
 #   scripts/services.sh start|stop|status|env  run|test
 #
+# BROKER=rabbitmq runs a RabbitMQ node with its MQTT plugin (scripts/rabbitmq.sh) on the
+# MQTT port instead of Mosquitto, and writes its settings into the env file.
+#
 # Each profile keeps everything in .data/<profile>/ and listens on its own ports, so the
 # test suite never collides with a running `make run`. Nothing here touches the system's
 # own service instances.
@@ -25,6 +28,10 @@ REDIS_SERVER=$(command -v redis-server || echo /usr/bin/redis-server)
 REDIS_CLI=$(command -v redis-cli || echo /usr/bin/redis-cli)
 MOSQUITTO=$(command -v mosquitto || echo /usr/sbin/mosquitto)
 MOSQUITTO_PASSWD=$(command -v mosquitto_passwd || echo /usr/bin/mosquitto_passwd)
+
+BROKER=${BROKER:-mosquitto}
+case "$BROKER" in mosquitto|rabbitmq) ;; *) echo "BROKER must be mosquitto or rabbitmq, not $BROKER" >&2; exit 2 ;; esac
+RABBITMQ_SH="$ROOT/scripts/rabbitmq.sh"
 
 log() { echo "[services:$PROFILE] $*" >&2; }
 
@@ -182,7 +189,8 @@ write_env() {
 DATA_DIR=$DATA
 DATABASE_URL=postgresql://skyhive:$(secret db_password)@127.0.0.1:$PG_PORT/skyhive
 REDIS_URL=redis://:$(secret redis_password)@127.0.0.1:$REDIS_PORT/0
-MQTT_URL=mqtt://ground:$(secret mqtt_ground_password)@127.0.0.1:$MQTT_PORT
+$(if [ "$BROKER" = rabbitmq ]; then DATA_DIR="$DATA" MQTT_PORT=$MQTT_PORT "$RABBITMQ_SH" env "$PROFILE" 1; else
+  echo "MQTT_BROKER=mosquitto"; echo "MQTT_URL=mqtt://ground:$(secret mqtt_ground_password)@127.0.0.1:$MQTT_PORT"; fi)
 MOSQUITTO_DIR=$DATA/mosquitto
 SECRET_KEY=$(secret django_secret_key)$(secret django_secret_key_2)
 PG_ADMIN_SOCKET=$DATA/postgres
@@ -194,12 +202,28 @@ ENV
   echo "$envfile"
 }
 
+broker_start() {
+  if [ "$BROKER" = rabbitmq ]; then
+    mosquitto_stop  # ours, if a previous run used it: the MQTT port is RabbitMQ's now
+    DATA_DIR="$DATA" MQTT_PORT=$MQTT_PORT "$RABBITMQ_SH" start "$PROFILE" 1
+  else
+    DATA_DIR="$DATA" MQTT_PORT=$MQTT_PORT "$RABBITMQ_SH" stop "$PROFILE" 2>/dev/null || true
+    mosquitto_start
+  fi
+}
+
+broker_stop() {
+  mosquitto_stop
+  if [ -d "$DATA/rabbitmq" ]; then DATA_DIR="$DATA" MQTT_PORT=$MQTT_PORT "$RABBITMQ_SH" stop "$PROFILE" || true; fi
+}
+
 case "$ACTION" in
-  start) pg_start; redis_start; mosquitto_start; write_env >/dev/null ;;
-  stop) mosquitto_stop; redis_stop; pg_stop ;;
+  start) pg_start; redis_start; broker_start; write_env >/dev/null ;;
+  stop) broker_stop; redis_stop; pg_stop ;;
   env) write_env ;;
   status)
-    for p in "$PG_PORT:PostgreSQL" "$REDIS_PORT:Redis" "$MQTT_PORT:Mosquitto"; do
+    broker_name=Mosquitto; [ "$BROKER" = rabbitmq ] && broker_name=RabbitMQ
+    for p in "$PG_PORT:PostgreSQL" "$REDIS_PORT:Redis" "$MQTT_PORT:$broker_name"; do
       if port_open "${p%%:*}"; then echo "${p#*:} up on ${p%%:*}"; else echo "${p#*:} down (${p%%:*})"; fi
     done ;;
   pg-start) pg_start ;; pg-stop) pg_stop ;;
