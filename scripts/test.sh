@@ -11,7 +11,11 @@ started=""
 status=$(scripts/services.sh status test)
 if grep -q "down" <<<"$status"; then started=yes; else echo "[test] reusing the running test services"; fi
 scripts/services.sh start test || exit 1
-cleanup() { [ -n "$started" ] && scripts/services.sh stop test; }
+cleanup() {
+  # The scale tests' RabbitMQ cluster stops itself; this catches an interrupted run.
+  RABBIT_PORT_BASE=${RABBIT_PORT_BASE:-18900} scripts/rabbitmq.sh stop "${RABBIT_PROFILE:-test-rabbitmq}" 2>/dev/null || true
+  [ -n "$started" ] && scripts/services.sh stop test
+}
 trap cleanup EXIT
 
 set -e
