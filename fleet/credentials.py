@@ -1,10 +1,21 @@
-"""Per-drone broker credentials: issue, revoke, and regenerate Mosquitto's files.
+"""Per-drone broker credentials: issue, revoke, and rebuild the broker's users from the DB.
 
-Only a hash is stored, in Mosquitto's own `$7$` format (PBKDF2-SHA512, as
-`mosquitto_passwd` writes it), so the password file can be rebuilt from the database at
-any time. After writing, Mosquitto gets SIGHUP: it re-reads both files and disconnects
-clients whose credentials are gone (checked with Mosquitto 2.0.11: a revoked drone's
-open connection is closed on the reload), so a revoked drone is cut off at once.
+The broker-specific part is a backend chosen by settings.MQTT_BROKER:
+
+- Mosquitto (one node): the password and ACL files are regenerated from the database and
+  Mosquitto gets SIGHUP; it re-reads both and disconnects clients whose credentials are
+  gone (checked with Mosquitto 2.0.11), so a revoked drone is cut off at once.
+- RabbitMQ (MQTT plugin, clustered): one user per drone through the management API
+  (fleet.rabbitmq_admin), with vhost permissions limited to the drone's own MQTT session
+  queues and `amq.topic`, and topic permissions on `amq.topic` equivalent to Mosquitto's
+  ACL (RabbitMQ maps MQTT's `/` to `.` in routing keys). Revocation deletes the user,
+  closes its open connections and drops its session queues.
+
+Only hashes are stored, never a password. `Drone.mqtt_password_hash` holds Mosquitto's
+`$7$` hash (PBKDF2-SHA512, as `mosquitto_passwd` writes it) followed, after a space, by
+RabbitMQ's own salted SHA-256 hash: the two formats cannot be derived from each other, and
+keeping both lets either broker be rebuilt from the database (`sync_broker()`) when a node
+or a whole cluster is replaced, without re-issuing any password.
 """
 
 from __future__ import annotations
@@ -14,27 +25,46 @@ import fcntl
 import hashlib
 import logging
 import os
+import re
 import secrets
 import signal
 import tempfile
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from urllib.parse import urlsplit
+from typing import Protocol
+from urllib.parse import quote, urlsplit
 
 from django.conf import settings
 from django.db import transaction
 
-from .models import Drone, Organisation
+from .models import DRONE_ID_RE, Drone, Organisation
+from .rabbitmq_admin import (
+    DEFAULT_VHOST,
+    HASHING_ALGORITHM,
+    RabbitMQAdmin,
+    RabbitMQAdminError,
+    rabbit_password_hash,
+)
 
 log = logging.getLogger(__name__)
 
 PBKDF2_ITERATIONS = 101  # mosquitto_passwd's own default for $7$
 SALT_BYTES = 12
+RABBIT_HASH_PREFIX = "rabbitmq-sha256:"
+DRONE_TAG = "skyhive-drone"  # marks the RabbitMQ users this module owns
 
 
 class ProvisioningError(ValueError):
-    pass
+    """The request itself is wrong (unknown organisation, bad id, another org's drone)."""
+
+
+class BrokerUnavailable(RuntimeError):
+    """The broker could not be updated; the database keeps the intended state."""
+
+
+# -- hashes -------------------------------------------------------------------------------
 
 
 def hash_password(password: str, *, salt: bytes | None = None) -> str:
@@ -46,8 +76,9 @@ def hash_password(password: str, *, salt: bytes | None = None) -> str:
 
 
 def check_password(password: str, hashed: str) -> bool:
+    """Against a `$7$` hash or a stored value (its `$7$` part)."""
     try:
-        _, kind, iterations, salt, digest = hashed.split("$")
+        _, kind, iterations, salt, digest = mosquitto_hash(hashed).split("$")
     except ValueError:
         return False
     if kind != "7":
@@ -58,24 +89,46 @@ def check_password(password: str, hashed: str) -> bool:
     return secrets.compare_digest(base64.b64encode(computed).decode(), digest)
 
 
+def stored_hash(password: str) -> str:
+    """What `Drone.mqtt_password_hash` keeps: both brokers' hashes of one password."""
+    return f"{hash_password(password)} {RABBIT_HASH_PREFIX}{rabbit_password_hash(password)}"
+
+
+def mosquitto_hash(stored: str) -> str:
+    return stored.split(" ", 1)[0]
+
+
+def rabbitmq_hash(stored: str) -> str | None:
+    """None for a drone provisioned before RabbitMQ was supported: it needs a new password."""
+    for part in stored.split(" ")[1:]:
+        if part.startswith(RABBIT_HASH_PREFIX):
+            return part[len(RABBIT_HASH_PREFIX) :]
+    return None
+
+
+# -- what a drone is told -----------------------------------------------------------------
+
+
 @dataclass(frozen=True)
 class Credentials:
     drone_id: str
     host: str
     port: int
     password: str
+    # Every broker node as mqtt://<id>:<password>@host:port, in the order to try them.
+    urls: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         """The JSON `provision_drone` prints (PROTOCOL.md, "Ground side contract")."""
-        return {
-            "drone_id": self.drone_id,
-            "mqtt": {
-                "host": self.host,
-                "port": self.port,
-                "username": self.drone_id,
-                "password": self.password,
-            },
+        mqtt = {
+            "host": self.host,
+            "port": self.port,
+            "username": self.drone_id,
+            "password": self.password,
         }
+        if self.urls:
+            mqtt["urls"] = list(self.urls)
+        return {"drone_id": self.drone_id, "mqtt": mqtt}
 
 
 def broker_address() -> tuple[str, int]:
@@ -85,32 +138,118 @@ def broker_address() -> tuple[str, int]:
     return host, port
 
 
+def broker_addresses() -> list[tuple[str, int]]:
+    """Every node a drone may use. One node unless RabbitMQ runs with several; then
+    MQTT_URLS' ports, each with MQTT_PUBLIC_HOST when set (MQTT_PUBLIC_PORT names one
+    port, so it only applies to a single node)."""
+    if settings.MQTT_BROKER != "rabbitmq" or len(settings.MQTT_URLS) <= 1:
+        return [broker_address()]
+    addresses = []
+    for url in settings.MQTT_URLS:
+        parts = urlsplit(url)
+        host = settings.MQTT_PUBLIC_HOST or parts.hostname or "127.0.0.1"
+        addresses.append((host, parts.port or 1883))
+    return addresses
+
+
+def _credentials(drone_id: str, password: str, addresses: list[tuple[str, int]]) -> Credentials:
+    userinfo = f"{quote(drone_id, safe='')}:{quote(password, safe='')}"
+    urls = tuple(f"mqtt://{userinfo}@{host}:{port}" for host, port in addresses)
+    host, port = addresses[0]
+    return Credentials(drone_id, host, port, password, urls)
+
+
+# -- provisioning -------------------------------------------------------------------------
+
+
 def provision(drone_id: str, organisation_slug: str | None = None) -> Credentials:
-    """Create the drone if needed, give it a new password, reload the broker."""
+    """Create the drone if needed, give it a new password, update the broker."""
+    return provision_many([drone_id], organisation_slug)[0]
+
+
+def provision_many(
+    drone_ids: Sequence[str], organisation_slug: str | None = None
+) -> list[Credentials]:
+    """New passwords for many drones (created in the organisation when missing), applied
+    to the broker in one step: one file rewrite and SIGHUP, or one definitions import.
+    All or nothing: a bad id or another organisation's drone refuses the whole batch."""
+    ids = list(drone_ids)
+    _validate_ids(ids)
+    if not ids:
+        return []
+    backend = broker_backend()
+    passwords = {drone_id: secrets.token_urlsafe(24) for drone_id in ids}
+    hashes = {drone_id: stored_hash(password) for drone_id, password in passwords.items()}
     with transaction.atomic():
-        drone = Drone.objects.select_for_update().filter(drone_id=drone_id).first()
-        if drone is None:
-            drone = Drone(drone_id=drone_id, organisation=_organisation(organisation_slug))
-            drone.full_clean(exclude=["organisation"])
-        elif organisation_slug and drone.organisation.slug != organisation_slug:
-            raise ProvisioningError(
-                f"Drone {drone_id} belongs to {drone.organisation.slug}, not {organisation_slug}."
+        existing = {
+            drone.drone_id: drone
+            for drone in Drone.objects.select_for_update(of=("self",))
+            .select_related("organisation")
+            .filter(drone_id__in=ids)
+        }
+        for drone in existing.values():
+            if organisation_slug and drone.organisation.slug != organisation_slug:
+                raise ProvisioningError(
+                    f"Drone {drone.drone_id} belongs to {drone.organisation.slug}, "
+                    f"not {organisation_slug}."
+                )
+        missing = [drone_id for drone_id in ids if drone_id not in existing]
+        if missing:
+            organisation = _organisation(organisation_slug)
+            Drone.objects.bulk_create(
+                [
+                    Drone(
+                        drone_id=drone_id,
+                        organisation=organisation,
+                        mqtt_password_hash=hashes[drone_id],
+                    )
+                    for drone_id in missing
+                ]
             )
-        password = secrets.token_urlsafe(24)
-        drone.mqtt_password_hash = hash_password(password)
-        drone.credentials_revoked = False
-        drone.save()
-    sync_broker()
-    host, port = broker_address()
-    return Credentials(drone.drone_id, host, port, password)
+        for drone in existing.values():
+            drone.mqtt_password_hash = hashes[drone.drone_id]
+            drone.credentials_revoked = False
+        Drone.objects.bulk_update(
+            list(existing.values()), ["mqtt_password_hash", "credentials_revoked"]
+        )
+        # Inside the transaction where the backend can be told exactly what changed (a
+        # failure then rolls the new passwords back, leaving the old ones valid on both
+        # sides); Mosquitto's files are rebuilt from committed rows after it.
+        backend.apply(list(hashes.items()))
+    backend.after_commit()
+    addresses = broker_addresses()
+    return [_credentials(drone_id, passwords[drone_id], addresses) for drone_id in ids]
 
 
 def revoke(drone: Drone) -> None:
-    """Forget the drone's password; the broker disconnects it on the reload."""
-    Drone.objects.filter(pk=drone.pk).update(mqtt_password_hash="", credentials_revoked=True)
-    drone.mqtt_password_hash = ""
-    drone.credentials_revoked = True
-    sync_broker()
+    """Forget the drone's password and cut it off: the broker closes its connections."""
+    revoke_many([drone])
+
+
+def revoke_many(drones: Sequence[Drone]) -> None:
+    ids = [drone.drone_id for drone in drones]
+    # The database first: whatever happens to the broker call, the ground treats the
+    # drones as revoked, and the next sync_broker() finishes the job.
+    Drone.objects.filter(drone_id__in=ids).update(mqtt_password_hash="", credentials_revoked=True)
+    for drone in drones:
+        drone.mqtt_password_hash = ""
+        drone.credentials_revoked = True
+    broker_backend().revoke(ids)
+
+
+def _validate_ids(ids: list[str]) -> None:
+    bad = [
+        drone_id
+        for drone_id in ids
+        if not isinstance(drone_id, str) or not DRONE_ID_RE.match(drone_id)
+    ]
+    if bad:
+        shown = ", ".join(repr(b) for b in bad[:5])
+        raise ProvisioningError(
+            f"Invalid drone id(s) {shown}: use 1 to 64 letters, digits, '_' or '-'."
+        )
+    if len(set(ids)) != len(ids):
+        raise ProvisioningError("The same drone id appears twice.")
 
 
 def _organisation(slug: str | None) -> Organisation:
@@ -125,6 +264,65 @@ def _organisation(slug: str | None) -> Organisation:
     return organisations[0]
 
 
+def _live_drones() -> list[tuple[str, str]]:
+    """(drone id, stored hash) of every drone that may connect, from the database."""
+    return list(
+        Drone.objects.filter(credentials_revoked=False)
+        .exclude(mqtt_password_hash="")
+        .order_by("drone_id")
+        .values_list("drone_id", "mqtt_password_hash")
+    )
+
+
+@dataclass
+class SyncReport:
+    """What a full rebuild did."""
+
+    broker: str
+    users: int  # drone users now on the broker
+    removed: list[str] = field(default_factory=list)  # drone users that were not in the DB
+    # Drones whose stored hash the broker cannot use (provisioned before RabbitMQ support):
+    # they must be provisioned again.
+    needs_new_password: list[str] = field(default_factory=list)
+    reloaded: bool = True
+
+    def to_dict(self) -> dict:
+        return {
+            "broker": self.broker,
+            "users": self.users,
+            "removed": self.removed,
+            "needs_new_password": self.needs_new_password,
+            "reloaded": self.reloaded,
+        }
+
+
+def sync_broker() -> SyncReport:
+    """Rebuild the broker's drone users and permissions from the database (after a broker
+    node or cluster is replaced, or to finish a revocation the broker missed)."""
+    return broker_backend().sync(_live_drones())
+
+
+# -- backends -----------------------------------------------------------------------------
+
+
+class BrokerBackend(Protocol):
+    def apply(self, drones: list[tuple[str, str]]) -> None:
+        """Inside the provisioning transaction: these drones' new stored hashes."""
+
+    def after_commit(self) -> None:
+        """After the transaction committed."""
+
+    def revoke(self, drone_ids: list[str]) -> None: ...
+
+    def sync(self, drones: list[tuple[str, str]]) -> SyncReport: ...
+
+
+def broker_backend() -> BrokerBackend:
+    if settings.MQTT_BROKER == "rabbitmq":
+        return RabbitMQBackend(RabbitMQAdmin.from_settings())
+    return MosquittoBackend(Path(settings.MOSQUITTO_DIR))
+
+
 # -- Mosquitto's files --------------------------------------------------------------------
 
 
@@ -137,7 +335,7 @@ def service_users() -> list[str]:
 
 
 @contextmanager
-def _locked(directory: Path):  # type: ignore[no-untyped-def]
+def _locked(directory: Path) -> Iterator[None]:
     """One writer at a time across processes (API, admin, command)."""
     directory.mkdir(parents=True, exist_ok=True)
     with open(directory / ".provisioning.lock", "w") as lock:
@@ -166,7 +364,7 @@ def render_passwd(existing: str, drones: list[tuple[str, str]]) -> str:
     """Keep the service users' lines as they are; one line per drone with credentials."""
     keep = set(service_users())
     lines = [line for line in existing.splitlines() if line.split(":", 1)[0] in keep]
-    lines += [f"{drone_id}:{hashed}" for drone_id, hashed in drones]
+    lines += [f"{drone_id}:{mosquitto_hash(stored)}" for drone_id, stored in drones]
     return "\n".join(lines) + "\n"
 
 
@@ -181,21 +379,29 @@ def render_acl(drone_ids: list[str]) -> str:
     return "\n\n".join(parts) + "\n"
 
 
-def sync_broker() -> bool:
-    """Rewrite passwd and acl from the database and SIGHUP Mosquitto. True if reloaded."""
-    directory = Path(settings.MOSQUITTO_DIR)
-    drones = list(
-        Drone.objects.filter(credentials_revoked=False)
-        .exclude(mqtt_password_hash="")
-        .order_by("drone_id")
-        .values_list("drone_id", "mqtt_password_hash")
-    )
-    with _locked(directory):
-        passwd = directory / "passwd"
-        existing = passwd.read_text() if passwd.exists() else ""
-        _write_atomically(passwd, render_passwd(existing, drones))
-        _write_atomically(directory / "acl", render_acl([d for d, _ in drones]))
-        return _reload(directory / "mosquitto.pid")
+class MosquittoBackend:
+    """Every change is a full rewrite of passwd and acl plus one SIGHUP."""
+
+    def __init__(self, directory: Path) -> None:
+        self.directory = directory
+
+    def apply(self, drones: list[tuple[str, str]]) -> None:
+        pass  # the files are rebuilt from committed rows in after_commit
+
+    def after_commit(self) -> None:
+        self.sync(_live_drones())
+
+    def revoke(self, drone_ids: list[str]) -> None:
+        self.sync(_live_drones())
+
+    def sync(self, drones: list[tuple[str, str]]) -> SyncReport:
+        with _locked(self.directory):
+            passwd = self.directory / "passwd"
+            existing = passwd.read_text() if passwd.exists() else ""
+            _write_atomically(passwd, render_passwd(existing, drones))
+            _write_atomically(self.directory / "acl", render_acl([d for d, _ in drones]))
+            reloaded = _reload(self.directory / "mosquitto.pid")
+        return SyncReport("mosquitto", users=len(drones), reloaded=reloaded)
 
 
 def _reload(pid_file: Path) -> bool:
@@ -206,3 +412,132 @@ def _reload(pid_file: Path) -> bool:
         log.warning("broker not reloaded (%s): %s", pid_file, exc)
         return False
     return True
+
+
+# -- RabbitMQ users and permissions -------------------------------------------------------
+
+
+def session_queue_pattern(drone_id: str) -> str:
+    """The MQTT plugin's queues of the drone's sessions (`mqtt-subscription-<client id>
+    qos0|qos1`), for the client ids drones use: the drone id (load drones) and
+    `skyhive-agent-<id>` (the onboard agent). No wider: `<id>.*` would match `<id>2`."""
+    return rf"mqtt-subscription-(skyhive-agent-)?{re.escape(drone_id)}qos[01]"
+
+
+def rabbitmq_definitions(drones: list[tuple[str, str]]) -> dict:
+    """Users, vhost and topic permissions of these drones, as `POST /api/definitions`
+    takes them. The drone may declare, bind and consume only its own session queues and
+    publish only to amq.topic; on amq.topic it may write only `<id>.<channel>.out` and
+    read (subscribe to) only `<id>.<channel>.in`, like the Mosquitto ACL's
+    `<id>/+/out` and `<id>/+/in`."""
+    users, permissions, topic_permissions = [], [], []
+    for drone_id, hashed in drones:
+        queues = session_queue_pattern(drone_id)
+        own = rf"^(amq\.topic|{queues})$"
+        users.append(
+            {
+                "name": drone_id,
+                "password_hash": hashed,
+                "hashing_algorithm": HASHING_ALGORITHM,
+                "tags": DRONE_TAG,
+            }
+        )
+        permissions.append(
+            {
+                "user": drone_id,
+                "vhost": DEFAULT_VHOST,
+                "configure": f"^{queues}$",
+                "write": own,
+                "read": own,
+            }
+        )
+        escaped = re.escape(drone_id)
+        topic_permissions.append(
+            {
+                "user": drone_id,
+                "vhost": DEFAULT_VHOST,
+                "exchange": "amq.topic",
+                "write": rf"^{escaped}\.[^.]+\.out$",
+                "read": rf"^{escaped}\.[^.]+\.in$",
+            }
+        )
+    return {"users": users, "permissions": permissions, "topic_permissions": topic_permissions}
+
+
+class RabbitMQBackend:
+    """Per-drone users through the management API of any node of the cluster."""
+
+    def __init__(self, admin: RabbitMQAdmin) -> None:
+        self.admin = admin
+
+    def apply(self, drones: list[tuple[str, str]]) -> None:
+        usable, unusable = _split_by_rabbit_hash(drones)
+        if unusable:  # cannot happen for a fresh password; a bug if it does
+            raise BrokerUnavailable(f"no RabbitMQ hash for {', '.join(unusable)}")
+        self._call(lambda: self.admin.import_definitions(rabbitmq_definitions(usable)))
+
+    def after_commit(self) -> None:
+        pass
+
+    def revoke(self, drone_ids: list[str]) -> None:
+        self._call(lambda: self._remove(drone_ids))
+
+    def sync(self, drones: list[tuple[str, str]]) -> SyncReport:
+        usable, unusable = _split_by_rabbit_hash(drones)
+        for drone_id in unusable:
+            log.warning("drone %s has no RabbitMQ password hash: provision it again", drone_id)
+        wanted = {drone_id for drone_id, _ in usable}
+
+        def rebuild() -> list[str]:
+            if usable:
+                self.admin.import_definitions(rabbitmq_definitions(usable))
+            ours = [u["name"] for u in self.admin.users() if DRONE_TAG in _tags(u)]
+            extra = sorted(set(ours) - wanted)
+            self._remove(extra)
+            return extra
+
+        removed = self._call(rebuild)
+        return SyncReport(
+            "rabbitmq", users=len(usable), removed=removed, needs_new_password=unusable
+        )
+
+    def _remove(self, drone_ids: list[str]) -> None:
+        """Delete the users, close their connections, drop their session queues."""
+        if not drone_ids:
+            return
+        # Connections listed before the users go (deleting a user also makes RabbitMQ
+        # close its connections, but one opened a moment ago may not be listed yet: the
+        # second listing catches it).
+        connections = self.admin.connections_of(drone_ids)
+        self.admin.delete_users(drone_ids)
+        for name in dict.fromkeys(connections + self.admin.connections_of(drone_ids)):
+            self.admin.close_connection(name, "broker credentials revoked")
+        # Commands queued for a revoked drone must not reach it if it is ever re-issued.
+        for start in range(0, len(drone_ids), 100):
+            chunk = drone_ids[start : start + 100]
+            alternatives = "|".join(re.escape(d) for d in chunk)
+            pattern = f"^mqtt-subscription-(skyhive-agent-)?({alternatives})qos[01]$"
+            for queue in self.admin.queues_named(pattern):
+                self.admin.delete_queue(queue)
+
+    def _call(self, action):  # type: ignore[no-untyped-def]
+        try:
+            return action()
+        except RabbitMQAdminError as exc:
+            raise BrokerUnavailable(f"RabbitMQ was not updated: {exc}") from exc
+
+
+def _split_by_rabbit_hash(drones: list[tuple[str, str]]) -> tuple[list[tuple[str, str]], list[str]]:
+    usable, unusable = [], []
+    for drone_id, stored in drones:
+        hashed = rabbitmq_hash(stored)
+        if hashed is None:
+            unusable.append(drone_id)
+        else:
+            usable.append((drone_id, hashed))
+    return usable, unusable
+
+
+def _tags(user: dict) -> list[str]:
+    tags = user.get("tags") or []
+    return tags.split(",") if isinstance(tags, str) else list(tags)
