@@ -63,7 +63,12 @@ def build_parser() -> argparse.ArgumentParser:
         required=True,
         help="flight-controller link: serial:/dev/ttyACM0?baud=115200, tcp://host:9000, /dev/pts/N",
     )
-    p.add_argument("--broker", required=True, help="mqtt://user:pass@host:port")
+    p.add_argument(
+        "--broker",
+        required=True,
+        help="mqtt://user:pass@host:port; several nodes of one cluster comma-separated, tried "
+        "in turn when the connection is lost",
+    )
     p.add_argument(
         "--fc",
         default="uavtalk",
