@@ -177,7 +177,22 @@ CELERY_TASK_REJECT_ON_WORKER_LOST = True
 CELERY_WORKER_PREFETCH_MULTIPLIER = 1
 CELERY_TASK_TIME_LIMIT = env_int("CELERY_TASK_TIME_LIMIT", 30 * 60)
 CELERY_TASK_SOFT_TIME_LIMIT = env_int("CELERY_TASK_SOFT_TIME_LIMIT", 25 * 60)
-CELERY_BROKER_TRANSPORT_OPTIONS = {"visibility_timeout": 3600}
+# Reliability (issue 11): a task is acknowledged only after it ran (acks late), and one
+# whose worker process died is put back (reject on worker lost), so a worker killed
+# mid-task loses nothing; every task is idempotent, so a rerun changes nothing twice.
+# When the whole worker dies, Redis has no broker-side redelivery: the message waits in
+# the unacknowledged set until it is older than the visibility timeout, then any worker
+# puts it back (config/celery.py checks often). It must exceed the longest task
+# (CELERY_TASK_TIME_LIMIT) or a slow task would run twice; tests set a short one.
+CELERY_BROKER_TRANSPORT_OPTIONS = {
+    "visibility_timeout": env_float("CELERY_VISIBILITY_TIMEOUT", 3600.0),
+}
+# Keep retrying the broker for ever (Celery stops after 100 attempts by default): a Redis
+# restart must not end the worker.
+CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
+CELERY_BROKER_CONNECTION_MAX_RETRIES = None
+# Replicated deployments (and test runs sharing one Redis) may name their own queue.
+CELERY_TASK_DEFAULT_QUEUE = env_str("CELERY_TASK_DEFAULT_QUEUE", "celery")
 CELERY_RESULT_EXPIRES = 3600
 CELERY_BEAT_SCHEDULE: dict = {}
 
