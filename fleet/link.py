@@ -51,9 +51,18 @@ def async_redis() -> aredis.Redis:
 
 def outbox_key(broker_url: str | None = None) -> str:
     """The outbox of one broker: gateways on another broker (another deployment or test
-    sharing this Redis) never take its messages."""
+    sharing this Redis) never take its messages.
+
+    A cluster has one outbox, named after its first node (MQTT_URLS[0]), whichever node
+    the caller names, so every gateway of the cluster pops the list the web pushes to.
+    """
     url = urlsplit(broker_url or settings.MQTT_URL)
-    return f"{OUTBOX_PREFIX}{url.hostname or '127.0.0.1'}:{url.port or 1883}"
+    address = (url.hostname or "127.0.0.1", url.port or 1883)
+    nodes = [urlsplit(u) for u in settings.MQTT_URLS]
+    if any((n.hostname or "127.0.0.1", n.port or 1883) == address for n in nodes):
+        first = nodes[0]
+        address = (first.hostname or "127.0.0.1", first.port or 1883)
+    return f"{OUTBOX_PREFIX}{address[0]}:{address[1]}"
 
 
 def outbox_item(drone_id: str, channel: str, message: dict, *, ttl: float) -> bytes:

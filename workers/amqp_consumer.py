@@ -60,6 +60,7 @@ class AmqpConsumer:
         ack_interval: float = 0.05,
         name: str = "",
         heartbeat: int = 10,
+        counters: object | None = None,
     ) -> None:
         if not urls:
             raise ValueError("AMQP_URLS is empty: the RabbitMQ broker needs its AMQP listeners")
@@ -72,6 +73,8 @@ class AmqpConsumer:
         self.ack_interval = ack_interval
         self.name = name or f"{group}-{socket.gethostname()}"
         self.heartbeat = heartbeat
+        # Anything with incr(name, amount=1): workers.counters.Counters, the ingest's sink.
+        self.counters = counters
         self.subscribed = threading.Event()
         self.index = 0
         self.sessions = 0
@@ -102,6 +105,10 @@ class AmqpConsumer:
 
     # -- the consuming thread ------------------------------------------------------------------
 
+    def _count(self, name: str) -> None:
+        if self.counters is not None:
+            self.counters.incr(name)  # type: ignore[attr-defined]
+
     def _run(self) -> None:
         backoff = 0.1
         while not self._stop.is_set():
@@ -111,6 +118,7 @@ class AmqpConsumer:
             except Exception as exc:  # noqa: BLE001 - a consumer outlives any broker fault
                 if self._stop.is_set():
                     break
+                self._count("amqp.disconnects")
                 log.warning(
                     "%s: AMQP link to %s lost (%s: %s); trying the next node in %.1f s",
                     self.name,
@@ -159,6 +167,7 @@ class AmqpConsumer:
         channel.basic_qos(prefetch_size=0, prefetch_count=self.prefetch, a_global=False)
         channel.basic_consume(self.queue, callback=self._deliver, no_ack=False)
         self.sessions += 1
+        self._count("amqp.connects")
         self.subscribed.set()
         log.info("%s consuming %s on %s", self.name, self.queue, _safe(self.url))
         self._unacked_tag, self._unacked = None, 0
@@ -184,13 +193,16 @@ class AmqpConsumer:
         info = message.delivery_info
         self.received += 1
         if info.get("redelivered"):
+            # Handed to a consumer that went away before acknowledging: maybe seen twice.
             self.redelivered += 1
+            self._count("amqp.redelivered")
         body = message.body
         payload = body if isinstance(body, bytes) else bytes(body, "utf-8")
         try:
             self.on_message(topic_of(info["routing_key"]), payload)
         except Exception:  # noqa: BLE001 - a bad message must not stop the queue
             self.callback_errors += 1
+            self._count("amqp.callback_errors")
             log.exception("%s: callback failed on %s", self.name, info.get("routing_key"))
         self._unacked_tag = info["delivery_tag"]
         self._unacked += 1

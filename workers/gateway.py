@@ -1,11 +1,14 @@
 """The MQTT gateway: the one ground process that talks to the drones' broker.
 
-Inbound, it subscribes to the drones' `/out` topics through shared subscriptions
-(`$share/gateway/...`), so several gateways split the messages without processing one
-twice, parses each with `onboard.protocol` and hands it to the domain function named in
+Inbound, it reads the drones' `/out` topics as one of a group of competing consumers, so
+several gateways split the messages without processing one twice: on Mosquitto through
+shared subscriptions (`$share/gateway/...`) on its own MQTT connection, on RabbitMQ from
+the mirrored AMQP queue `skyhive.gateway` (workers.broker). It parses each message with
+`onboard.protocol` and hands it to the domain function named in
 `workers.dispatch.DISPATCH`. Anything malformed, oversized, unknown or unauthorised is
 dropped and counted, never raised. Outbound, it pops the Redis outbox (`fleet.link`)
-and publishes to `<id>/<channel>/in`.
+and publishes to `<id>/<channel>/in`, moving to the next broker node when its node is
+lost.
 """
 
 from __future__ import annotations
@@ -17,9 +20,8 @@ import queue
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
-from urllib.parse import urlsplit
 
 import paho.mqtt.client as mqtt
 import redis
@@ -29,6 +31,8 @@ from django.utils.module_loading import import_string
 
 from fleet import link
 from onboard import protocol
+from workers import broker
+from workers.amqp_consumer import AmqpConsumer
 from workers.counters import Counters
 
 from .dispatch import (
@@ -45,29 +49,34 @@ QUEUED = "queued"
 log = logging.getLogger("gateway")
 
 SHARE_GROUP = "gateway"
+# Messages a RabbitMQ node hands one gateway before its acknowledgements: enough to keep
+# the handlers busy, few enough that a killed gateway's share is redelivered quickly.
+AMQP_PREFETCH = 200
 
 
 def subscription(channel: str) -> str:
-    return f"$share/{SHARE_GROUP}/+/{channel}/out"
+    return broker.share_filter(SHARE_GROUP, channel)
 
 
 class Gateway:
-    """One paho client (VERSION2 callbacks) plus a thread publishing the outbox."""
+    """One paho client (VERSION2 callbacks) plus a thread publishing the outbox; on
+    RabbitMQ, an AMQP consumer for the inbound messages as well."""
 
     def __init__(
         self,
-        broker_url: str,
+        broker_url: str | Sequence[str] | None = None,
         *,
         dispatch: dict[str, str | None] | None = None,
         batch_dispatch: dict[str, str] | None = None,
         client_id: str | None = None,
         counters: Counters | None = None,
         persistent: bool = False,
+        amqp_urls: Sequence[str] | None = None,
     ) -> None:
-        url = urlsplit(broker_url)
-        self.host = url.hostname or "127.0.0.1"
-        self.outbox = link.outbox_key(broker_url)
-        self.port = url.port or 1883
+        # Every node of the cluster, this gateway's first; the outbox is the cluster's,
+        # the same for every gateway whichever node it is connected to.
+        self.urls = broker.cluster_urls(broker_url)
+        self.outbox = link.outbox_key(self.urls[0])
         self.counters = counters or Counters("gateway")
         table = DISPATCH if dispatch is None else dispatch
         batch_table = (
@@ -89,6 +98,20 @@ class Gateway:
         )
         self.connected = threading.Event()
         self.stopping = threading.Event()
+        # On RabbitMQ the drones' messages come from a shared AMQP queue; the MQTT
+        # connection only publishes, so it needs no session of its own.
+        self.consumer: AmqpConsumer | None = None
+        if amqp_urls is not None or broker.uses_amqp():
+            self.consumer = AmqpConsumer(
+                SHARE_GROUP,
+                self.channels,
+                self._on_consumed,
+                urls=list(amqp_urls) if amqp_urls is not None else broker.amqp_urls(),
+                prefetch=AMQP_PREFETCH,
+                name=client_id or f"gateway-{socket.gethostname()}-{os.getpid()}",
+                counters=self.counters,
+            )
+            persistent = False
         # A persistent session (with a stable client id) makes the broker queue the
         # drones' QoS 1 messages (mission progress, alarms, replies) while this gateway
         # restarts, instead of dropping them. Mosquitto expires abandoned sessions
@@ -100,16 +123,25 @@ class Gateway:
             client_id=client_id or f"gateway-{socket.gethostname()}-{os.getpid()}",
             clean_session=not persistent,
         )
-        if url.username:
-            self.client.username_pw_set(url.username, url.password)
-        self.client.reconnect_delay_set(min_delay=1, max_delay=30)
+        # Not the 1 s paho default: a lost node should cost a fraction of a second.
+        self.client.reconnect_delay_set(min_delay=0.2, max_delay=10)  # type: ignore[arg-type]
         self.client.max_queued_messages_set(10_000)
         self.client.on_connect = self._on_connect
         self.client.on_disconnect = self._on_disconnect
         self.client.on_message = self._on_message
+        self.failover = broker.attach_failover(self.client, self.urls)
         self._outbox_thread = threading.Thread(
             target=self._publish_outbox, name="gateway-outbox", daemon=True
         )
+
+    @property
+    def host(self) -> str:
+        """The broker node the MQTT connection is on (or trying)."""
+        return self.failover.current.host
+
+    @property
+    def port(self) -> int:
+        return self.failover.current.port
 
     # -- lifecycle ------------------------------------------------------------------------
 
@@ -117,6 +149,8 @@ class Gateway:
         # connect_async + loop_start: paho retries the first connection too, with backoff.
         self.client.connect_async(self.host, self.port, keepalive=30)
         self.client.loop_start()
+        if self.consumer is not None:
+            self.consumer.start()
         self._outbox_thread.start()
         self._batch_thread.start()
 
@@ -124,6 +158,9 @@ class Gateway:
         """Drain: stop taking outbox work, finish the message in hand, disconnect."""
         self.stopping.set()
         self._outbox_thread.join(timeout)
+        if self.consumer is not None:
+            self.consumer.stop(timeout)  # acknowledges what was handed over
+        self.failover.stopping = True
         self.client.disconnect()
         self.client.loop_stop()
         self._finish.set()  # nothing new arrives now: the batch thread empties the queue
@@ -132,7 +169,13 @@ class Gateway:
         close_old_connections()
 
     def wait_connected(self, timeout: float) -> bool:
-        return self.connected.wait(timeout)
+        """Publishing and receiving: the MQTT connection and, on RabbitMQ, the consumer."""
+        deadline = time.monotonic() + timeout
+        if not self.connected.wait(timeout):
+            return False
+        if self.consumer is None:
+            return True
+        return self.consumer.subscribed.wait(max(0.0, deadline - time.monotonic()))
 
     # -- paho callbacks ---------------------------------------------------------------------
 
@@ -145,7 +188,8 @@ class Gateway:
         if sock is not None:
             # Nagle + delayed ACKs add ~40 ms per command round trip (UAVTALK.md).
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        client.subscribe([(subscription(ch), protocol.QOS[ch]) for ch in self.channels])
+        if self.consumer is None:
+            client.subscribe([(subscription(ch), protocol.QOS[ch]) for ch in self.channels])
         self.counters.incr("connects")
         self.connected.set()
         log.info("connected to %s:%s", self.host, self.port)
@@ -157,11 +201,14 @@ class Gateway:
             log.warning("disconnected (%s); reconnecting", reason_code)
 
     def _on_message(self, client, userdata, message: mqtt.MQTTMessage) -> None:  # type: ignore[no-untyped-def]
+        self._on_consumed(message.topic, message.payload)
+
+    def _on_consumed(self, topic_name: str, payload: bytes) -> None:
         try:
-            self.handle(message.topic, message.payload)
+            self.handle(topic_name, payload)
         except Exception:  # noqa: BLE001 - the gateway must outlive any bug in a handler
             self.counters.incr("dropped.handler_error")
-            log.exception("handler failed on %s", message.topic)
+            log.exception("handler failed on %s", topic_name)
         self.counters.maybe_flush()
 
     # -- inbound ----------------------------------------------------------------------------

@@ -14,9 +14,17 @@ import time
 from django.conf import settings
 from django.core.management.base import BaseCommand
 
-from telemetry.ingest import DroneMap, IngestConfig, Ingestor, Limits, load_drone_ids
+from telemetry.ingest import (
+    SHARE_GROUP,
+    DroneMap,
+    IngestConfig,
+    Ingestor,
+    Limits,
+    load_drone_ids,
+)
 from telemetry.live import ChannelsLivePublisher
 from telemetry.queries import conninfo_from_settings
+from workers import broker
 from workers.counters import Counters
 
 log = logging.getLogger(__name__)
@@ -56,6 +64,8 @@ class Command(BaseCommand):
                 max_future_s=settings.TELEMETRY_MAX_FUTURE_S,
             ),
             live_hz=settings.TELEMETRY_LIVE_HZ,
+            # An explicit --mqtt-url means that broker, over MQTT.
+            amqp_urls=broker.amqp_urls() if broker.uses_amqp() and not options["mqtt_url"] else [],
         )
         ingestor = Ingestor(
             config,
@@ -69,7 +79,12 @@ class Command(BaseCommand):
         for sig in (signal.SIGTERM, signal.SIGINT):
             signal.signal(sig, lambda signum, frame: stopping.append(signum))
         ingestor.start()
-        self.stdout.write(f"ingest_telemetry: reading {config.mqtt_url.split('@')[-1]}")
+        source = (
+            f"AMQP queue skyhive.{SHARE_GROUP}"
+            if config.amqp_urls
+            else config.mqtt_url.split("@")[-1]
+        )
+        self.stdout.write(f"ingest_telemetry: reading {source}")
         self.stdout.flush()
         while not stopping:
             time.sleep(0.2)

@@ -18,7 +18,10 @@ class Command(BaseCommand):
 
     def add_arguments(self, parser) -> None:  # type: ignore[no-untyped-def]
         parser.add_argument(
-            "--broker", default=settings.MQTT_URL, help="mqtt://user:pass@host:port"
+            "--broker",
+            default=",".join(settings.MQTT_URLS),
+            help="mqtt://user:pass@host:port; a cluster's nodes comma-separated, tried in turn "
+            "(default MQTT_URLS)",
         )
         parser.add_argument(
             "--client-id",
@@ -39,7 +42,8 @@ class Command(BaseCommand):
         client_id = options["client_id"] or f"gateway-{socket.gethostname()}-{options['instance']}"
         gateway = Gateway(options["broker"], client_id=client_id, persistent=True)
         gateway.start()
-        self.stdout.write(f"gateway: {gateway.host}:{gateway.port}", ending="\n")
+        inbound = "AMQP queue skyhive.gateway" if gateway.consumer is not None else "MQTT"
+        self.stdout.write(f"gateway: {gateway.host}:{gateway.port} ({inbound})", ending="\n")
         self.stdout.flush()
         while not stopping.wait(1.0):
             gateway.counters.flush()
