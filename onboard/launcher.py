@@ -10,6 +10,8 @@ files, flight logs, pictures, arming line, process logs). Broker credentials com
   * a list of `manage.py provision_drone` outputs:
     `[{"drone_id": "SIM_001", "mqtt": {"host": "127.0.0.1", "port": 1883,
        "username": "SIM_001", "password": "..."}}, ...]`
+    (with `"urls": ["mqtt://host:port", ...]` in "mqtt", every node of a broker cluster:
+    the agent tries them in turn)
   * the same objects one per line (JSON Lines), or
   * a mapping `{"SIM_001": {"username": "SIM_001", "password": "..."}, ...}`
     (a value may also be a whole provision output);
@@ -19,7 +21,8 @@ files, flight logs, pictures, arming line, process logs). Broker credentials com
   substituted for `{drone_id}`).
 - neither: every agent uses `--broker-url` as given.
 
-`--broker-url` host and port, when given, override the ones in the credentials.
+`--broker-url` host and port (or several nodes, comma-separated), when given, override
+the ones in the credentials.
 
 `--fc-mix uavtalk,mavlink` (or the FC_MIX environment variable, as in
 `make run DRONES=4 FC_MIX=uavtalk,mavlink`) gives the drones flight controllers of those
@@ -43,7 +46,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 from . import protocol
-from .mqtt import parse_broker_url
+from .mqtt import parse_broker_urls
 from .navigation import ned_to_lla
 
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -63,6 +66,7 @@ class Credentials:
     password: str | None
     host: str | None = None
     port: int | None = None
+    urls: tuple[str, ...] = ()  # every node of the broker cluster, when it has several
 
 
 def _credentials_from(obj: object, drone_id: str | None = None) -> Credentials:
@@ -75,12 +79,16 @@ def _credentials_from(obj: object, drone_id: str | None = None) -> Credentials:
     if not protocol.is_drone_id(drone_id):
         raise LaunchError(f"invalid drone id {drone_id!r} in the credentials")
     port = mqtt.get("port")
+    urls = mqtt.get("urls") or []
+    if not isinstance(urls, list) or not all(isinstance(u, str) for u in urls):
+        raise LaunchError("'mqtt.urls' must be a list of broker URLs")
     return Credentials(
         drone_id=str(drone_id),
         username=mqtt.get("username"),
         password=mqtt.get("password"),
         host=mqtt.get("host"),
         port=int(port) if port is not None else None,
+        urls=tuple(u if "://" in u else f"mqtt://{u}" for u in urls),
     )
 
 
@@ -125,14 +133,20 @@ def provision(command: str, drone_id: str) -> Credentials:
 
 
 def broker_url_for(credentials: Credentials, default_url: str | None) -> str:
-    """mqtt://user:pass@host:port from credentials, host/port overridden by default_url."""
-    host, port = credentials.host, credentials.port
+    """mqtt://user:pass@host:port from credentials, host/port overridden by default_url.
+
+    A cluster (several nodes in default_url, comma-separated, or in the credentials'
+    `urls`) gives one such URL per node, comma-separated, as the agent's --broker takes.
+    """
     if default_url:
-        base = parse_broker_url(default_url)
-        host, port = base.host, base.port
         if credentials.username is None:
             return default_url
-    if host is None:
+        nodes = [(b.host, b.port) for b in parse_broker_urls(default_url)]
+    elif credentials.urls:
+        nodes = [(b.host, b.port) for b in parse_broker_urls(credentials.urls)]
+    elif credentials.host is not None:
+        nodes = [(credentials.host, credentials.port or 1883)]
+    else:
         raise LaunchError(f"no broker host for {credentials.drone_id}: give --broker-url")
     auth = ""
     if credentials.username:
@@ -140,7 +154,7 @@ def broker_url_for(credentials: Credentials, default_url: str | None) -> str:
         if credentials.password is not None:
             auth += ":" + quote(credentials.password, safe="")
         auth += "@"
-    return f"mqtt://{auth}{host}:{port or 1883}"
+    return ",".join(f"mqtt://{auth}{host}:{port}" for host, port in nodes)
 
 
 def spread(home: tuple[float, float, float], count: int, spacing: float) -> list[tuple]:
@@ -355,7 +369,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--count", type=int, required=True)
     p.add_argument("--home", type=_home, required=True, help="LAT,LON[,ALT]")
-    p.add_argument("--broker-url", help="mqtt://host:port (credentials may be included)")
+    p.add_argument(
+        "--broker-url",
+        help="mqtt://host:port (credentials may be included); a cluster's nodes comma-separated",
+    )
     source = p.add_mutually_exclusive_group()
     source.add_argument("--credentials-file", type=Path)
     source.add_argument("--provision", help="command printing provision_drone JSON for an id")

@@ -1,7 +1,8 @@
 """`manage.py run_simulated_drones N`: provision N simulated drones and fly them (make run DRONES=N).
 
 Each drone gets its own broker credentials in the demo organisation (or --org), then the
-onboard launcher starts a software flight controller and the real agent per drone.
+onboard launcher starts a software flight controller and the real agent per drone. On a
+broker cluster every agent is given every node (MQTT_URLS) and fails over between them.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import json
 import os
 import sys
 from pathlib import Path
+from urllib.parse import urlsplit
 
 from django.conf import settings
 from django.core.management.base import BaseCommand, CommandError
@@ -41,9 +43,12 @@ class Command(BaseCommand):
         for n in range(1, count + 1):
             drone_id = f"{options['prefix']}_{n:03d}"
             try:
-                entries.append(provision(drone_id, options["org"]).to_dict())
+                entry = provision(drone_id, options["org"]).to_dict()
             except ProvisioningError as exc:
                 raise CommandError(str(exc)) from None
+            if not entry["mqtt"].get("urls") and cluster_nodes():
+                entry["mqtt"]["urls"] = cluster_nodes()
+            entries.append(entry)
         workdir = Path(settings.DATA_DIR) / "fleet"
         workdir.mkdir(parents=True, exist_ok=True)
         credentials = workdir / "credentials.json"
@@ -68,3 +73,11 @@ class Command(BaseCommand):
         self.stdout.flush()
         # Replace this process so Ctrl-C and SIGTERM from `make run` reach the launcher.
         os.execv(sys.executable, argv)
+
+
+def cluster_nodes() -> list[str]:
+    """Every broker node's address (no credentials), when there are several; else none."""
+    if len(settings.MQTT_URLS) < 2:
+        return []
+    nodes = [urlsplit(url) for url in settings.MQTT_URLS]
+    return [f"mqtt://{node.hostname}:{node.port or 1883}" for node in nodes]
