@@ -8,6 +8,7 @@ from fleet import api as fleet_api
 from fleet.control import ControlView
 from missions import api as missions_api
 from telemetry.logs import urls as logs_urls
+from workers import views as operations_views
 
 from .health import health
 
@@ -25,6 +26,7 @@ api_v1 = [
     ),
     path("telemetry/", include("telemetry.api_urls")),
     path("logs/", include(logs_urls.api_urlpatterns)),
+    path("operations/", operations_views.operations_api, name="operations"),
     path("", include(router.urls)),
 ]
 
@@ -51,5 +53,6 @@ urlpatterns = [
     path("telemetry/", include("telemetry.urls")),
     path("pastview/", include("telemetry.pastview.urls")),
     path("logs/", include("telemetry.logs.urls")),
+    path("operations/", operations_views.operations_page, name="operations"),
     path("", include("fleet.urls")),
 ]

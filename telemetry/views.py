@@ -9,6 +9,7 @@ from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, render
 
 from fleet.models import Drone
+from workers import operations
 
 from . import queries, status
 
@@ -54,4 +55,9 @@ def dashboard(request: HttpRequest, drone_id: str) -> HttpResponse:
 
 @login_required
 def ingest_status(request: HttpRequest) -> HttpResponse:
-    return render(request, "telemetry/status.html", {"status": status.ingest_status()})
+    """The ingest counters, and for operators the figures to watch (read by the page)."""
+    return render(
+        request,
+        "telemetry/status.html",
+        {"status": status.ingest_status(), "show_watch": operations.may_see(request.user)},
+    )

@@ -1,0 +1,315 @@
+"""The operations figures: process instances alive and gone, the broker's own figures from
+a real Mosquitto and a real RabbitMQ cluster, sources that cannot be read, who may look,
+and the page in a browser."""
+
+from __future__ import annotations
+
+import time
+import urllib.parse
+import uuid
+
+import pytest
+from django.test import Client, override_settings
+from rest_framework.test import APIClient
+
+from tests.conftest import login
+from tests.support.mosquitto import GROUND_AND_DRONES_ACL, free_port, start_broker
+from workers import operations
+from workers.counters import Counters, instances
+from workers.gateway import Gateway
+
+# The ground user must read Mosquitto's $SYS tree for the broker figures (docs/scaling.md).
+ACL_WITH_SYS = GROUND_AND_DRONES_ACL.replace(
+    "topic readwrite #\n", "topic readwrite #\ntopic read $SYS/#\n"
+)
+
+
+def wait_for(condition, timeout: float = 10.0, every: float = 0.1):  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = condition()
+        if value:
+            return value
+        time.sleep(every)
+    raise AssertionError("condition not met in time")
+
+
+def api_as(user) -> APIClient:  # type: ignore[no-untyped-def]
+    client = APIClient()
+    client.force_authenticate(user)
+    return client
+
+
+def by_instance(figures: dict, process: str) -> dict[str, dict]:
+    group = figures["instances"]["processes"].get(process, {"instances": []})
+    return {i["instance"]: i for i in group["instances"]}
+
+
+@pytest.fixture
+def sys_broker(tmp_path):
+    broker = start_broker(tmp_path / "sys", {"ground": "g", "ACME_1": "a"}, acl=ACL_WITH_SYS)
+    yield broker
+    broker.stop()
+
+
+# -- instances --------------------------------------------------------------------------------
+
+
+def test_two_running_gateways_are_listed_and_a_stopped_one_turns_gone_after_its_ttl(
+    world_tx, sys_broker
+):
+    world = world_tx
+    tag = uuid.uuid4().hex[:8]
+    gateways = [
+        Gateway(
+            sys_broker.url_for("ground"),
+            counters=Counters("gateway", instance=f"ops-{tag}-{n}", instance_ttl=1.5),
+        )
+        for n in (1, 2)
+    ]
+    for gateway in gateways:
+        gateway.start()
+    try:
+        for gateway in gateways:
+            assert gateway.wait_connected(10)
+        api = api_as(world.operator)
+
+        def mine() -> dict[str, dict]:
+            figures = api.get("/api/v1/operations/").json()
+            return {k: v for k, v in by_instance(figures, "gateway").items() if tag in k}
+
+        with override_settings(MQTT_URL=sys_broker.url_for("ground")):
+            listed = wait_for(lambda: (found := mine()) and len(found) == 2 and found)
+        assert all(i["alive"] for i in listed.values())
+        assert {i["pid"] for i in listed.values()} and all(i["host"] for i in listed.values())
+
+        gateways[0].stop()
+        stopped, running = f"ops-{tag}-1", f"ops-{tag}-2"
+        gone = wait_for(
+            lambda: (found := mine()) and not found[stopped]["alive"] and found, timeout=6
+        )
+        assert gone[running]["alive"], "the gateway still running stays alive"
+        assert time.time() - gone[stopped]["last_report"] >= 1.5
+    finally:
+        for gateway in gateways:
+            if not gateway.stopping.is_set():
+                gateway.stop()
+
+
+def test_an_instance_reports_while_idle_and_keeps_its_own_counters(db):
+    counters = Counters("ingest", instance=f"ops-idle-{uuid.uuid4().hex[:8]}", instance_ttl=2)
+    counters.incr("stored", 7)
+    counters.flush()
+    counters.flush()  # nothing counted: still a heartbeat
+    mine = next(i for i in instances() if i.instance == counters.instance)
+    assert mine.alive and mine.process == "ingest"
+    assert mine.counters["stored"] == 7, "the instance's own count, not the totals"
+
+
+def test_ingest_lag_above_a_second_is_highlighted_as_bad(db):
+    counters = Counters("ingest", instance=f"ops-lag-{uuid.uuid4().hex[:8]}", instance_ttl=5)
+    counters.gauge("lag_s", 2.5)
+    counters.gauge("alive_at", time.time())
+    counters.flush()
+    try:
+        watch = {w["key"]: w for w in operations.gather()["watch"]}
+        assert watch["ingest_lag"]["value"] >= 2.5
+        assert watch["ingest_lag"]["state"] == "bad"
+        assert watch["ingest_lag"]["at"] > time.time() - 10
+    finally:
+        counters.retire()
+
+
+def test_rising_gateway_drops_are_flagged(db, monkeypatch):
+    monkeypatch.setattr(operations, "TREND_MIN_AGE_S", 0.0)
+    counters = Counters("gateway", instance=f"ops-drop-{uuid.uuid4().hex[:8]}", instance_ttl=2)
+    operations.gather()
+    counters.incr("dropped", 3)
+    counters.incr("dropped.malformed", 3)
+    counters.flush()
+    figures = operations.gather()
+    watch = {w["key"]: w for w in figures["watch"]}
+    assert watch["gateway_dropped"]["state"] == "warn"
+    assert figures["gateway"]["dropped"]["malformed"] >= 3
+
+
+# -- the broker: Mosquitto --------------------------------------------------------------------
+
+
+def test_mosquitto_figures_come_from_its_sys_topics(world, sys_broker):
+    import paho.mqtt.client as mqtt
+
+    drone = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="ACME_1")
+    drone.username_pw_set("ACME_1", "a")
+    drone.connect("127.0.0.1", sys_broker.port)
+    drone.loop_start()
+    try:
+        with override_settings(MQTT_URL=sys_broker.url_for("ground"), MQTT_BROKER="mosquitto"):
+            # $SYS is refreshed every 10 s; the first figures may predate the drone.
+            figures = api_as(world.owner).get("/api/v1/operations/").json()
+        broker = figures["broker"]
+        assert broker["available"] and broker["kind"] == "mosquitto"
+        assert broker["version"].startswith("mosquitto")
+        assert isinstance(broker["clients_connected"], int)
+        assert isinstance(broker["store_messages"], int)
+        assert broker["nodes_down"] == 0 and broker["at"] > time.time() - 10
+        watch = {w["key"]: w for w in figures["watch"]}
+        assert watch["broker_nodes_down"]["state"] == "ok"
+        assert watch["broker_depth"]["state"] in ("ok", "warn")
+    finally:
+        drone.loop_stop()
+        drone.disconnect()
+
+
+def test_a_broker_that_hides_sys_is_shown_unreadable_not_zero(tmp_path):
+    broker = start_broker(tmp_path / "nosys", {"ground": "g"})
+    try:
+        figures = operations.mosquitto_figures(broker.url_for("ground"))
+    finally:
+        broker.stop()
+    assert figures["available"] is False and "$SYS" in figures["error"]
+    assert "clients_connected" not in figures
+
+
+def test_a_stopped_mosquitto_is_a_node_down(db):
+    figures = operations.mosquitto_figures(f"mqtt://ground:g@127.0.0.1:{free_port()}")
+    assert figures["available"] is False and figures["nodes_down"] == 1
+    with override_settings(MQTT_URL=f"mqtt://ground:g@127.0.0.1:{free_port()}"):
+        watch = {w["key"]: w for w in operations.gather()["watch"]}
+    assert watch["broker_nodes_down"]["state"] == "bad"
+    assert watch["broker_depth"]["state"] == "unknown" and watch["broker_depth"]["value"] is None
+
+
+# -- the broker: RabbitMQ cluster -------------------------------------------------------------
+
+
+def test_rabbitmq_figures_show_both_nodes_and_the_depth_of_a_filled_queue(world, rabbit_cluster):
+    name = f"skyhive.ops-test-{uuid.uuid4().hex[:6]}"
+    vhost_queue = f"%2F/{urllib.parse.quote(name, safe='')}"
+    rabbit_cluster.api("PUT", f"queues/{vhost_queue}", {"durable": False, "auto_delete": False})
+    try:
+        for n in range(5):
+            rabbit_cluster.api(
+                "POST",
+                "exchanges/%2F/amq.default/publish",
+                {
+                    "properties": {},
+                    "routing_key": name,
+                    "payload": f"m{n}",
+                    "payload_encoding": "string",
+                },
+            )
+        env = rabbit_cluster.settings_env()
+        with override_settings(
+            MQTT_BROKER="rabbitmq", RABBITMQ_API_URLS=env["RABBITMQ_API_URLS"].split(",")
+        ):
+
+            def filled() -> dict | None:
+                figures = api_as(world.owner).get("/api/v1/operations/").json()
+                queues = figures["broker"].get("queues", [])
+                return (
+                    figures if any(q["name"] == name and q["ready"] == 5 for q in queues) else None
+                )
+
+            # The management API refreshes queue figures every few seconds.
+            figures = wait_for(filled, timeout=15, every=1.0)
+        broker = figures["broker"]
+        assert broker["kind"] == "rabbitmq" and broker["available"]
+        assert broker["nodes_up"] == 2 and broker["nodes_down"] == 0
+        assert all(e["up"] for e in broker["endpoints"])
+        assert broker["connections"] is not None and "queues" in broker["mqtt_sessions"]
+        watch = {w["key"]: w for w in figures["watch"]}
+        assert watch["broker_depth"]["value"] >= 5
+        assert watch["broker_nodes_down"]["state"] == "ok"
+    finally:
+        rabbit_cluster.api("DELETE", f"queues/{vhost_queue}")
+
+
+def test_a_killed_rabbitmq_node_is_reported_down(rabbit_cluster):
+    urls = rabbit_cluster.api_urls
+    rabbit_cluster.kill_node(2)
+    try:
+        figures = wait_for(
+            lambda: f if (f := operations.rabbitmq_figures(urls))["nodes_down"] >= 1 else None,
+            timeout=30,
+            every=1.0,
+        )
+        assert figures["available"], "node 1 still answers for the cluster"
+        down = [e for e in figures["endpoints"] if not e["up"]]
+        assert [e["address"] for e in down] == [f"127.0.0.1:{rabbit_cluster.api_port(2)}"]
+        watch = {
+            w["key"]: w
+            for w in operations.watch(
+                {
+                    "generated_at": time.time(),
+                    "ingest": {"available": False},
+                    "gateway": {"available": False},
+                    "queues": {"available": False},
+                    "instances": {"available": False},
+                    "broker": figures,
+                }
+            )
+        }
+        assert watch["broker_nodes_down"]["state"] == "bad"
+        assert str(rabbit_cluster.api_port(2)) in watch["broker_nodes_down"]["detail"]
+    finally:
+        rabbit_cluster.start_node(2)
+
+
+def test_no_answering_rabbitmq_node_means_unreachable_not_zero():
+    urls = [f"http://u:p@127.0.0.1:{free_port()}/api", f"http://u:p@127.0.0.1:{free_port()}/api"]
+    figures = operations.rabbitmq_figures(urls)
+    assert figures["available"] is False
+    assert figures["nodes_down"] == 2 and "queues" not in figures
+
+
+# -- who may look -----------------------------------------------------------------------------
+
+
+def test_operators_and_admins_see_the_operations_page_and_viewers_do_not(world):
+    for person, code in ((world.owner, 200), (world.operator, 200), (world.viewer, 403)):
+        assert api_as(person).get("/api/v1/operations/").status_code == code
+        client = Client()
+        client.force_login(person)
+        page = client.get("/operations/")
+        assert page.status_code == code
+        nav = client.get("/telemetry/status/").content.decode()
+        assert ('href="/operations/"' in nav) is (code == 200)
+    assert APIClient().get("/api/v1/operations/").status_code in (401, 403)
+    assert Client().get("/operations/").status_code == 302
+
+
+# -- the page in a browser --------------------------------------------------------------------
+
+
+@pytest.mark.browser
+def test_the_operations_page_shows_instances_and_refreshes_itself(page, live_asgi, world_tx):
+    counters = Counters("gateway", instance=f"ops-page-{uuid.uuid4().hex[:8]}", instance_ttl=30)
+    counters.incr("dropped.malformed", 1)
+    counters.flush()
+    try:
+        login(page, live_asgi, "operator")
+        page.click("nav >> text=Operations")
+        page.wait_for_url(f"{live_asgi.url}/operations/")
+        row = page.locator(f"tr[data-instance='{counters.instance}']")
+        row.wait_for()
+        assert "alive" in row.inner_text()
+        assert page.locator("#ops-watch .ops-item[data-key=ingest_lag]").count() == 1
+        assert page.locator("#ops-watch .ops-item").count() >= 8
+        assert page.locator("#ops-gateway-dropped").inner_text().count("malformed") == 1
+        first = page.get_attribute("#ops-updated", "data-generated-at")
+        page.wait_for_function(
+            "(first) => document.getElementById('ops-updated').dataset.generatedAt !== first",
+            arg=first,
+            timeout=15_000,
+        )
+        counters.retire()
+        page.wait_for_function(
+            f"() => document.querySelector(\"tr[data-instance='{counters.instance}'] .badge\")"
+            ".textContent === 'gone'",
+            timeout=15_000,
+        )
+        page.goto(f"{live_asgi.url}/telemetry/status/")
+        page.locator("#ops-watch .ops-item[data-key=broker_nodes_down]").wait_for()
+    finally:
+        counters.retire()
