@@ -424,8 +424,11 @@ def _apply_step(
             return "unknown_step"
         # After a handover the old drone's "failed" (it was told to stop) is noise.
         retired = assignment.status in (Assignment.Status.STOPPED, Assignment.Status.REJECTED)
-        duplicate = step.status in STEP_DONE or (retired and message.status != StepStatus.COMPLETED)
-        if not duplicate:
+        late = _late_own_report(mission, drone, step, message)
+        duplicate = not late and (
+            step.status in STEP_DONE or (retired and message.status != StepStatus.COMPLETED)
+        )
+        if not duplicate and not late:
             try:
                 step.transition(message.status)
             except IllegalTransition:
@@ -462,6 +465,26 @@ def _apply_step(
         if message.status == StepStatus.COMPLETED and not duplicate:
             complete_if_done(mission)
     return None
+
+
+def _late_own_report(
+    mission: Mission, drone: Drone, step: Step, message: protocol.StepProgress
+) -> bool:
+    """A step's own "completed" arriving after the drone's "mission completed" already
+    marked it done. Several gateways share the drones' topics, so one drone's messages
+    may be handled out of order; the late report still brings the step's duration and
+    result, and is accepted once."""
+    if message.status != StepStatus.COMPLETED or step.status != StepStatus.COMPLETED:
+        return False
+    if step.drone_id != drone.pk:
+        return False
+    accepted = mission.events.filter(
+        kind=Event.Kind.STEP,
+        data__index=step.index,
+        data__status=StepStatus.COMPLETED,
+        data__ignored=False,
+    )
+    return not accepted.exists()
 
 
 def _apply_mission_status(

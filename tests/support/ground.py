@@ -18,7 +18,8 @@ import subprocess
 import sys
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -348,3 +349,584 @@ def start_simulated_drone(
             env=env,
         )
     return drone
+
+
+# -- a private Redis ----------------------------------------------------------------------
+
+
+class PrivateRedis:
+    """A throw-away redis-server on a free port (the suite's Redis is shared by everyone
+    running tests: a test that restarts Redis must restart its own). No persistence, like
+    a Redis that lost its memory."""
+
+    def __init__(self, directory: Path) -> None:
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self.port = free_port()
+        self.process: subprocess.Popen | None = None
+
+    @property
+    def url(self) -> str:
+        return f"redis://127.0.0.1:{self.port}/0"
+
+    def start(self, timeout: float = 10.0) -> PrivateRedis:
+        argv = ["redis-server", "--port", str(self.port), "--bind", "127.0.0.1",
+                "--save", "", "--appendonly", "no", "--dir", str(self.directory)]  # fmt: skip
+        with open(self.directory / "redis.log", "ab") as log:
+            self.process = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if _port_open(self.port):
+                return self
+            if self.process.poll() is not None:
+                raise RuntimeError("redis-server exited; see " + str(self.directory))
+            time.sleep(0.05)
+        raise RuntimeError("redis-server did not start")
+
+    def stop(self) -> None:
+        if self.process is not None and self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+        self.process = None
+
+
+# -- a replicated ground with simulated drones, for end-to-end scenarios ------------------
+
+GROUND_PASSWORD = "ground-repl-password"
+# Simulated seconds per real second: a 15-waypoint survey takes about 15 s.
+TIME_SCALE = 20.0
+HOME_ALT_MSL = 12.0
+# Our own Redis database on the suite's Redis: other suites' gateways, counters and
+# channel layers use the default one at the same time.
+REDIS_DB = 13
+# Knobs every scenario ground runs with: the beat's resume and sweep every second, and a
+# visibility timeout short enough that a killed worker's task runs again within seconds
+# (every task here takes well under a second).
+FAST_ENV = {
+    "MISSIONS_RESUME_INTERVAL_S": "1",
+    "OFFLINE_SWEEP_INTERVAL_S": "1",
+    "CELERY_VISIBILITY_TIMEOUT": "6",
+}
+
+
+def redis_url_with_db(url: str, db: int) -> str:
+    from urllib.parse import urlsplit, urlunsplit
+
+    return urlunsplit(urlsplit(url)._replace(path=f"/{db}"))
+
+
+@dataclass
+class ReplicatedGround:
+    """The ground processes, the broker's addresses for drones, and the drones started."""
+
+    processes: GroundProcesses
+    directory: Path
+    drone_url: Callable[[str, str], str]  # (drone id, password) → the agent's --broker
+    drones: dict[str, SimulatedDrone] = field(default_factory=dict)
+    passwords: dict[str, str] = field(default_factory=dict)
+    broker: object = None
+
+    def provision(self, drone_id: str, organisation_slug: str) -> str:
+        """Create the drone with broker credentials; its --broker URL."""
+        from fleet import credentials
+
+        creds = credentials.provision(drone_id, organisation_slug)
+        self.passwords[drone_id] = creds.password
+        return self.drone_url(drone_id, creds.password)
+
+    def add_drone(
+        self, drone_id: str, organisation_slug: str, *, north: float = 0.0, east: float = 0.0
+    ) -> SimulatedDrone:
+        from tests.missions.conftest import point_at
+
+        url = self.provision(drone_id, organisation_slug)
+        lat, lon = point_at(north, east)
+        drone = start_simulated_drone(
+            self.directory / drone_id, drone_id, url, (lat, lon, HOME_ALT_MSL),
+            time_scale=TIME_SCALE,
+        )  # fmt: skip
+        self.drones[drone_id] = drone
+        return drone
+
+    def wait_online(self, drone_ids: list[str], timeout: float = 40.0) -> None:
+        from fleet.models import Drone
+
+        def ready() -> bool:
+            rows = Drone.objects.filter(drone_id__in=drone_ids, online=True, lat__isnull=False)
+            return rows.exclude(battery_remaining__isnull=True).count() == len(drone_ids)
+
+        if not wait_for(ready, timeout):
+            raise AssertionError(f"drones not online: {drone_ids}\n{self.processes.describe()}")
+
+    def close(self) -> None:
+        for drone in self.drones.values():
+            drone.stop()
+        self.processes.stop()
+
+
+def wait_for(predicate: Callable[[], object], timeout: float, interval: float = 0.1) -> object:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(interval)
+    return predicate()
+
+
+def _point_test_process_at(settings, values: dict[str, object]) -> None:  # type: ignore[no-untyped-def]
+    """The test process provisions drones and reads the outbox: same broker and Redis."""
+    from fleet import link
+
+    for name, value in values.items():
+        setattr(settings, name, value)
+    link._sync_client = None
+
+
+def _database_name() -> str:
+    from django.db import connection
+
+    return connection.settings_dict["NAME"]
+
+
+@contextmanager
+def mosquitto_ground(
+    directory: Path,
+    settings,  # type: ignore[no-untyped-def]
+    *,
+    redis_url: str | None = None,
+    env: dict[str, str] | None = None,
+    beat: bool = True,
+    **counts: int,
+) -> Iterator[ReplicatedGround]:
+    """A private Mosquitto and `counts` ground processes (web=, gateways=, ingests=,
+    workers=) with beat; the gateways and ingests share the drones' topics through
+    `$share/...` subscriptions."""
+    from tests.support.mosquitto import start_broker
+
+    folder = Path(directory) / "mosquitto"
+    broker = start_broker(
+        folder, {"ground": GROUND_PASSWORD}, extra_config=f"pid_file {folder / 'mosquitto.pid'}\n"
+    )
+    redis_url = redis_url or redis_url_with_db(settings.REDIS_URL, REDIS_DB)
+    ground_url = broker.url_for("ground")
+    _point_test_process_at(
+        settings,
+        {
+            "MQTT_BROKER": "mosquitto",
+            "MQTT_URL": ground_url,
+            "MQTT_URLS": [ground_url],
+            "MOSQUITTO_DIR": str(folder),
+            "MQTT_PUBLIC_HOST": "127.0.0.1",
+            "MQTT_PUBLIC_PORT": broker.port,
+            "REDIS_URL": redis_url,
+        },
+    )
+    process_env = {
+        **FAST_ENV,
+        "MQTT_BROKER": "mosquitto",
+        "MQTT_URL": ground_url,
+        "MQTT_URLS": ground_url,
+        "MOSQUITTO_DIR": str(folder),
+        "REDIS_URL": redis_url,
+        **(env or {}),
+    }
+    processes = GroundProcesses(Path(directory) / "ground", _database_name(), process_env)
+    ground = ReplicatedGround(
+        processes,
+        Path(directory) / "drones",
+        lambda drone_id, password: f"mqtt://{drone_id}:{password}@127.0.0.1:{broker.port}",
+        broker=broker,
+    )
+    try:
+        processes.add(beat=beat, **counts).start()
+        yield ground
+    finally:
+        ground.close()
+        broker.stop()
+        _point_test_process_at(settings, {})
+
+
+@contextmanager
+def rabbitmq_ground(
+    directory: Path,
+    settings,  # type: ignore[no-untyped-def]
+    cluster,  # type: ignore[no-untyped-def]
+    *,
+    redis_url: str | None = None,
+    env: dict[str, str] | None = None,
+    beat: bool = True,
+    **counts: int,
+) -> Iterator[ReplicatedGround]:
+    """The same on a RabbitCluster: drones get every node's URL (they fail over in turn),
+    the gateways and ingests consume the shared AMQP queues."""
+    redis_url = redis_url or redis_url_with_db(settings.REDIS_URL, REDIS_DB)
+    broker_env = cluster.settings_env()
+    _point_test_process_at(
+        settings,
+        {
+            "MQTT_BROKER": "rabbitmq",
+            "MQTT_URL": broker_env["MQTT_URL"],
+            "MQTT_URLS": broker_env["MQTT_URLS"].split(","),
+            "AMQP_URLS": broker_env["AMQP_URLS"].split(","),
+            "RABBITMQ_API_URLS": broker_env["RABBITMQ_API_URLS"].split(","),
+            "REDIS_URL": redis_url,
+        },
+    )
+    process_env = {**FAST_ENV, **broker_env, "REDIS_URL": redis_url, **(env or {})}
+    processes = GroundProcesses(Path(directory) / "ground", _database_name(), process_env)
+
+    def drone_url(drone_id: str, password: str) -> str:
+        return ",".join(
+            f"mqtt://{drone_id}:{password}@127.0.0.1:{cluster.mqtt_port(i)}"
+            for i in range(1, cluster.nodes + 1)
+        )
+
+    ground = ReplicatedGround(processes, Path(directory) / "drones", drone_url, broker=cluster)
+    try:
+        processes.add(beat=beat, **counts).start()
+        yield ground
+    finally:
+        ground.close()
+        _point_test_process_at(settings, {})
+
+
+# -- what a user does: the API through every web instance, a mission's websocket ----------
+
+
+class Api:
+    """The REST API with a token, each request to the next web instance in turn."""
+
+    def __init__(self, user, urls: list[str]) -> None:  # type: ignore[no-untyped-def]
+        import requests
+        from rest_framework.authtoken.models import Token
+
+        token, _ = Token.objects.get_or_create(user=user)
+        self.urls = list(urls)
+        self.sessions = []
+        for _ in self.urls:
+            session = requests.Session()
+            session.headers["Authorization"] = f"Token {token.key}"
+            self.sessions.append(session)
+        self.calls = [0] * len(self.urls)
+        self._turn = 0
+
+    def request(self, method: str, path: str, body: dict | None = None):  # type: ignore[no-untyped-def]
+        i = self._turn % len(self.urls)
+        self._turn += 1
+        self.calls[i] += 1
+        return self.sessions[i].request(method, self.urls[i] + path, json=body, timeout=30)
+
+    def get(self, path: str):  # type: ignore[no-untyped-def]
+        return self.request("GET", path)
+
+    def post(self, path: str, body: dict | None = None):  # type: ignore[no-untyped-def]
+        return self.request("POST", path, body)
+
+
+class MissionSocket:
+    """`/ws/missions/<id>/` on one web instance, logged in; collects every message."""
+
+    def __init__(self, base_url: str, mission_id: str, user) -> None:  # type: ignore[no-untyped-def]
+        import json
+        import threading
+
+        from websockets.sync.client import connect
+
+        from tests.support.websocket import session_cookie
+
+        cookie = session_cookie(user).decode()
+        url = base_url.replace("http://", "ws://") + f"/ws/missions/{mission_id}/"
+        self.connection = connect(
+            url, additional_headers={"Cookie": cookie, "Origin": base_url}, open_timeout=10
+        )
+        self.messages: list[dict] = []
+        self._json = json
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        from websockets.exceptions import ConnectionClosed
+
+        try:
+            while True:
+                self.messages.append(self._json.loads(self.connection.recv()))
+        except ConnectionClosed:
+            pass
+
+    def step_completions(self) -> list[int]:
+        return sorted(
+            m["data"]["index"]
+            for m in self.messages
+            if m.get("type") == "event"
+            and m.get("kind") == "step"
+            and m["data"].get("status") == "completed"
+            and not m["data"].get("ignored")
+        )
+
+    def close(self) -> None:
+        self.connection.close()
+        self._reader.join(5)
+
+
+def survey_with_alarm(width: float, height: float, step: float, after: int) -> list[dict]:
+    """Survey steps with a CRITICAL virtual alarm right after waypoint `after` (1-based):
+    the drone raises it as it would on a low battery, and must be replaced."""
+    from missions.planning import coverage, mission_steps
+    from tests.missions.conftest import rectangle
+
+    area = coverage(rectangle(width, height), step)
+    steps = mission_steps(area.waypoints, altitude=10)
+    steps = [{"command": s["command"], "params": s["params"]} for s in steps]
+    alarm = {"command": "virtualalarm", "params": {"level": "CRITICAL", "message": "battery"}}
+    steps.insert(2 + 2 * after, alarm)
+    return steps
+
+
+@dataclass
+class MissionRun:
+    """What a replacement mission left behind, and the checks that it happened once."""
+
+    mission_id: str
+    socket: MissionSocket
+    failing: str
+    replacing: str
+
+    def describe(self) -> str:
+        from missions.models import Mission
+
+        mission = Mission.objects.get(pk=self.mission_id)
+        steps = [
+            f"{s.index}:{s.command}:{s.status}:{s.drone.drone_id if s.drone else None}"
+            for s in mission.steps.order_by("index")
+        ]
+        events = [f"{e.kind}:{e.message}" for e in mission.events.order_by("at")]
+        return "steps " + ", ".join(steps) + "\nevents " + "; ".join(events)
+
+    def assert_exactly_once(self, *, duplicate_alarms: int = 1) -> None:
+        from missions.models import STEP_DONE, Assignment, Event, Mission, StepStatus
+
+        mission = Mission.objects.get(pk=self.mission_id)
+        assert mission.status == "completed", mission.status
+        # One decision, however many gateways, workers and alarm copies there were.
+        replacements = mission.assignments.filter(reason=Assignment.Reason.REPLACEMENT)
+        assert [a.drone.drone_id for a in replacements] == [self.replacing]
+        assert mission.events.filter(data__decision="replacement").count() == 1
+        assert mission.events.filter(data__decision="stop_failing").count() == 1
+        assert mission.events.filter(kind=Event.Kind.ALARM).count() == 1 + duplicate_alarms
+        # Every step done, each completion accepted once.
+        assert not mission.steps.exclude(status__in=STEP_DONE).exists()
+        waits = mission.steps.filter(command="wait_for_flight")
+        assert not waits.exclude(status=StepStatus.COMPLETED).exists()
+        accepted = sorted(
+            e.data["index"]
+            for e in mission.events.filter(kind=Event.Kind.STEP, data__status="completed")
+            if not e.data.get("ignored")
+        )
+        assert len(accepted) == len(set(accepted)), "a step was completed twice"
+        completed = set(
+            mission.steps.filter(status=StepStatus.COMPLETED).values_list("index", flat=True)
+        )
+        assert set(accepted) == completed, (sorted(completed - set(accepted)), self.describe())
+        flown_by = set(waits.values_list("drone__drone_id", flat=True))
+        assert flown_by == {self.failing, self.replacing}
+        # The page on one web instance saw every step's progress once, whichever gateway
+        # or worker produced it.
+        assert wait_for(lambda: self.socket.step_completions() == accepted, 10), (
+            self.socket.step_completions(),
+            accepted,
+        )
+        assert any(
+            m.get("type") == "mission" and m.get("status") == "completed"
+            for m in self.socket.messages
+        )
+
+
+def publish_as(url: str, topic: str, message: dict) -> None:
+    """Publish once with a drone's own credentials (QoS 1), as a redelivery would arrive."""
+    import json
+    import threading
+    from urllib.parse import urlsplit
+
+    import paho.mqtt.client as mqtt
+
+    parts = urlsplit(url.split(",")[0])
+    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=uuid.uuid4().hex)
+    client.username_pw_set(parts.username, parts.password)
+    connected = threading.Event()
+    client.on_connect = lambda c, u, f, rc, p: connected.set()
+    client.connect(parts.hostname or "127.0.0.1", parts.port or 1883)
+    client.loop_start()
+    try:
+        assert connected.wait(5), "could not connect as the drone"
+        client.publish(topic, json.dumps(message), qos=1).wait_for_publish(5)
+    finally:
+        client.disconnect()
+        client.loop_stop()
+
+
+def fly_replacement_mission(
+    ground: ReplicatedGround,
+    organisation_slug: str,
+    api: Api,
+    user,  # type: ignore[no-untyped-def]
+    *,
+    prefix: str = "ACME_R",
+    during: Callable[[], None] | None = None,
+    during_after_steps: int = 4,
+    timeout: float = 90.0,
+) -> MissionRun:
+    """Two drones; the first flies a survey, raises CRITICAL after its fourth waypoint
+    (the alarm is then delivered a second time, as a QoS 1 redelivery would), the second
+    takes over. `during` runs once `during_after_steps` steps are complete (a fault)."""
+    from missions.models import Event, Mission, StepStatus
+
+    failing, replacing = f"{prefix}1", f"{prefix}2"
+    ground.add_drone(failing, organisation_slug, north=-10)
+    ground.add_drone(replacing, organisation_slug, north=-40, east=-20)
+    ground.wait_online([failing, replacing])
+    created = api.post(
+        "/api/v1/missions/", {"name": "replicated", "steps": survey_with_alarm(40, 20, 10, 4)}
+    )
+    assert created.status_code == 201, created.text
+    mission_id = created.json()["id"]
+    socket_ = MissionSocket(api.urls[0], mission_id, user)
+    started = api.post(f"/api/v1/missions/{mission_id}/start/", {"drone": failing})
+    assert started.status_code == 200, started.text
+
+    def steps_done() -> bool:
+        done = StepStatus.COMPLETED
+        return Mission.objects.get(pk=mission_id).steps.filter(status=done).count() >= (
+            during_after_steps
+        )
+
+    if during is not None:
+        assert wait_for(steps_done, timeout), ground.processes.describe()
+        during()
+    alarm = wait_for(
+        lambda: Event.objects.filter(mission_id=mission_id, kind="alarm").first(), timeout
+    )
+    assert alarm is not None, ground.processes.describe()
+    duplicate = {
+        "type": "alarm",
+        "level": "CRITICAL",
+        "message": alarm.data["message"],
+        "ts": alarm.data["ts"],
+        "position": alarm.data["position"],
+        "mission_id": mission_id,
+        "assignment_id": alarm.data["assignment"],
+        "index": alarm.data["index"],
+        "sensor": None,
+        "value": None,
+    }
+    publish_as(ground.drones[failing].broker_url, f"{failing}/alarms/out", duplicate)
+
+    def finished() -> bool:
+        status = api.get(f"/api/v1/missions/{mission_id}/").json().get("status")
+        return status in ("completed", "failed", "stopped")
+
+    if not wait_for(finished, timeout, interval=0.5):
+        events = list(Event.objects.filter(mission_id=mission_id).values_list("message", flat=True))
+        raise AssertionError(f"mission not finished; last events {events[-15:]}")
+    return MissionRun(mission_id, socket_, failing, replacing)
+
+
+# -- a numbered telemetry stream, to count what is stored -----------------------------------
+
+
+class Telemetry:
+    """A drone with no agent publishing `messages` numbered telemetry messages (QoS 1, two
+    objects each, every timestamp distinct) in the background, at `rate` per second."""
+
+    OBJECTS = ("AttitudeActual", "BaroAltitude")
+
+    def __init__(self, drone_pk: int, url: str, topic: str, messages: int, rate: float) -> None:
+        import threading
+
+        self.drone_pk = drone_pk
+        self.url = url
+        self.topic = topic
+        self.messages = messages
+        self.rate = rate
+        self.sent = 0
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(target=self._publish, daemon=True)
+
+    @classmethod
+    def start(
+        cls,
+        ground: ReplicatedGround,
+        organisation_slug: str,
+        drone_id: str,
+        *,
+        messages: int = 400,
+        rate: float = 40.0,
+    ) -> Telemetry:
+        from fleet.models import Drone
+
+        url = ground.provision(drone_id, organisation_slug)
+        pk = Drone.objects.get(drone_id=drone_id).pk
+        stream = cls(pk, url, f"{drone_id}/telemetry/out", messages, rate)
+        stream._thread.start()
+        return stream
+
+    @property
+    def expected(self) -> int:
+        return self.messages * len(self.OBJECTS)
+
+    def _publish(self) -> None:
+        import json
+        from urllib.parse import urlsplit
+
+        import paho.mqtt.client as mqtt
+
+        try:
+            parts = urlsplit(self.url.split(",")[0])
+            client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=uuid.uuid4().hex)
+            client.username_pw_set(parts.username, parts.password)
+            client.max_queued_messages_set(0)
+            client.connect(parts.hostname or "127.0.0.1", parts.port or 1883)
+            client.loop_start()
+            start = time.time() - 60
+            infos = []
+            for i in range(self.messages):
+                ts = start + i * 0.01
+                objects = [
+                    {"name": name, "ts": ts, "fields": {"n": i, "k": k}}
+                    for k, name in enumerate(self.OBJECTS)
+                ]
+                payload = json.dumps({"objects": objects, "ts": ts})
+                infos.append(client.publish(self.topic, payload, qos=1))
+                self.sent += 1
+                time.sleep(1.0 / self.rate)
+            for info in infos:
+                info.wait_for_publish(10)
+            client.disconnect()
+            client.loop_stop()
+        except BaseException as exc:  # noqa: BLE001 - reported by assert_stored_once
+            self.error = exc
+
+    def stored(self) -> tuple[int, int]:
+        """(rows, distinct (object, ts)) stored for this drone."""
+        from django.db import connection
+
+        with connection.cursor() as cursor:
+            cursor.execute(
+                "SELECT count(*), count(DISTINCT (object, ts)) FROM telemetry_sample "
+                "WHERE drone_id = %s",
+                [self.drone_pk],
+            )
+            return cursor.fetchone()
+
+    def assert_stored_once(self, timeout: float = 30.0) -> None:
+        self._thread.join(timeout)
+        assert self.error is None, f"publishing failed: {self.error!r}"
+        assert self.sent == self.messages
+        wait_for(lambda: self.stored()[0] >= self.expected, timeout, interval=0.25)
+        time.sleep(0.5)  # a duplicate written late would show now
+        rows, distinct = self.stored()
+        assert (rows, distinct) == (self.expected, self.expected)
