@@ -1,4 +1,10 @@
-"""`manage.py provision_drone <ID> [--org SLUG]`: a new broker password for a drone (PROTOCOL.md)."""
+"""`manage.py provision_drone <ID>... [--org SLUG]`: new broker passwords (PROTOCOL.md).
+
+One id prints one JSON object, as PROTOCOL.md's "Ground side contract" says; several ids
+are provisioned in one broker update and print a JSON list of those objects. `--sync`
+rebuilds the broker's drone users from the database instead (a replaced broker node or
+cluster) and prints what it did.
+"""
 
 from __future__ import annotations
 
@@ -7,21 +13,34 @@ import json
 from django.core.exceptions import ValidationError
 from django.core.management.base import BaseCommand, CommandError
 
-from fleet.credentials import ProvisioningError, provision
+from fleet.credentials import BrokerUnavailable, ProvisioningError, provision_many, sync_broker
 
 
 class Command(BaseCommand):
-    help = "Create the drone if needed, issue new broker credentials, print them as JSON."
+    help = "Create drones if needed, issue new broker credentials, print them as JSON."
 
     def add_arguments(self, parser) -> None:  # type: ignore[no-untyped-def]
-        parser.add_argument("drone_id")
+        parser.add_argument("drone_ids", nargs="*", metavar="drone_id")
         parser.add_argument("--org", dest="org", default=None, help="organisation slug")
+        parser.add_argument(
+            "--sync",
+            action="store_true",
+            help="rebuild the broker's drone users and permissions from the database",
+        )
 
     def handle(self, *args, **options) -> None:  # type: ignore[no-untyped-def]
+        ids = options["drone_ids"]
+        if options["sync"] == bool(ids):
+            raise CommandError("Give drone ids, or --sync alone.")
         try:
-            credentials = provision(options["drone_id"], options["org"])
+            if options["sync"]:
+                self.stdout.write(json.dumps(sync_broker().to_dict()))
+                return
+            issued = [c.to_dict() for c in provision_many(ids, options["org"])]
         except ProvisioningError as exc:
             raise CommandError(str(exc)) from None
         except ValidationError as exc:
             raise CommandError("; ".join(exc.messages)) from None
-        self.stdout.write(json.dumps(credentials.to_dict()))
+        except BrokerUnavailable as exc:
+            raise CommandError(str(exc)) from None
+        self.stdout.write(json.dumps(issued[0] if len(issued) == 1 else issued))
