@@ -595,11 +595,31 @@ class Account:
     drone_id: str
     password: str
     urls: tuple[str, ...]
+    home: tuple[float, float, float] | None = None  # None: the fleet's home
 
     @classmethod
     def from_dict(cls, data: dict) -> Account:
         urls = data.get("urls") or [data["url"]]
-        return cls(data["drone_id"], data["password"], tuple(urls))
+        home = data.get("home")
+        return cls(
+            data["drone_id"], data["password"], tuple(urls), None if home is None else tuple(home)
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "drone_id": self.drone_id,
+            "password": self.password,
+            "urls": list(self.urls),
+            "home": None if self.home is None else list(self.home),
+        }
+
+
+def grid_home(
+    index: int, columns: int = 40, spacing_deg: float = 0.001
+) -> tuple[float, float, float]:
+    """Home of the index-th drone of a fleet: a grid of ~100 m cells, so a map shows them apart."""
+    lat, lon, alt = DEFAULT_HOME
+    return (lat + (index // columns) * spacing_deg, lon + (index % columns) * spacing_deg, alt)
 
 
 def _address(url: str) -> tuple[str, int]:
@@ -617,7 +637,7 @@ class Session(asyncio.Protocol):
             account.drone_id,
             self.publish,
             fleet.stats,
-            home=fleet.home,
+            home=account.home or fleet.home,
             time_scale=fleet.time_scale,
         )
         self.transport: asyncio.Transport | None = None

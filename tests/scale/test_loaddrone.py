@@ -19,7 +19,7 @@ import paho.mqtt.client as mqtt
 import pytest
 
 from onboard import protocol
-from onboard.loaddrone import DEFAULT_HOME, Account, Fleet, position_age
+from onboard.loaddrone import Account, Fleet, grid_home, position_age
 from tests.support.mosquitto import Broker, start_broker
 
 
@@ -114,7 +114,7 @@ class Ground:
 
 
 def accounts_for(broker: Broker, ids: list[str]) -> list[Account]:
-    return [Account(i, broker.users[i], (broker.url,)) for i in ids]
+    return [Account(d, broker.users[d], (broker.url,), grid_home(i + 1)) for i, d in enumerate(ids)]
 
 
 @pytest.fixture
@@ -152,7 +152,7 @@ def test_heartbeats_telemetry_and_gear_announcements_parse_with_the_protocol(
     assert isinstance(heartbeat, protocol.Heartbeat)
     assert heartbeat.drone_id == "LOAD_1" and heartbeat.armed is False
     assert heartbeat.position is not None
-    age = position_age(DEFAULT_HOME, heartbeat.position.lat, heartbeat.position.lon, time.time())
+    age = position_age(grid_home(1), heartbeat.position.lat, heartbeat.position.lon, time.time())
     assert age is not None and 0 <= age < 2.0, "the drift circle tells the position's age"
     with ground.lock:
         telemetry = [(p, at) for t, p, at in ground.messages if t == "LOAD_1/telemetry/out"]
