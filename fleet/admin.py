@@ -63,19 +63,34 @@ class DroneAdmin(admin.ModelAdmin):
 
     @admin.action(description="Issue new broker credentials (shown once)")
     def issue_credentials(self, request: HttpRequest, queryset: QuerySet[Drone]) -> None:
-        for drone in queryset.select_related("organisation"):
-            issued = credentials.provision(drone.drone_id, drone.organisation.slug)
+        # One broker update for the whole selection (provision_many), not one per drone.
+        ids = list(queryset.order_by("drone_id").values_list("drone_id", flat=True))
+        try:
+            issued = credentials.provision_many(ids)
+        except credentials.BrokerUnavailable as exc:
+            self.message_user(request, f"No credentials issued: {exc}", messages.ERROR)
+            return
+        for one in issued:
             self.message_user(
                 request,
-                f"{drone.drone_id}: {json.dumps(issued.to_dict())} — copy it now, it is not kept.",
+                f"{one.drone_id}: {json.dumps(one.to_dict())} — copy it now, it is not kept.",
                 messages.WARNING,
             )
 
     @admin.action(description="Revoke broker credentials (disconnects the drone)")
     def revoke_credentials(self, request: HttpRequest, queryset: QuerySet[Drone]) -> None:
-        for drone in queryset:
-            credentials.revoke(drone)
-        self.message_user(request, f"Revoked {queryset.count()} drone(s).", messages.SUCCESS)
+        drones = list(queryset)
+        try:
+            credentials.revoke_many(drones)
+        except credentials.BrokerUnavailable as exc:
+            self.message_user(
+                request,
+                f"Revoked {len(drones)} drone(s) in the database, but the broker was not "
+                f"updated ({exc}); run `manage.py provision_drone --sync` once it is back.",
+                messages.ERROR,
+            )
+            return
+        self.message_user(request, f"Revoked {len(drones)} drone(s).", messages.SUCCESS)
 
     def changelist_view(self, request: HttpRequest, extra_context: dict | None = None):  # type: ignore[no-untyped-def]
         """Gateway counters (received, handled, dropped by reason) above the drone list."""

@@ -336,6 +336,23 @@ def test_an_unreachable_broker_refuses_provisioning_and_keeps_the_old_password(
     Peer(first.urls[1], "ACME_1").stop()
 
 
+def test_a_revocation_the_broker_missed_is_finished_by_the_next_sync(world_tx, rabbit, settings):
+    issued = credentials.provision("ACME_1")
+    drone = Peer(issued.urls[0], "ACME_1")
+    api_urls = settings.RABBITMQ_API_URLS
+    settings.RABBITMQ_API_URLS = ["http://skyhive-admin:x@127.0.0.1:1/api"]
+    with pytest.raises(credentials.BrokerUnavailable):
+        credentials.revoke(Drone.objects.get(drone_id="ACME_1"))
+    assert Drone.objects.get(drone_id="ACME_1").credentials_revoked  # the ground forgets it
+
+    settings.RABBITMQ_API_URLS = api_urls
+    assert credentials.sync_broker().removed == ["ACME_1"]
+    assert drone.disconnected.wait(5)
+    drone.stop()
+    with pytest.raises(ConnectionRefusedError):
+        Peer(issued.urls[1], "ACME_1")
+
+
 def test_the_admin_client_falls_over_to_the_next_node_and_reports_refusals(rabbit):
     dead = "http://skyhive-admin:x@127.0.0.1:1/api"
     admin = RabbitMQAdmin([dead, *rabbit.api_urls], timeout=2)
