@@ -324,21 +324,32 @@ def rabbitmq_figures(api_urls: list[str] | None = None) -> dict[str, Any]:
     for url in urls:
         try:
             overview = _http_json(url, "overview")
-        except (OSError, ValueError, urllib.error.URLError) as exc:
+        except urllib.error.HTTPError as exc:
+            # The node answers but refuses us (credentials, permissions): up, unreadable.
+            endpoints.append(
+                {"address": _address(url), "up": True, "error": f"HTTP {exc.code} {exc.reason}"}
+            )
+            continue
+        except (OSError, ValueError) as exc:
             reason = getattr(exc, "reason", exc)
             endpoints.append({"address": _address(url), "up": False, "error": str(reason)})
             continue
         endpoints.append({"address": _address(url), "up": True, "node": overview.get("node")})
         answering = answering or url
     if answering is None:
+        refused = [e["error"] for e in endpoints if e["up"]]
         return {
             "kind": "rabbitmq",
             "available": False,
-            "error": "no node's management API answers",
+            "error": (
+                f"the management API refuses us: {refused[0]}"
+                if refused
+                else "no node's management API answers"
+            ),
             "at": now,
             "endpoints": endpoints,
-            "nodes_up": 0,
-            "nodes_down": len(urls),
+            "nodes_up": len(refused),
+            "nodes_down": len(urls) - len(refused),
         }
     overview = _http_json(answering, "overview")
     nodes = _http_json(answering, "nodes?columns=name,running,mem_used,fd_used,sockets_used")

@@ -149,7 +149,10 @@
     const nodes = (b && b.nodes) || [];
     nodesBox.replaceChildren(
       ...(endpoints.length ? [el("h3", {}, "Endpoints"), table(["Address", "State", "Node or error"],
-        endpoints.map((e) => [e.address, el("span", { className: `badge ${e.up ? "ok" : "bad"}` }, e.up ? "up" : "down"), e.up ? (e.node || "") : (e.error || "")]))] : []),
+        endpoints.map((e) => {
+          const state = !e.up ? ["bad", "down"] : e.error ? ["warn", "refuses us"] : ["ok", "up"];
+          return [e.address, el("span", { className: `badge ${state[0]}` }, state[1]), e.error || e.node || ""];
+        }))] : []),
       ...(nodes.length ? [el("h3", {}, "Cluster nodes"), table(["Node", "State", "Sockets"],
         nodes.map((n) => [n.name, el("span", { className: `badge ${n.running ? "ok" : "bad"}`, "data-node": n.name }, n.running ? "running" : "down"), number(n.sockets_used)]))] : []));
     const queues = (b && b.queues) || [];

@@ -225,35 +225,40 @@ def test_rabbitmq_figures_show_both_nodes_and_the_depth_of_a_filled_queue(world,
         rabbit_cluster.api("DELETE", f"queues/{vhost_queue}")
 
 
-def test_a_killed_rabbitmq_node_is_reported_down(rabbit_cluster):
-    urls = rabbit_cluster.api_urls
-    rabbit_cluster.kill_node(2)
-    try:
-        figures = wait_for(
-            lambda: f if (f := operations.rabbitmq_figures(urls))["nodes_down"] >= 1 else None,
-            timeout=30,
-            every=1.0,
+def test_an_unreachable_rabbitmq_node_is_reported_down(rabbit_cluster):
+    # Node 1 of the real cluster answers; the second address has no node behind it (killing
+    # and restarting a real node costs a minute here; the fault tests do that).
+    missing = f"127.0.0.1:{free_port()}"
+    urls = [rabbit_cluster.api_urls[0], f"http://u:p@{missing}/api"]
+    figures = operations.rabbitmq_figures(urls)
+    assert figures["available"], "node 1 still answers for the cluster"
+    assert [e["address"] for e in figures["endpoints"] if not e["up"]] == [missing]
+    assert figures["nodes_down"] == 1
+    watch = {
+        w["key"]: w
+        for w in operations.watch(
+            {
+                "generated_at": time.time(),
+                "ingest": {"available": False},
+                "gateway": {"available": False},
+                "queues": {"available": False},
+                "instances": {"available": False},
+                "broker": figures,
+            }
         )
-        assert figures["available"], "node 1 still answers for the cluster"
-        down = [e for e in figures["endpoints"] if not e["up"]]
-        assert [e["address"] for e in down] == [f"127.0.0.1:{rabbit_cluster.api_port(2)}"]
-        watch = {
-            w["key"]: w
-            for w in operations.watch(
-                {
-                    "generated_at": time.time(),
-                    "ingest": {"available": False},
-                    "gateway": {"available": False},
-                    "queues": {"available": False},
-                    "instances": {"available": False},
-                    "broker": figures,
-                }
-            )
-        }
-        assert watch["broker_nodes_down"]["state"] == "bad"
-        assert str(rabbit_cluster.api_port(2)) in watch["broker_nodes_down"]["detail"]
-    finally:
-        rabbit_cluster.start_node(2)
+    }
+    assert watch["broker_nodes_down"]["state"] == "bad"
+    assert missing in watch["broker_nodes_down"]["detail"]
+    assert watch["ingest_lag"]["state"] == "unknown", "an unread source is unknown, not ok"
+
+
+def test_a_node_that_refuses_our_credentials_is_up_but_unreadable(rabbit_cluster):
+    parts = urllib.parse.urlsplit(rabbit_cluster.api_urls[0])
+    figures = operations.rabbitmq_figures(
+        [f"http://nobody:wrong@{parts.hostname}:{parts.port}/api"]
+    )
+    assert figures["available"] is False and "401" in figures["error"]
+    assert figures["nodes_down"] == 0
 
 
 def test_no_answering_rabbitmq_node_means_unreachable_not_zero():
