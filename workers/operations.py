@@ -169,6 +169,8 @@ def queue_figures() -> dict[str, Any]:
         queues = {name: int(celery_redis.llen(name)) for name in _celery_queue_names()}
         out["celery_queues"] = queues
         out["celery_queue"] = sum(queues.values())
+        # Kombu's Redis transport keeps tasks taken but not yet acknowledged here.
+        out["celery_unacked"] = int(celery_redis.hlen("unacked"))
     else:
         out["celery_queue"] = None
         out["celery_error"] = "the Celery broker is not Redis; see its own monitoring"

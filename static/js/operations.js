@@ -119,6 +119,7 @@
     kv("ops-queues", q, q && q.available !== false ? [
       ["Command outbox", number(q.outbox)],
       ["Celery queue", q.celery_queue === null ? q.celery_error : number(q.celery_queue)],
+      ["Celery tasks running (unacked)", number(q.celery_unacked)],
     ] : []);
   }
 

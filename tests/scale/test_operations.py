@@ -318,3 +318,26 @@ def test_the_operations_page_shows_instances_and_refreshes_itself(page, live_asg
         page.locator("#ops-watch .ops-item[data-key=broker_nodes_down]").wait_for()
     finally:
         counters.retire()
+
+
+# -- Redis away -------------------------------------------------------------------------------
+
+
+def test_with_redis_away_counts_are_kept_and_its_figures_show_unreachable(db):
+    counters = Counters("gateway", instance=f"ops-redis-{uuid.uuid4().hex[:8]}", instance_ttl=5)
+    away = f"redis://127.0.0.1:{free_port()}/0"
+    with override_settings(REDIS_URL=away):
+        counters.incr("received", 4)
+        counters.flush()  # refused: the counts stay in memory
+        figures = operations.gather()
+    for source in ("instances", "gateway", "ingest", "queues"):
+        assert figures[source]["available"] is False, source
+        assert figures[source]["error"] and figures[source]["at"]
+    watch = {w["key"]: w for w in figures["watch"]}
+    assert watch["ingest_lag"]["state"] == "unknown" and watch["outbox"]["value"] is None
+    assert watch["gateway_instances"]["state"] == "unknown"
+
+    counters.flush()  # Redis is back
+    mine = next(i for i in instances() if i.instance == counters.instance)
+    assert mine.alive and mine.counters["received"] == 4
+    counters.retire()
