@@ -492,6 +492,7 @@ def watch(figures: dict[str, Any]) -> list[dict[str, Any]]:
         state = "unknown"
     else:
         state = "bad" if lag > LAG_LIMIT_S else "ok"
+    no_ingest = ingest.get("available") and not ingest.get("instances_alive")
     items.append(
         _item(
             "ingest_lag",
@@ -501,6 +502,7 @@ def watch(figures: dict[str, Any]) -> list[dict[str, Any]]:
             ingest.get("at"),
             f"bad above {LAG_LIMIT_S:g} s",
             unit="s",
+            detail="no ingest instance alive" if no_ingest else "",
         )
     )
 
@@ -596,6 +598,22 @@ def watch(figures: dict[str, Any]) -> list[dict[str, Any]]:
                 "bad when none is alive, warn when one is gone",
                 detail=f"{gone} gone" if gone else "",
             )
+        )
+    sources = {
+        "ingest_lag": ingest,
+        "gateway_dropped": gateway,
+        "ingest_dropped": ingest,
+        "broker_depth": broker,
+        "outbox": queues,
+        "celery_queue": queues,
+        "gateway_instances": procs,
+        "ingest_instances": procs,
+    }
+    for item in items:
+        source = sources.get(item["key"])
+        # Unreadable (the page says "unreachable") versus read but without a value.
+        item["readable"] = (
+            "nodes_down" in broker if source is None else bool(source.get("available"))
         )
     return items
 

@@ -45,7 +45,7 @@
     if (!box) return;
     box.replaceChildren(...items.map((item) => el("div", { className: "ops-item", "data-state": item.state, "data-key": item.key },
       el("span", { className: "label" }, item.label),
-      el("span", { className: "value" }, item.state === "unknown" && item.value === null ? "unreachable" : number(item.value, item.unit)),
+      el("span", { className: "value" }, item.value === null && !item.readable ? "unreachable" : number(item.value, item.unit)),
       item.detail ? el("span", { className: "detail" }, item.detail) : null,
       el("span", { className: "rule" }, item.rule),
       el("span", { className: "at" }, `read ${clock(item.at)}`),
@@ -67,6 +67,20 @@
     dl.replaceChildren(...nodes);
   }
 
+  // Gone instances stay listed for an hour; hidden unless asked for, so the live ones
+  // stay in view after a restart or a deploy.
+  function showGone() {
+    const box = $("ops-show-gone");
+    return Boolean(box && box.checked);
+  }
+
+  const goneToggle = $("ops-show-gone");
+  if (goneToggle) {
+    goneToggle.addEventListener("change", () => {
+      document.querySelectorAll("#ops-processes tr.gone").forEach((tr) => { tr.hidden = !goneToggle.checked; });
+    });
+  }
+
   function renderProcesses(instances) {
     const table = $("ops-processes");
     if (!table) return;
@@ -84,7 +98,7 @@
         rows.push(el("tr", {}, el("td", {}, ""), el("td", { colSpan: 6, className: "empty" }, "No instance reporting.")));
       }
       for (const inst of group.instances) {
-        rows.push(el("tr", { className: inst.alive ? "alive" : "gone", "data-instance": inst.instance, "data-process": name },
+        rows.push(el("tr", { className: inst.alive ? "alive" : "gone", hidden: !inst.alive && !showGone(), "data-instance": inst.instance, "data-process": name },
           el("td", {}, name), el("td", {}, inst.instance), el("td", {}, inst.host || "–"),
           el("td", {}, inst.pid || "–"), el("td", {}, inst.started ? clock(inst.started) : "–"),
           el("td", {}, ago(inst.last_report)),
@@ -110,7 +124,7 @@
   function renderIngest(i) {
     kv("ops-ingest", i, i && i.available !== false ? [
       ["Lag", number(i.lag_s, "s")], ["Stored / s", number(i.rate_objects_per_s)],
-      ["Instances writing", number(i.instances_alive)], ["Stored objects", number(i.stored_objects)],
+      ["Instances alive / writing", `${i.instances_alive} / ${i.instances_writing}`], ["Stored objects", number(i.stored_objects)],
       ["Dropped messages", number(i.dropped_total)], ["Buffered rows", number(i.buffer_rows)],
     ] : []);
   }
