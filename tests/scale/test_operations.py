@@ -4,6 +4,9 @@ and the page in a browser."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import time
 import urllib.parse
 import uuid
@@ -14,6 +17,7 @@ from rest_framework.test import APIClient
 
 from tests.conftest import login
 from tests.support.mosquitto import GROUND_AND_DRONES_ACL, free_port, start_broker
+from tests.support.paths import ROOT
 from workers import operations
 from workers.counters import Counters, instances
 from workers.gateway import Gateway
@@ -131,6 +135,54 @@ def test_rising_gateway_drops_are_flagged(db, monkeypatch):
     watch = {w["key"]: w for w in figures["watch"]}
     assert watch["gateway_dropped"]["state"] == "warn"
     assert figures["gateway"]["dropped"]["malformed"] >= 3
+
+
+def test_a_running_celery_worker_is_listed_alive_and_gone_once_stopped(transactional_db):
+    from django.db import connection
+
+    name = f"ops-{uuid.uuid4().hex[:6]}@test"
+    env = dict(
+        os.environ,
+        DJANGO_SETTINGS_MODULE="config.settings.test",
+        TEST_WORKER_DB_NAME=connection.settings_dict["NAME"],
+    )
+    worker = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "celery",
+            "-A",
+            "config",
+            "worker",
+            "--pool",
+            "solo",
+            "-l",
+            "warning",
+            "-n",
+            name,
+            "-Q",
+            f"ops-{name}",
+        ],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+
+        def listed() -> dict | None:
+            celery = operations.gather()["instances"]["processes"]["celery"]
+            return next((w for w in celery["instances"] if w["instance"] == name), None)
+
+        worker_row = wait_for(lambda: (w := listed()) and w["alive"] and w, timeout=60, every=0.5)
+        assert worker_row["host"] == "test"
+        worker.terminate()
+        worker.wait(15)
+        assert wait_for(lambda: (w := listed()) and not w["alive"], timeout=10)
+    finally:
+        if worker.poll() is None:
+            worker.kill()
+            worker.wait(5)
 
 
 # -- the broker: Mosquitto --------------------------------------------------------------------
