@@ -19,7 +19,7 @@ from tests.conftest import login
 from tests.support.mosquitto import GROUND_AND_DRONES_ACL, free_port, start_broker
 from tests.support.paths import ROOT
 from workers import operations
-from workers.counters import Counters, instances
+from workers.counters import Counters, instances, start_heartbeat
 from workers.gateway import Gateway
 
 # The ground user must read Mosquitto's $SYS tree for the broker figures (docs/scaling.md).
@@ -108,6 +108,17 @@ def test_an_instance_reports_while_idle_and_keeps_its_own_counters(db):
     mine = next(i for i in instances() if i.instance == counters.instance)
     assert mine.alive and mine.process == "ingest"
     assert mine.counters["stored"] == 7, "the instance's own count, not the totals"
+
+
+def test_a_process_with_nothing_to_count_reports_through_a_heartbeat_and_retires_at_once(db):
+    instance = f"ops-web-{uuid.uuid4().hex[:8]}"
+    heartbeat = start_heartbeat("web", instance=instance, instance_ttl=1.0, flush_every=0.2)
+    try:
+        time.sleep(1.5)  # longer than the TTL: only the thread's renewals keep it alive
+        assert next(i for i in instances() if i.instance == instance).alive
+    finally:
+        heartbeat.stop()
+    assert not next(i for i in instances() if i.instance == instance).alive
 
 
 def test_ingest_lag_above_a_second_is_highlighted_as_bad(db):
