@@ -151,9 +151,12 @@ class LoadResult:
 # Services and settings.
 
 
+_STARTED = time.monotonic()
+
+
 def _say(config: LoadConfig, text: str) -> None:
     if not config.quiet:
-        print(f"[loadtest] {text}", flush=True)
+        print(f"[loadtest {time.monotonic() - _STARTED:5.1f} s] {text}", flush=True)
 
 
 def _read_env(path: Path) -> dict[str, str]:
@@ -256,12 +259,33 @@ class Broker:
             with contextlib.suppress(OSError, ValueError, psutil.Error):
                 found.append(psutil.Process(int(pid_file.read_text().strip())))
             return found
-        marker = f"skyhive-loadtest-{self.config.rabbit_port_base}-"
-        for proc in psutil.process_iter(["cmdline"]):
-            with contextlib.suppress(psutil.Error):
-                if any(marker in part for part in proc.info["cmdline"] or ()):
-                    found.append(proc)
+        for pid_file in sorted((self.data_dir / "rabbitmq").glob("*/pid")):
+            with contextlib.suppress(OSError, ValueError, psutil.Error):
+                found.append(psutil.Process(int(pid_file.read_text().strip())))
         return found
+
+
+def rabbit_queue_depths(api_urls: str) -> dict[str, int]:
+    """Messages waiting per ground queue (skyhive.*), from the first node that answers."""
+    import base64
+    import urllib.request
+
+    for api in api_urls.split(","):
+        parts = urlsplit(api)
+        auth = base64.b64encode(f"{parts.username}:{parts.password}".encode()).decode()
+        url = f"http://{parts.hostname}:{parts.port}{parts.path}/queues?columns=name,messages"
+        request = urllib.request.Request(url, headers={"authorization": f"Basic {auth}"})
+        try:
+            with urllib.request.urlopen(request, timeout=5) as response:
+                queues = json.loads(response.read())
+        except OSError:
+            continue
+        return {
+            q["name"]: int(q.get("messages") or 0)
+            for q in queues
+            if q["name"].startswith("skyhive.")
+        }
+    return {}
 
 
 def ground_env(config: LoadConfig, services: dict[str, str]) -> dict[str, str]:
@@ -335,10 +359,11 @@ def provision_main(argv: list[str]) -> int:
     with connection.cursor() as cursor:
         cursor.execute("SELECT drone_id, id FROM fleet_drone WHERE drone_id = ANY(%s)", [ids])
         pks = dict(cursor.fetchall())
-    accounts = [
-        Account(c.drone_id, c.password, c.urls or (f"mqtt://{c.host}:{c.port}",), grid_home(i))
-        for i, c in enumerate(issued)
-    ]
+    accounts = []
+    for i, c in enumerate(issued):
+        urls = c.urls or (f"mqtt://{c.host}:{c.port}",)
+        k = i % len(urls)  # spread the fleet over a cluster's nodes; the rest are fail-overs
+        accounts.append(Account(c.drone_id, c.password, urls[k:] + urls[:k], grid_home(i)))
     json.dump(
         {
             "accounts": [a.to_dict() for a in accounts],
@@ -424,13 +449,14 @@ class LagProbe:
 
     QUERY = (
         "SELECT d, (SELECT max(ts) FROM telemetry_sample s WHERE s.drone_id = d "
-        "AND s.object = 'AttitudeActual' AND s.ts > now() - interval '30 seconds') "
+        "AND s.object = 'AttitudeActual' AND s.ts >= to_timestamp(%s)) "
         "FROM unnest(%s::bigint[]) AS d"
     )
 
-    def __init__(self, conninfo: str, pks: list[int]) -> None:
+    def __init__(self, conninfo: str, pks: list[int], since: float) -> None:
         self.conninfo = conninfo
         self.pks = pks
+        self.since = since
         self.lags: list[float] = []
         self.missing = 0
         self._stop = threading.Event()
@@ -449,11 +475,12 @@ class LagProbe:
 
         with psycopg.connect(self.conninfo, autocommit=True) as conn:
             while not self._stop.wait(1.0):
-                rows = conn.execute(self.QUERY, (self.pks,)).fetchall()
+                rows = conn.execute(self.QUERY, (self.since, self.pks)).fetchall()
                 now = time.time()
                 for _pk, newest in rows:
-                    if newest is None:
+                    if newest is None:  # nothing stored yet: at least this old
                         self.missing += 1
+                        self.lags.append(now - self.since)
                     else:
                         self.lags.append(now - newest.timestamp())
 
@@ -637,16 +664,22 @@ def _start_ground(
                 "--port", str(port), "--no-access-log", "--lifespan", "off"]  # fmt: skip
         ground["web"].append(GroundProcess(f"web{i + 1}", argv, env, folder / f"web{i + 1}.log",
                                            port=port))  # fmt: skip
+    # On RabbitMQ the gateway's MQTT connection only publishes; messages come over AMQP.
+    amqp = config.broker == "rabbitmq"
+    gateway_ready = ("connected to", "consuming") if amqp else ("connected to",)
+    ingest_ready = ("consuming",) if amqp else ("subscribed",)
     for i in range(config.gateways):
-        argv = [PY, MANAGE, "gateway", "--client-id", f"loadtest-gateway{i + 1}"]
-        ground["gateway"].append(GroundProcess(f"gateway{i + 1}", argv, env,
-                                               folder / f"gateway{i + 1}.log",
-                                               ready_text="connected"))  # fmt: skip
+        name = f"gateway{i + 1}"
+        argv = [PY, MANAGE, "gateway", "--client-id", f"loadtest-{name}"]
+        ground["gateway"].append(
+            GroundProcess(name, argv, env, folder / f"{name}.log", ready_text=gateway_ready)
+        )
     for i in range(config.ingests):
+        name = f"ingest{i + 1}"
         argv = [PY, MANAGE, "ingest_telemetry"]
-        ground["ingest"].append(GroundProcess(f"ingest{i + 1}", argv, env,
-                                              folder / f"ingest{i + 1}.log",
-                                              ready_text="subscribed"))  # fmt: skip
+        ground["ingest"].append(
+            GroundProcess(name, argv, env, folder / f"{name}.log", ready_text=ingest_ready)
+        )
     every = [p for procs in ground.values() for p in procs]
     for process in every:
         process.start()
@@ -721,8 +754,8 @@ def run_load(config: LoadConfig) -> LoadResult:
         for k in range(0, len(rest), config.per_process):
             name = f"load{len(loads)}"
             loads.append(LoadProcess(rest[k : k + config.per_process], config, folder, name))
-        _wait(lambda: sum(p.online for p in loads) >= config.drones, 120)
-        _wait(lambda: online_in_database(conninfo, pks) >= config.drones, 30, 1.0)
+        _wait(lambda: sum(p.online for p in loads) >= config.drones, 60)
+        _wait(lambda: online_in_database(conninfo, pks) >= config.drones, 20, 1.0)
         result.connect_s = time.monotonic() - began
         result.online = online_in_database(conninfo, pks)
         _say(config, f"{result.online} drones online in {result.connect_s:.1f} s; measuring")
@@ -730,13 +763,16 @@ def run_load(config: LoadConfig) -> LoadResult:
 
         measure_start = time.time()
         map_probe.reset()
-        lag = LagProbe(conninfo, pks).start()
+        lag = LagProbe(conninfo, pks, run_start).start()
         probes.append(lag)
         commands = CommandProbe(web, data["token"], [a.drone_id for a in accounts],
                                 config.command_interval).start()  # fmt: skip
         probes.append(commands)
         time.sleep(config.duration / 2)
         result.rss_loaded_mib = rss_mib(roles)
+        if "RABBITMQ_API_URLS" in services:
+            depths = rabbit_queue_depths(services["RABBITMQ_API_URLS"])
+            result.notes.append(f"queue depths mid-run: {depths}")
         time.sleep(config.duration / 2)
         measure_end = time.time()
         commands.stop()
@@ -765,7 +801,10 @@ def run_load(config: LoadConfig) -> LoadResult:
         result.lag_p50_s = percentile(lag.lags, 0.5)
         result.lag_p99_s = percentile(lag.lags, 0.99)
         if lag.missing:
-            result.notes.append(f"{lag.missing} drone-seconds with no sample in the last 30 s")
+            result.notes.append(
+                f"{lag.missing} drone-seconds with no sample stored yet (counted as lag ≥ the "
+                "time since the run began)"
+            )
         result.commands = len(commands.rtts) + len(commands.failures)
         result.command_failures = len(commands.failures)
         result.command_rtt_p50_s = percentile(commands.rtts, 0.5)
