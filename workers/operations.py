@@ -38,7 +38,8 @@ PROCESSES = ("web", "gateway", "ingest", "pastview", "celery")
 LAG_LIMIT_S = 1.0  # issue 11: sustained ingest with lag < 1 s
 QUEUE_DEPTH_LIMIT = 10_000  # messages waiting anywhere: more is "falling behind" at once
 TREND_WINDOW_S = 60.0  # "rising" and "growing" compare with the oldest sample this recent
-TREND_MIN_AGE_S = 3.0  # ...that is at least this old, so two quick reloads do not compare
+TREND_MIN_AGE_S = 3.0
+GONE_WARN_S = 600  # an instance gone this recently is worth a look; older ones are history  # ...that is at least this old, so two quick reloads do not compare
 
 HISTORY_KEY = "skyhive:operations:history"
 CELERY_SEEN_KEY = "skyhive:operations:celery"
@@ -586,7 +587,9 @@ def watch(figures: dict[str, Any]) -> list[dict[str, Any]]:
                 )
             )
             continue
-        alive, gone = group["alive"], group["gone"]
+        alive = group["alive"]
+        recent = figures["generated_at"] - GONE_WARN_S
+        gone = sum(1 for i in group["instances"] if not i["alive"] and i["last_report"] > recent)
         state = "bad" if alive == 0 else ("warn" if gone else "ok")
         items.append(
             _item(
@@ -595,8 +598,8 @@ def watch(figures: dict[str, Any]) -> list[dict[str, Any]]:
                 alive,
                 state,
                 procs.get("at"),
-                "bad when none is alive, warn when one is gone",
-                detail=f"{gone} gone" if gone else "",
+                f"bad when none is alive, warn when one went in the last {GONE_WARN_S // 60} min",
+                detail=f"{gone} gone lately" if gone else "",
             )
         )
     sources = {

@@ -94,6 +94,9 @@ def test_two_running_gateways_are_listed_and_a_stopped_one_turns_gone_after_its_
         )
         assert gone[running]["alive"], "the gateway still running stays alive"
         assert time.time() - gone[stopped]["last_report"] >= 1.5
+        watch = {w["key"]: w for w in api.get("/api/v1/operations/").json()["watch"]}
+        assert watch["gateway_instances"]["state"] == "warn", "one went lately"
+        assert watch["gateway_instances"]["value"] >= 1
     finally:
         for gateway in gateways:
             if not gateway.stopping.is_set():
