@@ -241,7 +241,7 @@ def _validate_ids(ids: list[str]) -> None:
     bad = [
         drone_id
         for drone_id in ids
-        if not isinstance(drone_id, str) or not DRONE_ID_RE.match(drone_id)
+        if not isinstance(drone_id, str) or not DRONE_ID_RE.fullmatch(drone_id)
     ]
     if bad:
         shown = ", ".join(repr(b) for b in bad[:5])
@@ -319,6 +319,10 @@ class BrokerBackend(Protocol):
 
 def broker_backend() -> BrokerBackend:
     if settings.MQTT_BROKER == "rabbitmq":
+        if not settings.RABBITMQ_API_URLS:
+            raise BrokerUnavailable(
+                "MQTT_BROKER=rabbitmq needs RABBITMQ_API_URLS (scripts/rabbitmq.sh env prints it)."
+            )
         return RabbitMQBackend(RabbitMQAdmin.from_settings())
     return MosquittoBackend(Path(settings.MOSQUITTO_DIR))
 
@@ -401,7 +405,9 @@ class MosquittoBackend:
             _write_atomically(passwd, render_passwd(existing, drones))
             _write_atomically(self.directory / "acl", render_acl([d for d, _ in drones]))
             reloaded = _reload(self.directory / "mosquitto.pid")
-        return SyncReport("mosquitto", users=len(drones), reloaded=reloaded)
+        before = {line.split(":", 1)[0] for line in existing.splitlines() if ":" in line}
+        removed = sorted(before - set(service_users()) - {d for d, _ in drones})
+        return SyncReport("mosquitto", users=len(drones), removed=removed, reloaded=reloaded)
 
 
 def _reload(pid_file: Path) -> bool:

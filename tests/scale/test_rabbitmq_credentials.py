@@ -431,5 +431,10 @@ def test_provision_many_on_mosquitto_rewrites_the_files_once_and_a_drone_connect
         assert wait_for(lambda: ground.received)
         drone.stop()
         ground.stop()
+        # A drone deleted behind the module's back leaves the files at the next rebuild.
+        Drone.objects.filter(drone_id="MOSQ_039").delete()
+        report = credentials.sync_broker()
+        assert (report.broker, report.users, report.removed) == ("mosquitto", 39, ["MOSQ_039"])
+        assert report.reloaded
     finally:
         broker.stop()
