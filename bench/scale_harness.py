@@ -239,6 +239,7 @@ class Broker:
         out = _script(rabbit, "env", "loadtest", nodes, env=self.script_env)
         env = dict(line.split("=", 1) for line in out.splitlines() if "=" in line)
         keys = ("MQTT_BROKER", "MQTT_URL", "MQTT_URLS", "AMQP_URLS", "RABBITMQ_API_URLS")
+        purge_rabbit_queues(env["RABBITMQ_API_URLS"])
         return {k: env[k] for k in keys}
 
     def stop(self) -> None:
@@ -265,27 +266,46 @@ class Broker:
         return found
 
 
-def rabbit_queue_depths(api_urls: str) -> dict[str, int]:
-    """Messages waiting per ground queue (skyhive.*), from the first node that answers."""
+def _rabbit_api(api_urls: str, method: str, path: str) -> object:
+    """Call the first management API node that answers; JSON back (None when empty)."""
     import base64
     import urllib.request
 
+    error: OSError | None = None
     for api in api_urls.split(","):
         parts = urlsplit(api)
         auth = base64.b64encode(f"{parts.username}:{parts.password}".encode()).decode()
-        url = f"http://{parts.hostname}:{parts.port}{parts.path}/queues?columns=name,messages"
-        request = urllib.request.Request(url, headers={"authorization": f"Basic {auth}"})
+        url = f"http://{parts.hostname}:{parts.port}{parts.path}/{path}"
+        request = urllib.request.Request(
+            url, method=method, headers={"authorization": f"Basic {auth}"}
+        )
         try:
-            with urllib.request.urlopen(request, timeout=5) as response:
-                queues = json.loads(response.read())
-        except OSError:
+            with urllib.request.urlopen(request, timeout=10) as response:
+                raw = response.read()
+        except OSError as exc:
+            error = exc
             continue
-        return {
-            q["name"]: int(q.get("messages") or 0)
-            for q in queues
-            if q["name"].startswith("skyhive.")
-        }
-    return {}
+        return json.loads(raw) if raw else None
+    raise OSError(f"no RabbitMQ management API answered: {error}")
+
+
+def rabbit_queue_depths(api_urls: str) -> dict[str, int]:
+    """Messages waiting per ground queue (skyhive.*)."""
+    try:
+        queues = _rabbit_api(api_urls, "GET", "queues?columns=name,messages")
+    except OSError:
+        return {}
+    return {
+        q["name"]: int(q.get("messages") or 0)
+        for q in queues  # type: ignore[attr-defined]
+        if q["name"].startswith("skyhive.")
+    }
+
+
+def purge_rabbit_queues(api_urls: str) -> None:
+    """Empty the ground queues a previous run left, so this run's ingest reads only its own."""
+    for name in rabbit_queue_depths(api_urls):
+        _rabbit_api(api_urls, "DELETE", f"queues/%2F/{name}/contents")
 
 
 def ground_env(config: LoadConfig, services: dict[str, str]) -> dict[str, str]:
