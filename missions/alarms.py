@@ -9,7 +9,13 @@ from django.db import transaction
 from fleet.models import Drone
 from missions import tasks
 from missions.models import Assignment, Event, MissionStatus
-from missions.services import find_assignment, find_mission, position_dict, record
+from missions.services import (
+    find_assignment,
+    find_mission,
+    lock_mission,
+    position_dict,
+    record,
+)
 from onboard import protocol
 
 
@@ -45,6 +51,10 @@ def apply_alarm(drone: Drone, alarm: protocol.Alarm) -> str | None:
             return "alarm_outside_mission"
         mission = assignment.mission
     with transaction.atomic():
+        # The mission row first, as every writer does: the event's foreign keys are checked
+        # at commit, and a replacement holding the mission (then the drone) meanwhile
+        # would otherwise deadlock with this alarm (seen with two gateways).
+        lock_mission(mission)
         event = record(
             mission,
             Event.Kind.ALARM,

@@ -77,7 +77,9 @@ def replace_drone(
     with transaction.atomic():
         mission = Mission.objects.select_for_update().filter(pk=mission_id).first()
         failing = (
-            Assignment.objects.select_for_update()
+            # Only the assignment's row: locking the joined drone too would block every
+            # event of that drone (their foreign key checks) while we plan.
+            Assignment.objects.select_for_update(of=("self",))
             .select_related("drone")
             .filter(pk=assignment_id, mission_id=mission_id)
             .first()

@@ -402,10 +402,13 @@ def apply_progress(
     return _apply_mission_status(mission, drone, assignment, message)
 
 
-def _lock(mission: Mission) -> None:
+def lock_mission(mission: Mission) -> None:
     """Every writer locks the mission row first, then its assignments and steps: one
     order everywhere, so a stop, a replacement and progress never deadlock."""
     Mission.objects.select_for_update().filter(pk=mission.pk).values_list("pk", flat=True).first()
+
+
+_lock = lock_mission
 
 
 def _apply_step(

@@ -4,9 +4,17 @@ workers decides once, tracks every step once and stores every telemetry sample o
 
 from __future__ import annotations
 
+import uuid
+
 import pytest
 
-from tests.support.ground import Api, Telemetry, fly_replacement_mission, mosquitto_ground
+from tests.support.ground import (
+    Api,
+    Telemetry,
+    fly_replacement_mission,
+    mosquitto_ground,
+    rabbitmq_ground,
+)
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
@@ -15,7 +23,8 @@ TWO_OF_EACH = {"web": 2, "gateways": 2, "ingests": 2, "workers": 2}
 
 def fly_and_check(ground, world) -> None:  # type: ignore[no-untyped-def]
     api = Api(world.operator, ground.processes.web_urls)
-    telemetry = Telemetry.start(ground, world.org.slug, "ACME_T1", messages=400)
+    # A new drone id each time: a durable RabbitMQ queue may still hold an earlier run's.
+    telemetry = Telemetry.start(ground, world.org.slug, f"ACME_T{uuid.uuid4().hex[:8]}")
     run = fly_replacement_mission(ground, world.org.slug, api, world.operator)
     try:
         telemetry.assert_stored_once()
@@ -33,4 +42,11 @@ def test_two_of_every_process_on_mosquitto_decide_a_replacement_once_and_lose_no
     world_tx, tmp_path, settings
 ):
     with mosquitto_ground(tmp_path, settings, **TWO_OF_EACH) as ground:
+        fly_and_check(ground, world_tx)
+
+
+def test_two_of_every_process_on_a_rabbitmq_cluster_decide_a_replacement_once_and_lose_nothing(
+    world_tx, tmp_path, settings, rabbit_cluster
+):
+    with rabbitmq_ground(tmp_path, settings, rabbit_cluster, **TWO_OF_EACH) as ground:
         fly_and_check(ground, world_tx)
