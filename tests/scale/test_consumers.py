@@ -67,19 +67,24 @@ def cleanup() -> Iterator[ExitStack]:
         yield stack
 
 
-@pytest.fixture
-def on_cluster(rabbit_cluster, settings) -> Iterator[Any]:  # type: ignore[no-untyped-def]
-    """The settings of a ground on the test cluster; its shared queues and outbox empty."""
+def use_cluster(cluster: Any, settings: Any) -> Any:
+    """Point the settings at the test cluster; empty its shared queues and the outbox."""
     settings.MQTT_BROKER = "rabbitmq"
-    settings.MQTT_URL = rabbit_cluster.mqtt_urls[0]
-    settings.MQTT_URLS = rabbit_cluster.mqtt_urls
-    settings.AMQP_URLS = rabbit_cluster.amqp_urls
-    settings.RABBITMQ_API_URLS = rabbit_cluster.api_urls
+    settings.MQTT_URL = cluster.mqtt_urls[0]
+    settings.MQTT_URLS = cluster.mqtt_urls
+    settings.AMQP_URLS = cluster.amqp_urls
+    settings.RABBITMQ_API_URLS = cluster.api_urls
     settings.MQTT_PUBLIC_HOST = "127.0.0.1"
     for group in ("gateway", "ingest"):
-        purge(rabbit_cluster, f"skyhive.{group}")
+        purge(cluster, f"skyhive.{group}")
     link.sync_redis().delete(link.outbox_key())
-    yield rabbit_cluster
+    return cluster
+
+
+@pytest.fixture
+def on_cluster(rabbit_cluster, settings) -> Any:  # type: ignore[no-untyped-def]
+    """The settings of a ground on the test cluster."""
+    return use_cluster(rabbit_cluster, settings)
 
 
 def node_url(creds: credentials.Credentials, node: int) -> str:
@@ -105,15 +110,15 @@ class Drone:
         self.client.username_pw_set(unquote(parts.username or ""), unquote(parts.password or ""))
         connected = threading.Event()
         self.client.on_connect = lambda c, u, f, rc, p: rc.is_failure or connected.set()
-        self.client.on_message = lambda c, u, m: self.inbox.append(json.loads(m.payload))
+        self.client.on_message = lambda c, u, m: self.inbox.append(_decoded(m.payload))
         self.client.connect(parts.hostname, parts.port)
         self.client.loop_start()
         assert connected.wait(10), f"{drone_id} could not connect to {parts.port}"
 
-    def subscribe_inbox(self) -> None:
+    def subscribe_inbox(self, channel: str = "control") -> None:
         done = threading.Event()
         self.client.on_subscribe = lambda *args: done.set()
-        self.client.subscribe(f"{self.drone_id}/control/in", qos=1)
+        self.client.subscribe(f"{self.drone_id}/{channel}/in", qos=1)
         assert done.wait(5)
 
     def publish(self, channel: str, message: dict, qos: int = 1) -> None:
@@ -123,6 +128,13 @@ class Drone:
     def close(self) -> None:
         self.client.disconnect()
         self.client.loop_stop()
+
+
+def _decoded(payload: bytes) -> Any:
+    try:
+        return json.loads(payload)
+    except ValueError:
+        return payload
 
 
 def heartbeat(drone_id: str, ts: float) -> dict:
