@@ -438,6 +438,7 @@ class ReplicatedGround:
     drones: dict[str, SimulatedDrone] = field(default_factory=dict)
     passwords: dict[str, str] = field(default_factory=dict)
     broker: object = None
+    time_scale: float = TIME_SCALE
 
     def provision(self, drone_id: str, organisation_slug: str) -> str:
         """Create the drone with broker credentials; its --broker URL."""
@@ -456,7 +457,7 @@ class ReplicatedGround:
         lat, lon = point_at(north, east)
         drone = start_simulated_drone(
             self.directory / drone_id, drone_id, url, (lat, lon, HOME_ALT_MSL),
-            time_scale=TIME_SCALE,
+            time_scale=self.time_scale,
         )  # fmt: skip
         self.drones[drone_id] = drone
         return drone
@@ -510,6 +511,7 @@ def mosquitto_ground(
     redis_url: str | None = None,
     env: dict[str, str] | None = None,
     beat: bool = True,
+    time_scale: float = TIME_SCALE,
     **counts: int,
 ) -> Iterator[ReplicatedGround]:
     """A private Mosquitto and `counts` ground processes (web=, gateways=, ingests=,
@@ -550,6 +552,7 @@ def mosquitto_ground(
         Path(directory) / "drones",
         lambda drone_id, password: f"mqtt://{drone_id}:{password}@127.0.0.1:{broker.port}",
         broker=broker,
+        time_scale=time_scale,
     )
     try:
         processes.add(beat=beat, **counts).start()
@@ -569,6 +572,7 @@ def rabbitmq_ground(
     redis_url: str | None = None,
     env: dict[str, str] | None = None,
     beat: bool = True,
+    time_scale: float = TIME_SCALE,
     **counts: int,
 ) -> Iterator[ReplicatedGround]:
     """The same on a RabbitCluster: drones get every node's URL (they fail over in turn),
@@ -595,7 +599,9 @@ def rabbitmq_ground(
             for i in range(1, cluster.nodes + 1)
         )
 
-    ground = ReplicatedGround(processes, Path(directory) / "drones", drone_url, broker=cluster)
+    ground = ReplicatedGround(
+        processes, Path(directory) / "drones", drone_url, broker=cluster, time_scale=time_scale
+    )
     try:
         processes.add(beat=beat, **counts).start()
         yield ground
@@ -798,11 +804,12 @@ def fly_replacement_mission(
     prefix: str = "ACME_R",
     during: Callable[[], None] | None = None,
     during_after_steps: int = 4,
+    duplicate_alarm: bool = True,
     timeout: float = 90.0,
 ) -> MissionRun:
     """Two drones; the first flies a survey, raises CRITICAL after its fourth waypoint
-    (the alarm is then delivered a second time, as a QoS 1 redelivery would), the second
-    takes over. `during` runs once `during_after_steps` steps are complete (a fault)."""
+    (the alarm is then delivered a second time, as a QoS 1 redelivery would, unless
+    `duplicate_alarm` is False), the second takes over. `during` runs once `during_after_steps` steps are complete (a fault)."""
     from missions.models import Event, Mission, StepStatus
 
     failing, replacing = f"{prefix}1", f"{prefix}2"
@@ -831,6 +838,20 @@ def fly_replacement_mission(
         lambda: Event.objects.filter(mission_id=mission_id, kind="alarm").first(), timeout
     )
     assert alarm is not None, ground.processes.describe()
+    if duplicate_alarm:
+        _publish_duplicate(ground, failing, mission_id, alarm)
+
+    def finished() -> bool:
+        status = api.get(f"/api/v1/missions/{mission_id}/").json().get("status")
+        return status in ("completed", "failed", "stopped")
+
+    if not wait_for(finished, timeout, interval=0.5):
+        events = list(Event.objects.filter(mission_id=mission_id).values_list("message", flat=True))
+        raise AssertionError(f"mission not finished; last events {events[-15:]}")
+    return MissionRun(mission_id, socket_, failing, replacing)
+
+
+def _publish_duplicate(ground: ReplicatedGround, failing: str, mission_id: str, alarm) -> None:  # type: ignore[no-untyped-def]
     duplicate = {
         "type": "alarm",
         "level": "CRITICAL",
@@ -844,15 +865,6 @@ def fly_replacement_mission(
         "value": None,
     }
     publish_as(ground.drones[failing].broker_url, f"{failing}/alarms/out", duplicate)
-
-    def finished() -> bool:
-        status = api.get(f"/api/v1/missions/{mission_id}/").json().get("status")
-        return status in ("completed", "failed", "stopped")
-
-    if not wait_for(finished, timeout, interval=0.5):
-        events = list(Event.objects.filter(mission_id=mission_id).values_list("message", flat=True))
-        raise AssertionError(f"mission not finished; last events {events[-15:]}")
-    return MissionRun(mission_id, socket_, failing, replacing)
 
 
 # -- a numbered telemetry stream, to count what is stored -----------------------------------

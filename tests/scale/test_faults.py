@@ -1,0 +1,238 @@
+"""Faults the replicated ground recovers from on its own (issue 11, "Bad input / faults"):
+a gateway killed, a Celery worker killed mid-task, Redis restarted, a broker node killed.
+No test helps the platform along: it breaks one part and checks the outcome a user sees."""
+
+from __future__ import annotations
+
+import re
+import threading
+import time
+
+import pytest
+
+from tests.support.ground import (
+    Api,
+    PrivateRedis,
+    fly_replacement_mission,
+    mosquitto_ground,
+    rabbitmq_ground,
+    wait_for,
+)
+
+pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
+
+TWO_OF_EACH = {"web": 2, "gateways": 2, "ingests": 2, "workers": 2}
+# Commands wait this long for a reply here (15 s in production): a lost reply shows fast.
+FAST_COMMANDS = {"COMMAND_TIMEOUT_S": "5"}
+
+
+def command_round_trip(api: Api, drone_id: str) -> int:
+    """One command through the API to a drone and its reply back; the HTTP status."""
+    return api.post(f"/api/v1/drones/{drone_id}/commands/", {"command": "disarm"}).status_code
+
+
+def answered_commands(api: Api, drone_id: str, count: int) -> list[int]:
+    return [command_round_trip(api, drone_id) for _ in range(count)]
+
+
+@pytest.fixture(params=["mosquitto", "rabbitmq"])
+def broker_kind(request):  # type: ignore[no-untyped-def]
+    return request.param
+
+
+def ground_on(kind: str, request, tmp_path, settings, **kwargs):  # type: ignore[no-untyped-def]
+    if kind == "mosquitto":
+        return mosquitto_ground(tmp_path, settings, **kwargs)
+    cluster = request.getfixturevalue("rabbit_cluster")
+    return rabbitmq_ground(tmp_path, settings, cluster, **kwargs)
+
+
+def test_a_gateway_killed_mid_mission_leaves_the_other_to_finish_it_and_answer_commands(
+    world_tx, tmp_path, settings, request, broker_kind
+):
+    with ground_on(
+        broker_kind, request, tmp_path, settings, env=FAST_COMMANDS, **TWO_OF_EACH
+    ) as ground:
+        api = Api(world_tx.operator, ground.processes.web_urls)
+        idle = f"ACME_{broker_kind[0].upper()}GC"
+        ground.add_drone(idle, world_tx.org.slug, north=30)
+        ground.wait_online([idle])
+        assert answered_commands(api, idle, 2) == [200, 200]
+        replies_after_kill: list[int] = []
+
+        def kill_a_gateway() -> None:
+            ground.processes.kill("gateway1")
+            replies_after_kill.extend(answered_commands(api, idle, 4))
+
+        run = fly_replacement_mission(
+            ground,
+            world_tx.org.slug,
+            api,
+            world_tx.operator,
+            prefix=f"ACME_{broker_kind[0].upper()}G",
+            during=kill_a_gateway,
+        )
+        try:
+            run.assert_exactly_once()
+        finally:
+            run.socket.close()
+        assert replies_after_kill == [200] * 4
+        assert not ground.processes["gateway1"].alive
+        assert ground.processes["gateway2"].alive
+
+
+def test_a_celery_worker_killed_mid_task_leaves_the_task_to_the_other_worker_run_once(
+    world_tx, tmp_path, settings
+):
+    from django.db import close_old_connections, transaction
+
+    from missions.models import Assignment
+
+    # A 2 s visibility timeout and a slower flight: the dead worker's task runs again while
+    # the failing drone still has most of its survey ahead (other tasks take milliseconds).
+    short = {"CELERY_VISIBILITY_TIMEOUT": "2"}
+    with mosquitto_ground(
+        tmp_path, settings, env=short, time_scale=4, web=1, gateways=1, ingests=0, workers=2
+    ) as ground:
+        api = Api(world_tx.operator, ground.processes.web_urls)
+        workers = ground.processes.of_kind("worker")
+        killed: list[str] = []
+
+        def received(worker) -> bool:  # type: ignore[no-untyped-def]
+            return "Task missions.replace_drone[" in worker.output()
+
+        def kill_the_worker_running_the_replacement() -> None:
+            # Hold the failing drone's assignment row: the replacement task, once a worker
+            # takes it, waits inside its transaction, mid-task, until we let go.
+            failing = Assignment.objects.get(drone__drone_id="ACME_WK1")
+            holding, release = threading.Event(), threading.Event()
+
+            def hold() -> None:
+                try:
+                    with transaction.atomic():
+                        Assignment.objects.select_for_update().get(pk=failing.pk)
+                        holding.set()
+                        release.wait(60)
+                finally:
+                    close_old_connections()
+
+            holder = threading.Thread(target=hold, daemon=True)
+            holder.start()
+            assert holding.wait(10)
+            try:
+                taken = wait_for(lambda: [w for w in workers if received(w)], 60)
+                assert taken, ground.processes.describe()
+                time.sleep(0.5)  # it is now blocked on our lock, in the middle of its work
+                victim = taken[0]
+                victim.kill()
+                killed.append(victim.name)
+            finally:
+                release.set()
+                holder.join(10)
+
+        run = fly_replacement_mission(
+            ground,
+            world_tx.org.slug,
+            api,
+            world_tx.operator,
+            prefix="ACME_WK",
+            during=kill_the_worker_running_the_replacement,
+            duplicate_alarm=False,  # so only the killed task's rerun can replace the drone
+        )
+        try:
+            run.assert_exactly_once(duplicate_alarms=0)
+        finally:
+            run.socket.close()
+        (survivor,) = [w for w in workers if w.name not in killed]
+        # The survivor put the dead worker's message back and ran it (acks late + the
+        # visibility timeout).
+        runs = re.findall(
+            r"Task missions\.replace_drone\[([0-9a-f-]+)\] succeeded", survivor.output()
+        )
+        victim_ids = re.findall(
+            r"Task missions\.replace_drone\[([0-9a-f-]+)\] received",
+            ground.processes[killed[0]].output(),
+        )
+        assert victim_ids and victim_ids[0] in runs, ground.processes.describe()
+
+
+def test_a_redis_restart_is_survived_by_the_outbox_counters_channel_layer_and_celery(
+    world_tx, tmp_path, settings
+):
+    import redis
+    from websockets.sync.client import connect
+
+    from tests.support.websocket import session_cookie
+
+    private = PrivateRedis(tmp_path / "redis").start()
+    try:
+        with mosquitto_ground(
+            tmp_path,
+            settings,
+            redis_url=private.url,
+            env=FAST_COMMANDS,
+            web=1,
+            gateways=1,
+            ingests=1,
+            workers=1,
+        ) as ground:
+            api = Api(world_tx.operator, ground.processes.web_urls)
+            ground.add_drone("ACME_RD1", world_tx.org.slug)
+            ground.wait_online(["ACME_RD1"])
+            assert command_round_trip(api, "ACME_RD1") == 200
+
+            private.stop()
+            time.sleep(1.0)  # every process notices: connections refused, not just idle
+            private.start()
+
+            # The gateway's outbox (and the web's reply wait): a command gets its reply.
+            assert wait_for(lambda: command_round_trip(api, "ACME_RD1") == 200, 30)
+            client = redis.Redis.from_url(private.url)
+            # Counters flushed again into the empty Redis.
+            assert wait_for(lambda: list(client.scan_iter("skyhive:counters:gateway*")), 10)
+            # Celery: the worker takes beat's tasks from the new Redis.
+            worker = ground.processes["worker1"]
+            done_before = worker.output().count("succeeded in")
+            assert wait_for(lambda: worker.output().count("succeeded in") > done_before, 20), (
+                ground.processes.describe()
+            )
+            # Channel layer: the fleet page gets live updates pushed by the gateway.
+            web = ground.processes.web_urls[0]
+            headers = {"Cookie": session_cookie(world_tx.operator).decode(), "Origin": web}
+            url = web.replace("http://", "ws://") + f"/ws/fleet/?org={world_tx.org.slug}"
+            with connect(url, additional_headers=headers, open_timeout=10) as ws:
+                import json
+
+                assert json.loads(ws.recv(timeout=10))["type"] == "snapshot"
+                update = json.loads(ws.recv(timeout=10))
+                assert "ACME_RD1" in json.dumps(update)
+            assert all(p.alive for p in ground.processes.processes.values())
+    finally:
+        private.stop()
+
+
+def test_a_broker_node_killed_mid_mission_moves_drones_and_ground_to_the_other_node(
+    world_tx, tmp_path, settings, rabbit_cluster
+):
+    with rabbitmq_ground(
+        tmp_path, settings, rabbit_cluster, env=FAST_COMMANDS, **TWO_OF_EACH
+    ) as ground:
+        api = Api(world_tx.operator, ground.processes.web_urls)
+        # Drones try node 1 first, as do the gateways and ingests: killing node 1 moves
+        # every connection.
+        try:
+            run = fly_replacement_mission(
+                ground,
+                world_tx.org.slug,
+                api,
+                world_tx.operator,
+                prefix="ACME_NK",
+                during=lambda: rabbit_cluster.kill_node(1),
+            )
+            try:
+                run.assert_exactly_once()
+            finally:
+                run.socket.close()
+            assert all(p.alive for p in ground.processes.processes.values())
+        finally:
+            rabbit_cluster.start_node(1)
