@@ -174,6 +174,7 @@ class Stats:
     telemetry_messages: int = 0
     telemetry_objects: int = 0
     telemetry_unsent: int = 0  # ticks while disconnected (QoS 0: not queued, as on a drone)
+    telemetry_throttled: int = 0  # ticks skipped while the broker pushed back (TCP full)
     heartbeats: int = 0
     replies: int = 0
     refused: int = 0
@@ -642,6 +643,7 @@ class Session(asyncio.Protocol):
         )
         self.transport: asyncio.Transport | None = None
         self.online = False
+        self.paused = False
         self.node = 0  # index into account.urls of the node tried next / connected
         self._buffer = bytearray()
         self._next_id = 0
@@ -684,6 +686,8 @@ class Session(asyncio.Protocol):
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
         self.transport = transport
+        # About 5 s of telemetry may wait in this process; beyond it the drone skips.
+        transport.set_write_buffer_limits(high=8192)
         self._buffer.clear()
         drone_id = self.account.drone_id
         transport.write(connect_packet(drone_id, drone_id, self.account.password))
@@ -692,7 +696,21 @@ class Session(asyncio.Protocol):
     def connection_lost(self, exc: Exception | None) -> None:
         self.transport = None
         self.online = False
+        self.paused = False
         self._lost.set()
+
+    # The broker reads slower than we write: asyncio pauses us at its high-water mark.
+    # Telemetry is then skipped (and counted), as a drone's radio link drops QoS 0 data,
+    # so "sent" only ever counts what left for the broker.
+    def pause_writing(self) -> None:
+        self.paused = True
+
+    def resume_writing(self) -> None:
+        self.paused = False
+
+    @property
+    def buffered(self) -> int:
+        return 0 if self.transport is None else self.transport.get_write_buffer_size()
 
     def data_received(self, data: bytes) -> None:
         self._buffer += data
@@ -837,8 +855,13 @@ class Fleet:
             await asyncio.sleep(0.05)
         return False
 
-    async def stop(self) -> None:
+    async def stop(self, drain_timeout: float = 10.0) -> None:
         self._stop.set()
+        # What was written must reach the broker before the sockets close, or "sent"
+        # would count samples that never left this process.
+        deadline = time.monotonic() + drain_timeout
+        while any(s.buffered for s in self.sessions) and time.monotonic() < deadline:
+            await asyncio.sleep(0.05)
         for session in self.sessions:
             session.close()
         for task in self._tasks:
@@ -874,7 +897,9 @@ class Fleet:
         def tick(session: Session, now: float) -> None:
             nonlocal seq
             seq += 1
-            if session.publish("telemetry", session.drone.telemetry(now, seq)):
+            if session.paused:
+                self.stats.telemetry_throttled += 1
+            elif session.publish("telemetry", session.drone.telemetry(now, seq)):
                 self.stats.telemetry_messages += 1
                 self.stats.telemetry_objects += 1
             else:

@@ -196,6 +196,24 @@ def test_a_malformed_command_is_counted_and_answered_with_ok_false(
     assert dropped == Counter({"control_refused": 1, "json": 1, "control": 1})
 
 
+def test_telemetry_is_skipped_and_counted_while_the_broker_pushes_back(
+    ground: Ground, one_drone: FleetThread
+) -> None:
+    session = one_drone.fleet.sessions[0]
+    one_drone.call(session.pause_writing)
+    time.sleep(0.5)
+    with ground.lock:
+        before = sum(1 for t, *_ in ground.messages if t == "LOAD_1/telemetry/out")
+    time.sleep(0.5)
+    with ground.lock:
+        during = sum(1 for t, *_ in ground.messages if t == "LOAD_1/telemetry/out") - before
+    one_drone.call(session.resume_writing)
+    assert during == 0, "nothing is written while paused"
+    assert one_drone.fleet.stats.telemetry_throttled >= 10
+    count = len(ground.on("LOAD_1/telemetry/out"))
+    ground.wait_for(lambda: len(ground.on("LOAD_1/telemetry/out")) > count)
+
+
 def test_a_gear_query_is_answered(ground: Ground, one_drone: FleetThread) -> None:
     query = protocol.GearQuery(protocol.new_request_id(), "reading", "CO2")
     ground.send("LOAD_1", "gear", query)
