@@ -107,6 +107,7 @@ class LoadResult:
     map_drones: int = 0
     rss_idle_mib: dict[str, float] = field(default_factory=dict)
     rss_loaded_mib: dict[str, float] = field(default_factory=dict)
+    cores: dict[str, float] = field(default_factory=dict)  # CPU cores busy while measured
     kib_per_drone: float | None = None
     load_stats: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
@@ -143,6 +144,11 @@ class LoadResult:
             )
             + f"; {s(self.kib_per_drone, 'KiB')} per connected drone",
         ]
+        lines.append(
+            "  CPU (cores busy)    "
+            + ", ".join(f"{k} {v:.2f}" for k, v in self.cores.items())
+            + f" of {psutil.cpu_count()}"
+        )
         lines += [f"  note: {note}" for note in self.notes]
         return "\n".join(lines)
 
@@ -636,6 +642,27 @@ def rss_mib(processes: dict[str, list[psutil.Process]]) -> dict[str, float]:
     return out
 
 
+def cpu_seconds(processes: dict[str, list[psutil.Process]]) -> dict[str, float]:
+    """User + system CPU seconds per role so far, each process with its children."""
+    out = {}
+    for role, procs in processes.items():
+        total = 0.0
+        for proc in procs:
+            for p in [proc, *_children(proc)]:
+                with contextlib.suppress(psutil.Error):
+                    times = p.cpu_times()
+                    total += times.user + times.system
+        out[role] = total
+    return out
+
+
+def _children(proc: psutil.Process) -> list[psutil.Process]:
+    try:
+        return proc.children(recursive=True)
+    except psutil.Error:
+        return []
+
+
 def online_in_database(conninfo: str, pks: list[int]) -> int:
     import psycopg
 
@@ -781,6 +808,8 @@ def run_load(config: LoadConfig) -> LoadResult:
         _say(config, f"{result.online} drones online in {result.connect_s:.1f} s; measuring")
         time.sleep(3.0)  # let the first burst of online events settle
 
+        busy = dict(roles, **{"load drones": [psutil.Process(p.process.pid) for p in loads]})
+        cpu_before = cpu_seconds(busy)
         measure_start = time.time()
         map_probe.reset()
         lag = LagProbe(conninfo, pks, run_start).start()
@@ -795,6 +824,11 @@ def run_load(config: LoadConfig) -> LoadResult:
             result.notes.append(f"queue depths mid-run: {depths}")
         time.sleep(config.duration / 2)
         measure_end = time.time()
+        cpu_after = cpu_seconds(busy)
+        result.cores = {
+            role: (cpu_after[role] - cpu_before.get(role, 0.0)) / (measure_end - measure_start)
+            for role in cpu_after
+        }
         commands.stop()
         lag.stop()
         map_probe.stop()
