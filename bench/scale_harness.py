@@ -70,6 +70,8 @@ class LoadConfig:
     mqtt_port: int = 18850  # the private Mosquitto
     rabbit_port_base: int = 19260  # the private RabbitMQ cluster (ports base+1 .. base+32)
     data_dir: Path = ROOT / ".data" / "loadtest"
+    database: str = DATABASE  # on the test profile's PostgreSQL
+    redis_db: int = REDIS_DB  # on the test profile's Redis
     quiet: bool = False
 
 
@@ -200,17 +202,18 @@ def database_and_redis(config: LoadConfig) -> dict[str, str]:
     _script(str(ROOT / "scripts" / "services.sh"), "start", "test")
     test_env = _read_env(ROOT / ".data" / "test" / "env")
     import psycopg
+    from psycopg import sql
 
     with psycopg.connect(test_env["DATABASE_URL"], autocommit=True) as conn:
-        exists = conn.execute("SELECT 1 FROM pg_database WHERE datname = %s", (DATABASE,))
+        exists = conn.execute("SELECT 1 FROM pg_database WHERE datname = %s", (config.database,))
         if exists.fetchone() is None:
-            conn.execute(f"CREATE DATABASE {DATABASE}")
-    redis_url = _with_path(test_env["REDIS_URL"], f"/{REDIS_DB}")
+            conn.execute(sql.SQL("CREATE DATABASE {}").format(sql.Identifier(config.database)))
+    redis_url = _with_path(test_env["REDIS_URL"], f"/{config.redis_db}")
     import redis
 
     redis.Redis.from_url(redis_url).flushdb()  # our db index only: stale outboxes, counters
     return {
-        "DATABASE_URL": _with_path(test_env["DATABASE_URL"], f"/{DATABASE}"),
+        "DATABASE_URL": _with_path(test_env["DATABASE_URL"], f"/{config.database}"),
         "REDIS_URL": redis_url,
     }
 

@@ -329,3 +329,26 @@ def test_two_hundred_load_drones_in_one_process_connect_and_publish(
     assert sum(per_drone.values()) == stats.telemetry_messages, "every sample sent arrived"
     assert stats.telemetry_messages >= 200 * 10 * 1.5, "about 10 Hz per drone"
     assert not stats.dropped
+
+
+@pytest.mark.e2e
+def test_the_load_harness_sees_every_sample_stored_and_every_command_answered(
+    tmp_path: Path,
+) -> None:
+    from bench.scale_harness import LoadConfig, run_load
+    from tests.support.mosquitto import free_port
+
+    config = LoadConfig(
+        drones=20, broker="mosquitto", duration=3.0, baseline_commands=3, mqtt_port=free_port(),
+        data_dir=tmp_path / "loadtest", database="test_load_harness", redis_db=10, quiet=True,
+    )  # fmt: skip
+    result = run_load(config)
+    assert result.online == 20
+    assert result.sent > 20 * 10 * 3 and result.stored == result.sent, result.summary()
+    assert result.lag_p99_s is not None and result.lag_p99_s < 5
+    assert result.commands > 0 and result.command_failures == 0, result.notes
+    assert result.map_drones > 0 and result.map_staleness_p99_s is not None
+    assert result.kib_per_drone is not None
+    assert not (tmp_path / "loadtest" / "mosquitto" / "mosquitto" / "mosquitto.pid").exists(), (
+        "the private broker is stopped afterwards"
+    )
