@@ -37,6 +37,8 @@ TELEMETRY_BATCH_MAX = 200
 @dataclass
 class AgentConfig:
     drone_id: str
+    # One mqtt:// URL, or every node of a broker cluster comma-separated: the link moves
+    # to the next node when its connection is lost (onboard.mqtt.attach_failover).
     broker_url: str
     gear_dir: Path | None = None
     log_dir: Path | None = None

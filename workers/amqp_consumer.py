@@ -145,6 +145,8 @@ class AmqpConsumer:
             virtual_host=vhost,
             heartbeat=self.heartbeat,
             connect_timeout=5,
+            # A node that stops reading must not block an ack or the close for ever.
+            write_timeout=5,
             client_properties={"connection_name": self.name},
         )
         conn.connect()
