@@ -8,6 +8,7 @@ exactly one of two consumers, and commands must reach a drone whichever node it 
 from __future__ import annotations
 
 import json
+import socket
 import threading
 import time
 import urllib.error
@@ -334,3 +335,40 @@ def test_a_consumer_counts_and_survives_messages_its_callback_cannot_take(on_clu
     queue = cluster.api("GET", "queues/%2F/skyhive.gateway")
     assert wait_for(lambda: cluster.api("GET", "queues/%2F/skyhive.gateway")["messages"] == 0, 10)
     assert queue["durable"]
+
+
+def test_messages_held_by_a_consumer_that_dies_are_redelivered_to_its_peer(on_cluster, cleanup):
+    cluster = on_cluster
+    held = threading.Event()
+    release = threading.Event()
+    peer_got: list[str] = []
+
+    def stuck(topic: str, payload: bytes) -> None:
+        held.set()
+        release.wait(10)  # a process hung or dying with the message in hand: never acked
+
+    dying = started(
+        cleanup, broker.AmqpConsumer("gateway", ["gear"], stuck, urls=cluster.amqp_urls[:1])
+    )
+    cleanup.callback(release.set)  # runs first: lets the stuck thread end
+    dying.start()
+    assert dying.subscribed.wait(10)
+    ground = started(cleanup, Drone(cluster.mqtt_urls[0], "ACME_1"))
+    for n in range(20):
+        ground.client.publish("ACME_1/gear/out", str(n), qos=1).wait_for_publish(5)
+    assert held.wait(10)
+    peer = started(
+        cleanup,
+        broker.AmqpConsumer(
+            "gateway",
+            ["gear"],
+            lambda topic, payload: peer_got.append(payload.decode()),
+            urls=cluster.amqp_urls[1:],
+        ),
+    )
+    peer.start()
+    assert peer.subscribed.wait(10)
+    # The dying consumer's connection drops without a word, as on kill -9.
+    dying._conn.sock.shutdown(socket.SHUT_RDWR)  # noqa: SLF001
+    assert wait_for(lambda: sorted(peer_got, key=int) == [str(n) for n in range(20)], 15)
+    assert peer.redelivered >= 1
