@@ -97,8 +97,9 @@ class Command(BaseCommand):
     def _supervise(self, count: int) -> None:
         """Start `count` single-process ingests; forward SIGTERM/SIGINT; wait for all.
 
-        One paho client tops out near 10 000 messages/s on one core; the broker's shared
-        subscription spreads messages over the processes.
+        One reader tops out near 10 000 messages/s on one core; the broker spreads the
+        messages over the processes (Mosquitto's shared subscription, or RabbitMQ's shared
+        queue skyhive.ingest).
         """
         argv = [a for a in sys.argv if not a.startswith("--processes")]
         if "--processes" in sys.argv:
