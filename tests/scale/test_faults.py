@@ -230,13 +230,13 @@ def test_a_redis_restart_is_survived_by_the_outbox_counters_channel_layer_and_ce
 def test_a_broker_node_killed_mid_mission_moves_drones_and_ground_to_the_other_node(
     world_tx, tmp_path, settings, rabbit_cluster
 ):
-    with rabbitmq_ground(
-        tmp_path, settings, rabbit_cluster, env=FAST_COMMANDS, **TWO_OF_EACH
-    ) as ground:
-        api = Api(world_tx.operator, ground.processes.web_urls)
-        # Drones try node 1 first, as do the gateways and ingests: killing node 1 moves
-        # every connection.
-        try:
+    try:
+        with rabbitmq_ground(
+            tmp_path, settings, rabbit_cluster, env=FAST_COMMANDS, **TWO_OF_EACH
+        ) as ground:
+            api = Api(world_tx.operator, ground.processes.web_urls)
+            # Drones try node 1 first, as do the gateways and ingests: killing node 1 moves
+            # every connection to node 2, whose mirrors of the queues take over.
             run = fly_replacement_mission(
                 ground,
                 world_tx.org.slug,
@@ -250,5 +250,7 @@ def test_a_broker_node_killed_mid_mission_moves_drones_and_ground_to_the_other_n
             finally:
                 run.socket.close()
             assert all(p.alive for p in ground.processes.processes.values())
-        finally:
-            rabbit_cluster.start_node(1)
+            assert all("next node" in p.output() for p in ground.processes.of_kind("gateway"))
+    finally:
+        # The cluster is the session's: whole again for the tests after this one.
+        rabbit_cluster.start_node(1)

@@ -772,20 +772,33 @@ class MissionRun:
         ), self.socket.messages[-5:]
 
 
+def connect_any(client, urls: str) -> None:  # type: ignore[no-untyped-def]
+    """Connect a paho client to the first node of `urls` (comma-separated) that answers."""
+    from urllib.parse import urlsplit
+
+    error: OSError | None = None
+    for url in urls.split(","):
+        parts = urlsplit(url)
+        client.username_pw_set(parts.username, parts.password)
+        try:
+            client.connect(parts.hostname or "127.0.0.1", parts.port or 1883)
+            return
+        except OSError as exc:
+            error = exc
+    raise AssertionError(f"no broker node answers: {error!r}")
+
+
 def publish_as(url: str, topic: str, message: dict) -> None:
     """Publish once with a drone's own credentials (QoS 1), as a redelivery would arrive."""
     import json
     import threading
-    from urllib.parse import urlsplit
 
     import paho.mqtt.client as mqtt
 
-    parts = urlsplit(url.split(",")[0])
     client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=uuid.uuid4().hex)
-    client.username_pw_set(parts.username, parts.password)
     connected = threading.Event()
     client.on_connect = lambda c, u, f, rc, p: connected.set()
-    client.connect(parts.hostname or "127.0.0.1", parts.port or 1883)
+    connect_any(client, url)
     client.loop_start()
     try:
         assert connected.wait(5), "could not connect as the drone"
@@ -916,16 +929,13 @@ class Telemetry:
 
     def _publish(self) -> None:
         import json
-        from urllib.parse import urlsplit
 
         import paho.mqtt.client as mqtt
 
         try:
-            parts = urlsplit(self.url.split(",")[0])
             client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=uuid.uuid4().hex)
-            client.username_pw_set(parts.username, parts.password)
             client.max_queued_messages_set(0)
-            client.connect(parts.hostname or "127.0.0.1", parts.port or 1883)
+            connect_any(client, self.url)
             client.loop_start()
             start = time.time() - 60
             infos = []
