@@ -18,6 +18,7 @@ import pytest
 
 from fleet import credentials, link
 from onboard.mqtt import MqttLink
+from tests.support.mosquitto import start_broker
 
 from .test_consumers import (
     SEEN,
@@ -131,3 +132,30 @@ def test_a_killed_node_moves_the_gateway_ingest_and_drone_links_to_the_other_los
     assert agent.failover.switches == 1
     agent.publish("ACME_1/gear/out", b"{}", qos=1)
     assert agent.flush(5)
+
+
+def test_a_link_given_several_brokers_moves_on_when_its_broker_stops_and_a_connect_fails(tmp_path):
+    # Plain Mosquitto brokers: the failover itself, without RabbitMQ's shared sessions.
+    first = start_broker(tmp_path / "a", {"DRONE1": "pw"})
+    second = start_broker(tmp_path / "b", {"DRONE1": "pw"})
+    received: list[bytes] = []
+    agent = MqttLink(
+        f"{first.url_for('DRONE1')},{second.url_for('DRONE1')}",
+        client_id="skyhive-agent-DRONE1",
+        subscriptions=["DRONE1/control/in"],
+        on_message=lambda topic, payload: received.append(payload),
+    )
+    try:
+        agent.start()
+        assert agent.wait_connected(10) and agent.broker.port == first.port
+        first.stop()
+        assert wait_for(lambda: agent.connected and agent.broker.port == second.port, 10)
+        second.stop()  # nowhere to go: it keeps trying both, never raising
+        assert wait_for(lambda: not agent.connected, 5)
+        first.start()
+        assert wait_for(lambda: agent.connected and agent.broker.port == first.port, 15)
+        assert agent.failover.switches >= 2
+    finally:
+        agent.stop(flush_timeout=0)
+        first.stop()
+        second.stop()
