@@ -130,7 +130,8 @@ class LoadResult:
             f"{self.duration_s:.0f} s measured ({self.online} online after {self.connect_s:.1f} s)",
             f"  ingest lag          p50 {s(self.lag_p50_s)}, p99 {s(self.lag_p99_s)} "
             f"({self.lag_samples} drone-seconds)",
-            f"  samples             sent {self.sent}, stored {self.stored}, lost {self.lost}; "
+            f"  samples             sent {self.sent}, stored {self.stored}, not stored after the "
+            f"drain wait {self.lost}; "
             f"stored {self.ingest_per_s:.0f}/s",
             f"  command round trip  p50 {s(self.command_rtt_p50_s, 'ms', 1e3)}, "
             f"p99 {s(self.command_rtt_p99_s, 'ms', 1e3)} ({self.commands} commands, "
