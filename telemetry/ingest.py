@@ -28,15 +28,13 @@ import psycopg
 from onboard.protocol import OBJECT_NAME_RE, ProtocolError, parse_telemetry
 
 from . import storage
-from .mqtt_reader import Subscriber
 
 if TYPE_CHECKING:
-    from workers.amqp_consumer import AmqpConsumer
+    from workers.broker import Consumer
 
 log = logging.getLogger(__name__)
 
 SHARE_GROUP = "ingest"
-SUBSCRIPTION = f"$share/{SHARE_GROUP}/+/telemetry/out"
 EPOCH = date(1970, 1, 1)
 MAX_FIELDS = 64
 MAX_ARRAY = 64
@@ -329,21 +327,19 @@ class Ingestor:
 
     # -- MQTT side -------------------------------------------------------------------------
 
-    def _make_subscriber(self) -> Subscriber | AmqpConsumer:
-        client_id = self.config.client_id or f"ingest-{socket.gethostname()}-{os.getpid()}"
-        if self.config.amqp_urls:
-            from workers.amqp_consumer import AmqpConsumer
+    def _make_subscriber(self) -> Consumer:
+        from workers.broker import competing_consumer
 
-            return AmqpConsumer(
-                SHARE_GROUP,
-                ["telemetry"],
-                self.handle,
-                urls=self.config.amqp_urls,
-                prefetch=self.config.amqp_prefetch,
-                name=client_id,
-                counters=self.counters,
-            )
-        return Subscriber(self.config.mqtt_url, client_id, SUBSCRIPTION, self.handle, qos=1)
+        return competing_consumer(
+            SHARE_GROUP,
+            ["telemetry"],
+            self.handle,
+            client_id=self.config.client_id or f"ingest-{socket.gethostname()}-{os.getpid()}",
+            amqp_urls=self.config.amqp_urls,
+            mqtt_url=self.config.mqtt_url,
+            prefetch=self.config.amqp_prefetch,
+            counters=self.counters,
+        )
 
     def handle(self, topic: str, payload: bytes) -> bool:
         """One message from the broker: validate, buffer; False if it was dropped."""

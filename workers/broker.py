@@ -97,26 +97,32 @@ def competing_consumer(
     channels: Sequence[str],
     on_message: OnMessage,
     *,
-    mqtt_url: str | None = None,
     client_id: str,
+    amqp_urls: Sequence[str] = (),
+    mqtt_url: str = "",
     qos: int = 1,
     prefetch: int = 1000,
+    counters: object | None = None,
 ) -> Consumer:
     """One member of consumer group `group` for the drones' `<id>/<channel>/out` messages.
 
-    With Mosquitto, an MQTT shared subscription (one channel: the fast reader in
-    telemetry.mqtt_reader); with RabbitMQ, `AmqpConsumer` on `skyhive.<group>`.
+    Given `amqp_urls` (RabbitMQ: `amqp_urls()` when `uses_amqp()`), an `AmqpConsumer` on
+    `skyhive.<group>`; else an MQTT shared subscription on `mqtt_url` (one channel: the
+    fast reader of telemetry.mqtt_reader). Needs no Django settings, so the ingest, which
+    has none, builds its reader here too.
     """
-    if uses_amqp():
+    if amqp_urls:
         return AmqpConsumer(
-            group, channels, on_message, urls=amqp_urls(), prefetch=prefetch, name=client_id
+            group,
+            channels,
+            on_message,
+            urls=amqp_urls,
+            prefetch=prefetch,
+            name=client_id,
+            counters=counters,
         )
     if len(channels) != 1:
         raise ValueError("the MQTT shared-subscription reader takes one channel")
-    return Subscriber(
-        mqtt_url or settings.MQTT_URL,
-        client_id,
-        share_filter(group, channels[0]),
-        on_message,
-        qos=qos,
-    )
+    if not mqtt_url:
+        raise ValueError("an MQTT shared subscription needs the broker's URL")
+    return Subscriber(mqtt_url, client_id, share_filter(group, channels[0]), on_message, qos=qos)

@@ -32,7 +32,6 @@ from django.utils.module_loading import import_string
 from fleet import link
 from onboard import protocol
 from workers import broker
-from workers.amqp_consumer import AmqpConsumer
 from workers.counters import Counters
 
 from .dispatch import (
@@ -100,15 +99,15 @@ class Gateway:
         self.stopping = threading.Event()
         # On RabbitMQ the drones' messages come from a shared AMQP queue; the MQTT
         # connection only publishes, so it needs no session of its own.
-        self.consumer: AmqpConsumer | None = None
+        self.consumer: broker.Consumer | None = None
         if amqp_urls is not None or broker.uses_amqp():
-            self.consumer = AmqpConsumer(
+            self.consumer = broker.competing_consumer(
                 SHARE_GROUP,
                 self.channels,
                 self._on_consumed,
-                urls=list(amqp_urls) if amqp_urls is not None else broker.amqp_urls(),
+                client_id=client_id or f"gateway-{socket.gethostname()}-{os.getpid()}",
+                amqp_urls=list(amqp_urls) if amqp_urls is not None else broker.amqp_urls(),
                 prefetch=AMQP_PREFETCH,
-                name=client_id or f"gateway-{socket.gethostname()}-{os.getpid()}",
                 counters=self.counters,
             )
             persistent = False
