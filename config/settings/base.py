@@ -191,8 +191,11 @@ CELERY_BROKER_TRANSPORT_OPTIONS = {
 # restart must not end the worker.
 CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
 CELERY_BROKER_CONNECTION_MAX_RETRIES = None
-# Replicated deployments (and test runs sharing one Redis) may name their own queue.
-CELERY_TASK_DEFAULT_QUEUE = env_str("CELERY_TASK_DEFAULT_QUEUE", "celery")
+# Replicated deployments (and test runs sharing one Redis) may name their own queue. Only
+# when asked: a configured default queue can no longer be changed on `app.conf` at run
+# time, which the end-to-end tests with an in-process gateway do.
+if env_str("CELERY_TASK_DEFAULT_QUEUE", ""):
+    CELERY_TASK_DEFAULT_QUEUE = env_str("CELERY_TASK_DEFAULT_QUEUE", "celery")
 CELERY_RESULT_EXPIRES = 3600
 CELERY_BEAT_SCHEDULE: dict = {}
 
