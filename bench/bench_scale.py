@@ -19,8 +19,9 @@ Keys:
   Baseline: the same commands to one drone with no fleet connected, in the same run.
 - scale.map_staleness_p99: p99 age, on arrival at a `/ws/fleet/` client, of each drone
   update's position (1 000 drones, Mosquitto). Baseline: the same with 100 drones.
-- scale.rabbitmq_vs_mosquitto_ingest: samples stored per second (sent during the window
-  and stored) on the RabbitMQ cluster. Baseline: the same on Mosquitto.
+- scale.rabbitmq_vs_mosquitto_ingest: rows the ingest stored per second while measured
+  (old samples a backlogged broker delivers late count too) on the RabbitMQ cluster, with
+  two gateways and two ingests. Baseline: the same on Mosquitto with one of each.
 
 Every run also prints memory per connected drone (ground processes and broker, RSS loaded
 minus idle) and samples sent vs stored; they are kept in each key's `runs` detail.

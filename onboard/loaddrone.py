@@ -431,6 +431,8 @@ class LoadDrone:
             payload = protocol.decode_mission_payload(request.payload)
             if payload.mission_id != request.mission_id:
                 raise protocol.ProtocolError("payload.mission_id", "does not match the message")
+            if payload.assignment_id != request.assignment_id:
+                raise protocol.ProtocolError("payload.assignment_id", "does not match the message")
         except protocol.ProtocolError as exc:
             self._status(
                 request.mission_id,
