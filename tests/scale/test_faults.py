@@ -97,79 +97,112 @@ def test_a_gateway_killed_mid_mission_leaves_the_other_to_finish_it_and_answer_c
         assert ground.processes["gateway2"].alive
 
 
-def test_a_celery_worker_killed_mid_task_leaves_the_task_to_the_other_worker_run_once(
-    world_tx, tmp_path, settings
-):
+REPLACEMENT_RECEIVED = r"Task missions\.replace_drone\[([0-9a-f-]+)\] received"
+REPLACEMENT_DONE = r"Task missions\.replace_drone\[([0-9a-f-]+)\] succeeded"
+
+
+def kill_mid_replacement(failing_drone: str, workers, kill) -> str:  # type: ignore[no-untyped-def]
+    """Hold the failing drone's assignment row, so the replacement task, once a worker
+    takes it, waits inside its transaction (mid-task); `kill(worker)` then; let go.
+    Returns the name of the worker that had the task."""
     from django.db import close_old_connections, transaction
 
     from missions.models import Assignment
 
-    # A 2 s visibility timeout and a slower flight: the dead worker's task runs again while
-    # the failing drone still has most of its survey ahead (other tasks take milliseconds).
+    failing = Assignment.objects.get(drone__drone_id=failing_drone)
+    holding, release = threading.Event(), threading.Event()
+
+    def hold() -> None:
+        try:
+            with transaction.atomic():
+                Assignment.objects.select_for_update().get(pk=failing.pk)
+                holding.set()
+                release.wait(60)
+        finally:
+            close_old_connections()
+
+    holder = threading.Thread(target=hold, daemon=True)
+    holder.start()
+    assert holding.wait(10)
+    try:
+        taken = wait_for(lambda: [w for w in workers if "replace_drone[" in w.output()], 60)
+        assert taken, "no worker took the replacement task"
+        time.sleep(0.5)  # it is now blocked on our lock, in the middle of its work
+        kill(taken[0])
+        return taken[0].name
+    finally:
+        release.set()
+        holder.join(10)
+
+
+def fly_and_kill(ground, world, kill) -> str:  # type: ignore[no-untyped-def]
+    """The replacement mission, its replacement task killed mid-way; the victim's name."""
+    api = Api(world.operator, ground.processes.web_urls)
+    workers = ground.processes.of_kind("worker")
+    victims: list[str] = []
+    run = fly_replacement_mission(
+        ground,
+        world.org.slug,
+        api,
+        world.operator,
+        prefix="ACME_WK",
+        during=lambda: victims.append(kill_mid_replacement("ACME_WK1", workers, kill)),
+        duplicate_alarm=False,  # so only the killed task's rerun can replace the drone
+    )
+    try:
+        run.assert_exactly_once(duplicate_alarms=0)
+    finally:
+        run.socket.close()
+    return victims[0]
+
+
+# A slower flight: the killed task runs again while the failing drone still has most of
+# its survey ahead.
+SLOW_FLIGHT = 4.0
+
+
+def test_a_celery_worker_killed_mid_task_leaves_the_task_to_the_other_worker_run_once(
+    world_tx, tmp_path, settings
+):
+    # The whole worker dies (-9): its message waits in Redis until the visibility timeout
+    # (2 s here; other tasks take milliseconds), then the other worker puts it back.
     short = {"CELERY_VISIBILITY_TIMEOUT": "2"}
     with mosquitto_ground(
-        tmp_path, settings, env=short, time_scale=4, web=1, gateways=1, ingests=0, workers=2
+        tmp_path, settings, env=short, time_scale=SLOW_FLIGHT, web=1, gateways=1, workers=2
     ) as ground:
-        api = Api(world_tx.operator, ground.processes.web_urls)
-        workers = ground.processes.of_kind("worker")
-        killed: list[str] = []
-
-        def received(worker) -> bool:  # type: ignore[no-untyped-def]
-            return "Task missions.replace_drone[" in worker.output()
-
-        def kill_the_worker_running_the_replacement() -> None:
-            # Hold the failing drone's assignment row: the replacement task, once a worker
-            # takes it, waits inside its transaction, mid-task, until we let go.
-            failing = Assignment.objects.get(drone__drone_id="ACME_WK1")
-            holding, release = threading.Event(), threading.Event()
-
-            def hold() -> None:
-                try:
-                    with transaction.atomic():
-                        Assignment.objects.select_for_update().get(pk=failing.pk)
-                        holding.set()
-                        release.wait(60)
-                finally:
-                    close_old_connections()
-
-            holder = threading.Thread(target=hold, daemon=True)
-            holder.start()
-            assert holding.wait(10)
-            try:
-                taken = wait_for(lambda: [w for w in workers if received(w)], 60)
-                assert taken, ground.processes.describe()
-                time.sleep(0.5)  # it is now blocked on our lock, in the middle of its work
-                victim = taken[0]
-                victim.kill()
-                killed.append(victim.name)
-            finally:
-                release.set()
-                holder.join(10)
-
-        run = fly_replacement_mission(
-            ground,
-            world_tx.org.slug,
-            api,
-            world_tx.operator,
-            prefix="ACME_WK",
-            during=kill_the_worker_running_the_replacement,
-            duplicate_alarm=False,  # so only the killed task's rerun can replace the drone
+        victim = fly_and_kill(ground, world_tx, lambda worker: worker.kill())
+        (survivor,) = [w for w in ground.processes.of_kind("worker") if w.name != victim]
+        victim_ids = re.findall(REPLACEMENT_RECEIVED, ground.processes[victim].output())
+        assert victim_ids and victim_ids[0] in re.findall(REPLACEMENT_DONE, survivor.output()), (
+            ground.processes.describe()
         )
-        try:
-            run.assert_exactly_once(duplicate_alarms=0)
-        finally:
-            run.socket.close()
-        (survivor,) = [w for w in workers if w.name not in killed]
-        # The survivor put the dead worker's message back and ran it (acks late + the
-        # visibility timeout).
-        runs = re.findall(
-            r"Task missions\.replace_drone\[([0-9a-f-]+)\] succeeded", survivor.output()
-        )
-        victim_ids = re.findall(
-            r"Task missions\.replace_drone\[([0-9a-f-]+)\] received",
-            ground.processes[killed[0]].output(),
-        )
-        assert victim_ids and victim_ids[0] in runs, ground.processes.describe()
+        assert not ground.processes[victim].alive
+
+
+def test_a_pool_process_killed_mid_task_has_its_task_put_back_at_once_and_run_once(
+    world_tx, tmp_path, settings
+):
+    import psutil
+
+    # Prefork workers: the process running the task dies (-9, as the OOM killer does) while
+    # its worker lives; task_reject_on_worker_lost puts the message straight back.
+    with mosquitto_ground(
+        tmp_path, settings, time_scale=SLOW_FLIGHT, web=1, gateways=1, workers=0
+    ) as ground:
+        for _ in range(2):
+            ground.processes.add_worker(pool="prefork", concurrency=1)
+        ground.processes.start()
+
+        def kill_pool_process(worker) -> None:  # type: ignore[no-untyped-def]
+            for child in psutil.Process(worker.process.pid).children(recursive=True):
+                child.kill()
+
+        victim = fly_and_kill(ground, world_tx, kill_pool_process)
+        victim_ids = re.findall(REPLACEMENT_RECEIVED, ground.processes[victim].output())
+        everything = "".join(w.output() for w in ground.processes.of_kind("worker"))
+        assert victim_ids and victim_ids[0] in re.findall(REPLACEMENT_DONE, everything)
+        assert "WorkerLostError" in ground.processes[victim].output()
+        assert all(w.alive for w in ground.processes.of_kind("worker"))
 
 
 def test_a_redis_restart_is_survived_by_the_outbox_counters_channel_layer_and_celery(
