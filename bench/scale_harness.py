@@ -543,11 +543,12 @@ class MapProbe:
 
     async def _run(self) -> None:
         import websockets
+        from websockets.typing import Origin
 
         headers = {"Cookie": self.cookie}
         try:
             async with websockets.connect(
-                self.url, additional_headers=headers, origin="http://127.0.0.1",
+                self.url, additional_headers=headers, origin=Origin("http://127.0.0.1"),
                 max_size=None, open_timeout=10,
             ) as ws:  # fmt: skip
                 while not self._stop.is_set():
@@ -576,7 +577,7 @@ class MapProbe:
             age = None
         if age is not None:
             self.ages.append(age)
-            self.drones.add(drone_id)
+            self.drones.add(str(drone_id))
 
 
 class CommandProbe:
@@ -704,11 +705,13 @@ def _wait(predicate, timeout: float, interval: float = 0.25) -> bool:  # type: i
 
 
 def _start_ground(
-    config: LoadConfig, env: dict[str, str], folder: Path
-) -> dict[str, list[GroundProcess]]:
+    config: LoadConfig, env: dict[str, str], folder: Path, ground: dict[str, list[GroundProcess]]
+) -> None:
+    """Start web, gateway and ingest processes into `ground` (filled before anything waits,
+    so the caller stops them even when one never becomes ready)."""
     from tests.support.ground import free_port
 
-    ground: dict[str, list[GroundProcess]] = {"web": [], "gateway": [], "ingest": []}
+    ground.update(web=[], gateway=[], ingest=[])
     for i in range(config.webs):
         port = free_port()
         argv = [PY, "-m", "uvicorn", "config.asgi:application", "--host", "127.0.0.1",
@@ -736,7 +739,19 @@ def _start_ground(
         process.start()
     for process in every:
         process.wait_ready(90)
-    return ground
+
+
+def _stop_ground(ground: dict[str, list[GroundProcess]]) -> None:
+    _stop_all([p for procs in ground.values() for p in procs])
+
+
+def _stop_all(items: list) -> None:
+    """Stop each item; one that fails does not keep the others running."""
+    for item in items:
+        try:
+            item.stop()
+        except Exception as exc:
+            print(f"[loadtest] could not stop {item!r}: {exc}", file=sys.stderr)
 
 
 def run_load(config: LoadConfig) -> LoadResult:
@@ -749,10 +764,11 @@ def run_load(config: LoadConfig) -> LoadResult:
     loads: list[LoadProcess] = []
     probes: list = []
     with contextlib.ExitStack() as stack:
+        # Run in reverse: load drones, probes, ground processes, then the broker.
         stack.callback(broker.stop)
-        stack.callback(lambda: [p.stop() for procs in ground.values() for p in procs])
-        stack.callback(lambda: [p.stop() for p in probes])
-        stack.callback(lambda: [p.stop() for p in loads])
+        stack.callback(_stop_ground, ground)
+        stack.callback(_stop_all, probes)
+        stack.callback(_stop_all, loads)
         _say(config, f"services and {config.broker} (logs in {folder})")
         services = database_and_redis(config)
         services.update(broker.start())
@@ -770,7 +786,7 @@ def run_load(config: LoadConfig) -> LoadResult:
         pks = [data["pks"][a.drone_id] for a in accounts]
         conninfo = services["DATABASE_URL"]
         _say(config, "starting the ground processes")
-        ground.update(_start_ground(config, env, folder))
+        _start_ground(config, env, folder, ground)
         web = ground["web"][0].url
         roles = {
             "web": [psutil.Process(p.process.pid) for p in ground["web"] if p.process],
