@@ -52,7 +52,12 @@ class RabbitCluster:
 
     @property
     def _script_env(self) -> dict[str, str]:
-        return {"RABBIT_PORT_BASE": str(self.port_base)}
+        # DATA_DIR from the test env file (.data/test) would put every profile's nodes in
+        # one directory: each profile keeps its own.
+        return {
+            "RABBIT_PORT_BASE": str(self.port_base),
+            "DATA_DIR": str(ROOT / ".data" / self.profile),
+        }
 
     def start(self) -> RabbitCluster:
         _run("start", self.profile, str(self.nodes), env=self._script_env)
