@@ -63,9 +63,7 @@ class StrictSerializer(serializers.Serializer):
             known = set(self.fields)
             unknown = sorted(set(data.keys()) - known)
             if unknown:
-                raise serializers.ValidationError(
-                    {name: ["Unknown field."] for name in unknown}
-                )
+                raise serializers.ValidationError({name: ["Unknown field."] for name in unknown})
         return super().to_internal_value(data)
 
 

@@ -56,7 +56,11 @@ class Supervisor:
             bufsize=1,
         )
         self.procs.append((name, proc))
-        prefix = f"\033[{colour}m{name:<{self.width}}|\033[0m " if sys.stdout.isatty() else f"{name:<{self.width}}| "
+        prefix = (
+            f"\033[{colour}m{name:<{self.width}}|\033[0m "
+            if sys.stdout.isatty()
+            else f"{name:<{self.width}}| "
+        )
         threading.Thread(target=self._pump, args=(name, proc, prefix), daemon=True).start()
 
     def _pump(self, name: str, proc: subprocess.Popen, prefix: str) -> None:
@@ -110,8 +114,19 @@ def main() -> int:
     signal.signal(signal.SIGTERM, lambda *_: sup.stopping.set())
     sup.start(
         "web",
-        [PY, "-m", "uvicorn", "config.asgi:application", "--host", "127.0.0.1",
-         "--port", str(args.web_port), "--no-access-log", "--lifespan", "off"],
+        [
+            PY,
+            "-m",
+            "uvicorn",
+            "config.asgi:application",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(args.web_port),
+            "--no-access-log",
+            "--lifespan",
+            "off",
+        ],
         env,
     )
     if command_exists("gateway"):
@@ -119,11 +134,30 @@ def main() -> int:
     if command_exists("ingest_telemetry"):
         sup.start("ingest", [*manage, "ingest_telemetry"], env)
     sup.start("pastview", [*manage, "pastview"], env)  # telemetry/pastview: one level deeper
-    sup.start("worker", [PY, "-m", "celery", "-A", "config", "worker", "-l", "info",
-                         "--concurrency", "2", "-n", "worker@%h"], env)
+    sup.start(
+        "worker",
+        [
+            PY,
+            "-m",
+            "celery",
+            "-A",
+            "config",
+            "worker",
+            "-l",
+            "info",
+            "--concurrency",
+            "2",
+            "-n",
+            "worker@%h",
+        ],
+        env,
+    )
     schedule = ROOT / ".data" / "run" / "celerybeat-schedule"
-    sup.start("beat", [PY, "-m", "celery", "-A", "config", "beat", "-l", "info",
-                       "--schedule", str(schedule)], env)
+    sup.start(
+        "beat",
+        [PY, "-m", "celery", "-A", "config", "beat", "-l", "info", "--schedule", str(schedule)],
+        env,
+    )
     if args.drones > 0:
         if command_exists("run_simulated_drones"):
             sup.start("drones", [*manage, "run_simulated_drones", str(args.drones)], env)

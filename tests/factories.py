@@ -17,11 +17,13 @@ def organisation(slug: str | None = None) -> Organisation:
     return Organisation.objects.create(name=slug.title(), slug=slug)
 
 
-def person(org: Organisation | None, role: str = Role.OPERATOR, username: str | None = None,
-           password: str = "correct horse battery staple"):  # type: ignore[no-untyped-def]
-    user = get_user_model().objects.create_user(
-        username or f"user{next(_seq)}", password=password
-    )
+def person(
+    org: Organisation | None,
+    role: str = Role.OPERATOR,
+    username: str | None = None,
+    password: str = "correct horse battery staple",
+):  # type: ignore[no-untyped-def]
+    user = get_user_model().objects.create_user(username or f"user{next(_seq)}", password=password)
     if org is not None:
         Membership.objects.create(user=user, organisation=org, role=role)
     return user

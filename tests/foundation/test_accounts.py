@@ -40,8 +40,11 @@ def test_a_user_changes_their_password(client, world):
     client.force_login(world.owner)
     response = client.post(
         reverse("password_change"),
-        {"old_password": PASSWORD, "new_password1": "a-new long passphrase",
-         "new_password2": "a-new long passphrase"},
+        {
+            "old_password": PASSWORD,
+            "new_password1": "a-new long passphrase",
+            "new_password2": "a-new long passphrase",
+        },
     )
     assert response.status_code == 302
     world.owner.refresh_from_db()

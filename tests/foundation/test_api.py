@@ -32,9 +32,7 @@ def test_wrong_credentials_get_a_clear_error_and_no_token(world):
 
 
 def test_malformed_json_is_a_400_with_the_error_shape(world):
-    response = APIClient().post(
-        "/api/v1/token/", data="{not json", content_type="application/json"
-    )
+    response = APIClient().post("/api/v1/token/", data="{not json", content_type="application/json")
     assert response.status_code == 400
     body = response.json()
     assert set(body) == {"error", "code", "fields"}
@@ -62,7 +60,8 @@ def test_session_writes_without_csrf_token_are_refused(world):
     client = Client(enforce_csrf_checks=True)
     client.force_login(world.owner)
     response = client.post(
-        "/api/v1/token/", data=json.dumps({"username": "owner", "password": PASSWORD}),
+        "/api/v1/token/",
+        data=json.dumps({"username": "owner", "password": PASSWORD}),
         content_type="application/json",
     )
     # The token endpoint takes no session, so it is CSRF-exempt by design; a session

@@ -112,7 +112,8 @@ pattern read %u/+/in
 """
 
 
-def start_broker(directory: Path, users: dict[str, str], acl: str = GROUND_AND_DRONES_ACL,
-                 extra_config: str = "") -> Broker:
+def start_broker(
+    directory: Path, users: dict[str, str], acl: str = GROUND_AND_DRONES_ACL, extra_config: str = ""
+) -> Broker:
     """A running broker with those users and the project's drone ACL pattern."""
     return Broker(directory, free_port(), users, acl, extra_config).start()
