@@ -25,6 +25,8 @@ have_cmd make || need+=(make)
 python3.11 -c 'import venv, ensurepip' >/dev/null 2>&1 || python3 -c 'import sys, venv, ensurepip; assert sys.version_info[:2] == (3, 11)' >/dev/null 2>&1 || need+=(python3-venv python3-dev)
 if [ "$PROFILE" = test ]; then
   have_cmd chromium || [ -x /usr/bin/chromium ] || need+=(chromium)
+  # The arming-switch sketch is linked for the Nano's ATmega328P in the firmware tests.
+  have_cmd avr-g++ || need+=(gcc-avr avr-libc binutils-avr)
 fi
 if [ ${#need[@]} -gt 0 ]; then
   log "installing OS packages: ${need[*]}"

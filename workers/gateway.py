@@ -26,7 +26,7 @@ from typing import Any
 import paho.mqtt.client as mqtt
 import redis
 from django.db import close_old_connections, connection
-from django.db.utils import DatabaseError, InterfaceError
+from django.db.utils import InterfaceError, OperationalError
 from django.utils.module_loading import import_string
 
 from fleet import link
@@ -51,6 +51,11 @@ SHARE_GROUP = "gateway"
 # Messages a RabbitMQ node hands one gateway before its acknowledgements: enough to keep
 # the handlers busy, few enough that a killed gateway's share is redelivered quickly.
 AMQP_PREFETCH = 200
+# A database that restarts, fails over or drops our connection is usually back within
+# seconds. Retrying a handler for this long (holding the rest of the messages back in the
+# broker) loses nothing, where dropping would lose a step report or an alarm. It stays
+# under 1.5 x the 30 s MQTT keep-alive, so the broker keeps our session meanwhile.
+DB_RETRY_S = 20.0
 
 
 def subscription(channel: str) -> str:
@@ -71,12 +76,14 @@ class Gateway:
         counters: Counters | None = None,
         persistent: bool = False,
         amqp_urls: Sequence[str] | None = None,
+        db_retry_s: float = DB_RETRY_S,
     ) -> None:
         # Every node of the cluster, this gateway's first; the outbox is the cluster's,
         # the same for every gateway whichever node it is connected to.
         self.urls = broker.cluster_urls(broker_url)
         self.outbox = link.outbox_key(self.urls[0])
         self.counters = counters or Counters("gateway")
+        self.db_retry_s = db_retry_s
         table = DISPATCH if dispatch is None else dispatch
         batch_table = (
             (BATCH_DISPATCH if dispatch is None else {})
@@ -253,12 +260,28 @@ class Gateway:
                 return "overload"
             return QUEUED
         assert handler is not None
-        try:
-            return handler(drone_id, message)
-        except (InterfaceError, DatabaseError):
-            # A dropped database connection: let Django open a fresh one for the next message.
-            connection.close()
-            raise
+        return self.with_db_retry(handler, drone_id, message)
+
+    def with_db_retry(self, fn: Callable[..., Any], *args: Any) -> Any:
+        """`fn(*args)`, called again on a fresh connection while the database is
+        unreachable (for up to `db_retry_s`); other errors are raised at once. Handlers
+        are transactions that decide by compare-and-set, so a retry decides nothing twice.
+        """
+        deadline = time.monotonic() + self.db_retry_s
+        delay = 0.05
+        while True:
+            try:
+                return fn(*args)
+            except (OperationalError, InterfaceError) as exc:
+                # The connection is unusable now: Django opens a fresh one on next use.
+                connection.close()
+                if self.stopping.is_set() or time.monotonic() + delay > deadline:
+                    self.counters.incr("db_unavailable")
+                    raise
+                self.counters.incr("db_retries")
+                log.warning("database unavailable (%s); retrying in %.2f s", exc, delay)
+                time.sleep(delay)
+                delay = min(delay * 2, 1.0)
 
     def _run_batches(self) -> None:
         """Hand queued messages to their batch handlers, as many at once as are waiting."""
@@ -282,11 +305,10 @@ class Gateway:
 
     def _run_batch(self, channel: str, batch: list[tuple[str, Any]]) -> None:
         try:
-            reasons = self.batch_handlers[channel](batch)
+            reasons = self.with_db_retry(self.batch_handlers[channel], batch)
         except Exception:  # noqa: BLE001 - the gateway must outlive any bug in a handler
             log.exception("batch handler for %s failed", channel)
             reasons = ["handler_error"] * len(batch)
-            # A dropped database connection: let Django open a fresh one next time.
             connection.close()
         for reason in reasons:
             self._count(reason)

@@ -135,6 +135,45 @@ def explode_handler(drone_id: str, message: object) -> str | None:
     raise RuntimeError("bug in a handler")
 
 
+def _drop_other_database_sessions() -> int:
+    """What a database restart or failover does to the gateway's connections."""
+    from django.db import connection
+
+    with connection.cursor() as cursor:
+        cursor.execute(
+            "SELECT count(pg_terminate_backend(pid)) FROM pg_stat_activity "
+            "WHERE datname = current_database() AND pid <> pg_backend_pid()"
+        )
+        return cursor.fetchone()[0]
+
+
+def test_a_message_arriving_while_the_database_connection_is_lost_is_still_handled(
+    world_tx, broker, gateway
+):
+    client = _drone_client(broker, "ACME_1")
+
+    def gear(kind: str) -> None:
+        message = {"type": "gear", "specs": {"TYPE": kind}, "sensors": {}, "ts": time.time()}
+        client.publish("ACME_1/gear/out", json.dumps(message), qos=1).wait_for_publish()
+
+    # Both gateway threads hold an open connection: the handler's and the batch thread's.
+    gear("QUAD")
+    client.publish("ACME_1/heartbeats/out", json.dumps(heartbeat("ACME_1")), qos=1)
+    assert wait_for(lambda: Drone.objects.filter(drone_id="ACME_1", online=True).exists())
+    assert wait_for(lambda: Drone.objects.filter(specs__TYPE="QUAD").exists())
+    assert _drop_other_database_sessions() >= 2
+
+    gear("HEXACOPTER")
+    later = heartbeat("ACME_1", battery={"voltage": 15.0, "remaining": 0.5})
+    client.publish("ACME_1/heartbeats/out", json.dumps(later), qos=1).wait_for_publish()
+    assert wait_for(lambda: Drone.objects.filter(specs__TYPE="HEXACOPTER").exists())
+    assert wait_for(lambda: Drone.objects.filter(battery_remaining=0.5).exists())
+    assert gateway.counters.get("db_retries") >= 2
+    assert gateway.counters.get("dropped") == 0
+    assert gateway.counters.get("dropped.handler_error") == 0
+    client.loop_stop()
+
+
 def test_a_drone_goes_offline_after_missed_heartbeats_and_comes_back_on_the_next(
     world_tx, broker, gateway, settings
 ):
