@@ -163,6 +163,9 @@ class Subscriber:
             i = pos + 1
             while True:
                 if i >= end:
+                    # The read ended inside this packet's length: still ack what was delivered.
+                    if acks:
+                        sock.sendall(bytes(acks))
                     return pos, connected
                 byte = buffer[i]
                 length |= (byte & 0x7F) << shift

@@ -69,3 +69,20 @@ def test_a_refused_connection_or_subscription_is_a_protocol_violation():
     finally:
         ours.close()
         broker.close()
+
+
+def test_a_read_ending_inside_the_next_packets_length_still_acks_what_was_delivered():
+    received: list = []
+    reader = _reader(received)
+    delivered = publish("A/telemetry/out", b"{}", packet_id=9)
+    next_header = publish("B/telemetry/out", b"x" * 300, packet_id=10)[:2]  # length continues
+    ours, broker = socket.socketpair()
+    try:
+        consumed, _ = reader._parse(ours, bytearray(delivered + next_header), True)
+        assert consumed == len(delivered)
+        assert received == [("A/telemetry/out", b"{}")]
+        broker.settimeout(1)
+        assert broker.recv(16) == b"\x40\x02\x00\x09"
+    finally:
+        ours.close()
+        broker.close()
