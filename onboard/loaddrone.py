@@ -38,6 +38,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from . import protocol
+from .mqttwire import MqttError, connect_packet, publish_packet, split_packets, subscribe_packet
 from .navigation import lla_to_ned, ned_to_lla
 
 log = logging.getLogger(__name__)
@@ -55,88 +56,6 @@ OBJECTS = {
     "AttitudeActual": ("Roll", "Pitch", "Yaw"),
     "FlightBatteryState": ("Voltage", "Current"),
 }
-
-
-# ---------------------------------------------------------------------------------------
-# MQTT 3.1.1 packets (only what a drone needs: connect, subscribe, publish, ack, ping).
-
-
-class MqttError(Exception):
-    """A packet this client cannot accept; the connection is dropped and retried."""
-
-
-def _string(value: str) -> bytes:
-    data = value.encode()
-    return struct.pack("!H", len(data)) + data
-
-
-def _varint(n: int) -> bytes:
-    out = bytearray()
-    while True:
-        byte, n = n % 128, n // 128
-        out.append(byte | (0x80 if n else 0))
-        if not n:
-            return bytes(out)
-
-
-def connect_packet(
-    client_id: str,
-    username: str | None,
-    password: str | None,
-    *,
-    keepalive: int = KEEPALIVE_S,
-    clean_session: bool = False,
-) -> bytes:
-    flags = 0x02 if clean_session else 0x00
-    payload = _string(client_id)
-    if username:
-        flags |= 0x80
-        payload += _string(username)
-        if password is not None:
-            flags |= 0x40
-            payload += _string(password)
-    body = _string("MQTT") + bytes([4, flags]) + struct.pack("!H", keepalive) + payload
-    return b"\x10" + _varint(len(body)) + body
-
-
-def subscribe_packet(packet_id: int, topic_filter: str, qos: int = 1) -> bytes:
-    body = struct.pack("!H", packet_id) + _string(topic_filter) + bytes([qos])
-    return b"\x82" + _varint(len(body)) + body
-
-
-def publish_packet(
-    topic: str, payload: bytes, *, qos: int = 0, packet_id: int = 0, dup: bool = False
-) -> bytes:
-    header = 0x30 | (qos << 1) | (0x08 if dup else 0)
-    body = _string(topic) + (struct.pack("!H", packet_id) if qos else b"") + payload
-    return bytes([header]) + _varint(len(body)) + body
-
-
-def split_packets(buffer: bytearray) -> tuple[list[tuple[int, bytes]], int]:
-    """Every complete packet at the start of `buffer` as (first byte, body); bytes used."""
-    packets: list[tuple[int, bytes]] = []
-    pos = 0
-    end = len(buffer)
-    while end - pos >= 2:
-        length = 0
-        shift = 0
-        i = pos + 1
-        while True:
-            if i >= end:
-                return packets, pos
-            byte = buffer[i]
-            length |= (byte & 0x7F) << shift
-            i += 1
-            if not byte & 0x80:
-                break
-            shift += 7
-            if shift > 21:
-                raise MqttError("malformed remaining length")
-        if i + length > end:
-            break
-        packets.append((buffer[pos], bytes(buffer[i : i + length])))
-        pos = i + length
-    return packets, pos
 
 
 # ---------------------------------------------------------------------------------------
@@ -692,7 +611,15 @@ class Session(asyncio.Protocol):
         transport.set_write_buffer_limits(high=8192)
         self._buffer.clear()
         drone_id = self.account.drone_id
-        transport.write(connect_packet(drone_id, drone_id, self.account.password))
+        transport.write(
+            connect_packet(
+                drone_id,
+                drone_id,
+                self.account.password,
+                keepalive=KEEPALIVE_S,
+                clean_session=False,
+            )
+        )
         self._last_sent = time.monotonic()
 
     def connection_lost(self, exc: Exception | None) -> None:

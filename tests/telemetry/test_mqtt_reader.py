@@ -7,13 +7,14 @@ import struct
 
 import pytest
 
-from telemetry.mqtt_reader import ProtocolViolation, Subscriber, _string, _varint
+from onboard.mqttwire import encode_string, encode_varint
+from telemetry.mqtt_reader import ProtocolViolation, Subscriber
 
 
 def publish(topic: str, payload: bytes, packet_id: int | None = None) -> bytes:
-    body = _string(topic) + (struct.pack("!H", packet_id) if packet_id else b"") + payload
+    body = encode_string(topic) + (struct.pack("!H", packet_id) if packet_id else b"") + payload
     header = 0x32 if packet_id else 0x30
-    return bytes([header]) + _varint(len(body)) + body
+    return bytes([header]) + encode_varint(len(body)) + body
 
 
 def _reader(received: list) -> Subscriber:
