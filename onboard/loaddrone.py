@@ -329,19 +329,16 @@ class LoadDrone:
             if request_id is not None:
                 mission_id = obj.get("mission_id")
                 mission_id = mission_id if isinstance(mission_id, str) and mission_id else "unknown"
-                self._status(
-                    mission_id, None, "rejected", error=_sentence(exc), request_id=request_id
+                self._report(
+                    protocol.MissionProgress(
+                        mission_id, None, "rejected", error=_sentence(exc), request_id=request_id
+                    )
                 )
             return
         if isinstance(request, protocol.MissionStop):
             if self.mission_ref is None or self.mission_ref.mission_id != request.mission_id:
-                self._status(
-                    request.mission_id,
-                    None,
-                    "stopped",
-                    error="The mission is not running on this drone.",
-                    request_id=request.request_id,
-                )
+                not_running = "The mission is not running on this drone."
+                self._report(protocol.mission_reply(request, "stopped", error=not_running))
             elif self._mission_stop is not None:
                 self._mission_stop.set()
             return
@@ -353,31 +350,14 @@ class LoadDrone:
             if payload.assignment_id != request.assignment_id:
                 raise protocol.ProtocolError("payload.assignment_id", "does not match the message")
         except protocol.ProtocolError as exc:
-            self._status(
-                request.mission_id,
-                request.assignment_id,
-                "rejected",
-                error=_sentence(exc),
-                request_id=request.request_id,
-            )
+            self._report(protocol.mission_reply(request, "rejected", error=_sentence(exc)))
             return
         decode_ms = (time.perf_counter() - began) * 1000.0
         if self.mission is not None and not self.mission.done():
-            self._status(
-                request.mission_id,
-                request.assignment_id,
-                "rejected",
-                error="Another mission is still running; stop it first.",
-                request_id=request.request_id,
-            )
+            busy = "Another mission is still running; stop it first."
+            self._report(protocol.mission_reply(request, "rejected", error=busy))
             return
-        self._status(
-            payload.mission_id,
-            payload.assignment_id,
-            "accepted",
-            decode_ms=decode_ms,
-            request_id=request.request_id,
-        )
+        self._report(protocol.mission_reply(request, "accepted", decode_ms=decode_ms))
         self._mission_stop = asyncio.Event()
         self.mission = asyncio.get_running_loop().create_task(
             self._fly(payload, request.request_id, self._mission_stop)
@@ -390,12 +370,14 @@ class LoadDrone:
         try:
             for step in payload.steps:
                 if stop.is_set():
-                    self._status(
-                        mission_id,
-                        assignment_id,
-                        "stopped",
-                        error="stopped by the ground",
-                        request_id=request_id,
+                    self._report(
+                        protocol.MissionProgress(
+                            mission_id,
+                            assignment_id,
+                            "stopped",
+                            error="stopped by the ground",
+                            request_id=request_id,
+                        )
                     )
                     return
                 self.mission_ref = protocol.MissionRef(mission_id, assignment_id, step.index)
@@ -410,18 +392,20 @@ class LoadDrone:
                         if stop.is_set()
                         else f"Step {step.index} ({step.command}) failed: {exc}"
                     )
-                    self._status(
-                        mission_id,
-                        assignment_id,
-                        "stopped",
-                        error=reason,
-                        request_id=request_id if stop.is_set() else None,
+                    self._report(
+                        protocol.MissionProgress(
+                            mission_id,
+                            assignment_id,
+                            "stopped",
+                            error=reason,
+                            request_id=request_id if stop.is_set() else None,
+                        )
                     )
                     return
                 self._step(payload, step, "completed", began=began, result=result)
                 self.stats.steps_completed += 1
             self.stats.missions_completed += 1
-            self._status(mission_id, assignment_id, "completed")
+            self._report(protocol.MissionProgress(mission_id, assignment_id, "completed"))
         finally:
             self.mission_ref = None
 
@@ -471,32 +455,14 @@ class LoadDrone:
     ) -> None:
         # Durations in flight seconds, as the real worker reports them under a time scale.
         duration = None if began is None else (time.monotonic() - began) * self.time_scale
-        progress = protocol.StepProgress(
-            payload.mission_id,
-            payload.assignment_id,
-            step.index,
-            step.command,
-            status,
-            self.position(time.time()),
-            duration,
-            result or {},
-            error,
+        position = self.position(time.time())
+        self._report(
+            protocol.step_progress(
+                payload, step, status, position, duration_s=duration, result=result, error=error
+            )
         )
-        self.send("mission", protocol.encode(progress))
 
-    def _status(
-        self,
-        mission_id: str,
-        assignment_id: str | None,
-        status: str,
-        *,
-        decode_ms: float | None = None,
-        error: str | None = None,
-        request_id: str | None = None,
-    ) -> None:
-        progress = protocol.MissionProgress(
-            mission_id, assignment_id, status, decode_ms, error, request_id=request_id
-        )
+    def _report(self, progress: protocol.MissionProgress | protocol.StepProgress) -> None:
         self.send("mission", protocol.encode(progress))
 
 
