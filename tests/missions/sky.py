@@ -24,7 +24,9 @@ from django.conf import settings
 
 from firmware.sim import start_simulator
 from onboard.launcher import GEAR_EXAMPLE
+from tests.support.celery_worker import start_worker, worker_env
 from tests.support.mosquitto import Broker, start_broker
+from tests.support.processes import stop_process
 
 from .conftest import AVEIRO, OUTBOX_DB, point_at, redis_url_with_db
 
@@ -46,16 +48,6 @@ def wait_for(predicate: Callable[[], Any], timeout: float, interval: float = 0.0
     return predicate()
 
 
-def stop_process(process: subprocess.Popen, timeout: float = 10.0) -> None:
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(timeout)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-
-
 class Worker:
     """`celery worker` on the test database, consuming our own queue only."""
 
@@ -65,10 +57,8 @@ class Worker:
         self.queue = f"h9-missions-{uuid.uuid4().hex[:8]}"
         self._previous_queue = app.conf.task_default_queue
         app.conf.task_default_queue = self.queue
-        env = dict(
-            os.environ,
-            DJANGO_SETTINGS_MODULE="config.settings.test",
-            TEST_WORKER_DB_NAME=database_name,
+        env = worker_env(
+            database_name,
             REDIS_URL=redis_url_with_db(settings.REDIS_URL, OUTBOX_DB),
             # The outbox is per broker: the worker must queue for the test's broker.
             MQTT_URL=broker_url,
@@ -78,30 +68,13 @@ class Worker:
         )
         env.pop("DJANGO_ALLOW_ASYNC_UNSAFE", None)
         self.log = open(log_dir / f"worker-{self.queue}.log", "w")  # noqa: SIM115
-        self.process = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "celery",
-                "-A",
-                "config",
-                "worker",
-                "--pool",
-                "solo",
-                "-Q",
-                self.queue,
-                "-l",
-                "info",
-                "-n",
-                f"{self.queue}@%h",
-                "--without-heartbeat",
-                "--without-gossip",
-                "--without-mingle",
-            ],
-            cwd=ROOT,
-            env=env,
-            stdout=self.log,
-            stderr=subprocess.STDOUT,
+        self.process = start_worker(
+            f"{self.queue}@%h",
+            env,
+            output=self.log,
+            queue=self.queue,
+            loglevel="info",
+            chatter=False,
         )
 
     def stop(self) -> None:

@@ -23,6 +23,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .celery_worker import worker_argv
 from .paths import ROOT
 
 MANAGE = str(ROOT / "manage.py")
@@ -217,10 +218,14 @@ class GroundProcesses:
 
     def add_worker(self, pool: str = "solo", concurrency: int = 1) -> GroundProcess:
         def make(name: str) -> GroundProcess:
-            argv = [sys.executable, "-m", "celery", "-A", "config", "worker",
-                    "--pool", pool, "--concurrency", str(concurrency), "-Q", self.queue,
-                    "-n", f"{name}-{self.queue}@%h", "-l", "info",
-                    "--without-heartbeat", "--without-gossip", "--without-mingle"]  # fmt: skip
+            argv = worker_argv(
+                f"{name}-{self.queue}@%h",
+                queue=self.queue,
+                loglevel="info",
+                pool=pool,
+                concurrency=concurrency,
+                chatter=False,
+            )
             return GroundProcess(name, argv, self.env, self._log(name), ready_text=(" ready.",))
 
         return self._add("worker", make)
