@@ -13,9 +13,7 @@ import shutil
 import subprocess
 import sys
 import threading
-import time
 import uuid
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,6 +25,7 @@ from onboard.launcher import GEAR_EXAMPLE
 from tests.support.celery_worker import start_worker, worker_env
 from tests.support.mosquitto import Broker, start_broker
 from tests.support.processes import stop_process
+from tests.support.waiting import wait_for
 
 from .conftest import AVEIRO, OUTBOX_DB, point_at, redis_url_with_db
 
@@ -36,16 +35,6 @@ GROUND_PASSWORD = "ground-e2e-password"
 TIME_SCALE = 20.0
 HOME_ALT_MSL = 12.0
 BEAT_INTERVAL_S = 1.0
-
-
-def wait_for(predicate: Callable[[], Any], timeout: float, interval: float = 0.05) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(interval)
-    return predicate()
 
 
 class Worker:
@@ -278,26 +267,3 @@ def metres(a: tuple[float, float], b: tuple[float, float]) -> float:
 
     n, e = AVEIRO.to_ne([a[0], b[0]], [a[1], b[1]])
     return math.hypot(float(n[1] - n[0]), float(e[1] - e[0]))
-
-
-def publish_as(drone: SimDrone, topic: str, message: dict) -> None:
-    """Publish with the drone's own credentials (QoS 1), as a redelivery would arrive."""
-    import json
-    import threading
-    from urllib.parse import urlsplit
-
-    import paho.mqtt.client as mqtt
-
-    parts = urlsplit(drone.broker_url)
-    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=uuid.uuid4().hex)
-    client.username_pw_set(parts.username, parts.password)
-    connected = threading.Event()
-    client.on_connect = lambda c, u, f, rc, p: connected.set()
-    client.connect(parts.hostname or "127.0.0.1", parts.port or 1883)
-    client.loop_start()
-    try:
-        assert connected.wait(5), "could not connect as the drone"
-        client.publish(topic, json.dumps(message), qos=1).wait_for_publish(5)
-    finally:
-        client.disconnect()
-        client.loop_stop()
