@@ -214,16 +214,6 @@ def spawn(args: list[str], env: dict[str, str], log: Path) -> subprocess.Popen:
         return subprocess.Popen(args, cwd=ROOT, env=env, stdout=handle, stderr=subprocess.STDOUT)
 
 
-def stop(process: subprocess.Popen) -> None:
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(15)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-
-
 def bare_round_trip(port: int, password: str, observer: Observer, samples: int = 100) -> float:
     """Median publish → receive through the same broker (QoS 1, TCP_NODELAY)."""
     import statistics
@@ -338,6 +328,8 @@ def main() -> int:
     from bench.common import record
     from fleet import link
     from fleet.models import Drone, Organisation
+    from tests.support.celery_worker import worker_argv
+    from tests.support.processes import stop_process
 
     link.sync_redis().flushdb()
     original_name = connection.settings_dict["NAME"]
@@ -367,23 +359,7 @@ def main() -> int:
         )
         processes.append(
             spawn(
-                [
-                    sys.executable,
-                    "-m",
-                    "celery",
-                    "-A",
-                    "config",
-                    "worker",
-                    "--pool",
-                    "solo",
-                    "-l",
-                    "warning",
-                    "-n",
-                    f"bench-{uuid.uuid4().hex[:6]}@%h",
-                    "--without-gossip",
-                    "--without-mingle",
-                    "--without-heartbeat",
-                ],
+                worker_argv(f"bench-{uuid.uuid4().hex[:6]}@%h", chatter=False),
                 env,
                 workdir / "worker.log",
             )
@@ -408,7 +384,7 @@ def main() -> int:
             )
     finally:
         for process in processes:
-            stop(process)
+            stop_process(process, 15)
         if broker is not None:
             broker.stop()
         from django.db import connections

@@ -27,7 +27,6 @@ import json
 import multiprocessing as mp
 import os
 import socket
-import struct
 import subprocess
 import sys
 import threading
@@ -41,6 +40,7 @@ import psutil
 import psycopg
 
 from bench.common import best_of, percentile, record
+from onboard.mqttwire import connect_packet, publish_packet
 from tests.support.mosquitto import GROUND_AND_DRONES_ACL, MOSQUITTO_PASSWD, Broker, free_port
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -136,31 +136,6 @@ class BenchBroker(Broker):
 # Raw MQTT 3.1.1 load generator
 
 
-def _varint(n: int) -> bytes:
-    out = bytearray()
-    while True:
-        byte, n = n % 128, n // 128
-        out.append(byte | (0x80 if n else 0))
-        if not n:
-            return bytes(out)
-
-
-def _string(s: str) -> bytes:
-    data = s.encode()
-    return struct.pack("!H", len(data)) + data
-
-
-def connect_packet(client_id: str, username: str, password: str) -> bytes:
-    body = _string("MQTT") + bytes([4, 0xC2]) + struct.pack("!H", 0)  # user, pass, clean
-    body += _string(client_id) + _string(username) + _string(password)
-    return b"\x10" + _varint(len(body)) + body
-
-
-def publish_packet(topic: str, payload: bytes) -> bytes:
-    body = _string(topic) + payload
-    return b"\x30" + _varint(len(body)) + body
-
-
 def _drain(sock: socket.socket) -> None:
     """Read and ignore whatever the broker sends (nothing, for QoS 0 publishers)."""
     sock.setblocking(False)
@@ -177,7 +152,7 @@ def load_worker(port: int, ids: list[str], mode: str, start_at: float, out: mp.Q
     for i in ids:
         sock = socket.create_connection(("127.0.0.1", port))
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        sock.sendall(connect_packet(f"bench-{i}", i, "pw"))
+        sock.sendall(connect_packet(f"bench-{i}", i, "pw", keepalive=0, clean_session=True))
         ack = sock.recv(4)
         if ack[:2] != b"\x20\x02" or ack[3] != 0:
             raise RuntimeError(f"{i}: CONNACK {ack!r}")

@@ -123,6 +123,16 @@ class RabbitMQAdmin:
             f"no RabbitMQ node answered {method} {path}: {'; '.join(failures)}"
         )
 
+    def delete(self, path: str) -> bool:
+        """DELETE `path`; False if there was nothing to delete (the API answers 404)."""
+        try:
+            self.request("DELETE", path)
+        except RabbitMQAdminError as exc:
+            if exc.status == 404:
+                return False
+            raise
+        return True
+
     # -- users and permissions ------------------------------------------------------------
 
     def users(self) -> list[dict[str, Any]]:
@@ -141,13 +151,7 @@ class RabbitMQAdmin:
 
     def delete_user(self, name: str) -> bool:
         """True if the user existed."""
-        try:
-            self.request("DELETE", f"users/{_q(name)}")
-        except RabbitMQAdminError as exc:
-            if exc.status == 404:
-                return False
-            raise
-        return True
+        return self.delete(f"users/{_q(name)}")
 
     def delete_users(self, names: Sequence[str]) -> None:
         """Several users in one call (missing ones are ignored by RabbitMQ)."""
@@ -188,12 +192,8 @@ class RabbitMQAdmin:
 
     def close_connection(self, name: str, reason: str) -> bool:
         """True if it was open."""
-        try:
-            self.request("DELETE", f"connections/{_q(name)}")
-        except RabbitMQAdminError as exc:
-            if exc.status == 404:
-                return False
-            raise
+        if not self.delete(f"connections/{_q(name)}"):
+            return False
         log.info("closed RabbitMQ connection %s: %s", name, reason)
         return True
 
@@ -204,13 +204,7 @@ class RabbitMQAdmin:
         return [q["name"] for q in page.get("items", [])]
 
     def delete_queue(self, name: str, vhost: str = DEFAULT_VHOST) -> bool:
-        try:
-            self.request("DELETE", f"queues/{_q(vhost)}/{_q(name)}")
-        except RabbitMQAdminError as exc:
-            if exc.status == 404:
-                return False
-            raise
-        return True
+        return self.delete(f"queues/{_q(vhost)}/{_q(name)}")
 
 
 def _q(segment: str) -> str:

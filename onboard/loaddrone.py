@@ -38,6 +38,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from . import protocol
+from .mqttwire import MqttError, connect_packet, publish_packet, split_packets, subscribe_packet
 from .navigation import lla_to_ned, ned_to_lla
 
 log = logging.getLogger(__name__)
@@ -55,88 +56,6 @@ OBJECTS = {
     "AttitudeActual": ("Roll", "Pitch", "Yaw"),
     "FlightBatteryState": ("Voltage", "Current"),
 }
-
-
-# ---------------------------------------------------------------------------------------
-# MQTT 3.1.1 packets (only what a drone needs: connect, subscribe, publish, ack, ping).
-
-
-class MqttError(Exception):
-    """A packet this client cannot accept; the connection is dropped and retried."""
-
-
-def _string(value: str) -> bytes:
-    data = value.encode()
-    return struct.pack("!H", len(data)) + data
-
-
-def _varint(n: int) -> bytes:
-    out = bytearray()
-    while True:
-        byte, n = n % 128, n // 128
-        out.append(byte | (0x80 if n else 0))
-        if not n:
-            return bytes(out)
-
-
-def connect_packet(
-    client_id: str,
-    username: str | None,
-    password: str | None,
-    *,
-    keepalive: int = KEEPALIVE_S,
-    clean_session: bool = False,
-) -> bytes:
-    flags = 0x02 if clean_session else 0x00
-    payload = _string(client_id)
-    if username:
-        flags |= 0x80
-        payload += _string(username)
-        if password is not None:
-            flags |= 0x40
-            payload += _string(password)
-    body = _string("MQTT") + bytes([4, flags]) + struct.pack("!H", keepalive) + payload
-    return b"\x10" + _varint(len(body)) + body
-
-
-def subscribe_packet(packet_id: int, topic_filter: str, qos: int = 1) -> bytes:
-    body = struct.pack("!H", packet_id) + _string(topic_filter) + bytes([qos])
-    return b"\x82" + _varint(len(body)) + body
-
-
-def publish_packet(
-    topic: str, payload: bytes, *, qos: int = 0, packet_id: int = 0, dup: bool = False
-) -> bytes:
-    header = 0x30 | (qos << 1) | (0x08 if dup else 0)
-    body = _string(topic) + (struct.pack("!H", packet_id) if qos else b"") + payload
-    return bytes([header]) + _varint(len(body)) + body
-
-
-def split_packets(buffer: bytearray) -> tuple[list[tuple[int, bytes]], int]:
-    """Every complete packet at the start of `buffer` as (first byte, body); bytes used."""
-    packets: list[tuple[int, bytes]] = []
-    pos = 0
-    end = len(buffer)
-    while end - pos >= 2:
-        length = 0
-        shift = 0
-        i = pos + 1
-        while True:
-            if i >= end:
-                return packets, pos
-            byte = buffer[i]
-            length |= (byte & 0x7F) << shift
-            i += 1
-            if not byte & 0x80:
-                break
-            shift += 7
-            if shift > 21:
-                raise MqttError("malformed remaining length")
-        if i + length > end:
-            break
-        packets.append((buffer[pos], bytes(buffer[i : i + length])))
-        pos = i + length
-    return packets, pos
 
 
 # ---------------------------------------------------------------------------------------
@@ -410,19 +329,16 @@ class LoadDrone:
             if request_id is not None:
                 mission_id = obj.get("mission_id")
                 mission_id = mission_id if isinstance(mission_id, str) and mission_id else "unknown"
-                self._status(
-                    mission_id, None, "rejected", error=_sentence(exc), request_id=request_id
+                self._report(
+                    protocol.MissionProgress(
+                        mission_id, None, "rejected", error=_sentence(exc), request_id=request_id
+                    )
                 )
             return
         if isinstance(request, protocol.MissionStop):
             if self.mission_ref is None or self.mission_ref.mission_id != request.mission_id:
-                self._status(
-                    request.mission_id,
-                    None,
-                    "stopped",
-                    error="The mission is not running on this drone.",
-                    request_id=request.request_id,
-                )
+                not_running = "The mission is not running on this drone."
+                self._report(protocol.mission_reply(request, "stopped", error=not_running))
             elif self._mission_stop is not None:
                 self._mission_stop.set()
             return
@@ -434,31 +350,14 @@ class LoadDrone:
             if payload.assignment_id != request.assignment_id:
                 raise protocol.ProtocolError("payload.assignment_id", "does not match the message")
         except protocol.ProtocolError as exc:
-            self._status(
-                request.mission_id,
-                request.assignment_id,
-                "rejected",
-                error=_sentence(exc),
-                request_id=request.request_id,
-            )
+            self._report(protocol.mission_reply(request, "rejected", error=_sentence(exc)))
             return
         decode_ms = (time.perf_counter() - began) * 1000.0
         if self.mission is not None and not self.mission.done():
-            self._status(
-                request.mission_id,
-                request.assignment_id,
-                "rejected",
-                error="Another mission is still running; stop it first.",
-                request_id=request.request_id,
-            )
+            busy = "Another mission is still running; stop it first."
+            self._report(protocol.mission_reply(request, "rejected", error=busy))
             return
-        self._status(
-            payload.mission_id,
-            payload.assignment_id,
-            "accepted",
-            decode_ms=decode_ms,
-            request_id=request.request_id,
-        )
+        self._report(protocol.mission_reply(request, "accepted", decode_ms=decode_ms))
         self._mission_stop = asyncio.Event()
         self.mission = asyncio.get_running_loop().create_task(
             self._fly(payload, request.request_id, self._mission_stop)
@@ -471,12 +370,14 @@ class LoadDrone:
         try:
             for step in payload.steps:
                 if stop.is_set():
-                    self._status(
-                        mission_id,
-                        assignment_id,
-                        "stopped",
-                        error="stopped by the ground",
-                        request_id=request_id,
+                    self._report(
+                        protocol.MissionProgress(
+                            mission_id,
+                            assignment_id,
+                            "stopped",
+                            error="stopped by the ground",
+                            request_id=request_id,
+                        )
                     )
                     return
                 self.mission_ref = protocol.MissionRef(mission_id, assignment_id, step.index)
@@ -491,18 +392,20 @@ class LoadDrone:
                         if stop.is_set()
                         else f"Step {step.index} ({step.command}) failed: {exc}"
                     )
-                    self._status(
-                        mission_id,
-                        assignment_id,
-                        "stopped",
-                        error=reason,
-                        request_id=request_id if stop.is_set() else None,
+                    self._report(
+                        protocol.MissionProgress(
+                            mission_id,
+                            assignment_id,
+                            "stopped",
+                            error=reason,
+                            request_id=request_id if stop.is_set() else None,
+                        )
                     )
                     return
                 self._step(payload, step, "completed", began=began, result=result)
                 self.stats.steps_completed += 1
             self.stats.missions_completed += 1
-            self._status(mission_id, assignment_id, "completed")
+            self._report(protocol.MissionProgress(mission_id, assignment_id, "completed"))
         finally:
             self.mission_ref = None
 
@@ -552,32 +455,14 @@ class LoadDrone:
     ) -> None:
         # Durations in flight seconds, as the real worker reports them under a time scale.
         duration = None if began is None else (time.monotonic() - began) * self.time_scale
-        progress = protocol.StepProgress(
-            payload.mission_id,
-            payload.assignment_id,
-            step.index,
-            step.command,
-            status,
-            self.position(time.time()),
-            duration,
-            result or {},
-            error,
+        position = self.position(time.time())
+        self._report(
+            protocol.step_progress(
+                payload, step, status, position, duration_s=duration, result=result, error=error
+            )
         )
-        self.send("mission", protocol.encode(progress))
 
-    def _status(
-        self,
-        mission_id: str,
-        assignment_id: str | None,
-        status: str,
-        *,
-        decode_ms: float | None = None,
-        error: str | None = None,
-        request_id: str | None = None,
-    ) -> None:
-        progress = protocol.MissionProgress(
-            mission_id, assignment_id, status, decode_ms, error, request_id=request_id
-        )
+    def _report(self, progress: protocol.MissionProgress | protocol.StepProgress) -> None:
         self.send("mission", protocol.encode(progress))
 
 
@@ -692,7 +577,15 @@ class Session(asyncio.Protocol):
         transport.set_write_buffer_limits(high=8192)
         self._buffer.clear()
         drone_id = self.account.drone_id
-        transport.write(connect_packet(drone_id, drone_id, self.account.password))
+        transport.write(
+            connect_packet(
+                drone_id,
+                drone_id,
+                self.account.password,
+                keepalive=KEEPALIVE_S,
+                clean_session=False,
+            )
+        )
         self._last_sent = time.monotonic()
 
     def connection_lost(self, exc: Exception | None) -> None:

@@ -157,13 +157,7 @@ class MissionWorker:
         try:
             payload, decode_ms = decode_mission(start)
         except protocol.ProtocolError as exc:
-            self._mission_status(
-                start.mission_id,
-                start.assignment_id,
-                "rejected",
-                error=str(exc),
-                request_id=start.request_id,
-            )
+            self._mission_status(protocol.mission_reply(start, "rejected", error=str(exc)))
             return
         self.events(
             "mission",
@@ -181,34 +175,18 @@ class MissionWorker:
                     payload, start.request_id, decode_ms, queue_steps(payload)
                 )
         if running is not None:
-            self._mission_status(
-                start.mission_id,
-                start.assignment_id,
-                "rejected",
-                error=f"Mission {running.payload.mission_id} is still running; stop it first.",
-                request_id=start.request_id,
-            )
+            busy = f"Mission {running.payload.mission_id} is still running; stop it first."
+            self._mission_status(protocol.mission_reply(start, "rejected", error=busy))
             return
-        self._mission_status(
-            payload.mission_id,
-            payload.assignment_id,
-            "accepted",
-            decode_ms=decode_ms,
-            request_id=start.request_id,
-        )
+        self._mission_status(protocol.mission_reply(start, "accepted", decode_ms=decode_ms))
         self._wake.set()
 
     def _handle_stop(self, stop: protocol.MissionStop) -> None:
         with self._lock:
             running = self._mission
         if running is None or running.payload.mission_id != stop.mission_id:
-            self._mission_status(
-                stop.mission_id,
-                None,
-                "stopped",
-                error="The mission is not running on this drone.",
-                request_id=stop.request_id,
-            )
+            not_running = "The mission is not running on this drone."
+            self._mission_status(protocol.mission_reply(stop, "stopped", error=not_running))
             return
         self.stop_current("stopped by the ground", request_id=stop.request_id)
 
@@ -275,11 +253,13 @@ class MissionWorker:
             mission.steps.get_nowait()
         self.events("mission", {"event": status, "mission_id": payload.mission_id, "error": error})
         self._mission_status(
-            payload.mission_id,
-            payload.assignment_id,
-            status,
-            error=error,
-            request_id=mission.request_id if status == "stopped" else None,
+            protocol.MissionProgress(
+                payload.mission_id,
+                payload.assignment_id,
+                status,
+                error=error,
+                request_id=mission.request_id if status == "stopped" else None,
+            )
         )
 
     def _run_step(self, mission: RunningMission, step: protocol.Step) -> tuple[bool, str | None]:
@@ -407,25 +387,17 @@ class MissionWorker:
 
     # -- progress messages ----------------------------------------------------------------
 
-    def _mission_status(
-        self,
-        mission_id: str,
-        assignment_id: str | None,
-        status: str,
-        *,
-        decode_ms: float | None = None,
-        error: str | None = None,
-        request_id: str | None = None,
-    ) -> None:
-        if status in ("accepted", "rejected"):  # _finish logs completed and stopped
+    def _mission_status(self, progress: protocol.MissionProgress) -> None:
+        if progress.status in ("accepted", "rejected"):  # _finish logs completed and stopped
             self.events(
-                "mission", {"event": status, "mission_id": mission_id, "decode_ms": decode_ms}
+                "mission",
+                {
+                    "event": progress.status,
+                    "mission_id": progress.mission_id,
+                    "decode_ms": progress.decode_ms,
+                },
             )
-        self.publish(
-            protocol.MissionProgress(
-                mission_id, assignment_id, status, decode_ms, error, request_id=request_id
-            )
-        )
+        self.publish(progress)
 
     def _step_status(
         self,
@@ -441,15 +413,13 @@ class MissionWorker:
         if position is None:
             position = position_of(self.fc.state)
         self.publish(
-            protocol.StepProgress(
-                mission.payload.mission_id,
-                mission.payload.assignment_id,
-                step.index,
-                step.command,
+            protocol.step_progress(
+                mission.payload,
+                step,
                 status,
                 position,
-                duration_s,
-                result or {},
-                error,
+                duration_s=duration_s,
+                result=result,
+                error=error,
             )
         )

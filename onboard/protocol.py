@@ -641,6 +641,44 @@ class StepProgress:
         return data
 
 
+def mission_reply(
+    request: MissionStart | MissionStop,
+    status: str,
+    *,
+    decode_ms: float | None = None,
+    error: str | None = None,
+) -> MissionProgress:
+    """The mission progress that answers a start or stop request, naming the request."""
+    assignment_id = request.assignment_id if isinstance(request, MissionStart) else None
+    return MissionProgress(
+        request.mission_id, assignment_id, status, decode_ms, error, request_id=request.request_id
+    )
+
+
+def step_progress(
+    payload: MissionPayload,
+    step: Step,
+    status: str,
+    position: Position | None,
+    *,
+    duration_s: float | None = None,
+    result: dict | None = None,
+    error: str | None = None,
+) -> StepProgress:
+    """The progress of one step of a running mission."""
+    return StepProgress(
+        payload.mission_id,
+        payload.assignment_id,
+        step.index,
+        step.command,
+        status,
+        position,
+        duration_s,
+        result or {},
+        error,
+    )
+
+
 def parse_mission_progress(obj: Any) -> MissionProgress | StepProgress:
     """A `<id>/mission/out` message (mission status or step progress)."""
     obj = _object(obj, "message")

@@ -13,53 +13,21 @@ from __future__ import annotations
 import logging
 import select
 import socket
-import struct
 import threading
 import time
 from collections.abc import Callable
 from urllib.parse import urlsplit
+
+from onboard.mqttwire import MqttError, connect_packet, packet_at, subscribe_packet
 
 log = logging.getLogger(__name__)
 
 READ_SIZE = 256 * 1024
 
 
-class ProtocolViolation(Exception):
-    pass
-
-
-def _string(value: str) -> bytes:
-    data = value.encode()
-    return struct.pack("!H", len(data)) + data
-
-
-def _varint(n: int) -> bytes:
-    out = bytearray()
-    while True:
-        byte, n = n % 128, n // 128
-        out.append(byte | (0x80 if n else 0))
-        if not n:
-            return bytes(out)
-
-
-def connect_packet(
-    client_id: str, username: str | None, password: str | None, keepalive: int
-) -> bytes:
-    flags = 0x02  # clean session
-    payload = _string(client_id)
-    if username:
-        flags |= 0x80
-        payload += _string(username)
-        if password is not None:
-            flags |= 0x40
-            payload += _string(password)
-    body = _string("MQTT") + bytes([4, flags]) + struct.pack("!H", keepalive) + payload
-    return b"\x10" + _varint(len(body)) + body
-
-
-def subscribe_packet(packet_id: int, topic_filter: str, qos: int) -> bytes:
-    body = struct.pack("!H", packet_id) + _string(topic_filter) + bytes([qos])
-    return b"\x82" + _varint(len(body)) + body
+# The reader has always raised this name; the framing shared with the load drones
+# raises the same class, so one except clause catches both.
+ProtocolViolation = MqttError
 
 
 class Subscriber:
@@ -129,7 +97,15 @@ class Subscriber:
         sock = socket.create_connection((self.host, self.port), timeout=10)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._sock = sock
-        sock.sendall(connect_packet(self.client_id, self.username, self.password, self.keepalive))
+        sock.sendall(
+            connect_packet(
+                self.client_id,
+                self.username,
+                self.password,
+                keepalive=self.keepalive,
+                clean_session=True,
+            )
+        )
         sock.sendall(subscribe_packet(1, self.topic_filter, self.qos))
         sock.settimeout(None)
         buffer = bytearray()
@@ -153,27 +129,10 @@ class Subscriber:
     def _parse(self, sock: socket.socket, buffer: bytearray, connected: bool) -> tuple[int, bool]:
         """Handle every complete packet at the start of `buffer`; bytes consumed."""
         pos = 0
-        end = len(buffer)
         acks = bytearray()
-        while end - pos >= 2:
+        while (bounds := packet_at(buffer, pos)) is not None:
+            i, stop = bounds  # the body is buffer[i:stop]
             header = buffer[pos]
-            # Remaining length: 1 to 4 bytes, 7 bits each.
-            length = 0
-            shift = 0
-            i = pos + 1
-            while True:
-                if i >= end:
-                    return pos, connected
-                byte = buffer[i]
-                length |= (byte & 0x7F) << shift
-                i += 1
-                if not byte & 0x80:
-                    break
-                shift += 7
-                if shift > 21:
-                    raise ProtocolViolation("malformed remaining length")
-            if i + length > end:
-                break
             kind = header >> 4
             if kind == 3:  # PUBLISH
                 topic_len = (buffer[i] << 8) | buffer[i + 1]
@@ -183,18 +142,18 @@ class Subscriber:
                 if qos:
                     acks += b"\x40\x02" + buffer[start : start + 2]  # PUBACK
                     start += 2
-                self.on_message(topic, bytes(buffer[start : i + length]))
+                self.on_message(topic, bytes(buffer[start:stop]))
             elif kind == 2:  # CONNACK
-                if length < 2 or buffer[i + 1] != 0:
+                if stop - i < 2 or buffer[i + 1] != 0:
                     raise ProtocolViolation(f"broker refused the connection (code {buffer[i + 1]})")
                 connected = True
             elif kind == 9:  # SUBACK
-                if buffer[i + length - 1] == 0x80:
+                if buffer[stop - 1] == 0x80:
                     raise ProtocolViolation(f"subscription to {self.topic_filter} refused")
                 self.sessions += 1
                 self.subscribed.set()
                 log.info("ingest subscribed to %s", self.topic_filter)
-            pos = i + length
+            pos = stop
         if acks:
             sock.sendall(bytes(acks))
         return pos, connected

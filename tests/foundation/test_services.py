@@ -10,6 +10,9 @@ from pathlib import Path
 import pytest
 from django.test import Client
 
+from tests.support.celery_worker import start_worker, worker_env
+from tests.support.processes import stop_process
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -37,38 +40,19 @@ def test_health_is_503_and_names_redis_when_it_is_down(db, settings):
 
 @pytest.mark.django_db(transaction=True)
 def test_a_real_celery_worker_runs_a_task():
-    from workers.tasks import ping
-
-    env = dict(os.environ, DJANGO_SETTINGS_MODULE="config.settings.test")
     # The worker must use the test database that pytest-django created.
     from django.db import connection
 
-    env["TEST_WORKER_DB_NAME"] = connection.settings_dict["NAME"]
-    worker = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "celery",
-            "-A",
-            "config",
-            "worker",
-            "--pool",
-            "solo",
-            "-l",
-            "warning",
-            "-n",
-            f"test-{uuid.uuid4().hex[:6]}@%h",
-        ],
-        cwd=ROOT,
-        env=env,
-    )
+    from workers.tasks import ping
+
+    env = worker_env(connection.settings_dict["NAME"])
+    worker = start_worker(f"test-{uuid.uuid4().hex[:6]}@%h", env)
     try:
         token = uuid.uuid4().hex
         result = ping.delay(token)
         assert result.get(timeout=30)["pong"] == token
     finally:
-        worker.terminate()
-        worker.wait(10)
+        stop_process(worker)
 
 
 def test_deploy_checks_pass_with_production_values():

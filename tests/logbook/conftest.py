@@ -7,16 +7,15 @@ takes theirs.
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import time
 import uuid
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.support.celery_worker import start_worker, worker_env
+from tests.support.processes import stop_process
+
 QUEUE = f"logs-test-{uuid.uuid4().hex[:8]}"
 
 
@@ -31,44 +30,14 @@ def _logs_settings(settings, logs_dir):  # type: ignore[no-untyped-def]
     settings.LOGS_IMPORT_QUEUE = QUEUE
 
 
-def worker_env(database_name: str, logs_dir: Path) -> dict[str, str]:
-    return dict(
-        os.environ,
-        DJANGO_SETTINGS_MODULE="config.settings.test",
-        TEST_WORKER_DB_NAME=database_name,
-        LOGS_DIR=str(logs_dir),
-        LOGS_IMPORT_QUEUE=QUEUE,
-        PYTHONUNBUFFERED="1",
-    )
-
-
 class Worker:
     def __init__(self, database_name: str, logs_dir: Path) -> None:
         self.log_file = open(logs_dir / f"worker-{QUEUE}.log", "w")  # noqa: SIM115
-        self.process = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "celery",
-                "-A",
-                "config",
-                "worker",
-                "--pool",
-                "solo",
-                "-Q",
-                QUEUE,
-                "-l",
-                "info",
-                "-n",
-                f"{QUEUE}@%h",
-                "--without-heartbeat",
-                "--without-gossip",
-                "--without-mingle",
-            ],
-            cwd=ROOT,
-            env=worker_env(database_name, logs_dir),
-            stdout=self.log_file,
-            stderr=subprocess.STDOUT,
+        env = worker_env(
+            database_name, LOGS_DIR=str(logs_dir), LOGS_IMPORT_QUEUE=QUEUE, PYTHONUNBUFFERED="1"
+        )
+        self.process = start_worker(
+            f"{QUEUE}@%h", env, output=self.log_file, queue=QUEUE, loglevel="info", chatter=False
         )
 
     @property
@@ -80,11 +49,7 @@ class Worker:
         return Path(self.log_file.name).read_text()
 
     def stop(self) -> None:
-        self.process.terminate()
-        try:
-            self.process.wait(10)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
+        stop_process(self.process)
         self.log_file.close()
 
 

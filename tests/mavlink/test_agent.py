@@ -13,8 +13,9 @@ import pytest
 
 from firmware.sim import start_simulator
 from onboard import protocol
-from tests.onboard.ground import REPO_ROOT, Ground, stop_process
+from tests.onboard.ground import REPO_ROOT, Ground
 from tests.support.mosquitto import start_broker
+from tests.support.processes import stop_process
 
 from .conftest import HOME, TIME_SCALE, wait_for
 

@@ -8,14 +8,15 @@ import pytest
 
 from missions.models import Assignment, MissionStatus, Picture, StepStatus
 from tests.missions.conftest import point_at, rectangle
-from tests.missions.sky import metres, wait_for
-from tests.missions.test_experiments import (  # noqa: F401 - `ground` is a shared fixture
-    _survey_with_alarm,
+from tests.missions.sky import metres
+from tests.support.experiments import (  # noqa: F401 - `ground` is a shared fixture
     api,
     completed_waypoints,
     ground,
+    survey_with_alarm,
     wait_status,
 )
+from tests.support.waiting import wait_for
 
 from .sky import MixedSky
 
@@ -144,7 +145,7 @@ def test_collaborative_sensing_by_three_mavlink_drones_extends_the_area_to_56_wa
     sky.add_drone("ACME_MC3", north=-30, east=45)
     sky.wait_online()
     hold = {"command": "sleep", "params": {"value": 2}}
-    steps, extensibility = _survey_with_alarm("OUT_MEASURE", 35, 28, 7, after=15, action=hold)
+    steps, extensibility = survey_with_alarm("OUT_MEASURE", 35, 28, 7, after=15, action=hold)
     client = api(world_tx.operator)
     created = client.post(
         "/api/v1/missions/",

@@ -11,8 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from tests.onboard.ground import REPO_ROOT, Ground, stop_process
+from tests.onboard.ground import REPO_ROOT, Ground
 from tests.support.mosquitto import start_broker
+from tests.support.processes import stop_process
 
 from .conftest import HOME, TIME_SCALE
 

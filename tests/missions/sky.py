@@ -13,9 +13,7 @@ import shutil
 import subprocess
 import sys
 import threading
-import time
 import uuid
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,7 +22,10 @@ from django.conf import settings
 
 from firmware.sim import start_simulator
 from onboard.launcher import GEAR_EXAMPLE
+from tests.support.celery_worker import start_worker, worker_env
 from tests.support.mosquitto import Broker, start_broker
+from tests.support.processes import stop_process
+from tests.support.waiting import wait_for
 
 from .conftest import AVEIRO, OUTBOX_DB, point_at, redis_url_with_db
 
@@ -36,26 +37,6 @@ HOME_ALT_MSL = 12.0
 BEAT_INTERVAL_S = 1.0
 
 
-def wait_for(predicate: Callable[[], Any], timeout: float, interval: float = 0.05) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(interval)
-    return predicate()
-
-
-def stop_process(process: subprocess.Popen, timeout: float = 10.0) -> None:
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(timeout)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-
-
 class Worker:
     """`celery worker` on the test database, consuming our own queue only."""
 
@@ -65,10 +46,8 @@ class Worker:
         self.queue = f"h9-missions-{uuid.uuid4().hex[:8]}"
         self._previous_queue = app.conf.task_default_queue
         app.conf.task_default_queue = self.queue
-        env = dict(
-            os.environ,
-            DJANGO_SETTINGS_MODULE="config.settings.test",
-            TEST_WORKER_DB_NAME=database_name,
+        env = worker_env(
+            database_name,
             REDIS_URL=redis_url_with_db(settings.REDIS_URL, OUTBOX_DB),
             # The outbox is per broker: the worker must queue for the test's broker.
             MQTT_URL=broker_url,
@@ -78,30 +57,13 @@ class Worker:
         )
         env.pop("DJANGO_ALLOW_ASYNC_UNSAFE", None)
         self.log = open(log_dir / f"worker-{self.queue}.log", "w")  # noqa: SIM115
-        self.process = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "celery",
-                "-A",
-                "config",
-                "worker",
-                "--pool",
-                "solo",
-                "-Q",
-                self.queue,
-                "-l",
-                "info",
-                "-n",
-                f"{self.queue}@%h",
-                "--without-heartbeat",
-                "--without-gossip",
-                "--without-mingle",
-            ],
-            cwd=ROOT,
-            env=env,
-            stdout=self.log,
-            stderr=subprocess.STDOUT,
+        self.process = start_worker(
+            f"{self.queue}@%h",
+            env,
+            output=self.log,
+            queue=self.queue,
+            loglevel="info",
+            chatter=False,
         )
 
     def stop(self) -> None:
@@ -305,26 +267,3 @@ def metres(a: tuple[float, float], b: tuple[float, float]) -> float:
 
     n, e = AVEIRO.to_ne([a[0], b[0]], [a[1], b[1]])
     return math.hypot(float(n[1] - n[0]), float(e[1] - e[0]))
-
-
-def publish_as(drone: SimDrone, topic: str, message: dict) -> None:
-    """Publish with the drone's own credentials (QoS 1), as a redelivery would arrive."""
-    import json
-    import threading
-    from urllib.parse import urlsplit
-
-    import paho.mqtt.client as mqtt
-
-    parts = urlsplit(drone.broker_url)
-    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=uuid.uuid4().hex)
-    client.username_pw_set(parts.username, parts.password)
-    connected = threading.Event()
-    client.on_connect = lambda c, u, f, rc, p: connected.set()
-    client.connect(parts.hostname or "127.0.0.1", parts.port or 1883)
-    client.loop_start()
-    try:
-        assert connected.wait(5), "could not connect as the drone"
-        client.publish(topic, json.dumps(message), qos=1).wait_for_publish(5)
-    finally:
-        client.disconnect()
-        client.loop_stop()

@@ -6,68 +6,31 @@ from __future__ import annotations
 import time
 
 import pytest
-from rest_framework.test import APIClient
 
 from missions.models import Assignment, Event, Mission, MissionStatus, Picture, StepStatus
+from tests.support.experiments import (  # noqa: F401 - `ground` is a shared fixture
+    accepted_completions,
+    api,
+    completed_waypoints,
+    ground,
+    redelivered_alarm,
+    survey_with_alarm,
+    wait_status,
+)
+from tests.support.ground import publish_as
+from tests.support.waiting import wait_for
 
 from .conftest import point_at, rectangle
-from .sky import Ground, Sky, metres, wait_for
+from .sky import Sky, metres
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
 
-@pytest.fixture(scope="module")
-def ground(django_db_setup, django_db_blocker, tmp_path_factory):  # type: ignore[no-untyped-def]
-    from django.db import connection
-
-    with django_db_blocker.unblock():
-        name = connection.settings_dict["NAME"]
-    g = Ground(tmp_path_factory.mktemp("ground"), name)
-    yield g
-    g.close()
-
-
 @pytest.fixture
-def sky(world_tx, ground, tmp_path):  # type: ignore[no-untyped-def]
+def sky(world_tx, ground, tmp_path):  # type: ignore[no-untyped-def]  # noqa: F811
     s = Sky(tmp_path, world_tx.org.slug, ground).start()
     yield s
     s.close()
-
-
-def api(user) -> APIClient:  # type: ignore[no-untyped-def]
-    client = APIClient()
-    client.force_authenticate(user)
-    return client
-
-
-def wait_status(mission_id: str, wanted: set[str], timeout: float) -> Mission:
-    def done() -> Mission | None:
-        mission = Mission.objects.get(pk=mission_id)
-        return mission if mission.status in wanted else None
-
-    mission = wait_for(done, timeout, interval=0.2)
-    if mission is None:
-        mission = Mission.objects.get(pk=mission_id)
-        events = list(mission.events.values_list("message", flat=True))[-15:]
-        raise AssertionError(f"mission is {mission.status}; last events: {events}")
-    return mission
-
-
-def completed_waypoints(mission: Mission) -> dict[str, list[int]]:
-    """Waypoints (their wait_for_flight step indexes) per drone that completed them."""
-    per: dict[str, list[int]] = {}
-    for step in mission.steps.filter(command="wait_for_flight", status=StepStatus.COMPLETED):
-        per.setdefault(step.drone.drone_id, []).append(step.index)
-    return per
-
-
-def accepted_completions(mission: Mission) -> list[int]:
-    """Step indexes of every completion the ground accepted (not ignored as duplicates)."""
-    return [
-        e.data["index"]
-        for e in mission.events.filter(kind=Event.Kind.STEP, data__status="completed")
-        if not e.data.get("ignored")
-    ]
 
 
 def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx, sky):
@@ -134,34 +97,13 @@ def test_aerial_photography_takes_a_geotagged_picture_at_each_of_45_waypoints(wo
     assert archive.status_code == 200 and archive["Content-Type"] == "application/zip"
 
 
-def _survey_with_alarm(
-    level: str, width: float, height: float, step: float, after: int, action=None
-) -> tuple[list[dict], dict]:  # type: ignore[no-untyped-def]
-    """Survey steps with a virtual alarm right after waypoint `after` (1-based) is done."""
-    from missions.planning import coverage, mission_steps
-
-    area = coverage(rectangle(width, height), step)
-    steps = mission_steps(area.waypoints, altitude=10, intermediate_action=action)
-    per_waypoint = 2 + (1 if action else 0)
-    at = 2 + per_waypoint * after
-    alarm = {"command": "virtualalarm", "params": {"level": level, "message": "test alarm"}}
-    steps = [{"command": s["command"], "params": s["params"]} for s in steps]
-    steps.insert(at, alarm)
-    extensibility = {
-        "vectors": area.vectors.to_dict(),
-        "step_distance": step,
-        "intermediate_action": action,
-    }
-    return steps, extensibility
-
-
 def test_self_replacement_hands_the_remaining_waypoints_to_a_second_drone(world_tx, sky):
     from fleet.models import Drone
 
     first = sky.add_drone("ACME_R1", north=-10)
     sky.add_drone("ACME_R2", north=-40, east=-20)
     sky.wait_online()
-    steps, _ = _survey_with_alarm("CRITICAL", 60, 30, 10, after=13)
+    steps, _ = survey_with_alarm("CRITICAL", 60, 30, 10, after=13)
     client = api(world_tx.operator)
     mission_id = client.post(
         "/api/v1/missions/", {"name": "replace", "steps": steps}, format="json"
@@ -174,21 +116,7 @@ def test_self_replacement_hands_the_remaining_waypoints_to_a_second_drone(world_
     alarm = wait_for(lambda: Event.objects.filter(mission_id=mission_id, kind="alarm").first(), 60)
     assert alarm is not None, sky.describe()
     # The broker delivers the alarm again (QoS 1 redelivery): still one replacement.
-    duplicate = {
-        "type": "alarm",
-        "level": "CRITICAL",
-        "message": alarm.data["message"],
-        "ts": alarm.data["ts"],
-        "position": alarm.data["position"],
-        "mission_id": mission_id,
-        "assignment_id": alarm.data["assignment"],
-        "index": alarm.data["index"],
-        "sensor": None,
-        "value": None,
-    }
-    from .sky import publish_as
-
-    publish_as(first, "ACME_R1/alarms/out", duplicate)
+    publish_as(first.broker_url, "ACME_R1/alarms/out", redelivered_alarm(alarm, mission_id))
 
     mission = wait_status(mission_id, {"completed", "failed", "stopped"}, 90)
     assert mission.status == MissionStatus.COMPLETED
@@ -297,7 +225,7 @@ def test_replacement_with_no_drone_available_pauses_then_resumes_when_one_comes_
 ):
     sky.add_drone("ACME_S1")
     sky.wait_online()
-    steps, _ = _survey_with_alarm("CRITICAL", 20, 10, 10, after=2)
+    steps, _ = survey_with_alarm("CRITICAL", 20, 10, 10, after=2)
     client = api(world_tx.operator)
     mission_id = client.post(
         "/api/v1/missions/", {"name": "pause", "steps": steps}, format="json"
@@ -319,7 +247,7 @@ def test_a_gateway_restart_mid_mission_loses_no_progress(world_tx, sky):
     sky.add_drone("ACME_G1")
     sky.wait_online()
     hold = {"command": "sleep", "params": {"value": 3}}
-    steps, _ = _survey_with_alarm("OUT_MEASURE", 30, 10, 10, after=99, action=hold)
+    steps, _ = survey_with_alarm("OUT_MEASURE", 30, 10, 10, after=99, action=hold)
     steps = [s for s in steps if s["command"] != "virtualalarm"]
     client = api(world_tx.operator)
     mission_id = client.post(

@@ -11,9 +11,10 @@ from firmware.sim import start_simulator
 from onboard import protocol
 from onboard.bridge import bridge_config
 from tests.support.mosquitto import start_broker
+from tests.support.processes import stop_process
 
 from .dfi_rules import check_dfi, labels
-from .ground import Ground, start_agent, stop_process
+from .ground import Ground, start_agent
 
 pytestmark = pytest.mark.e2e
 

@@ -13,8 +13,9 @@ from pathlib import Path
 import pytest
 
 from firmware.sim import start_simulator
-from tests.onboard.ground import Ground, start_agent, stop_process
+from tests.onboard.ground import Ground, start_agent
 from tests.support.mosquitto import start_broker
+from tests.support.processes import stop_process
 
 from .support import ServiceThread, in_own_loop, wait_until
 from .test_consumer import connect

@@ -4,9 +4,7 @@ and the page in a browser."""
 
 from __future__ import annotations
 
-import os
 import subprocess
-import sys
 import time
 import urllib.parse
 import uuid
@@ -16,8 +14,9 @@ from django.test import Client, override_settings
 from rest_framework.test import APIClient
 
 from tests.conftest import login
+from tests.support.celery_worker import start_worker, worker_env
 from tests.support.mosquitto import GROUND_AND_DRONES_ACL, free_port, start_broker
-from tests.support.paths import ROOT
+from tests.support.processes import stop_process
 from workers import operations
 from workers.counters import Counters, instances, start_heartbeat
 from workers.gateway import Gateway
@@ -155,33 +154,8 @@ def test_a_running_celery_worker_is_listed_alive_and_gone_once_stopped(transacti
     from django.db import connection
 
     name = f"ops-{uuid.uuid4().hex[:6]}@test"
-    env = dict(
-        os.environ,
-        DJANGO_SETTINGS_MODULE="config.settings.test",
-        TEST_WORKER_DB_NAME=connection.settings_dict["NAME"],
-    )
-    worker = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "celery",
-            "-A",
-            "config",
-            "worker",
-            "--pool",
-            "solo",
-            "-l",
-            "warning",
-            "-n",
-            name,
-            "-Q",
-            f"ops-{name}",
-        ],
-        cwd=ROOT,
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    env = worker_env(connection.settings_dict["NAME"])
+    worker = start_worker(name, env, output=subprocess.DEVNULL, queue=f"ops-{name}")
     try:
 
         def listed() -> dict | None:
@@ -194,9 +168,7 @@ def test_a_running_celery_worker_is_listed_alive_and_gone_once_stopped(transacti
         worker.wait(15)
         assert wait_for(lambda: (w := listed()) and not w["alive"], timeout=10)
     finally:
-        if worker.poll() is None:
-            worker.kill()
-            worker.wait(5)
+        stop_process(worker)
 
 
 # -- the broker: Mosquitto --------------------------------------------------------------------

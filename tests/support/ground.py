@@ -23,7 +23,9 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .celery_worker import worker_argv
 from .paths import ROOT
+from .waiting import wait_for
 
 MANAGE = str(ROOT / "manage.py")
 
@@ -217,10 +219,14 @@ class GroundProcesses:
 
     def add_worker(self, pool: str = "solo", concurrency: int = 1) -> GroundProcess:
         def make(name: str) -> GroundProcess:
-            argv = [sys.executable, "-m", "celery", "-A", "config", "worker",
-                    "--pool", pool, "--concurrency", str(concurrency), "-Q", self.queue,
-                    "-n", f"{name}-{self.queue}@%h", "-l", "info",
-                    "--without-heartbeat", "--without-gossip", "--without-mingle"]  # fmt: skip
+            argv = worker_argv(
+                f"{name}-{self.queue}@%h",
+                queue=self.queue,
+                loglevel="info",
+                pool=pool,
+                concurrency=concurrency,
+                chatter=False,
+            )
             return GroundProcess(name, argv, self.env, self._log(name), ready_text=(" ready.",))
 
         return self._add("worker", make)
@@ -478,16 +484,6 @@ class ReplicatedGround:
         self.processes.stop()
 
 
-def wait_for(predicate: Callable[[], object], timeout: float, interval: float = 0.1) -> object:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(interval)
-    return predicate()
-
-
 def _point_test_process_at(settings, values: dict[str, object]) -> None:  # type: ignore[no-untyped-def]
     """The test process provisions drones and reads the outbox: same broker and Redis."""
     from fleet import link
@@ -696,20 +692,6 @@ class MissionSocket:
         self._reader.join(5)
 
 
-def survey_with_alarm(width: float, height: float, step: float, after: int) -> list[dict]:
-    """Survey steps with a CRITICAL virtual alarm right after waypoint `after` (1-based):
-    the drone raises it as it would on a low battery, and must be replaced."""
-    from missions.planning import coverage, mission_steps
-    from tests.missions.conftest import rectangle
-
-    area = coverage(rectangle(width, height), step)
-    steps = mission_steps(area.waypoints, altitude=10)
-    steps = [{"command": s["command"], "params": s["params"]} for s in steps]
-    alarm = {"command": "virtualalarm", "params": {"level": "CRITICAL", "message": "battery"}}
-    steps.insert(2 + 2 * after, alarm)
-    return steps
-
-
 @dataclass
 class MissionRun:
     """What a replacement mission left behind, and the checks that it happened once."""
@@ -733,6 +715,8 @@ class MissionRun:
     def assert_exactly_once(self, *, duplicate_alarms: int = 1) -> None:
         from missions.models import STEP_DONE, Assignment, Event, Mission, StepStatus
 
+        from .experiments import accepted_completions
+
         mission = Mission.objects.get(pk=self.mission_id)
         # (This module is not a test file: pytest does not explain its asserts, we do.)
         why = self.describe()
@@ -748,11 +732,7 @@ class MissionRun:
         assert not mission.steps.exclude(status__in=STEP_DONE).exists(), why
         waits = mission.steps.filter(command="wait_for_flight")
         assert not waits.exclude(status=StepStatus.COMPLETED).exists(), why
-        accepted = sorted(
-            e.data["index"]
-            for e in mission.events.filter(kind=Event.Kind.STEP, data__status="completed")
-            if not e.data.get("ignored")
-        )
+        accepted = sorted(accepted_completions(mission))
         assert len(accepted) == len(set(accepted)), f"a step was completed twice: {why}"
         completed = set(
             mission.steps.filter(status=StepStatus.COMPLETED).values_list("index", flat=True)
@@ -825,13 +805,15 @@ def fly_replacement_mission(
     `duplicate_alarm` is False), the second takes over. `during` runs once `during_after_steps` steps are complete (a fault)."""
     from missions.models import Event, Mission, StepStatus
 
+    from .experiments import survey_with_alarm
+
     failing, replacing = f"{prefix}1", f"{prefix}2"
     ground.add_drone(failing, organisation_slug, north=-10)
     ground.add_drone(replacing, organisation_slug, north=-40, east=-20)
     ground.wait_online([failing, replacing])
-    created = api.post(
-        "/api/v1/missions/", {"name": "replicated", "steps": survey_with_alarm(40, 20, 10, 4)}
-    )
+    # CRITICAL, as the drone would raise it on a low battery: it must be replaced.
+    steps, _ = survey_with_alarm("CRITICAL", 40, 20, 10, 4, message="battery")
+    created = api.post("/api/v1/missions/", {"name": "replicated", "steps": steps})
     assert created.status_code == 201, created.text
     mission_id = created.json()["id"]
     socket_ = MissionSocket(api.urls[0], mission_id, user)
@@ -865,18 +847,9 @@ def fly_replacement_mission(
 
 
 def _publish_duplicate(ground: ReplicatedGround, failing: str, mission_id: str, alarm) -> None:  # type: ignore[no-untyped-def]
-    duplicate = {
-        "type": "alarm",
-        "level": "CRITICAL",
-        "message": alarm.data["message"],
-        "ts": alarm.data["ts"],
-        "position": alarm.data["position"],
-        "mission_id": mission_id,
-        "assignment_id": alarm.data["assignment"],
-        "index": alarm.data["index"],
-        "sensor": None,
-        "value": None,
-    }
+    from .experiments import redelivered_alarm
+
+    duplicate = redelivered_alarm(alarm, mission_id)
     publish_as(ground.drones[failing].broker_url, f"{failing}/alarms/out", duplicate)
 
 

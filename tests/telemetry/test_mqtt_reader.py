@@ -7,13 +7,14 @@ import struct
 
 import pytest
 
-from telemetry.mqtt_reader import ProtocolViolation, Subscriber, _string, _varint
+from onboard.mqttwire import encode_string, encode_varint
+from telemetry.mqtt_reader import ProtocolViolation, Subscriber
 
 
 def publish(topic: str, payload: bytes, packet_id: int | None = None) -> bytes:
-    body = _string(topic) + (struct.pack("!H", packet_id) if packet_id else b"") + payload
+    body = encode_string(topic) + (struct.pack("!H", packet_id) if packet_id else b"") + payload
     header = 0x32 if packet_id else 0x30
-    return bytes([header]) + _varint(len(body)) + body
+    return bytes([header]) + encode_varint(len(body)) + body
 
 
 def _reader(received: list) -> Subscriber:
@@ -66,6 +67,23 @@ def test_a_refused_connection_or_subscription_is_a_protocol_violation():
             ours, bytearray(b"\x20\x02\x00\x00\x90\x03\x00\x01\x01"), False
         )
         assert consumed == 9 and connected and reader.subscribed.is_set()
+    finally:
+        ours.close()
+        broker.close()
+
+
+def test_a_read_ending_inside_the_next_packets_length_still_acks_what_was_delivered():
+    received: list = []
+    reader = _reader(received)
+    delivered = publish("A/telemetry/out", b"{}", packet_id=9)
+    next_header = publish("B/telemetry/out", b"x" * 300, packet_id=10)[:2]  # length continues
+    ours, broker = socket.socketpair()
+    try:
+        consumed, _ = reader._parse(ours, bytearray(delivered + next_header), True)
+        assert consumed == len(delivered)
+        assert received == [("A/telemetry/out", b"{}")]
+        broker.settimeout(1)
+        assert broker.recv(16) == b"\x40\x02\x00\x09"
     finally:
         ours.close()
         broker.close()
