@@ -106,6 +106,7 @@ class Broker:
 GROUND_AND_DRONES_ACL = """\
 user ground
 topic readwrite #
+topic read $SYS/#
 
 pattern write %u/+/out
 pattern read %u/+/in
