@@ -12,15 +12,19 @@ from channels.auth import AuthMiddlewareStack  # noqa: E402
 from channels.routing import ProtocolTypeRouter, URLRouter  # noqa: E402
 from channels.security.websocket import AllowedHostsOriginValidator  # noqa: E402
 
+from config.lifespan import InstanceLifespan  # noqa: E402
 from config.routing import websocket_urlpatterns  # noqa: E402
 from telemetry.logs.asgi import UploadLimitMiddleware  # noqa: E402
 
-application = ProtocolTypeRouter(
-    {
-        # Oversized log uploads are refused before Django spools their body to disk.
-        "http": UploadLimitMiddleware(django_asgi_app),
-        "websocket": AllowedHostsOriginValidator(
-            AuthMiddlewareStack(URLRouter(websocket_urlpatterns))
-        ),
-    }
+# Each server process is listed on the operations page while it runs.
+application = InstanceLifespan(
+    ProtocolTypeRouter(
+        {
+            # Oversized log uploads are refused before Django spools their body to disk.
+            "http": UploadLimitMiddleware(django_asgi_app),
+            "websocket": AllowedHostsOriginValidator(
+                AuthMiddlewareStack(URLRouter(websocket_urlpatterns))
+            ),
+        }
+    )
 )

@@ -19,6 +19,7 @@ import os
 import socket
 import threading
 import time
+from collections import Counter
 from datetime import UTC, datetime
 from typing import Any
 from urllib.parse import urlsplit
@@ -33,6 +34,7 @@ from fleet import link
 from telemetry.pastview.models import ViewSettings
 from telemetry.pastview.selection import PastViewSettings
 from telemetry.pastview.service import PastViewService, group_name
+from workers.counters import Heartbeat, start_heartbeat
 
 log = logging.getLogger("pastview")
 
@@ -171,6 +173,9 @@ class PastViewProcess:
         self._applied: dict[str, Any] = {}  # drone id -> updated_at of the settings applied
         self._next_status = 0.0
         self._next_watch = 0.0
+        self._next_report = 0.0
+        self._reported: Counter[str] = Counter()
+        self.heartbeat: Heartbeat
 
     def start(self) -> None:
         self.refresh_watched()
@@ -251,9 +256,26 @@ class PastViewProcess:
                 log.warning("settings of %s refused: %s", row.drone.drone_id, exc)
         return changed
 
+    def report(self) -> None:
+        """Hand the service's totals to the instance report (operations page, /health)."""
+        for name, value in list(self.service.counters.items()):
+            delta = value - self._reported[name]
+            if delta:
+                self.heartbeat.counters.incr(name, delta)
+                self._reported[name] = value
+
     def run(self, stopping: threading.Event) -> None:
+        self.heartbeat = start_heartbeat("pastview")
         self.start()
         period = min(0.02, 0.5 / settings.PASTVIEW_PUSH_HZ)
-        while not stopping.wait(period):
-            self.tick()
-        self.stop()
+        try:
+            while not stopping.wait(period):
+                self.tick()
+                if time.monotonic() >= self._next_report:
+                    self._next_report = time.monotonic() + 1.0
+                    self.report()
+        finally:
+            self.stop()
+            self.report()
+            self.heartbeat.counters.flush()
+            self.heartbeat.stop()

@@ -231,9 +231,29 @@ async def test_the_management_command_serves_pages_and_stops_on_sigterm(command_
         drone.poses((t0 + 0.1, [2.5, 0.0, -10.0], level(0.0)))
         update = await pages.next(lambda m: m["type"] == "update")
     assert close(update["relative"]["position"], [2.5, 0.0, 0.0])
+    # The operations page lists the process, with what it received, while it runs.
+    mine = await _instance_of(command_process.pid, lambda i: i.counters.get("received", 0) >= 2)
+    assert mine.alive and mine.process == "pastview"
     command_process.send_signal(signal.SIGTERM)
     assert command_process.wait(10) == 0
     assert b"pastview: stopped" in command_process.stdout.read()
+    assert not (await _instance_of(command_process.pid, lambda i: not i.alive)).alive
+
+
+async def _instance_of(pid: int, until, timeout: float = 5.0):  # type: ignore[no-untyped-def]
+    """The `pastview` instance report of process `pid` once `until(instance)` holds."""
+    from asgiref.sync import sync_to_async
+
+    from workers.counters import instances
+
+    deadline = time.monotonic() + timeout
+    while True:
+        found = [i for i in await sync_to_async(instances)() if i.process == "pastview"]
+        mine = next((i for i in found if i.pid == pid), None)
+        if mine is not None and until(mine):
+            return mine
+        assert time.monotonic() < deadline, f"no such pastview instance of {pid}: {found}"
+        await asyncio.sleep(0.1)
 
 
 @in_own_loop

@@ -7,6 +7,7 @@ from __future__ import annotations
 import subprocess
 import time
 import urllib.parse
+import urllib.request
 import uuid
 
 import pytest
@@ -120,6 +121,30 @@ def test_a_process_with_nothing_to_count_reports_through_a_heartbeat_and_retires
     finally:
         heartbeat.stop()
     assert not next(i for i in instances() if i.instance == instance).alive
+
+
+def test_a_web_server_is_listed_with_the_requests_it_served_and_retires_when_stopped(
+    transactional_db,
+):
+    from django.db import connection
+
+    from tests.support.live import LiveServer
+
+    server = LiveServer(connection.settings_dict["NAME"])
+    try:
+        for _ in range(3):
+            urllib.request.urlopen(f"{server.url}/health", timeout=10).read()
+
+        def mine() -> object:
+            found = [i for i in instances() if i.process == "web" and i.pid == server.process.pid]
+            return found[0] if found else None
+
+        web = wait_for(lambda: (i := mine()) and i.counters.get("requests", 0) >= 3 and i)
+        assert web and web.alive, instances()
+    finally:
+        server.stop()
+    # uvicorn shuts the app down (lifespan), then re-raises SIGTERM for its exit status.
+    assert not mine().alive, "a clean stop retires the instance at once"
 
 
 def test_ingest_lag_above_a_second_is_highlighted_as_bad(db):
