@@ -715,7 +715,7 @@ def _start_ground(
     for i in range(config.webs):
         port = free_port()
         argv = [PY, "-m", "uvicorn", "config.asgi:application", "--host", "127.0.0.1",
-                "--port", str(port), "--no-access-log", "--lifespan", "off"]  # fmt: skip
+                "--port", str(port), "--no-access-log"]  # fmt: skip
         ground["web"].append(GroundProcess(f"web{i + 1}", argv, env, folder / f"web{i + 1}.log",
                                            port=port))  # fmt: skip
     # On RabbitMQ the gateway's MQTT connection only publishes; messages come over AMQP.

@@ -124,8 +124,6 @@ def main() -> int:
             "--port",
             str(args.web_port),
             "--no-access-log",
-            "--lifespan",
-            "off",
         ],
         env,
     )

@@ -193,8 +193,7 @@ class GroundProcesses:
         def make(name: str) -> GroundProcess:
             port = free_port()
             argv = [sys.executable, "-m", "uvicorn", "config.asgi:application",
-                    "--host", "127.0.0.1", "--port", str(port), "--no-access-log",
-                    "--lifespan", "off"]  # fmt: skip
+                    "--host", "127.0.0.1", "--port", str(port), "--no-access-log"]  # fmt: skip
             return GroundProcess(name, argv, self.env, self._log(name), port=port)
 
         return self._add("web", make)
