@@ -15,7 +15,7 @@ from concurrent import futures
 from datetime import datetime, timedelta
 
 from django.conf import settings
-from django.db import connection
+from django.db import connection, transaction
 from django.utils import timezone
 
 from onboard.protocol import GearAnnouncement, GearReply, Heartbeat
@@ -134,20 +134,26 @@ def handle_heartbeats(batch: list[tuple[str, Heartbeat]]) -> list[str | None]:
         params += _row(heartbeat, seen)
     params.append(list(latest))
     sql = _HEARTBEATS_SQL.format(rows=", ".join([_ROW] * len(latest)))
-    with connection.cursor() as cursor:
-        cursor.execute(sql, params)
-        rows = cursor.fetchall()
+    # One transaction: a drone is never seen online without its `online` event, and a
+    # batch the gateway retries after a lost connection is written whole or not at all.
+    with transaction.atomic():
+        with connection.cursor() as cursor:
+            cursor.execute(sql, params)
+            rows = cursor.fetchall()
+        came_online = [
+            ConnectionEvent(
+                drone_id=pk, kind=ConnectionEvent.Kind.ONLINE, at=seen, reason="heartbeat"
+            )
+            for _drone_id, pk, _org, was_online in rows
+            if not was_online
+        ]
+        if came_online:
+            ConnectionEvent.objects.bulk_create(came_online)
     stored = {drone_id for drone_id, *_ in rows}
     for i, (drone_id, _heartbeat) in enumerate(batch):
         if reasons[i] is None and drone_id not in stored:
             reasons[i] = "unknown_drone"
-    came_online = [
-        ConnectionEvent(drone_id=pk, kind=ConnectionEvent.Kind.ONLINE, at=seen, reason="heartbeat")
-        for _drone_id, pk, _org, was_online in rows
-        if not was_online
-    ]
     if came_online:
-        ConnectionEvent.objects.bulk_create(came_online)
         drones_came_online.send(
             sender=ConnectionEvent,
             organisation_ids={org for _d, _pk, org, was in rows if not was},
@@ -168,16 +174,16 @@ def handle_gear(drone_id: str, message: GearAnnouncement | GearReply) -> str | N
         fields["specs"] = message.specs
     if message.sensors is not None:
         fields["sensors"] = message.sensors
-    if isinstance(message, GearReply):
-        reason = link.deliver_reply(drone_id, message.request_id, message.to_dict())
-        if reason is not None:
-            return reason
+    # The database first: a retried message (database away) must still find its reply
+    # waiting, and a reply is handed over only once.
     if fields:
         updated = Drone.objects.filter(drone_id=drone_id, credentials_revoked=False).update(
             **fields
         )
         if not updated:
             return "unknown_drone"
+    if isinstance(message, GearReply):
+        return link.deliver_reply(drone_id, message.request_id, message.to_dict())
     return None
 
 

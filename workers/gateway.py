@@ -33,6 +33,7 @@ from fleet import link
 from onboard import protocol
 from workers import broker
 from workers.counters import Counters
+from workers.mosquitto_sys import SYS_FILTER, SysView
 
 from .dispatch import (
     BATCH_DISPATCH,
@@ -136,6 +137,11 @@ class Gateway:
         self.client.on_disconnect = self._on_disconnect
         self.client.on_message = self._on_message
         self.failover = broker.attach_failover(self.client, self.urls)
+        # Mosquitto's client counts expire from $SYS a minute after they last changed: keep
+        # watching them for the operations page (workers.mosquitto_sys).
+        self.sys_view: SysView | None = None
+        if self.consumer is None and not broker.uses_amqp():
+            self.sys_view = SysView(link.sync_redis(), self.counters.instance)
         self._outbox_thread = threading.Thread(
             target=self._publish_outbox, name="gateway-outbox", daemon=True
         )
@@ -171,6 +177,8 @@ class Gateway:
         self.client.loop_stop()
         self._finish.set()  # nothing new arrives now: the batch thread empties the queue
         self._batch_thread.join(timeout)
+        if self.sys_view is not None:
+            self.sys_view.reset()
         self.counters.flush()
         close_old_connections()
 
@@ -195,7 +203,11 @@ class Gateway:
             # Nagle + delayed ACKs add ~40 ms per command round trip (UAVTALK.md).
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         if self.consumer is None:
-            client.subscribe([(subscription(ch), protocol.QOS[ch]) for ch in self.channels])
+            filters = [(subscription(ch), protocol.QOS[ch]) for ch in self.channels]
+            if self.sys_view is not None:
+                self.sys_view.reset()
+                filters.append((SYS_FILTER, 0))
+            client.subscribe(filters)
         self.counters.incr("connects")
         self.connected.set()
         log.info("connected to %s:%s", self.host, self.port)
@@ -207,6 +219,10 @@ class Gateway:
             log.warning("disconnected (%s); reconnecting", reason_code)
 
     def _on_message(self, client, userdata, message: mqtt.MQTTMessage) -> None:  # type: ignore[no-untyped-def]
+        if message.topic.startswith("$SYS/"):
+            if self.sys_view is not None:
+                self.sys_view.remember(message.topic, message.payload)
+            return
         self._on_consumed(message.topic, message.payload)
 
     def _on_consumed(self, topic_name: str, payload: bytes) -> None:
@@ -329,6 +345,8 @@ class Gateway:
                 continue
             if item is not None:
                 self.publish_item(item)
+            if self.sys_view is not None:
+                self.sys_view.renew()
             self.counters.maybe_flush()
 
     def publish_item(self, item: dict) -> None:

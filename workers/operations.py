@@ -28,7 +28,8 @@ import redis
 from django.conf import settings
 
 from telemetry.status import ingest_status
-from workers import counters
+from workers import counters, mosquitto_sys
+from workers.mosquitto_sys import MOSQUITTO_SYS
 
 log = logging.getLogger(__name__)
 
@@ -38,8 +39,8 @@ PROCESSES = ("web", "gateway", "ingest", "pastview", "celery")
 LAG_LIMIT_S = 1.0  # issue 11: sustained ingest with lag < 1 s
 QUEUE_DEPTH_LIMIT = 10_000  # messages waiting anywhere: more is "falling behind" at once
 TREND_WINDOW_S = 60.0  # "rising" and "growing" compare with the oldest sample this recent
-TREND_MIN_AGE_S = 3.0
-GONE_WARN_S = 600  # an instance gone this recently is worth a look; older ones are history  # ...that is at least this old, so two quick reloads do not compare
+TREND_MIN_AGE_S = 3.0  # ...that is at least this old, so two quick reloads do not compare
+GONE_WARN_S = 600  # an instance gone this recently is worth a look; older ones are history
 
 HISTORY_KEY = "skyhive:operations:history"
 CELERY_SEEN_KEY = "skyhive:operations:celery"
@@ -49,22 +50,6 @@ CELERY_PING_TIMEOUT_S = 0.5
 SYS_WAIT_S = 1.5
 SYS_GRACE_S = 0.3
 HTTP_TIMEOUT_S = 2.0
-
-# Mosquitto's $SYS topics (under $SYS/broker/) and the names we show them by.
-MOSQUITTO_SYS = {
-    "clients/connected": "clients_connected",
-    "clients/total": "clients_total",
-    "messages/stored": "messages_stored",
-    "store/messages/count": "store_messages",
-    "publish/messages/dropped": "messages_dropped",
-    "publish/messages/received": "messages_received",
-    "publish/messages/sent": "messages_sent",
-    "subscriptions/count": "subscriptions",
-    "shared_subscriptions/count": "shared_subscriptions",
-    "load/messages/received/1min": "received_per_min",
-    "uptime": "uptime",
-    "version": "version",
-}
 
 
 def may_see(user: Any) -> bool:
@@ -230,7 +215,7 @@ def mosquitto_figures(url: str | None = None, wait: float = SYS_WAIT_S) -> dict[
         client.subscribe("$SYS/broker/#", qos=0)
 
     def on_message(client, userdata, message) -> None:  # type: ignore[no-untyped-def]
-        name = MOSQUITTO_SYS.get(message.topic.removeprefix("$SYS/broker/"))
+        name = mosquitto_sys.figure_name(message.topic)
         if name:
             got[name] = message.payload.decode(errors="replace")
             if len(got) == len(MOSQUITTO_SYS):
@@ -283,13 +268,20 @@ def mosquitto_figures(url: str | None = None, wait: float = SYS_WAIT_S) -> dict[
             "available": False,
             "error": "no $SYS figures: the ground user may not read $SYS/# (broker ACL)",
         }
-    figures: dict[str, Any] = {}
-    for name, text in got.items():
-        try:
-            figures[name] = float(text) if "." in text else int(text)
-        except ValueError:
-            figures[name] = text
-    return {**base, "available": True, "nodes_up": 1, "nodes_down": 0, **figures}
+    # Counts unchanged for a minute have expired from $SYS; the gateways saw them last.
+    try:
+        held = mosquitto_sys.remembered(counters._client())
+    except redis.RedisError:
+        held = {}
+    figures, from_gateways = mosquitto_sys.fill_in(got, held)
+    return {
+        **base,
+        "available": True,
+        "nodes_up": 1,
+        "nodes_down": 0,
+        "from_gateways": from_gateways,
+        **figures,
+    }
 
 
 def _http_json(api_url: str, path: str) -> Any:

@@ -19,7 +19,7 @@ from tests.conftest import login
 from tests.support.celery_worker import start_worker, worker_env
 from tests.support.mosquitto import free_port, start_broker
 from tests.support.processes import stop_process
-from workers import operations
+from workers import mosquitto_sys, operations
 from workers.counters import Counters, instances, start_heartbeat
 from workers.gateway import Gateway
 
@@ -221,6 +221,91 @@ def test_mosquitto_figures_come_from_its_sys_topics(world, sys_broker):
     finally:
         drone.loop_stop()
         drone.disconnect()
+
+
+@pytest.fixture
+def fast_sys_broker(tmp_path):
+    """The same, publishing $SYS every second instead of every ten."""
+    with override_settings(MQTT_URL="mqtt://ground:g@127.0.0.1:1883", MQTT_SERVICE_USERS=[]):
+        acl = render_acl(["ACME_1"])
+    broker = start_broker(
+        tmp_path / "fastsys",
+        {"ground": "g", "ACME_1": "a"},
+        acl=acl,
+        extra_config="sys_interval 1\n",
+    )
+    yield broker
+    broker.stop()
+
+
+def test_a_gateway_keeps_watching_mosquittos_client_count(db, fast_sys_broker, settings):
+    """Mosquitto's counts expire from $SYS a minute after they last change: the gateways
+    follow every change so the page still has them."""
+    import paho.mqtt.client as mqtt
+
+    from fleet import link
+
+    settings.MQTT_BROKER = "mosquitto"
+    gateway = Gateway(
+        fast_sys_broker.url_for("ground"),
+        counters=Counters("gateway", instance=f"ops-sys-{uuid.uuid4().hex[:8]}", flush_every=1e9),
+    )
+    gateway.start()
+    view = lambda: mosquitto_sys.remembered(link.sync_redis()).get("clients_connected")  # noqa: E731
+    drone = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="ACME_1")
+    try:
+        assert gateway.wait_connected(10)
+        before = wait_for(view, timeout=5)
+        assert before and before >= 1
+        drone.username_pw_set("ACME_1", "a")
+        drone.connect("127.0.0.1", fast_sys_broker.port)
+        drone.loop_start()
+        assert wait_for(lambda: view() == before + 1, timeout=5), view()
+        drone.disconnect()
+        drone.loop_stop()
+        assert wait_for(lambda: view() == before, timeout=5), view()
+    finally:
+        gateway.stop()
+    assert not link.sync_redis().exists(gateway.sys_view.key), "a stopped gateway's view goes"
+
+
+def test_figures_expired_from_sys_are_filled_in_from_the_gateways_and_fresh_ones_win():
+    read = {"version": "mosquitto version 2.0.11", "uptime": "88 seconds", "store_messages": "4"}
+    held = {"clients_connected": 12, "subscriptions": 30, "store_messages": 9}
+    figures, from_gateways = mosquitto_sys.fill_in(read, held)
+    assert figures == {
+        "version": "mosquitto version 2.0.11",
+        "uptime": "88 seconds",
+        "store_messages": 4,
+        "clients_connected": 12,
+        "subscriptions": 30,
+    }
+    assert from_gateways == ["clients_connected", "subscriptions"]
+
+
+def test_the_page_shows_the_gateways_client_count(world_tx, fast_sys_broker, settings):
+    settings.MQTT_BROKER = "mosquitto"
+    settings.MQTT_URL = fast_sys_broker.url_for("ground")
+    gateway = Gateway(
+        fast_sys_broker.url_for("ground"),
+        counters=Counters("gateway", instance=f"ops-sys-{uuid.uuid4().hex[:8]}", flush_every=1e9),
+    )
+    gateway.start()
+    try:
+        assert gateway.wait_connected(10)
+        api = api_as(world_tx.operator)
+        broker = wait_for(
+            lambda: (
+                (b := api.get("/api/v1/operations/").json()["broker"])
+                and b.get("clients_connected")
+                and b
+            ),
+            timeout=5,
+        )
+        assert broker["available"] and broker["clients_connected"] >= 1
+        assert isinstance(broker["from_gateways"], list)
+    finally:
+        gateway.stop()
 
 
 def test_a_broker_that_hides_sys_is_shown_unreadable_not_zero(tmp_path):
