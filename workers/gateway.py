@@ -179,6 +179,7 @@ class Gateway:
         self._batch_thread.join(timeout)
         if self.sys_view is not None:
             self.sys_view.reset()
+            self.sys_view.flush()
         self.counters.flush()
         close_old_connections()
 
@@ -346,7 +347,7 @@ class Gateway:
             if item is not None:
                 self.publish_item(item)
             if self.sys_view is not None:
-                self.sys_view.renew()
+                self.sys_view.flush()
             self.counters.maybe_flush()
 
     def publish_item(self, item: dict) -> None:

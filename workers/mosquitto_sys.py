@@ -11,6 +11,7 @@ subscribed when the value last changed, or it got the retained message on connec
 
 from __future__ import annotations
 
+import threading
 import time
 
 import redis
@@ -52,43 +53,57 @@ def parse(text: str) -> int | float | str:
 
 
 class SysView:
-    """One gateway's view, in Redis. Every method swallows Redis errors: the figures are a
-    nicety, and the gateway must go on with its work whatever Redis does."""
+    """One gateway's view. `remember` and `reset` only touch memory (they run on the MQTT
+    network thread); `flush`, called from the gateway's outbox loop, writes to Redis and
+    swallows its errors: the figures are a nicety, the gateway's work comes first."""
 
     def __init__(self, client: redis.Redis, instance: str) -> None:
         self.client = client
         self.key = KEY_PREFIX + instance
+        self._lock = threading.Lock()
+        self._seen: dict[str, str] = {}
+        self._dirty = False
+        self._clear = False
         self._renewed = 0.0
 
     def reset(self) -> None:
-        """A new connection: what was seen before may have changed unseen meanwhile."""
-        try:
-            self.client.delete(self.key)
-        except redis.RedisError:
-            pass
+        """A new connection (or a stop): what was seen may have changed unseen meanwhile."""
+        with self._lock:
+            self._seen.clear()
+            self._dirty, self._clear = False, True
 
     def remember(self, topic: str, payload: bytes) -> bool:
         name = figure_name(topic)
         if name is None:
             return False
-        try:
-            pipe = self.client.pipeline(transaction=False)
-            pipe.hset(self.key, mapping={name: payload.decode(errors="replace"), "at": time.time()})
-            pipe.expire(self.key, int(VIEW_TTL_S))
-            pipe.execute()
-        except redis.RedisError:
-            pass
+        with self._lock:
+            self._seen[name] = payload.decode(errors="replace")
+            self._dirty = True
         return True
 
-    def renew(self, now: float | None = None) -> None:
+    def flush(self, now: float | None = None) -> None:
+        """Write what changed, or renew the view's expiry every few seconds."""
         now = time.monotonic() if now is None else now
-        if now - self._renewed < RENEW_EVERY_S:
+        with self._lock:
+            clear, dirty = self._clear, self._dirty
+            seen = dict(self._seen) if dirty else {}
+            self._clear = self._dirty = False
+        if not (clear or dirty) and now - self._renewed < RENEW_EVERY_S:
             return
         self._renewed = now
         try:
-            self.client.expire(self.key, int(VIEW_TTL_S))
+            pipe = self.client.pipeline(transaction=False)
+            if clear:
+                pipe.delete(self.key)
+            if seen:
+                pipe.hset(self.key, mapping={**seen, "at": time.time()})
+            if seen or not clear:
+                pipe.expire(self.key, int(VIEW_TTL_S))
+            pipe.execute()
         except redis.RedisError:
-            pass
+            with self._lock:  # try again on the next flush
+                self._clear |= clear
+                self._dirty |= dirty
 
 
 def remembered(client: redis.Redis) -> dict[str, int | float | str]:

@@ -112,15 +112,9 @@ def heartbeat(drone_id: str, **overrides: object) -> dict:
 
 
 def wait_for(predicate, timeout: float = 5.0, interval: float = 0.02):  # type: ignore[no-untyped-def]
-    import time
+    from tests.support.waiting import wait_for as poll
 
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(interval)
-    return predicate()
+    return poll(predicate, timeout, interval)
 
 
 class Responder:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from collections import Counter
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -11,6 +10,7 @@ import pytest
 
 from firmware.sim import start_simulator
 from onboard.fc.mavlink import MavlinkFlightController
+from tests.support import waiting
 
 # Simulated seconds per wall second: a 10 m climb takes about a quarter of a second.
 TIME_SCALE = 20.0
@@ -18,13 +18,8 @@ HOME = (40.6303, -8.6575, 12.0)
 
 
 def wait_for(predicate: Callable[[], Any], timeout: float, interval: float = 0.02) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(interval)
-    return predicate()
+    """Polls more often than the shared default: simulated flights pass states quickly."""
+    return waiting.wait_for(predicate, timeout, interval)
 
 
 @pytest.fixture

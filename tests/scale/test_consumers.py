@@ -23,6 +23,7 @@ import pytest
 
 from fleet import credentials, link
 from telemetry.ingest import CounterSink, DroneMap, IngestConfig, Ingestor, load_drone_ids
+from tests.support import waiting
 from workers import broker
 from workers.counters import Counters
 from workers.gateway import Gateway
@@ -44,13 +45,7 @@ def record_heartbeat(drone_id: str, message: Any) -> None:
 
 
 def wait_for(predicate: Callable[[], Any], timeout: float = 10.0, every: float = 0.05) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(every)
-    return predicate()
+    return waiting.wait_for(predicate, timeout, every)
 
 
 def purge(cluster: Any, queue: str) -> None:

@@ -16,6 +16,7 @@ from rest_framework.test import APIClient
 
 from fleet.credentials import render_acl
 from tests.conftest import login
+from tests.support import waiting
 from tests.support.celery_worker import start_worker, worker_env
 from tests.support.mosquitto import free_port, start_broker
 from tests.support.processes import stop_process
@@ -25,13 +26,10 @@ from workers.gateway import Gateway
 
 
 def wait_for(condition, timeout: float = 10.0, every: float = 0.1):  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = condition()
-        if value:
-            return value
-        time.sleep(every)
-    raise AssertionError("condition not met in time")
+    value = waiting.wait_for(condition, timeout, every)
+    if not value:
+        raise AssertionError("condition not met in time")
+    return value
 
 
 def api_as(user) -> APIClient:  # type: ignore[no-untyped-def]
