@@ -238,16 +238,22 @@ def record(
         mission=mission, drone=drone, kind=kind, message=message[:300], data=dict(data or {})
     )
     if push:
-        payload = {
-            "type": "event",
-            "kind": kind,
-            "message": event.message,
-            "drone": drone.drone_id if drone else None,
-            "at": event.at.isoformat(),
-            "data": event.data,
-        }
+        payload = event_payload(event)
         transaction.on_commit(lambda: live.push(mission.pk, payload))
     return event
+
+
+def event_payload(event: Event) -> dict:
+    """An event as the mission's websocket carries it; `id` tells a replay from a new one."""
+    return {
+        "type": "event",
+        "id": event.pk,
+        "kind": event.kind,
+        "message": event.message,
+        "drone": event.drone.drone_id if event.drone else None,
+        "at": event.at.isoformat(),
+        "data": event.data,
+    }
 
 
 def move_mission(mission: Mission, new: str) -> bool:
@@ -467,7 +473,36 @@ def _apply_step(
         )
         if message.status == StepStatus.COMPLETED and not duplicate:
             complete_if_done(mission)
+        elif duplicate:
+            _replay_accepted(mission, drone, message)
     return None
+
+
+def _replay_accepted(mission: Mission, drone: Drone, message: protocol.StepProgress) -> None:
+    """A copy of a report already taken (a QoS 1 redelivery) may come from a process that
+    died between committing it and pushing it live: push the accepted event and the
+    mission's status again, so the pages still see them. Pages know a replay by its id."""
+    accepted = (
+        mission.events.filter(
+            kind=Event.Kind.STEP,
+            drone=drone,
+            data__index=message.index,
+            data__status=message.status,
+            data__ignored=False,
+        )
+        .select_related("drone")
+        .first()
+    )
+    if accepted is None:
+        return
+    mission.refresh_from_db(fields=["status"])
+    payloads = [event_payload(accepted), {"type": "mission", "status": mission.status}]
+
+    def push() -> None:
+        for payload in payloads:
+            live.push(mission.pk, payload)
+
+    transaction.on_commit(push)
 
 
 def _late_own_report(

@@ -9,7 +9,8 @@
 #   scripts/rabbitmq.sh kill-node  PROFILE I         kill -9 node I (a crash)
 #   scripts/rabbitmq.sh start-node PROFILE I         start node I again; it rejoins its cluster
 #
-# Everything lives in .data/<profile>/rabbitmq/<I>/ (or $DATA_DIR). Ports of node I:
+# Everything lives in .data/<profile>/rabbitmq/<I>/ (or $DATA_DIR); profiles other than
+# `run` start empty when none of their nodes is running. Ports of node I:
 #   run:  MQTT ${MQTT_PORT:-1883}+I-1, AMQP 56720+I, management 15680+I, distribution 25680+I
 #   other profiles: base ${RABBIT_PORT_BASE:-18900}: MQTT base+I, AMQP base+10+I,
 #   management base+20+I, distribution base+30+I
@@ -101,6 +102,7 @@ start_node() {
   fi
   write_config "$i"
   if port_open "$(amqp_port "$i")"; then log "node $i already up"; return 0; fi
+  rm -f "$dir/pid"  # a stale one from a node that died would satisfy `wait` at once
   log "starting node $i ($(node_name "$i")): MQTT $(mqtt_port "$i"), AMQP $(amqp_port "$i"), management $(mgmt_port "$i")"
   ( node_env "$i"; setsid nohup "$RMQ_BIN/rabbitmq-server" >"$dir/server.out" 2>&1 </dev/null & )
 }
@@ -116,7 +118,30 @@ await_node() {
   fi
 }
 
+start_all() { # start_all N: start nodes 1..N together and wait until every one is up
+  local n=$1 attempt failed i
+  for i in $(seq 1 "$n"); do start_node "$i"; done
+  for attempt in 1 2 3; do
+    failed=""
+    for i in $(seq 1 "$n"); do await_node "$i" || failed+=" $i"; done
+    [ -z "$failed" ] && return 0
+    # A clustered node that boots while its peer is still booting can fail the feature
+    # flag sync (RabbitMQ 3.10: incompatible_feature_flags, badmap) and exit; started
+    # again once the others are up, it joins them.
+    for i in $failed; do
+      if ! node_running "$i"; then log "starting node $i again (attempt $((attempt + 1)))"; start_node "$i"; fi
+    done
+  done
+  return 1
+}
+
 node_running() { [ -s "$BASE_DIR/$1/pid" ] && kill -0 "$(cat "$BASE_DIR/$1/pid")" 2>/dev/null; }
+
+any_node_running() {
+  local i
+  for i in $(seq 1 "$(count_nodes)"); do node_running "$i" && return 0; done
+  return 1
+}
 
 setup_cluster() { # the first node holds users, permissions and policies; the others join
   local n=$1
@@ -176,8 +201,12 @@ case "$ACTION" in
   start)
     n=${3:-$DEFAULT_NODES}
     [ -x "$RMQ_BIN/rabbitmq-server" ] || { log "rabbitmq-server is not installed (scripts/bootstrap.sh installs it)"; exit 1; }
-    for i in $(seq 1 "$n"); do start_node "$i"; done
-    for i in $(seq 1 "$n"); do await_node "$i"; done
+    if [ "$PROFILE" != run ] && ! any_node_running; then
+      # Test clusters start empty, as on a fresh clone: two clustered nodes booting from
+      # old data wait on each other for over a minute and may fail the feature flag sync.
+      rm -rf "${BASE_DIR:?}"/[0-9]*
+    fi
+    start_all "$n"
     setup_cluster "$n"
     log "up: $n node(s), MQTT $(hosts mqtt_port "$n")"
     ;;

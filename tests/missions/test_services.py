@@ -340,3 +340,58 @@ def test_a_replacement_rerun_after_a_worker_died_before_sending_sends_it_once(
     starts = [i for i in outbox.items() if i["payload"].get("action") == "start"]
     assert [s["topic"] for s in starts] == ["ACME_B/mission/in"]
     assert starts[0]["payload"]["assignment_id"] == str(replacing.pk)
+
+
+def _listen(mission):  # type: ignore[no-untyped-def]
+    """A channel in the mission's live group, on the real channel layer; `drain()` reads it."""
+    from asgiref.sync import async_to_sync
+    from channels.layers import get_channel_layer
+
+    from missions import live
+
+    layer = get_channel_layer()
+    channel = async_to_sync(layer.new_channel)()
+    async_to_sync(layer.group_add)(live.group_name(mission.pk), channel)
+
+    async def drain() -> list[dict]:
+        import asyncio
+
+        received = []
+        while True:
+            try:
+                message = await asyncio.wait_for(layer.receive(channel), 1.0)
+            except TimeoutError:
+                return received
+            received.append(message["payload"])
+
+    return async_to_sync(drain)
+
+
+def test_a_redelivered_completion_pushes_the_accepted_event_again_when_the_first_push_died(
+    world, outbox, django_capture_on_commit_callbacks
+):
+    """The process that took the last step's report committed it and died before pushing
+    it: the page's copy comes from the redelivery, with the accepted event's id."""
+    drone = online_drone(world.org, "ACME_A")
+    mission = create_mission(organisation=world.org, name="x", steps=_steps(2))
+    assignment = start_mission(mission).assignment
+    *first, last = assignment.step_indexes
+    _complete(drone, mission, assignment, first)
+    report = _progress(
+        mission, assignment, last, "completed", mission.steps.get(index=last).command
+    )
+    with django_capture_on_commit_callbacks(execute=False):
+        assert apply_progress(drone, report) is None  # committed; its pushes never ran
+    drain = _listen(mission)
+    with django_capture_on_commit_callbacks(execute=True):
+        assert apply_progress(drone, report) is None
+    pushed = drain()
+    accepted = mission.events.get(
+        kind=Event.Kind.STEP, data__index=last, data__status="completed", data__ignored=False
+    )
+    replays = [p for p in pushed if p.get("id") == accepted.pk]
+    assert len(replays) == 1 and replays[0]["data"]["ignored"] is False, pushed
+    assert {"type": "mission", "status": "completed"} in pushed, pushed
+    # Still one accepted completion, and the copy is on record as ignored.
+    copies = mission.events.filter(kind=Event.Kind.STEP, data__index=last, data__status="completed")
+    assert sorted(e.data["ignored"] for e in copies) == [False, True]

@@ -14,8 +14,8 @@ def rabbit_cluster() -> Iterator[RabbitCluster]:
     """Two clustered RabbitMQ nodes (scripts/rabbitmq.sh), stopped after the session."""
     assert available(), "rabbitmq-server is not installed: run scripts/bootstrap.sh test"
     cluster = cluster_for_this_run(nodes=2)
-    cluster.start()
     try:
+        cluster.start()  # a node that did not come up is stopped with the rest
         yield cluster
     finally:
         cluster.stop()
