@@ -1,8 +1,9 @@
 """The web ↔ gateway link through Redis: the only way ground code reaches a drone.
 
 Web processes never open MQTT connections. To send, they push onto one Redis list (the
-outbox) that every gateway pops from (BLPOP, so each message is published exactly once
-however many gateways run). To wait for a reply, the sender registers the request id
+outbox) that every gateway takes from (BLMOVE onto a list of its own, so each message is
+taken once however many gateways run, and one that a dying gateway had in hand is put
+back for the others; drones ignore a request id they have already seen). To wait for a reply, the sender registers the request id
 (with the drone it went to) and blocks on a per-request list; the gateway that receives
 the drone's answer pushes it there. Any web process can therefore wait for any reply.
 """
@@ -13,7 +14,7 @@ import asyncio
 import json
 import time
 import weakref
-from typing import Any
+from collections.abc import Callable
 from urllib.parse import urlsplit
 
 import redis
@@ -23,6 +24,8 @@ from django.conf import settings
 from onboard import protocol
 
 OUTBOX_PREFIX = "skyhive:gateway:outbox:"
+# What each gateway took from an outbox and the broker has not accepted yet.
+TAKEN_PREFIX = "skyhive:gateway:taken:"
 PENDING_PREFIX = "skyhive:pending:"
 REPLY_PREFIX = "skyhive:reply:"
 # A reply nobody waits for any more is kept this long, then Redis forgets it.
@@ -131,9 +134,43 @@ def deliver_reply(drone_id: str, request_id: str, reply: dict) -> str | None:
     return None
 
 
-def pop_outbox(key: str, timeout: float = 1.0) -> dict[str, Any] | None:
-    """Gateway side: the next message to publish, or None after `timeout` seconds."""
-    popped = sync_redis().blpop([key], timeout=timeout)
-    if popped is None:
-        return None
-    return json.loads(popped[1])
+def taken_key(outbox: str, owner: str) -> str:
+    """The list of what gateway `owner` took from `outbox` and has not seen the broker
+    accept yet."""
+    return f"{TAKEN_PREFIX}{outbox[len(OUTBOX_PREFIX) :]}/{owner}"
+
+
+def take_outbox(outbox: str, taken: str, timeout: float = 1.0) -> bytes | None:
+    """Gateway side: move the next message onto the gateway's own `taken` list and return
+    it, or None after `timeout` seconds. A gateway that dies with it in hand leaves it
+    there for `reclaim_outbox`, instead of losing it as a plain pop would."""
+    return sync_redis().blmove(outbox, taken, timeout, "LEFT", "RIGHT")
+
+
+def settle_taken(taken: str, raw: bytes) -> None:
+    """The broker accepted `raw` (or it is dropped for good): forget it."""
+    sync_redis().lrem(taken, 1, raw)
+
+
+def give_back(outbox: str, taken: str, raw: bytes) -> None:
+    """Not published after all (the connection went): first in line again, for anyone."""
+    pipe = sync_redis().pipeline(transaction=True)
+    pipe.lrem(taken, 1, raw)
+    pipe.lpush(outbox, raw)
+    pipe.execute()
+
+
+def reclaim_outbox(outbox: str, alive: Callable[[str], bool]) -> int:
+    """Put back, first in line, what gateways that are no longer `alive` had taken from
+    `outbox`; how many messages. Several gateways may reclaim at once: each message
+    moves once."""
+    client = sync_redis()
+    prefix = taken_key(outbox, "")
+    moved = 0
+    for key in list(client.scan_iter(match=prefix + "*", count=100)):
+        name = key.decode() if isinstance(key, bytes) else key
+        if alive(name[len(prefix) :]):
+            continue
+        while client.lmove(name, outbox, "RIGHT", "LEFT") is not None:
+            moved += 1
+    return moved

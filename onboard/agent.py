@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +32,10 @@ from .sensors import SensorField
 log = logging.getLogger(__name__)
 
 TELEMETRY_BATCH_MAX = 200
+# Requests that make the drone do something, each acted on once per request_id.
+ACT_ON = ("control", "mission")
+# How many request ids the agent remembers: far more than arrive within any redelivery.
+RECENT_REQUESTS = 4096
 
 
 @dataclass
@@ -73,6 +77,7 @@ class Agent:
         self.drone_id = config.drone_id
         self.fc = fc
         self.dropped: Counter[str] = Counter()
+        self._recent = RecentIds(RECENT_REQUESTS)
         self.sent: Counter[str] = Counter()
         self.logger = FlightLogger(config.log_dir, self.drone_id) if config.log_dir else None
         events = self._event
@@ -282,6 +287,11 @@ class Agent:
         except protocol.ProtocolError as exc:
             self._drop("json", topic, exc)
             return
+        request_id = protocol.request_id_of(obj)
+        if channel in ACT_ON and request_id is not None and self._recent.repeated(request_id):
+            # QoS 1 and the ground's outbox both deliver at least once: act once.
+            self._drop("repeated_request", topic, request_id)
+            return
         handler = {"control": self._control, "mission": self._mission, "gear": self._gear_query}
         handler[channel](topic, obj)
 
@@ -350,6 +360,25 @@ class Agent:
             self.send("gear", protocol.GearReply(request_id, False, error=_sentence(exc)))
             return
         self.send("gear", self.gear.handle_query(query, self.fc.state))
+
+
+class RecentIds:
+    """The last `size` ids seen, to know a repeated one (called from one thread)."""
+
+    def __init__(self, size: int) -> None:
+        self._order: deque[str] = deque()
+        self._seen: set[str] = set()
+        self._size = size
+
+    def repeated(self, value: str) -> bool:
+        """True if `value` was seen before; else remember it."""
+        if value in self._seen:
+            return True
+        self._seen.add(value)
+        self._order.append(value)
+        if len(self._order) > self._size:
+            self._seen.discard(self._order.popleft())
+        return False
 
 
 def _sentence(exc: protocol.ProtocolError) -> str:

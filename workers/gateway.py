@@ -6,9 +6,10 @@ shared subscriptions (`$share/gateway/...`) on its own MQTT connection, on Rabbi
 the mirrored AMQP queue `skyhive.gateway` (workers.broker). It parses each message with
 `onboard.protocol` and hands it to the domain function named in
 `workers.dispatch.DISPATCH`. Anything malformed, oversized, unknown or unauthorised is
-dropped and counted, never raised. Outbound, it pops the Redis outbox (`fleet.link`)
-and publishes to `<id>/<channel>/in`, moving to the next broker node when its node is
-lost.
+dropped and counted, never raised. Outbound, it takes from the Redis outbox
+(`fleet.link`) and publishes to `<id>/<channel>/in`, moving to the next broker node when
+its node is lost; what it took stays on its own list until the broker acknowledges it,
+so a gateway killed in between loses nothing.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from django.utils.module_loading import import_string
 from fleet import link
 from onboard import protocol
 from workers import broker
-from workers.counters import Counters
+from workers.counters import ALIVE_PREFIX, Counters
 from workers.mosquitto_sys import SYS_FILTER, SysView
 
 from .dispatch import (
@@ -57,6 +58,12 @@ AMQP_PREFETCH = 200
 # broker) loses nothing, where dropping would lose a step report or an alarm. It stays
 # under 1.5 x the 30 s MQTT keep-alive, so the broker keeps our session meanwhile.
 DB_RETRY_S = 20.0
+# A broker that has not acknowledged a publish in this long has lost us: the message goes
+# back to the outbox (paho may still deliver its own copy; drones ignore the repeat).
+PUBACK_WAIT_S = 5.0
+# How often a gateway looks for outbox messages that a dead gateway had taken. A gateway
+# is dead once its heartbeat expires (workers.counters, 10 s).
+RECLAIM_EVERY_S = 2.0
 
 
 def subscription(channel: str) -> str:
@@ -84,6 +91,9 @@ class Gateway:
         self.urls = broker.cluster_urls(broker_url)
         self.outbox = link.outbox_key(self.urls[0])
         self.counters = counters or Counters("gateway")
+        # Named after our heartbeat, so a peer can tell when we are gone.
+        self.owner = self.counters.alive_key.removeprefix(ALIVE_PREFIX)
+        self.taken = link.taken_key(self.outbox, self.owner)
         self.db_retry_s = db_retry_s
         table = DISPATCH if dispatch is None else dispatch
         batch_table = (
@@ -333,31 +343,78 @@ class Gateway:
     # -- outbound ---------------------------------------------------------------------------
 
     def _publish_outbox(self) -> None:
+        # Alive before taking anything, so no peer mistakes our taken list for a dead one's.
+        self.counters.flush()
+        next_reclaim = 0.0
         while not self.stopping.is_set():
             # Only take work while connected, so another gateway can take it meanwhile.
             if not self.connected.wait(0.5):
                 continue
             try:
-                item = link.pop_outbox(self.outbox, timeout=0.25)
+                if time.monotonic() >= next_reclaim:
+                    next_reclaim = time.monotonic() + RECLAIM_EVERY_S
+                    self._reclaim()
+                raw = link.take_outbox(self.outbox, self.taken, timeout=0.25)
+                if raw is not None:
+                    self.publish_taken(raw)
             except redis.RedisError as exc:
                 self.counters.incr("outbox.redis_error")
                 log.warning("outbox unavailable: %s", exc)
                 self.stopping.wait(1.0)
                 continue
-            if item is not None:
-                self.publish_item(item)
             if self.sys_view is not None:
                 self.sys_view.flush()
             self.counters.maybe_flush()
 
-    def publish_item(self, item: dict) -> None:
+    def _reclaim(self) -> None:
+        """Give back to the outbox what dead gateways had taken and not published."""
+
+        def alive(owner: str) -> bool:
+            return owner == self.owner or bool(link.sync_redis().exists(ALIVE_PREFIX + owner))
+
+        moved = link.reclaim_outbox(self.outbox, alive)
+        if moved:
+            self.counters.incr("outbox.reclaimed", moved)
+            log.warning("put back %d outbox message(s) a dead gateway had taken", moved)
+
+    def publish_taken(self, raw: bytes) -> None:
+        """Publish one message taken from the outbox; forget it once the broker has it
+        (QoS 1: its PUBACK), give it back if the connection went first."""
+        try:
+            item = json.loads(raw)
+        except ValueError:
+            self.counters.incr("outbox.malformed")
+            link.settle_taken(self.taken, raw)
+            return
+        if self.publish_item(item) is False:
+            link.give_back(self.outbox, self.taken, raw)
+            self.stopping.wait(0.1)  # the connection is going: let it settle
+            return
+        link.settle_taken(self.taken, raw)
+
+    def publish_item(self, item: dict) -> bool | None:
+        """True once the broker has it, False if it could not be sent now (connection
+        lost: try again), None if it is dropped (expired or refused)."""
         if item.get("expires", 0) < time.time():
             self.counters.incr("outbox.expired")
-            return
+            return None
         payload = json.dumps(item["payload"], separators=(",", ":"))
-        info = self.client.publish(item["topic"], payload, qos=int(item.get("qos", 1)))
-        if info.rc == mqtt.MQTT_ERR_SUCCESS:
-            self.counters.incr("published")
-        else:
+        qos = int(item.get("qos", 1))
+        info = self.client.publish(item["topic"], payload, qos=qos)
+        if info.rc in (mqtt.MQTT_ERR_NO_CONN, mqtt.MQTT_ERR_QUEUE_SIZE):
+            self.counters.incr("outbox.not_sent")
+            return False
+        if info.rc != mqtt.MQTT_ERR_SUCCESS:
             self.counters.incr("outbox.publish_failed")
             log.warning("publish to %s failed: %s", item["topic"], mqtt.error_string(info.rc))
+            return None
+        if qos > 0:
+            try:
+                info.wait_for_publish(PUBACK_WAIT_S)
+            except (RuntimeError, ValueError):
+                pass
+            if not info.is_published():
+                self.counters.incr("outbox.unacknowledged")
+                return False
+        self.counters.incr("published")
+        return True

@@ -250,6 +250,44 @@ def test_outbox_messages_that_expired_are_not_sent(world_tx, broker, gateway):
     drone.loop_stop()
 
 
+def test_what_a_dead_gateway_had_taken_from_the_outbox_is_published_by_another(
+    world_tx, broker, gateway
+):
+    """A gateway killed between taking a message and the broker's PUBACK leaves it on its
+    taken list; once its heartbeat is gone a live gateway puts it back and sends it. A
+    live peer's list is left alone, and what this gateway sends leaves none behind."""
+    from fleet import link
+    from workers.counters import ALIVE_PREFIX
+
+    received = []
+    drone = _drone_client(broker, "ACME_1")
+    drone.on_message = lambda c, u, m: received.append(json.loads(m.payload))
+    drone.subscribe("ACME_1/control/in", qos=1)
+    time.sleep(0.2)
+    client = link.sync_redis()
+
+    def item(body: dict) -> bytes:
+        return link.outbox_item("ACME_1", "control", body, ttl=30)
+
+    dead = link.taken_key(gateway.outbox, "gateway:deadhost:1")
+    busy = link.taken_key(gateway.outbox, "gateway:livehost:2")
+    client.set(ALIVE_PREFIX + "gateway:livehost:2", 1, px=30_000)
+    try:
+        client.rpush(dead, item({"lost": True}))
+        client.rpush(busy, item({"in_hand": True}))
+        link.send_to_drone("ACME_1", "control", {"fresh": True}, ttl=10)
+        assert wait_for(lambda: len(received) == 2, 10), received
+        time.sleep(0.3)
+        assert sorted(received, key=str) == [{"fresh": True}, {"lost": True}]
+        assert gateway.counters.get("outbox.reclaimed") == 1
+        assert client.llen(dead) == 0 and client.llen(gateway.taken) == 0
+        assert client.llen(busy) == 1
+        assert json.loads(client.lindex(busy, 0))["payload"] == {"in_hand": True}
+    finally:
+        client.delete(dead, busy, ALIVE_PREFIX + "gateway:livehost:2")
+        drone.loop_stop()
+
+
 def test_the_gateway_command_connects_and_drains_on_sigterm(broker, tmp_path):
     import os
     import signal

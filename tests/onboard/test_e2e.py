@@ -152,6 +152,35 @@ def test_malformed_input_is_answered_or_dropped_and_the_agent_lives(broker, agen
         ground.close()
 
 
+def test_a_request_delivered_twice_is_acted_on_once(broker, agent_for) -> None:
+    """QoS 1 and the ground's outbox deliver at least once: a repeated request id (the
+    same mission start, the same command) is done once, answered once."""
+    process = agent_for(broker.url_for(DRONE))
+    ground = Ground(broker.port, DRONE)
+    try:
+        ground.wait_for("heartbeats", lambda m: m["fc"]["connected"], timeout=15)
+        start = protocol.mission_start(
+            "m7", "a7", [{"index": 0, "command": "sleep", "params": {"value": 20}}]
+        )
+        ground.send("mission", start.to_dict())
+        ground.send("mission", start.to_dict())
+        command = {"request_id": protocol.new_request_id(), "command": "objrequest",
+                   "params": {"value": "FlightStatus"}, "ts": time.time()}  # fmt: skip
+        ground.send("control", command)
+        ground.send("control", command)
+        ground.wait_for("control", lambda m: m["request_id"] == command["request_id"])
+        ground.wait_for("mission", lambda m: m.get("type") == "mission")
+        # Any second answer would be on its way by the time a fresh command is answered.
+        assert ground.command("objrequest", value="FlightStatus")["ok"]
+        replies = [m for m in ground.on("control") if m["request_id"] == command["request_id"]]
+        assert len(replies) == 1 and replies[0]["ok"], replies
+        statuses = [m["status"] for m in ground.on("mission") if m.get("type") == "mission"]
+        assert statuses == ["accepted"], ground.on("mission")
+        assert process.poll() is None
+    finally:
+        ground.close()
+
+
 MISSION = [
     {"index": 0, "command": "arm"},
     {"index": 1, "command": "takeoff", "params": {"altitude": 10}},
