@@ -79,8 +79,11 @@ def apply_alarm(drone: Drone, alarm: protocol.Alarm) -> str | None:
             "assignment_id": str(assignment.pk),
             "alarm_event_id": event.pk,
         }
+        # Queued before the commit, not on it: a gateway killed in between would leave
+        # the alarm on record with nothing deciding on it, and its redelivery may come
+        # too late. The task waits for the alarm to be committed (missions.tasks).
         if alarm.level == "CRITICAL":
-            tasks.replace_drone.delay_on_commit(**kwargs)
+            tasks.replace_drone.delay(**kwargs)
         else:
-            tasks.collaborate.delay_on_commit(**kwargs)
+            tasks.collaborate.delay(**kwargs)
     return None

@@ -395,3 +395,24 @@ def test_a_redelivered_completion_pushes_the_accepted_event_again_when_the_first
     # Still one accepted completion, and the copy is on record as ignored.
     copies = mission.events.filter(kind=Event.Kind.STEP, data__index=last, data__status="completed")
     assert sorted(e.data["ignored"] for e in copies) == [False, True]
+
+
+def test_an_alarm_task_waits_for_its_alarm_and_a_rolled_back_alarm_decides_nothing(world, outbox):
+    """The alarm's task is queued inside the alarm's transaction (a gateway killed after
+    the commit must not leave the alarm undecided): with no alarm on record it waits,
+    then gives up; with the alarm committed it replaces the drone."""
+    from missions import tasks
+
+    first = online_drone(world.org, "ACME_A")
+    online_drone(world.org, "ACME_B", north=50)
+    mission = create_mission(organisation=world.org, name="x", steps=_steps(4))
+    assignment = start_mission(mission, drone=first).assignment
+    _complete(first, mission, assignment, [0, 1, 2, 3])
+    ids = {"mission_id": str(mission.pk), "assignment_id": str(assignment.pk)}
+    tasks.replace_drone.apply(kwargs={**ids, "alarm_event_id": 2**31 - 1})
+    assert not mission.assignments.filter(reason=Assignment.Reason.REPLACEMENT).exists()
+    assignment.refresh_from_db()
+    assert assignment.status in Assignment.ACTIVE
+    alarm = _alarm_event(mission, first)
+    tasks.replace_drone.apply(kwargs={**ids, "alarm_event_id": alarm.pk})
+    assert mission.assignments.filter(reason=Assignment.Reason.REPLACEMENT).count() == 1
