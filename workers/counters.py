@@ -82,8 +82,13 @@ class Counters:
         return f"{INSTANCE_PREFIX}{self.process}:{self.instance}"
 
     @property
+    def identity(self) -> str:
+        """`<process>:<instance>`: names this process's heartbeat (see `is_alive`)."""
+        return f"{self.process}:{self.instance}"
+
+    @property
     def alive_key(self) -> str:
-        return f"{ALIVE_PREFIX}{self.process}:{self.instance}"
+        return ALIVE_PREFIX + self.identity
 
     def incr(self, name: str, amount: int = 1) -> None:
         with self._lock:
@@ -179,6 +184,11 @@ class Heartbeat:
         while not self._stop.is_set():
             self.counters.flush()
             self._stop.wait(self.counters.flush_every)
+
+
+def is_alive(identity: str, client: redis.Redis) -> bool:
+    """Whether the process with this `Counters.identity` still reports."""
+    return bool(client.exists(ALIVE_PREFIX + identity))
 
 
 def start_heartbeat(process: str, **options: float | str) -> Heartbeat:

@@ -33,7 +33,7 @@ from django.utils.module_loading import import_string
 from fleet import link
 from onboard import protocol
 from workers import broker
-from workers.counters import ALIVE_PREFIX, Counters
+from workers.counters import Counters, is_alive
 from workers.mosquitto_sys import SYS_FILTER, SysView
 
 from .dispatch import (
@@ -92,7 +92,7 @@ class Gateway:
         self.outbox = link.outbox_key(self.urls[0])
         self.counters = counters or Counters("gateway")
         # Named after our heartbeat, so a peer can tell when we are gone.
-        self.owner = self.counters.alive_key.removeprefix(ALIVE_PREFIX)
+        self.owner = self.counters.identity
         self.taken = link.taken_key(self.outbox, self.owner)
         self.db_retry_s = db_retry_s
         table = DISPATCH if dispatch is None else dispatch
@@ -370,7 +370,7 @@ class Gateway:
         """Give back to the outbox what dead gateways had taken and not published."""
 
         def alive(owner: str) -> bool:
-            return owner == self.owner or bool(link.sync_redis().exists(ALIVE_PREFIX + owner))
+            return owner == self.owner or is_alive(owner, link.sync_redis())
 
         moved = link.reclaim_outbox(self.outbox, alive)
         if moved:
