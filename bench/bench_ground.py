@@ -269,10 +269,11 @@ def main() -> None:
     from rest_framework.authtoken.models import Token
 
     from bench.common import percentile
-    from fleet import credentials, link
+    from fleet import credentials
     from fleet.models import Membership, Organisation, Role
     from tests.support.live import free_port
     from tests.support.mosquitto import start_broker
+    from workers import outbox
     from workers.counters import KEY_PREFIX
     from workers.counters import _client as counters_redis
 
@@ -288,7 +289,7 @@ def main() -> None:
     settings.MQTT_URL = broker.url_for("ground")
     settings.MQTT_PUBLIC_HOST, settings.MQTT_PUBLIC_PORT = "127.0.0.1", broker.port
     counters_redis().delete(KEY_PREFIX + "gateway")
-    link.sync_redis().delete(link.outbox_key())
+    outbox.sync_redis().delete(outbox.outbox_key())
 
     organisation = Organisation.objects.create(name="Bench", slug="bench")
     user = get_user_model().objects.create_user("bench-operator", password="x")

@@ -26,9 +26,9 @@ from pymavlink import mavutil
 from pyulog import ULog
 
 from bench.common import record
-from telemetry.logs import import_log
-from telemetry.logs.lod import downsample
-from telemetry.logs.synth import synthetic_dataflash, synthetic_ulog
+from logs import import_log
+from logs.lod import downsample
+from logs.synth import synthetic_dataflash, synthetic_ulog
 
 MB = 1 << 20
 TARGET = 100 * MB

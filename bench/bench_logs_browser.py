@@ -37,9 +37,9 @@ def _prepare(logs_dir: Path) -> tuple[str, str]:
     connection.creation.create_test_db(verbosity=0, autoclobber=True, serialize=False)
 
     from fleet.models import Role
-    from telemetry.logs import services
-    from telemetry.logs.models import FlightLog, LogStatus
-    from telemetry.logs.synth import synthetic_ulog
+    from logs import services
+    from logs.models import FlightLog, LogStatus
+    from logs.synth import synthetic_ulog
     from tests import factories
 
     org = factories.organisation("bench")

@@ -326,12 +326,12 @@ def main() -> int:
     from django.db import connection
 
     from bench.common import record
-    from fleet import link
     from fleet.models import Drone, Organisation
     from tests.support.celery_worker import worker_argv
     from tests.support.processes import stop_process
+    from workers import outbox
 
-    link.sync_redis().flushdb()
+    outbox.sync_redis().flushdb()
     original_name = connection.settings_dict["NAME"]
     db_name = connection.creation.create_test_db(verbosity=0, autoclobber=True, keepdb=False)
     workdir = Path(tempfile.mkdtemp(prefix="bench-missions-"))
@@ -391,7 +391,7 @@ def main() -> int:
 
         connections.close_all()
         connection.creation.destroy_test_db(original_name, verbosity=0)
-        link.sync_redis().flushdb()
+        outbox.sync_redis().flushdb()
         shutil.rmtree(workdir, ignore_errors=True)
     return 0
 

@@ -14,10 +14,10 @@ import numpy as np
 
 from bench.common import best_of, record
 from firmware.sim.camera import orientation_from_euler, render_view
-from telemetry.pastview.buffer import FrameBuffer, Outcome
-from telemetry.pastview.evaluation import Spirit, spirit_scores_loop
-from telemetry.pastview.geometry import Pose
-from telemetry.pastview.selection import PastView, PastViewSettings
+from pastview.buffer import FrameBuffer, Outcome
+from pastview.evaluation import Spirit, spirit_scores_loop
+from pastview.geometry import Pose
+from pastview.selection import PastView, PastViewSettings
 
 SIZES = (30, 1_000, 10_000)
 POSES = 64

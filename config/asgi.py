@@ -14,7 +14,7 @@ from channels.security.websocket import AllowedHostsOriginValidator  # noqa: E40
 
 from config.lifespan import InstanceLifespan  # noqa: E402
 from config.routing import websocket_urlpatterns  # noqa: E402
-from telemetry.logs.asgi import UploadLimitMiddleware  # noqa: E402
+from logs.asgi import UploadLimitMiddleware  # noqa: E402
 
 # Each server process is listed on the operations page while it runs.
 application = InstanceLifespan(

@@ -1,10 +1,10 @@
 from django.urls import path
 
 from fleet.consumers import FleetConsumer
+from logs.consumers import LogProgressConsumer
 from missions.consumers import MissionConsumer
+from pastview.consumers import PastViewConsumer
 from telemetry.consumers import TelemetryConsumer
-from telemetry.logs.consumers import LogProgressConsumer
-from telemetry.pastview.consumers import PastViewConsumer
 
 websocket_urlpatterns = [
     path("ws/fleet/", FleetConsumer.as_asgi()),

@@ -6,8 +6,8 @@ from rest_framework.routers import DefaultRouter
 
 from fleet import api as fleet_api
 from fleet.control import ControlView
+from logs import urls as logs_urls
 from missions import api as missions_api
-from telemetry.logs import urls as logs_urls
 from workers import views as operations_views
 
 from .health import health
@@ -51,8 +51,8 @@ urlpatterns = [
     path("api/docs/", SpectacularSwaggerView.as_view(url_name="schema"), name="api-docs"),
     path("missions/", include("missions.urls")),
     path("telemetry/", include("telemetry.urls")),
-    path("pastview/", include("telemetry.pastview.urls")),
-    path("logs/", include("telemetry.logs.urls")),
+    path("pastview/", include("pastview.urls")),
+    path("logs/", include("logs.urls")),
     path("operations/", operations_views.operations_page, name="operations"),
     path("", include("fleet.urls")),
 ]

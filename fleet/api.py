@@ -170,7 +170,7 @@ class DroneCommandView(AsyncAPIView):
         params = serializer.validated_data["params"]
         try:
             if command in commands.CHAIN_COMMANDS:
-                result = await sync_to_async(commands.run_chain)(
+                result = await sync_to_async(commands.run_mission_start_stop)(
                     request.user, drone_id, command, params.get("mission")
                 )
                 return Response(

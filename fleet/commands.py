@@ -1,7 +1,7 @@
 """The Drone Manager (seed 001, 3.4.2.2, 4.2.3, table 4.2): commands with real replies.
 
 A command is checked here before anything is sent (who may, which drone, which
-parameters, is it safe), logged with its sender, sent through the gateway (fleet.link)
+parameters, is it safe), logged with its sender, sent through the gateway (workers.outbox)
 and answered with the drone's own reply, correlated by a fresh request id.
 """
 
@@ -18,8 +18,8 @@ from django.utils import timezone
 from django.utils.module_loading import import_string
 
 from onboard import protocol
+from workers import outbox
 
-from . import link
 from .models import ROLE_RANK, CommandLog, Drone, Role
 
 log = logging.getLogger(__name__)
@@ -74,7 +74,7 @@ class Outcome:
 
 def handle_control_reply(drone_id: str, response: protocol.ControlResponse) -> str | None:
     """Gateway handler for `<id>/control/out`."""
-    return link.deliver_reply(drone_id, response.request_id, response.to_dict())
+    return outbox.deliver_reply(drone_id, response.request_id, response.to_dict())
 
 
 def find_drone(user: Any, drone_id: str) -> Drone:
@@ -160,7 +160,7 @@ def record(entry: CommandLog, reply: dict | None) -> None:
 async def execute(prepared: Prepared, *, timeout: float | None = None) -> Outcome:
     """Publish to `<id>/control/in` via a gateway and wait for the drone's own reply."""
     request = protocol.ControlRequest(prepared.entry.request_id, prepared.command, prepared.params)
-    reply = await link.arequest(
+    reply = await outbox.arequest(
         prepared.drone.drone_id, "control", request.to_dict(), timeout=timeout
     )
     await sync_to_async(record)(prepared.entry, reply)
@@ -204,13 +204,13 @@ def gear(drone: Drone) -> dict:
 # -- Mission Planner hooks ---------------------------------------------------------------
 
 
-def chain_hook(command: str):  # type: ignore[no-untyped-def]
-    """The function settings.FLEET_CHAIN_HANDLERS names for startchain / stopchain."""
-    return import_string(settings.FLEET_CHAIN_HANDLERS[command])
+def mission_start_stop_handler(command: str):  # type: ignore[no-untyped-def]
+    """The function settings.MISSION_START_STOP_HANDLERS names for startchain / stopchain."""
+    return import_string(settings.MISSION_START_STOP_HANDLERS[command])
 
 
-def prepare_chain(user: Any, drone_id: str) -> Drone:
-    """The checks every chain command shares: drone (404), role (403), online (409)."""
+def check_mission_start_stop(user: Any, drone_id: str) -> Drone:
+    """The checks startchain and stopchain share: drone (404), role (403), online (409)."""
     drone = find_drone(user, drone_id)
     if not _may_operate(drone):
         raise CommandRefused(403, "Only operators and admins may command drones.")
@@ -219,10 +219,10 @@ def prepare_chain(user: Any, drone_id: str) -> Drone:
     return drone
 
 
-def run_chain(user: Any, drone_id: str, command: str, mission: object = None) -> dict:
+def run_mission_start_stop(user: Any, drone_id: str, command: str, mission: object = None) -> dict:
     """startchain / stopchain through the configured hook, after the shared checks."""
-    drone = prepare_chain(user, drone_id)
-    hook = chain_hook(command)
+    drone = check_mission_start_stop(user, drone_id)
+    hook = mission_start_stop_handler(command)
     if command == "startchain":
         if not isinstance(mission, str) or not mission:
             raise CommandRefused(400, "mission: is required", "mission")

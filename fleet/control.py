@@ -155,7 +155,7 @@ class ControlView(AsyncAPIView):
         )
 
     async def chain(self, user: Any, drone_id: str, command: str, data: Any) -> Response:
-        result = await sync_to_async(commands.run_chain)(
+        result = await sync_to_async(commands.run_mission_start_stop)(
             user, drone_id, command, data.get("mission")
         )
         return Response({"ok": True, "result": result})

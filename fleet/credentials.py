@@ -6,7 +6,7 @@ The broker-specific part is a backend chosen by settings.MQTT_BROKER:
   Mosquitto gets SIGHUP; it re-reads both and disconnects clients whose credentials are
   gone (checked with Mosquitto 2.0.11), so a revoked drone is cut off at once.
 - RabbitMQ (MQTT plugin, clustered): one user per drone through the management API
-  (fleet.rabbitmq_admin), with vhost permissions limited to the drone's own MQTT session
+  (workers.broker.rabbitmq_admin), with vhost permissions limited to the drone's own MQTT session
   queues and `amq.topic`, and topic permissions on `amq.topic` equivalent to Mosquitto's
   ACL (RabbitMQ maps MQTT's `/` to `.` in routing keys). Revocation deletes the user,
   closes its open connections and drops its session queues.
@@ -39,14 +39,15 @@ from urllib.parse import quote, urlsplit
 from django.conf import settings
 from django.db import transaction
 
-from .models import DRONE_ID_RE, Drone, Organisation
-from .rabbitmq_admin import (
+from workers.broker.rabbitmq_admin import (
     DEFAULT_VHOST,
     HASHING_ALGORITHM,
     RabbitMQAdmin,
     RabbitMQAdminError,
     rabbit_password_hash,
 )
+
+from .models import DRONE_ID_RE, Drone, Organisation
 
 log = logging.getLogger(__name__)
 

@@ -1,6 +1,6 @@
 """The mission log (seed 001, 4.2.4): one JSON document with the mission, its drones, its
 assignments and every event, readable by the log viewer page and by
-`telemetry.logs.importers.mission` (events with `ts`, `drone_id`, `type`, `status`,
+`logs.importers.mission` (events with `ts`, `drone_id`, `type`, `status`,
 `index`, `position`, `duration_s`).
 """
 

@@ -2,7 +2,7 @@
 
 Plain functions over the models. Views, the gateway handlers, Celery tasks and the
 `/control` chain hooks call them. Messages to drones go through the gateway's Redis
-outbox (`fleet.link`), always after the transaction that recorded them commits, so a
+outbox (`workers.outbox`), always after the transaction that recorded them commits, so a
 progress report can never arrive for a row that is not there yet.
 """
 
@@ -20,7 +20,6 @@ from django.conf import settings
 from django.db import transaction
 from django.utils import timezone
 
-from fleet import link
 from fleet.models import Drone, Organisation
 from missions import live
 from missions.models import (
@@ -35,6 +34,7 @@ from missions.models import (
 )
 from missions.selection import Candidate, select_drones
 from onboard import protocol
+from workers import outbox
 
 log = logging.getLogger(__name__)
 
@@ -207,7 +207,7 @@ def send_assignment(assignment: Assignment) -> None:
     }
     steps = step_dicts(by_index[i] for i in indexes)
     message = protocol.mission_start(str(assignment.mission_id), str(assignment.id), steps)
-    link.send_to_drone(
+    outbox.send_to_drone(
         assignment.drone.drone_id,
         "mission",
         message.to_dict(),
@@ -217,12 +217,12 @@ def send_assignment(assignment: Assignment) -> None:
 
 def send_stop(drone_id: str, mission_id: str) -> None:
     message = protocol.MissionStop(protocol.new_request_id(), str(mission_id))
-    link.send_to_drone(drone_id, "mission", message.to_dict())
+    outbox.send_to_drone(drone_id, "mission", message.to_dict())
 
 
 def send_control(drone_id: str, command: str, params: dict | None = None) -> None:
     request = protocol.control_request(command, params or {})
-    link.send_to_drone(drone_id, "control", request.to_dict())
+    outbox.send_to_drone(drone_id, "control", request.to_dict())
 
 
 def record(

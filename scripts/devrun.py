@@ -131,7 +131,7 @@ def main() -> int:
         sup.start("gateway", [*manage, "gateway"], env)
     if command_exists("ingest_telemetry"):
         sup.start("ingest", [*manage, "ingest_telemetry"], env)
-    sup.start("pastview", [*manage, "pastview"], env)  # telemetry/pastview: one level deeper
+    sup.start("pastview", [*manage, "pastview"], env)  # pastview: one level deeper
     sup.start(
         "worker",
         [

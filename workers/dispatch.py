@@ -11,13 +11,13 @@ Telemetry is not here: it has its own ingest process.
 from __future__ import annotations
 
 DISPATCH: dict[str, str | None] = {
-    "heartbeats": "fleet.identifier.handle_heartbeat",
-    "gear": "fleet.identifier.handle_gear",
+    "heartbeats": "fleet.heartbeats.handle_heartbeat",
+    "gear": "fleet.heartbeats.handle_gear",
     "control": "fleet.commands.handle_control_reply",
-    "mission": "missions.gateway.handle_mission",
-    "alarms": "missions.gateway.handle_alarm",
-    "pictures": "missions.gateway.handle_picture",
-    # "camera" is not here: `manage.py pastview` (telemetry/pastview/runner.py) reads the
+    "mission": "missions.reports.handle_mission",
+    "alarms": "missions.reports.handle_alarm",
+    "pictures": "missions.reports.handle_picture",
+    # "camera" is not here: `manage.py pastview` (pastview/runner.py) reads the
     # frames with the pose stream, so the gateway need not receive them at all.
 }
 
@@ -34,7 +34,7 @@ DEFAULT_MAX_PAYLOAD_BYTES = 256 * 1024
 # and paho's network thread never waits on the database. A channel in both tables goes to
 # its batch handler (the single one serves gateways built with a custom `dispatch`).
 BATCH_DISPATCH: dict[str, str] = {
-    "heartbeats": "fleet.identifier.handle_heartbeats",
+    "heartbeats": "fleet.heartbeats.handle_heartbeats",
 }
 MAX_BATCH = 500
 # Parsed messages waiting for a batch handler; beyond this they are dropped as overload.

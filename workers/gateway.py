@@ -7,7 +7,7 @@ the mirrored AMQP queue `skyhive.gateway` (workers.broker). It parses each messa
 `onboard.protocol` and hands it to the domain function named in
 `workers.dispatch.DISPATCH`. Anything malformed, oversized, unknown or unauthorised is
 dropped and counted, never raised. Outbound, it takes from the Redis outbox
-(`fleet.link`) and publishes to `<id>/<channel>/in`, moving to the next broker node when
+(`workers.outbox`) and publishes to `<id>/<channel>/in`, moving to the next broker node when
 its node is lost; what it took stays on its own list until the broker acknowledges it,
 so a gateway killed in between loses nothing.
 """
@@ -30,11 +30,10 @@ from django.db import close_old_connections, connection
 from django.db.utils import InterfaceError, OperationalError
 from django.utils.module_loading import import_string
 
-from fleet import link
 from onboard import protocol
-from workers import broker
+from workers import broker, outbox
+from workers.broker.mosquitto_sys import SYS_FILTER, SysView
 from workers.counters import Counters, is_alive
-from workers.mosquitto_sys import SYS_FILTER, SysView
 
 from .dispatch import (
     BATCH_DISPATCH,
@@ -89,11 +88,11 @@ class Gateway:
         # Every node of the cluster, this gateway's first; the outbox is the cluster's,
         # the same for every gateway whichever node it is connected to.
         self.urls = broker.cluster_urls(broker_url)
-        self.outbox = link.outbox_key(self.urls[0])
+        self.outbox = outbox.outbox_key(self.urls[0])
         self.counters = counters or Counters("gateway")
         # Named after our heartbeat, so a peer can tell when we are gone.
         self.owner = self.counters.identity
-        self.taken = link.taken_key(self.outbox, self.owner)
+        self.taken = outbox.taken_key(self.outbox, self.owner)
         self.db_retry_s = db_retry_s
         table = DISPATCH if dispatch is None else dispatch
         batch_table = (
@@ -148,10 +147,10 @@ class Gateway:
         self.client.on_message = self._on_message
         self.failover = broker.attach_failover(self.client, self.urls)
         # Mosquitto's client counts expire from $SYS a minute after they last changed: keep
-        # watching them for the operations page (workers.mosquitto_sys).
+        # watching them for the operations page (workers.broker.mosquitto_sys).
         self.sys_view: SysView | None = None
         if self.consumer is None and not broker.uses_amqp():
-            self.sys_view = SysView(link.sync_redis(), self.counters.instance)
+            self.sys_view = SysView(outbox.sync_redis(), self.counters.instance)
         self._outbox_thread = threading.Thread(
             target=self._publish_outbox, name="gateway-outbox", daemon=True
         )
@@ -354,7 +353,7 @@ class Gateway:
                 if time.monotonic() >= next_reclaim:
                     next_reclaim = time.monotonic() + RECLAIM_EVERY_S
                     self._reclaim()
-                raw = link.take_outbox(self.outbox, self.taken, timeout=0.25)
+                raw = outbox.take_outbox(self.outbox, self.taken, timeout=0.25)
                 if raw is not None:
                     self.publish_taken(raw)
             except redis.RedisError as exc:
@@ -370,9 +369,9 @@ class Gateway:
         """Give back to the outbox what dead gateways had taken and not published."""
 
         def alive(owner: str) -> bool:
-            return owner == self.owner or is_alive(owner, link.sync_redis())
+            return owner == self.owner or is_alive(owner, outbox.sync_redis())
 
-        moved = link.reclaim_outbox(self.outbox, alive)
+        moved = outbox.reclaim_outbox(self.outbox, alive)
         if moved:
             self.counters.incr("outbox.reclaimed", moved)
             log.warning("put back %d outbox message(s) a dead gateway had taken", moved)
@@ -384,13 +383,13 @@ class Gateway:
             item = json.loads(raw)
         except ValueError:
             self.counters.incr("outbox.malformed")
-            link.settle_taken(self.taken, raw)
+            outbox.settle_taken(self.taken, raw)
             return
         if self.publish_item(item) is False:
-            link.give_back(self.outbox, self.taken, raw)
+            outbox.give_back(self.outbox, self.taken, raw)
             self.stopping.wait(0.1)  # the connection is going: let it settle
             return
-        link.settle_taken(self.taken, raw)
+        outbox.settle_taken(self.taken, raw)
 
     def publish_item(self, item: dict) -> bool | None:
         """True once the broker has it, False if it could not be sent now (connection

@@ -28,8 +28,9 @@ import redis
 from django.conf import settings
 
 from telemetry.status import ingest_status
-from workers import counters, mosquitto_sys
-from workers.mosquitto_sys import MOSQUITTO_SYS
+from workers import counters
+from workers.broker import mosquitto_sys
+from workers.broker.mosquitto_sys import MOSQUITTO_SYS
 
 log = logging.getLogger(__name__)
 

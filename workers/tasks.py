@@ -13,11 +13,3 @@ def ping(token: str) -> dict:
         cursor.execute("SELECT now()")
         (now,) = cursor.fetchone()
     return {"pong": token, "db_time": now.isoformat()}
-
-
-@shared_task(name="fleet.sweep_offline", ignore_result=True)
-def sweep_offline_drones() -> list[str]:
-    """Mark drones offline after missed heartbeats (Celery beat, every few seconds)."""
-    from fleet.identifier import sweep_offline
-
-    return sweep_offline()

@@ -33,7 +33,7 @@ INSTALLED_APPS = [
     "fleet",
     "missions",
     "telemetry",
-    "telemetry.logs",
+    "logs",
     "workers",
 ]
 
@@ -254,11 +254,6 @@ MQTT_SERVICE_USERS = env_list("MQTT_SERVICE_USERS", ["ground"])
 # What provision_drone tells a drone to connect to (default: MQTT_URL's host and port).
 MQTT_PUBLIC_HOST = env_str("MQTT_PUBLIC_HOST", "")
 MQTT_PUBLIC_PORT = env_int("MQTT_PUBLIC_PORT", 0)
-# startchain / stopchain; the missions app points these at its own functions.
-FLEET_CHAIN_HANDLERS = {
-    "startchain": "fleet.chain.start_chain",
-    "stopchain": "fleet.chain.stop_chain",
-}
 
 # --- missions ---
 # Coverage requests above this many waypoints are refused (issue 5, item 2).
@@ -278,9 +273,11 @@ CELERY_BEAT_SCHEDULE["missions.resume_paused"] = {
     "schedule": MISSIONS_RESUME_INTERVAL_S,
     "options": {"expires": MISSIONS_RESUME_INTERVAL_S},
 }
-FLEET_CHAIN_HANDLERS = {
-    "startchain": "missions.chain.start_chain",
-    "stopchain": "missions.chain.stop_chain",
+# `/control`'s startchain / stopchain start and stop a tracked mission; the fleet app
+# names them here because it must not import the missions app that builds on it.
+MISSION_START_STOP_HANDLERS = {
+    "startchain": "missions.startstop.start_from_control",
+    "stopchain": "missions.startstop.stop_from_control",
 }
 
 # --- flight logs ---
@@ -295,12 +292,10 @@ LOGS_MAX_COMPRESSION_RATIO = env_float("LOGS_MAX_COMPRESSION_RATIO", 200.0)
 # The most points one series request may ask for with `points` (min/max buckets).
 LOGS_MAX_PLOT_POINTS = env_int("LOGS_MAX_PLOT_POINTS", 20_000)
 # The log status enum in the OpenAPI schema (other apps also have a "status").
-SPECTACULAR_SETTINGS["ENUM_NAME_OVERRIDES"]["FlightLogStatusEnum"] = (
-    "telemetry.logs.models.LogStatus"
-)
+SPECTACULAR_SETTINGS["ENUM_NAME_OVERRIDES"]["FlightLogStatusEnum"] = "logs.models.LogStatus"
 
 # --- past view ---
-INSTALLED_APPS += ["telemetry.pastview"]  # app label "pastview"
+INSTALLED_APPS += ["pastview"]  # app label "pastview"
 # Relative poses reach the page at most this often per drone (new frames and tracking
 # events are pushed at once); teleoperation moves are rate-limited and bounded per step.
 PASTVIEW_PUSH_HZ = env_float("PASTVIEW_PUSH_HZ", 30.0)

@@ -40,10 +40,10 @@ def broker(_shared_broker, settings):  # type: ignore[no-untyped-def]
 @pytest.fixture
 def fresh_redis(broker):  # type: ignore[no-untyped-def]
     """No outbox left over from an earlier run."""
-    from fleet import link
+    from workers import outbox
 
-    link.sync_redis().delete(link.outbox_key(broker.url))
-    return link.sync_redis()
+    outbox.sync_redis().delete(outbox.outbox_key(broker.url))
+    return outbox.sync_redis()
 
 
 @pytest.fixture

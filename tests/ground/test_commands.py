@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import base64
-import json
-
 import pytest
 
 from fleet import credentials
 from fleet.models import CommandLog, Drone
 
-from .conftest import Responder, client_for, wait_for
+from .conftest import Responder, client_for
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -168,27 +165,6 @@ def test_a_token_client_commands_through_the_resource_api(world_tx, online):
         "/api/v1/drones/ACME_1/commands/", {"command": "arm"}, content_type="application/json"
     )
     assert viewer.status_code == 403
-
-
-def test_the_default_startchain_publishes_the_mission_to_the_drone(world_tx, online, settings):
-    settings.FLEET_CHAIN_HANDLERS = {
-        "startchain": "fleet.chain.start_chain",
-        "stopchain": "fleet.chain.stop_chain",
-    }
-    steps = [{"index": 0, "command": "arm", "params": {}}, {"index": 1, "command": "land"}]
-    mission = base64.b64encode(json.dumps(steps).encode()).decode()
-    response = client_for(world_tx.operator).post(
-        "/control", {"command": "startchain", "droneID": "ACME_1", "mission": mission}
-    )
-    assert response.status_code == 200, response.content
-    assert response.json()["result"]["status"] == "sent"
-    sent = wait_for(lambda: online.missions)
-    assert sent[0]["action"] == "start"
-    assert sent[0]["mission_id"] == response.json()["result"]["mission_id"]
-    bad = client_for(world_tx.operator).post(
-        "/control", {"command": "startchain", "droneID": "ACME_1", "mission": "%%%"}
-    )
-    assert bad.status_code == 400 and "mission" in bad.json()["error"]
 
 
 def test_connection_history_and_gear_are_resources(world_tx):

@@ -8,7 +8,7 @@ import json
 import pytest
 
 from fleet import credentials
-from fleet.identifier import sweep_offline
+from fleet.heartbeats import sweep_offline
 from fleet.models import ConnectionEvent, Drone
 
 from .conftest import client_for, wait_for

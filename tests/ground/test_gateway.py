@@ -11,7 +11,7 @@ import pytest
 from django.utils import timezone
 
 from fleet import credentials
-from fleet.identifier import sweep_offline
+from fleet.heartbeats import sweep_offline
 from fleet.models import ConnectionEvent, Drone
 from workers.counters import Counters, snapshot
 from workers.gateway import Gateway
@@ -234,15 +234,15 @@ def test_the_gateway_reconnects_after_the_broker_restarts(world_tx, broker, gate
 
 
 def test_outbox_messages_that_expired_are_not_sent(world_tx, broker, gateway):
-    from fleet import link
+    from workers import outbox
 
     received = []
     drone = _drone_client(broker, "ACME_1")
     drone.on_message = lambda c, u, m: received.append(json.loads(m.payload))
     drone.subscribe("ACME_1/control/in", qos=1)
     time.sleep(0.2)
-    link.send_to_drone("ACME_1", "control", {"stale": True}, ttl=-1)
-    link.send_to_drone("ACME_1", "control", {"fresh": True}, ttl=10)
+    outbox.send_to_drone("ACME_1", "control", {"stale": True}, ttl=-1)
+    outbox.send_to_drone("ACME_1", "control", {"fresh": True}, ttl=10)
     assert wait_for(lambda: received)
     time.sleep(0.2)
     assert received == [{"fresh": True}]
@@ -256,7 +256,7 @@ def test_what_a_dead_gateway_had_taken_from_the_outbox_is_published_by_another(
     """A gateway killed between taking a message and the broker's PUBACK leaves it on its
     taken list; once its heartbeat is gone a live gateway puts it back and sends it. A
     live peer's list is left alone, and what this gateway sends leaves none behind."""
-    from fleet import link
+    from workers import outbox
     from workers.counters import ALIVE_PREFIX
 
     received = []
@@ -264,18 +264,18 @@ def test_what_a_dead_gateway_had_taken_from_the_outbox_is_published_by_another(
     drone.on_message = lambda c, u, m: received.append(json.loads(m.payload))
     drone.subscribe("ACME_1/control/in", qos=1)
     time.sleep(0.2)
-    client = link.sync_redis()
+    client = outbox.sync_redis()
 
     def item(body: dict) -> bytes:
-        return link.outbox_item("ACME_1", "control", body, ttl=30)
+        return outbox.outbox_item("ACME_1", "control", body, ttl=30)
 
-    dead = link.taken_key(gateway.outbox, "gateway:deadhost:1")
-    busy = link.taken_key(gateway.outbox, "gateway:livehost:2")
+    dead = outbox.taken_key(gateway.outbox, "gateway:deadhost:1")
+    busy = outbox.taken_key(gateway.outbox, "gateway:livehost:2")
     client.set(ALIVE_PREFIX + "gateway:livehost:2", 1, px=30_000)
     try:
         client.rpush(dead, item({"lost": True}))
         client.rpush(busy, item({"in_hand": True}))
-        link.send_to_drone("ACME_1", "control", {"fresh": True}, ttl=10)
+        outbox.send_to_drone("ACME_1", "control", {"fresh": True}, ttl=10)
         assert wait_for(lambda: len(received) == 2, 10), received
         time.sleep(0.3)
         assert sorted(received, key=str) == [{"fresh": True}, {"lost": True}]
@@ -325,7 +325,7 @@ def test_a_batch_of_heartbeats_is_one_update_keeping_each_drones_newest(world_tx
     from django.db import connection
     from django.test.utils import CaptureQueriesContext
 
-    from fleet.identifier import handle_heartbeats
+    from fleet.heartbeats import handle_heartbeats
     from onboard.protocol import parse_heartbeat
 
     def beat(drone_id: str, lat: float, sender: str | None = None):  # type: ignore[no-untyped-def]
@@ -351,7 +351,7 @@ def test_a_batch_of_heartbeats_is_one_update_keeping_each_drones_newest(world_tx
 
 def test_the_offline_sweep_is_a_beat_task(world_tx, settings):
     from config.celery import app
-    from workers.tasks import sweep_offline_drones
+    from fleet.tasks import sweep_offline_drones
 
     schedule = settings.CELERY_BEAT_SCHEDULE["fleet.sweep_offline"]
     assert schedule["task"] == "fleet.sweep_offline" == sweep_offline_drones.name

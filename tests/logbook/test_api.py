@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from django.test import Client
 
-from telemetry.logs.synth import synthetic_dataflash, synthetic_ulog
+from logs.synth import synthetic_dataflash, synthetic_ulog
 from tests.logbook.conftest import upload, wait_until_processed
 from tests.logs.dfi_builder import DESCRIPTION, write_dfi
 from tests.logs.test_mission_log import mission_log

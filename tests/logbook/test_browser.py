@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import expect
 
-from telemetry.logs.synth import synthetic_dataflash, synthetic_ulog
+from logs.synth import synthetic_dataflash, synthetic_ulog
 from tests.conftest import login
 from tests.logbook.conftest import upload, wait_until_processed
 from tests.logbook.test_api import client_for
@@ -190,7 +190,7 @@ def test_the_multi_plot_applies_scale_offset_and_colour_per_line(
 def test_the_3d_view_turns_the_drone_yaw_then_pitch_then_roll_like_the_core(
     world_tx, live_logs, page
 ):
-    from telemetry.logs.analysis import rotation_matrix
+    from logs.analysis import rotation_matrix
 
     login(page, live_logs, "viewer")
     page.goto(f"{live_logs.url}/logs/")
@@ -211,8 +211,8 @@ def test_a_log_page_opened_while_processing_shows_live_progress_then_the_viewer(
     world_tx, live_logs, page, tmp_path, monkeypatch
 ):
     """No worker here: the test runs the import itself once the page is watching."""
-    from telemetry.logs import services
-    from telemetry.logs.models import FlightLog
+    from logs import services
+    from logs.models import FlightLog
 
     source = tmp_path / "slow.bin"
     synthetic_dataflash(source, seconds=60)

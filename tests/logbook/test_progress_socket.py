@@ -13,7 +13,7 @@ import pytest
 from asgiref.sync import sync_to_async
 from channels.testing import WebsocketCommunicator
 
-from telemetry.logs.synth import synthetic_dataflash
+from logs.synth import synthetic_dataflash
 from tests.support.websocket import connect_websocket
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -24,7 +24,7 @@ async def _connect(user, log_id: str) -> tuple[WebsocketCommunicator, bool, int 
 
 
 def _uploaded_log(world, tmp_path):  # type: ignore[no-untyped-def]
-    from telemetry.logs.models import FlightLog
+    from logs.models import FlightLog
 
     source = tmp_path / "flight.bin"
     synthetic_dataflash(source, seconds=30)
@@ -42,7 +42,7 @@ def in_own_loop(coroutine_function, *args):  # type: ignore[no-untyped-def]
 
 
 def test_members_see_progress_then_ready_while_a_log_is_processed(world_tx, tmp_path, monkeypatch):
-    from telemetry.logs import services
+    from logs import services
 
     monkeypatch.setattr(services, "PROGRESS_INTERVAL_S", 0.0)
     in_own_loop(_follow_processing, world_tx, tmp_path)
@@ -53,7 +53,7 @@ def test_outsiders_and_anonymous_visitors_cannot_follow_a_log(world_tx, tmp_path
 
 
 async def _follow_processing(world_tx, tmp_path):  # type: ignore[no-untyped-def]
-    from telemetry.logs import services
+    from logs import services
 
     log = await sync_to_async(_uploaded_log)(world_tx, tmp_path)
     communicator, connected, _ = await _connect(world_tx.viewer, str(log.pk))

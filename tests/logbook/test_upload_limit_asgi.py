@@ -6,7 +6,7 @@ import asyncio
 import json
 from concurrent.futures import ThreadPoolExecutor
 
-from telemetry.logs.asgi import UploadLimitMiddleware
+from logs.asgi import UploadLimitMiddleware
 
 
 class RecordingApp:

@@ -3,8 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from telemetry.logs import import_log
-from telemetry.logs.analysis import (
+from logs import import_log
+from logs.analysis import (
     estimate_trajectory,
     quaternion,
     rotation_matrix,
@@ -12,8 +12,8 @@ from telemetry.logs.analysis import (
     values_at,
     values_tree,
 )
-from telemetry.logs.model import LogData, Series
-from telemetry.logs.store import open_store, write_store
+from logs.series import LogData, Series
+from logs.store import open_store, write_store
 from tests.logs.dfi_builder import write_dfi
 
 RATE = 200.0

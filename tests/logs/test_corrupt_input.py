@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from telemetry.logs import LogData, LogFormatError, import_log
-from telemetry.logs.synth import synthetic_dataflash, synthetic_ulog
+from logs import LogData, LogFormatError, import_log
+from logs.synth import synthetic_dataflash, synthetic_ulog
 from tests.logs.dfi_builder import write_dfi
 from tests.logs.test_mission_log import mission_log
 from tests.logs.test_rosbag import write_bag

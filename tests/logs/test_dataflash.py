@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
-from telemetry.logs import LogFormatError, find_special, import_log
-from telemetry.logs.synth import dataflash_dtype, synthetic_dataflash, write_dataflash
+from logs import LogFormatError, find_special, import_log
+from logs.synth import dataflash_dtype, synthetic_dataflash, write_dataflash
 
 
 def _pymavlink_columns(path):

@@ -3,8 +3,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from telemetry.logs import LogFormatError, find_special, import_log
-from telemetry.logs.importers.base import Limits
+from logs import LogFormatError, find_special, import_log
+from logs.importers.base import Limits
 from tests.logs.dfi_builder import DESCRIPTION, write_dfi
 
 
@@ -196,7 +196,7 @@ def test_malformed_xml_is_rejected(tmp_path):
 
 
 def test_dfi_value_files_are_read_in_chunks_with_true_line_numbers(tmp_path, monkeypatch):
-    from telemetry.logs.importers import dfi
+    from logs.importers import dfi
 
     monkeypatch.setattr(dfi, "CHUNK_LINES", 2)
     log = import_log(write_dfi(tmp_path / "flight.dfi"))

@@ -1,8 +1,8 @@
 import pytest
 
-from telemetry.logs import LogFormatError, import_log
-from telemetry.logs.importers.base import Limits
-from telemetry.logs.synth import synthetic_dataflash, synthetic_ulog
+from logs import LogFormatError, import_log
+from logs.importers.base import Limits
+from logs.synth import synthetic_dataflash, synthetic_ulog
 from tests.logs.dfi_builder import write_dfi
 
 

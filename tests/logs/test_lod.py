@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from telemetry.logs.lod import downsample
+from logs.lod import downsample
 
 
 def _hour_at_50hz():

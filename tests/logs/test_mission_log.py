@@ -3,7 +3,7 @@ import json
 import numpy as np
 import pytest
 
-from telemetry.logs import LogFormatError, find_special, import_log
+from logs import LogFormatError, find_special, import_log
 
 
 def mission_log(**extra):

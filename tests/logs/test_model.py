@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from telemetry.logs.model import LogData, Series, find_special
+from logs.series import LogData, Series, find_special
 
 
 def _series(path, **kw):

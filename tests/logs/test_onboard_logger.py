@@ -1,7 +1,7 @@
 import numpy as np
 
+from logs import find_special, import_log
 from onboard.logger import FlightLogger
-from telemetry.logs import find_special, import_log
 
 
 def test_a_flight_recorded_by_the_onboard_logger_imports(tmp_path):

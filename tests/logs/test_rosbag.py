@@ -3,8 +3,8 @@ import pytest
 from rosbags.rosbag1 import Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from telemetry.logs import LogFormatError, find_special, import_log
-from telemetry.logs.analysis import trajectory_of
+from logs import LogFormatError, find_special, import_log
+from logs.analysis import trajectory_of
 
 # ardrone_autonomy/Navdata as its package defines it.
 NAVDATA_MSG = """Header header

@@ -3,9 +3,9 @@ import json
 import numpy as np
 import pytest
 
-from telemetry.logs import LogFormatError, import_log
-from telemetry.logs.model import LogData, Series
-from telemetry.logs.store import import_to_store, open_store, write_store
+from logs import LogFormatError, import_log
+from logs.series import LogData, Series
+from logs.store import import_to_store, open_store, write_store
 from tests.logs.dfi_builder import write_dfi
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from telemetry.logs import LogFormatError, find_special, import_log
+from logs import LogFormatError, find_special, import_log
 
 T0_US = 1_700_000_000_000_000
 

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from pyulog import ULog
 
-from telemetry.logs import LogFormatError, find_special, import_log
-from telemetry.logs.analysis import quaternion
-from telemetry.logs.synth import synthetic_ulog, write_ulog
+from logs import LogFormatError, find_special, import_log
+from logs.analysis import quaternion
+from logs.synth import synthetic_ulog, write_ulog
 from tests.support.paths import REAL_ULOGS
 
 REAL_LOGS = sorted(REAL_ULOGS.glob("*.ulg"))

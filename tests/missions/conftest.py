@@ -55,22 +55,22 @@ def redis_url_with_db(url: str, db: int) -> str:
 @pytest.fixture
 def outbox(settings):  # type: ignore[no-untyped-def]
     """The gateway outbox in a Redis database of our own, emptied; `.items()` reads it."""
-    from fleet import link
+    from workers import outbox
 
     settings.REDIS_URL = redis_url_with_db(settings.REDIS_URL, OUTBOX_DB)
-    link._sync_client = None
-    client = link.sync_redis()
-    client.delete(link.outbox_key())
+    outbox._sync_client = None
+    client = outbox.sync_redis()
+    client.delete(outbox.outbox_key())
 
     class Outbox:
         url = settings.REDIS_URL
 
         def items(self) -> list[dict]:
-            return [json.loads(raw) for raw in client.lrange(link.outbox_key(), 0, -1)]
+            return [json.loads(raw) for raw in client.lrange(outbox.outbox_key(), 0, -1)]
 
         def clear(self) -> None:
-            client.delete(link.outbox_key())
+            client.delete(outbox.outbox_key())
 
     yield Outbox()
-    client.delete(link.outbox_key())
-    link._sync_client = None
+    client.delete(outbox.outbox_key())
+    outbox._sync_client = None

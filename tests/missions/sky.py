@@ -94,7 +94,7 @@ class Ground:
     """The module's private broker, the settings pointing at it, and the Celery worker."""
 
     def __init__(self, directory: Path, database_name: str) -> None:
-        from fleet import link
+        from workers import outbox
 
         self.directory = directory
         mosquitto = directory / "mosquitto"
@@ -114,7 +114,7 @@ class Ground:
         for name, value in overrides.items():
             self._saved[name] = getattr(settings, name)
             setattr(settings, name, value)
-        link._sync_client = None
+        outbox._sync_client = None
         self.worker = Worker(database_name, directory, self.broker.url_for("ground"))
         self._beating = threading.Event()
         self._beat = threading.Thread(target=self._beat_loop, daemon=True)
@@ -130,7 +130,7 @@ class Ground:
             tasks.resume_paused.delay()
 
     def close(self) -> None:
-        from fleet import link
+        from workers import outbox
 
         self._beating.set()
         self._beat.join()
@@ -138,7 +138,7 @@ class Ground:
         self.broker.stop()
         for name, value in self._saved.items():
             setattr(settings, name, value)
-        link._sync_client = None
+        outbox._sync_client = None
 
 
 @dataclass
@@ -157,9 +157,9 @@ class Sky:
         return self.ground.broker
 
     def start(self) -> Sky:
-        from fleet import link
+        from workers import outbox
 
-        link.sync_redis().delete(link.outbox_key())
+        outbox.sync_redis().delete(outbox.outbox_key())
         self.start_gateway()
         return self
 

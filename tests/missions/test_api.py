@@ -9,9 +9,9 @@ import zipfile
 import pytest
 from rest_framework.test import APIClient
 
+from logs.importers.base import Limits
+from logs.importers.mission import MissionLogImporter
 from missions.models import Mission, MissionStatus
-from telemetry.logs.importers.base import Limits
-from telemetry.logs.importers.mission import MissionLogImporter
 
 from .conftest import online_drone, point_at, rectangle
 

@@ -93,8 +93,8 @@ def test_a_flight_is_zipped_into_a_valid_dfi_archive_on_disarm(tmp_path: Path) -
 
 
 def test_the_project_log_reader_opens_the_recording(tmp_path: Path) -> None:
-    from telemetry.logs.importers.base import DEFAULT_LIMITS, no_progress
-    from telemetry.logs.importers.dfi import DfiImporter
+    from logs.importers.base import DEFAULT_LIMITS, no_progress
+    from logs.importers.dfi import DfiImporter
 
     logger = FlightLogger(tmp_path, "D1")
     fly(logger)

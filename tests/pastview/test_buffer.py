@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from telemetry.pastview.buffer import FrameBuffer, Outcome, is_valid_jpeg
-from telemetry.pastview.geometry import from_yaw, relative_orientation, relative_position
+from pastview.buffer import FrameBuffer, Outcome, is_valid_jpeg
+from pastview.geometry import from_yaw, relative_orientation, relative_position
 
 LEVEL = [0.0, 0.0, 0.0, 1.0]
 

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from telemetry.pastview.evaluation import (
+from pastview.evaluation import (
     ConstantDistance,
     ConstantTimeDelay,
     FrameSet,
@@ -12,7 +12,7 @@ from telemetry.pastview.evaluation import (
     evaluation_from_dict,
     spirit_scores_loop,
 )
-from telemetry.pastview.geometry import Pose, from_yaw, normalise
+from pastview.geometry import Pose, from_yaw, normalise
 
 HEADING = math.radians(40.0)
 FORWARD = np.array([math.cos(HEADING), math.sin(HEADING), 0.0])

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from firmware.sim.camera import orientation_from_euler
-from telemetry.pastview.geometry import (
+from pastview.geometry import (
     InvalidPose,
     Pose,
     conjugate,

@@ -8,9 +8,9 @@ import pytest
 from PIL import Image
 
 from firmware.sim.camera import render_view
-from telemetry.pastview.evaluation import ConstantTimeDelay, Spirit
-from telemetry.pastview.geometry import from_yaw
-from telemetry.pastview.selection import PastView, PastViewSettings
+from pastview.evaluation import ConstantTimeDelay, Spirit
+from pastview.geometry import from_yaw
+from pastview.selection import PastView, PastViewSettings
 
 NORTH = [0.0, 0.0, 0.0, 1.0]
 

@@ -1,4 +1,4 @@
-from telemetry.pastview.tracking import PoseTracker, Transition
+from pastview.tracking import PoseTracker, Transition
 
 LEVEL = [0.0, 0.0, 0.0, 1.0]
 

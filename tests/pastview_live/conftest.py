@@ -13,7 +13,7 @@ def _no_snapshots_from_earlier_tests(request):  # type: ignore[no-untyped-def]
     import redis
     from django.conf import settings
 
-    from telemetry.pastview.runner import WATCH_KEY, snapshot_key
+    from pastview.runner import WATCH_KEY, snapshot_key
 
     client = redis.Redis.from_url(settings.REDIS_URL)
     keys = [WATCH_KEY, *(snapshot_key(d) for d in ("ACME_1", "GLOBEX_1"))]

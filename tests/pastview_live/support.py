@@ -83,7 +83,7 @@ class GroupListener:
     def __init__(self, drone_id: str) -> None:
         from channels.layers import get_channel_layer
 
-        from telemetry.pastview.service import group_name
+        from pastview.service import group_name
 
         self.layer = get_channel_layer()
         self.drone_id = drone_id
@@ -91,14 +91,14 @@ class GroupListener:
         self.channel: str | None = None
 
     async def __aenter__(self) -> GroupListener:
-        from fleet import link
-        from telemetry.pastview.runner import amark_watched
+        from pastview.runner import amark_watched
+        from workers import outbox
 
         self.channel = await self.layer.new_channel()
         await self.layer.group_add(self.group, self.channel)
         # As a page's consumer does: the service pushes only for watched drones, and looks
         # four times a second.
-        await amark_watched(link.async_redis(), self.drone_id)
+        await amark_watched(outbox.async_redis(), self.drone_id)
         await asyncio.sleep(0.3)
         return self
 
@@ -124,7 +124,7 @@ class ServiceThread:
     """``manage.py pastview``'s process object, run in a thread of the test."""
 
     def __init__(self, broker_url: str) -> None:
-        from telemetry.pastview.runner import PastViewProcess
+        from pastview.runner import PastViewProcess
 
         self.process = PastViewProcess(broker_url, client_id=f"pastview-test-{id(self)}")
         self.stopping = threading.Event()

@@ -143,7 +143,7 @@ def test_an_operator_flies_by_keyboard_and_edits_the_evaluation_function(
     finally:
         drone.close()
 
-    from telemetry.pastview.models import ViewSettings
+    from pastview.models import ViewSettings
 
     stored = ViewSettings.objects.get(drone__drone_id=DRONE).settings["evaluation"]
     assert stored["function"] == "murata" and stored["coeff_tilt"] == 3.0

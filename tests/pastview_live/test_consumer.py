@@ -23,7 +23,7 @@ async def connect(user, drone_id: str = "ACME_1") -> tuple[WebsocketCommunicator
 async def push(drone_id: str, message: dict) -> None:
     from channels.layers import get_channel_layer
 
-    from telemetry.pastview.service import group_name
+    from pastview.service import group_name
 
     await get_channel_layer().group_send(
         group_name(drone_id), {"type": "pastview.message", "message": message}
@@ -86,7 +86,7 @@ async def test_a_page_that_connects_gets_the_last_snapshot_at_once(world_tx):
     import redis.asyncio as aredis
     from django.conf import settings
 
-    from telemetry.pastview.runner import snapshot_key
+    from pastview.runner import snapshot_key
 
     snapshot = {"update": {**update(), "jpeg": "AAAA"}, "live": None, "status": {}}
     client = aredis.Redis.from_url(settings.REDIS_URL)
@@ -208,7 +208,7 @@ def test_the_page_shows_controls_to_operators_only(client, world_tx):
 
 
 def test_the_drawn_box_has_the_frames_proportions():
-    from telemetry.pastview.views import frame_box
+    from pastview.views import frame_box
 
     box = frame_box({"FRAME_SIZE": "550"})
     assert box["length"] == box["width"] == pytest.approx(0.55 / 2**0.5)

@@ -63,7 +63,7 @@ def ground_services(broker, world_tx, settings):
     """The past-view service and a gateway (for the Drone Manager's replies), in threads."""
     # Commands are queued for the gateway of the broker the settings name: this one.
     settings.MQTT_URL = broker.url_for("ground")
-    from telemetry.pastview.models import ViewSettings
+    from pastview.models import ViewSettings
     from workers.gateway import Gateway
 
     # The camera sends 10 frames a second here: keep them all (the default keeps 2).

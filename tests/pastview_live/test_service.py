@@ -150,7 +150,7 @@ async def test_settings_edited_in_the_database_switch_the_evaluation_function(
 ):
     from asgiref.sync import sync_to_async
 
-    from telemetry.pastview.models import ViewSettings
+    from pastview.models import ViewSettings
 
     t0 = time.time()
     async with GroupListener(DRONE) as pages:
@@ -261,8 +261,8 @@ async def test_a_drone_no_page_watches_is_evaluated_and_remembered_but_not_pushe
     from asgiref.sync import sync_to_async
     from channels.layers import get_channel_layer
 
-    from telemetry.pastview.runner import load_snapshot
-    from telemetry.pastview.service import group_name
+    from pastview.runner import load_snapshot
+    from pastview.service import group_name
 
     layer = get_channel_layer()
     channel = await layer.new_channel()

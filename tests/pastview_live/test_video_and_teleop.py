@@ -13,7 +13,7 @@ from PIL import Image
 from onboard import protocol
 from onboard.fc.base import VehicleState
 from onboard.video import POSE_OBJECT, PoseSource, VideoConfig, VideoStreamer
-from telemetry.pastview.teleop import BadInput, Stick, commands_for, heading_of
+from pastview.teleop import BadInput, Stick, commands_for, heading_of
 
 
 class Clock:

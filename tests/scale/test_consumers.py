@@ -21,10 +21,10 @@ import paho.mqtt.client as mqtt
 import psycopg
 import pytest
 
-from fleet import credentials, link
+from fleet import credentials
 from telemetry.ingest import CounterSink, DroneMap, IngestConfig, Ingestor, load_drone_ids
 from tests.support import waiting
-from workers import broker
+from workers import broker, outbox
 from workers.counters import Counters
 from workers.gateway import Gateway
 
@@ -73,7 +73,7 @@ def use_cluster(cluster: Any, settings: Any) -> Any:
     settings.MQTT_PUBLIC_HOST = "127.0.0.1"
     for group in ("gateway", "ingest"):
         purge(cluster, f"skyhive.{group}")
-    link.sync_redis().delete(link.outbox_key())
+    outbox.sync_redis().delete(outbox.outbox_key())
     return cluster
 
 
@@ -220,8 +220,8 @@ def test_mqtt_topics_and_amqp_routing_keys_translate_both_ways():
 def test_every_node_of_the_cluster_shares_one_outbox_and_is_tried_after_the_one_named(settings):
     settings.MQTT_URL = "mqtt://ground:pw@127.0.0.1:19101"
     settings.MQTT_URLS = ["mqtt://ground:pw@127.0.0.1:19101", "mqtt://ground:pw@127.0.0.1:19102"]
-    assert link.outbox_key("mqtt://other:x@127.0.0.1:19102") == link.outbox_key()
-    assert link.outbox_key("mqtt://ground:pw@127.0.0.1:1883") != link.outbox_key()
+    assert outbox.outbox_key("mqtt://other:x@127.0.0.1:19102") == outbox.outbox_key()
+    assert outbox.outbox_key("mqtt://ground:pw@127.0.0.1:1883") != outbox.outbox_key()
     assert broker.cluster_urls("mqtt://ground:pw@127.0.0.1:19102") == [
         "mqtt://ground:pw@127.0.0.1:19102",
         "mqtt://ground:pw@127.0.0.1:19101",
@@ -270,11 +270,11 @@ def test_a_command_reaches_a_drone_on_either_node_once_whichever_gateway_sends_i
         started(cleanup, recording_gateway("gw-a", 1, cluster)),
         started(cleanup, recording_gateway("gw-b", 2, cluster)),
     ]
-    assert gateways[0].outbox == gateways[1].outbox == link.outbox_key()
+    assert gateways[0].outbox == gateways[1].outbox == outbox.outbox_key()
     drone = started(cleanup, Drone(node_url(creds, 2), "ACME_1", client_id="ACME_1"))
     drone.subscribe_inbox()
     for n in range(20):
-        link.send_to_drone("ACME_1", "control", {"n": n}, ttl=30)
+        outbox.send_to_drone("ACME_1", "control", {"n": n}, ttl=30)
     assert wait_for(lambda: len(drone.inbox) >= 20, 10), drone.inbox
     time.sleep(0.3)
     assert sorted(m["n"] for m in drone.inbox) == list(range(20))

@@ -16,9 +16,10 @@ from typing import Any
 
 import pytest
 
-from fleet import credentials, link
+from fleet import credentials
 from onboard.mqtt import MqttLink
 from tests.support.mosquitto import start_broker
+from workers import outbox
 
 from .test_consumers import (
     SEEN,
@@ -122,7 +123,7 @@ def test_a_killed_node_moves_the_gateway_ingest_and_drone_links_to_the_other_los
     time.sleep(0.3)
     assert sorted(SEEN) == sorted(sent)
     assert stored(world_tx.drone.pk) == (150, 150)
-    link.send_to_drone("ACME_1", "mission", {"after": "failover"}, ttl=30)
+    outbox.send_to_drone("ACME_1", "mission", {"after": "failover"}, ttl=30)
     assert wait_for(lambda: drone.inbox == [{"after": "failover"}], 10)
 
     # The agent: on node 1 now, with everything sent to it while it was away.

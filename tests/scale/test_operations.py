@@ -20,7 +20,8 @@ from tests.support import waiting
 from tests.support.celery_worker import start_worker, worker_env
 from tests.support.mosquitto import free_port, start_broker
 from tests.support.processes import stop_process
-from workers import mosquitto_sys, operations
+from workers import operations
+from workers.broker import mosquitto_sys
 from workers.counters import Counters, instances, start_heartbeat
 from workers.gateway import Gateway
 
@@ -241,7 +242,7 @@ def test_a_gateway_keeps_watching_mosquittos_client_count(db, fast_sys_broker, s
     follow every change so the page still has them."""
     import paho.mqtt.client as mqtt
 
-    from fleet import link
+    from workers import outbox
 
     settings.MQTT_BROKER = "mosquitto"
     gateway = Gateway(
@@ -249,7 +250,7 @@ def test_a_gateway_keeps_watching_mosquittos_client_count(db, fast_sys_broker, s
         counters=Counters("gateway", instance=f"ops-sys-{uuid.uuid4().hex[:8]}", flush_every=1e9),
     )
     gateway.start()
-    view = lambda: mosquitto_sys.remembered(link.sync_redis()).get("clients_connected")  # noqa: E731
+    view = lambda: mosquitto_sys.remembered(outbox.sync_redis()).get("clients_connected")  # noqa: E731
     drone = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="ACME_1")
     try:
         assert gateway.wait_connected(10)
@@ -264,7 +265,7 @@ def test_a_gateway_keeps_watching_mosquittos_client_count(db, fast_sys_broker, s
         assert wait_for(lambda: view() == before, timeout=5), view()
     finally:
         gateway.stop()
-    assert not link.sync_redis().exists(gateway.sys_view.key), "a stopped gateway's view goes"
+    assert not outbox.sync_redis().exists(gateway.sys_view.key), "a stopped gateway's view goes"
 
 
 def test_figures_expired_from_sys_are_filled_in_from_the_gateways_and_fresh_ones_win():

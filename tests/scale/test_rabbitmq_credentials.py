@@ -23,8 +23,8 @@ from django.test import Client
 
 from fleet import credentials
 from fleet.models import Drone
-from fleet.rabbitmq_admin import RabbitMQAdmin, RabbitMQAdminError, rabbit_password_hash
 from tests.support.mosquitto import start_broker
+from workers.broker.rabbitmq_admin import RabbitMQAdmin, RabbitMQAdminError, rabbit_password_hash
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

@@ -490,11 +490,11 @@ class ReplicatedGround:
 
 def _point_test_process_at(settings, values: dict[str, object]) -> None:  # type: ignore[no-untyped-def]
     """The test process provisions drones and reads the outbox: same broker and Redis."""
-    from fleet import link
+    from workers import outbox
 
     for name, value in values.items():
         setattr(settings, name, value)
-    link._sync_client = None
+    outbox._sync_client = None
 
 
 def _database_name() -> str:

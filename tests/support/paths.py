@@ -1,8 +1,7 @@
-"""Where the project's shared documents and test data live: `../shared` beside the clone."""
+"""Where the suite's own test data lives (in the repository, beside the tests)."""
 
-import os
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-SHARED = Path(os.environ.get("SKYHIVE_SHARED", ROOT.parent / "shared"))
-REAL_ULOGS = SHARED / "testdata" / "ulog"
+TEST_DATA = ROOT / "tests" / "data"
+REAL_ULOGS = TEST_DATA / "ulog"

@@ -8,7 +8,7 @@ import struct
 import pytest
 
 from onboard.mqttwire import encode_string, encode_varint
-from telemetry.mqtt_reader import ProtocolViolation, Subscriber
+from workers.broker.mqtt_reader import ProtocolViolation, Subscriber
 
 
 def publish(topic: str, payload: bytes, packet_id: int | None = None) -> bytes:

@@ -1,0 +1,225 @@
+"""The Drone Identifier (seed 001, 3.4.2.1 and 4.2.1): who is connected, where, with what.
+
+Plain functions the gateway calls per message, and the offline sweep the Celery beat
+runs. Each returns None when the message was taken, or a short reason when it was
+dropped (the gateway counts it as `dropped.<reason>`).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from concurrent import futures
+from datetime import datetime, timedelta
+
+from django.conf import settings
+from django.db import connection, transaction
+from django.utils import timezone
+
+from onboard.protocol import GearAnnouncement, GearReply, Heartbeat
+from workers import outbox
+
+from . import events
+from .models import ConnectionEvent, Drone
+from .signals import drones_came_online
+
+log = logging.getLogger(__name__)
+
+# One statement for a whole batch: update each drone's state and learn whether it was
+# offline before (the sub-select reads the old rows under lock), so reconnections are
+# noticed without another round trip on the hot path. Revoked drones are not updated:
+# they are unknown here.
+_ROW = (
+    "(%s, %s::timestamptz, %s::float8, %s::float8, %s::float8, %s::float8, %s::float8,"
+    " %s::boolean, %s::boolean, %s, %s::jsonb, %s::jsonb)"
+)
+_HEARTBEATS_SQL = """
+UPDATE fleet_drone AS d SET
+    online = TRUE, last_seen = v.seen, lat = v.lat, lon = v.lon, alt = v.alt,
+    battery_voltage = v.voltage, battery_remaining = v.remaining, armed = v.armed,
+    airborne = v.airborne, flight_mode = v.mode, mission = v.mission, fc = v.fc
+FROM (VALUES {rows}) AS v(
+    drone_id, seen, lat, lon, alt, voltage, remaining, armed, airborne, mode, mission, fc
+), (
+    SELECT id, online FROM fleet_drone
+    WHERE drone_id = ANY(%s) AND NOT credentials_revoked
+    ORDER BY id FOR UPDATE
+) AS old
+WHERE d.drone_id = v.drone_id AND d.id = old.id
+RETURNING d.drone_id, d.id, d.organisation_id, old.online
+"""
+
+
+def _row(heartbeat: Heartbeat, seen: datetime) -> list:
+    position = heartbeat.position
+    mission = heartbeat.mission
+    return [
+        heartbeat.drone_id,
+        seen,
+        None if position is None else position.lat,
+        None if position is None else position.lon,
+        None if position is None else position.alt,
+        heartbeat.battery_voltage,
+        heartbeat.battery_remaining,
+        heartbeat.armed,
+        heartbeat.airborne,
+        heartbeat.flight_mode[:40],
+        None if mission is None else json.dumps(mission.to_dict()),
+        json.dumps({"protocol": heartbeat.fc_protocol, "connected": heartbeat.fc_connected}),
+    ]
+
+
+class _Throttle:
+    """At most one live update per drone per interval; state changes always go through."""
+
+    def __init__(self) -> None:
+        self._last: dict[str, float] = {}
+        self._lock = threading.Lock()
+
+    def allow(self, drone_id: str, *, force: bool = False) -> bool:
+        now = time.monotonic()
+        with self._lock:
+            if not force and now - self._last.get(drone_id, -1e9) < settings.FLEET_PUSH_INTERVAL_S:
+                return False
+            self._last[drone_id] = now
+            return True
+
+
+_throttle = _Throttle()
+
+
+def live_state(heartbeat: Heartbeat, seen: datetime) -> dict:
+    """The fields a fleet page shows, in the shape of the drone API."""
+    return {
+        "drone_id": heartbeat.drone_id,
+        "online": True,
+        "last_seen": seen.isoformat(),
+        "position": None if heartbeat.position is None else heartbeat.position.to_dict(),
+        "battery": {
+            "voltage": heartbeat.battery_voltage,
+            "remaining": heartbeat.battery_remaining,
+        },
+        "armed": heartbeat.armed,
+        "airborne": heartbeat.airborne,
+        "flight_mode": heartbeat.flight_mode,
+        "mission": None if heartbeat.mission is None else heartbeat.mission.to_dict(),
+        "fc": {"protocol": heartbeat.fc_protocol, "connected": heartbeat.fc_connected},
+    }
+
+
+def handle_heartbeat(drone_id: str, heartbeat: Heartbeat) -> str | None:
+    """Record one heartbeat (see handle_heartbeats)."""
+    return handle_heartbeats([(drone_id, heartbeat)])[0]
+
+
+def handle_heartbeats(batch: list[tuple[str, Heartbeat]]) -> list[str | None]:
+    """Record heartbeats with one UPDATE; an `online` event for each drone that was offline.
+
+    Only the newest heartbeat of a drone in the batch is written (the older ones would be
+    overwritten in the same instant). Returns, per heartbeat, None or why it was dropped.
+    """
+    seen = timezone.now()
+    reasons: list[str | None] = [None] * len(batch)
+    latest: dict[str, Heartbeat] = {}
+    for i, (drone_id, heartbeat) in enumerate(batch):
+        if heartbeat.drone_id != drone_id:
+            reasons[i] = "drone_id_mismatch"
+        else:
+            latest[drone_id] = heartbeat
+    if not latest:
+        return reasons
+    params: list = []
+    for heartbeat in latest.values():
+        params += _row(heartbeat, seen)
+    params.append(list(latest))
+    sql = _HEARTBEATS_SQL.format(rows=", ".join([_ROW] * len(latest)))
+    # One transaction: a drone is never seen online without its `online` event, and a
+    # batch the gateway retries after a lost connection is written whole or not at all.
+    with transaction.atomic():
+        with connection.cursor() as cursor:
+            cursor.execute(sql, params)
+            rows = cursor.fetchall()
+        came_online = [
+            ConnectionEvent(
+                drone_id=pk, kind=ConnectionEvent.Kind.ONLINE, at=seen, reason="heartbeat"
+            )
+            for _drone_id, pk, _org, was_online in rows
+            if not was_online
+        ]
+        if came_online:
+            ConnectionEvent.objects.bulk_create(came_online)
+    stored = {drone_id for drone_id, *_ in rows}
+    for i, (drone_id, _heartbeat) in enumerate(batch):
+        if reasons[i] is None and drone_id not in stored:
+            reasons[i] = "unknown_drone"
+    if came_online:
+        drones_came_online.send(
+            sender=ConnectionEvent,
+            organisation_ids={org for _d, _pk, org, was in rows if not was},
+            drone_ids=[drone_id for drone_id, _pk, _org, was in rows if not was],
+        )
+    for drone_id, _pk, organisation_id, was_online in rows:
+        if _throttle.allow(drone_id, force=not was_online):
+            events.publish_nowait(
+                organisation_id, {"type": "drone", "drone": live_state(latest[drone_id], seen)}
+            )
+    return reasons
+
+
+def handle_gear(drone_id: str, message: GearAnnouncement | GearReply) -> str | None:
+    """Store announced specs and sensors; hand query replies to whoever asked."""
+    fields = {}
+    if message.specs is not None:
+        fields["specs"] = message.specs
+    if message.sensors is not None:
+        fields["sensors"] = message.sensors
+    # The database first: a retried message (database away) must still find its reply
+    # waiting, and a reply is handed over only once.
+    if fields:
+        updated = Drone.objects.filter(drone_id=drone_id, credentials_revoked=False).update(
+            **fields
+        )
+        if not updated:
+            return "unknown_drone"
+    if isinstance(message, GearReply):
+        return outbox.deliver_reply(drone_id, message.request_id, message.to_dict())
+    return None
+
+
+def sweep_offline(now: datetime | None = None) -> list[str]:
+    """Mark drones offline after the configured number of missed heartbeats.
+
+    Compare-and-set per drone, so several sweeps (or a heartbeat arriving meanwhile) never
+    write two offline events or undo a fresh heartbeat. Returns the drone ids marked.
+    """
+    now = now or timezone.now()
+    grace = settings.OFFLINE_AFTER_MISSED_HEARTBEATS * settings.HEARTBEAT_INTERVAL_S
+    threshold = now - timedelta(seconds=grace)
+    stale = Drone.objects.filter(online=True, last_seen__lt=threshold).values_list(
+        "pk", "drone_id", "organisation_id", "last_seen"
+    )
+    marked = []
+    sent = []
+    for pk, drone_id, organisation_id, last_seen in stale:
+        if not Drone.objects.filter(pk=pk, online=True, last_seen=last_seen).update(online=False):
+            continue
+        silent = (now - last_seen).total_seconds()
+        ConnectionEvent.objects.create(
+            drone_id=pk,
+            kind=ConnectionEvent.Kind.OFFLINE,
+            at=now,
+            reason=f"no heartbeat for {silent:.1f} s",
+        )
+        sent.append(
+            events.publish_nowait(
+                organisation_id,
+                {"type": "drone", "drone": {"drone_id": drone_id, "online": False}},
+            )
+        )
+        marked.append(drone_id)
+    futures.wait([f for f in sent if f is not None], timeout=2)
+    if marked:
+        log.info("marked offline: %s", ", ".join(marked))
+    return marked

@@ -1,0 +1,149 @@
+"""ROS 1 bags through `rosbags`: every topic's numeric fields flattened into series, plus
+the AR.Drone topics (ardrone_autonomy Navdata, cmd_vel) tagged as the special quantities
+(seed 000, 7.6.1)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from rosbags.rosbag1 import Reader
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from logs.importers.base import Limits, LogFormatError, Progress, ProgressTicker, describe
+from logs.importers.columns import ColumnCollector
+from logs.series import LogData, join
+
+MAGIC = b"#ROSBAG V2.0"
+# Fixed-size arrays up to this length become one series per element; longer arrays and
+# variable-length sequences (images, point clouds, tag lists) are not plottable quantities.
+MAX_ARRAY = 16
+NAVDATA_TYPE = "ardrone_autonomy/msg/Navdata"
+# ardrone_autonomy Navdata fields (its README): units and special meaning.
+NAVDATA = {
+    "altd": ("mm", "altitude"),
+    "vx": ("mm/s", "velocity.x"),
+    "vy": ("mm/s", "velocity.y"),
+    "vz": ("mm/s", "velocity.z"),
+    "rotX": ("deg", "rotation.roll"),
+    "rotY": ("deg", "rotation.pitch"),
+    "rotZ": ("deg", "rotation.yaw"),
+    "batteryPercent": ("%", "battery"),
+    "motor1": ("", "motors.1"),
+    "motor2": ("", "motors.2"),
+    "motor3": ("", "motors.3"),
+    "motor4": ("", "motors.4"),
+    "ax": ("g", "acceleration.x"),
+    "ay": ("g", "acceleration.y"),
+    "az": ("g", "acceleration.z"),
+    "magX": ("", "magnetometer.x"),
+    "magY": ("", "magnetometer.y"),
+    "magZ": ("", "magnetometer.z"),
+    "tm": ("us", None),
+    "pressure": ("Pa", None),
+    "temp": ("", None),
+}
+NAVDATA_STATES = dict(
+    enumerate(
+        [
+            "Unknown",
+            "Inited",
+            "Landed",
+            "Flying",
+            "Hovering",
+            "Test",
+            "Taking off",
+            "Flying (go to fix point)",
+            "Landing",
+            "Looping",
+        ]
+    )
+)
+
+
+def flatten(msg: object, prefix: str, out: dict[str, object]) -> None:
+    """Numeric and string leaves of a rosbags message dataclass, keyed by field path."""
+    for name in getattr(msg, "__dataclass_fields__", {}):
+        if name == "__msgtype__":
+            continue
+        value = getattr(msg, name)
+        key = f"{prefix}/{name}" if prefix else name
+        if isinstance(value, bool | int | float | np.integer | np.floating):
+            out[key] = (
+                value.item()
+                if isinstance(value, np.generic)
+                else (int(value) if isinstance(value, bool) else value)
+            )
+        elif isinstance(value, str):
+            out[key] = value
+        elif isinstance(value, np.ndarray):
+            if value.ndim == 1 and 0 < len(value) <= MAX_ARRAY and value.dtype.kind in "iuf":
+                for i, item in enumerate(value.tolist()):
+                    out[f"{key}[{i}]"] = item
+        elif hasattr(value, "__dataclass_fields__"):
+            flatten(value, key, out)
+
+
+class RosbagImporter:
+    name = "ROS 1 bag"
+    extensions = (".bag",)
+
+    def sniff(self, path: Path, head: bytes) -> bool:
+        return head.startswith(MAGIC)
+
+    def read(self, path: Path, *, limits: Limits, progress: Progress) -> LogData:
+        typestore = get_typestore(Stores.ROS1_NOETIC)
+        cols = ColumnCollector()
+        log = LogData(format="rosbag")
+        try:
+            reader = Reader(path)
+            reader.open()
+        except Exception as exc:
+            raise LogFormatError(
+                f"The file {path.name!r} is not a readable ROS 1 bag (truncated?): {describe(exc)}."
+            ) from exc
+        undecodable: dict[str, int] = {}
+        try:
+            for conn in reader.connections:
+                # Bags carry each message definition: register types the store lacks
+                # (ardrone_autonomy/Navdata and any custom message).
+                if conn.msgtype not in typestore.fielddefs:
+                    try:
+                        typestore.register(get_types_from_msg(conn.msgdef.data, conn.msgtype))
+                    except Exception:
+                        undecodable[conn.topic] = 0
+            tick = ProgressTicker(progress, max(reader.message_count, 1))
+            for done, (conn, bag_ns, raw) in enumerate(reader.messages()):
+                tick(done)
+                if conn.topic in undecodable:
+                    undecodable[conn.topic] += 1
+                    continue
+                try:
+                    msg = typestore.deserialize_ros1(raw, conn.msgtype)
+                except Exception:
+                    undecodable[conn.topic] = undecodable.get(conn.topic, 0) + 1
+                    continue
+                fields: dict[str, object] = {}
+                flatten(msg, "", fields)
+                layer = join(conn.topic.strip("/"))
+                cols.add(layer, bag_ns, fields)
+                if conn.msgtype == NAVDATA_TYPE and f"{layer}/state" not in cols.labels:
+                    self._tag_navdata(cols, layer)
+        finally:
+            reader.close()
+        for topic, count in undecodable.items():
+            log.warnings.append(f"Topic {topic}: {count} messages could not be decoded.")
+        if not cols.layers:
+            raise LogFormatError(f"The bag {path.name!r} holds no messages we can decode.")
+        # Bag time stamps are taken by the recording machine on receipt.
+        cols.build(log, "recorder")
+        return log
+
+    @staticmethod
+    def _tag_navdata(cols: ColumnCollector, layer: str) -> None:
+        cols.labels[f"{layer}/state"] = NAVDATA_STATES
+        for name, (unit, special) in NAVDATA.items():
+            if unit:
+                cols.units[f"{layer}/{name}"] = unit
+            if special:
+                cols.special[f"{layer}/{name}"] = special

@@ -1,0 +1,201 @@
+"""`/ws/pastview/<drone_id>/`: the past view of one drone, and teleoperation from it.
+
+Server → client: a ``hello`` (what the user may do, the settings), the last snapshot the
+service stored (so the background shows at once), then whatever ``manage.py pastview``
+pushes to the drone's group: ``update`` (relative pose; the frame's JPEG only when the
+choice changes), ``live``, ``status``, ``settings``.
+
+Client → server, operators only: ``{"type": "teleop", "forward", "right", "up"}`` and
+``{"type": "stop"}``. Moves go through the Drone Manager (fleet.commands: role, online and
+parameter checks, command log, the drone's own reply). One move at most every
+1 / PASTVIEW_TELEOP_HZ seconds; input arriving meanwhile replaces the waiting move, and
+``stop`` (or the socket closing) discards it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from typing import Any
+
+from asgiref.sync import sync_to_async
+from channels.db import database_sync_to_async
+from channels.generic.websocket import AsyncJsonWebsocketConsumer
+from django.conf import settings
+
+from fleet import commands
+from fleet.models import Drone, Role
+from fleet.permissions import require_role
+from workers import outbox
+
+from .models import ViewSettings
+from .runner import WATCH_TTL_S, amark_watched, load_snapshot
+from .service import group_name
+from .teleop import BadInput, Stick, commands_for, heading_of
+
+log = logging.getLogger(__name__)
+
+# A move waits this long for the drone's reply: a later move supersedes it anyway.
+TELEOP_REPLY_TIMEOUT_S = 3.0
+
+
+@database_sync_to_async
+def _drone_and_role(user, drone_id: str) -> tuple[Drone | None, bool]:  # type: ignore[no-untyped-def]
+    drone = Drone.objects.for_user(user).select_related("organisation").filter(drone_id=drone_id)
+    found = drone.first()
+    if found is None:
+        return None, False
+    return found, require_role(user, found.organisation, Role.OPERATOR)
+
+
+@database_sync_to_async
+def _settings(drone: Drone) -> dict[str, Any]:
+    return settings_dict(drone)
+
+
+def settings_dict(drone: Drone) -> dict[str, Any]:
+    row = ViewSettings.objects.filter(drone=drone).first()
+    return (row or ViewSettings(drone=drone)).to_dict()
+
+
+class PastViewConsumer(AsyncJsonWebsocketConsumer):
+    drone: Drone | None = None
+    group: str | None = None
+
+    async def connect(self) -> None:
+        user = self.scope.get("user")
+        if user is None or not user.is_authenticated:
+            await self.close(code=4401)
+            return
+        drone_id = self.scope["url_route"]["kwargs"]["drone_id"]
+        drone, can_operate = await _drone_and_role(user, drone_id)
+        if drone is None:  # another organisation's drone is as unknown as none
+            await self.close(code=4404)
+            return
+        self.drone, self.can_operate = drone, can_operate
+        self.heading: float | None = None
+        self.pending: Stick | None = None
+        self.wakeup = asyncio.Event()
+        self.worker: asyncio.Task | None = None
+        self.group = group_name(drone.drone_id)
+        await self.channel_layer.group_add(self.group, self.channel_name)
+        self.watch = asyncio.ensure_future(self._keep_watching(drone.drone_id))
+        await self.accept()
+        await self.send_json(
+            {
+                "type": "hello",
+                "drone_id": drone.drone_id,
+                "can_operate": can_operate,
+                "settings": await _settings(drone),
+            }
+        )
+        try:
+            snapshot = await sync_to_async(load_snapshot)(drone.drone_id)
+        except Exception:  # noqa: BLE001 - the page still works, it waits for the next frame
+            log.exception("snapshot of %s unavailable", drone.drone_id)
+            snapshot = None
+        if snapshot is not None:
+            self._note_heading(snapshot.get("update"))
+            await self.send_json({"type": "snapshot", **snapshot})
+
+    async def disconnect(self, code: int) -> None:
+        if self.group:
+            await self.channel_layer.group_discard(self.group, self.channel_name)
+        for task in (getattr(self, "worker", None), getattr(self, "watch", None)):
+            if task is not None:
+                task.cancel()
+
+    async def _keep_watching(self, drone_id: str) -> None:
+        """Renew the drone's watch mark while the page is open, so the service pushes."""
+        client = outbox.async_redis()
+        while True:
+            try:
+                await amark_watched(client, drone_id)
+            except Exception:  # noqa: BLE001 - without the mark the page only misses pushes
+                log.warning("watch mark of %s not renewed", drone_id, exc_info=True)
+            await asyncio.sleep(WATCH_TTL_S / 3)
+
+    async def pastview_message(self, event: dict) -> None:
+        """What the service pushed to the drone's group, passed on as it is."""
+        message = event["message"]
+        if message.get("type") == "update":
+            self._note_heading(message)
+        await self.send_json(message)
+
+    def _note_heading(self, update: dict | None) -> None:
+        try:
+            self.heading = heading_of(update["pose"]["orientation"])  # type: ignore[index]
+        except (KeyError, TypeError, ValueError):
+            pass
+
+    # -- teleoperation ------------------------------------------------------------------------
+
+    async def receive_json(self, content: Any, **kwargs: object) -> None:
+        kind = content.get("type") if isinstance(content, dict) else None
+        if kind not in ("teleop", "stop"):
+            await self._teleop_reply(False, "Unknown message type.")
+            return
+        if not self.can_operate:
+            await self._teleop_reply(False, "Only operators and admins may command drones.")
+            return
+        if kind == "stop":
+            self.pending = None
+            return
+        try:
+            stick = Stick.parse(content)
+        except BadInput as exc:
+            await self._teleop_reply(False, f"Bad input: {exc}.")
+            return
+        if stick.idle:
+            self.pending = None
+            return
+        self.pending = stick
+        self.wakeup.set()
+        if self.worker is None:
+            self.worker = asyncio.ensure_future(self._move_loop())
+
+    async def _move_loop(self) -> None:
+        interval = 1.0 / settings.PASTVIEW_TELEOP_HZ
+        last = -interval
+        while True:
+            await self.wakeup.wait()
+            self.wakeup.clear()
+            wait = last + interval - time.monotonic()
+            if wait > 0:
+                await asyncio.sleep(wait)
+            stick, self.pending = self.pending, None
+            if stick is None:  # stopped while waiting for the slot
+                continue
+            last = time.monotonic()
+            try:
+                await self._move(stick)
+            except Exception:  # noqa: BLE001 - one failed move must not end teleoperation
+                log.exception("teleoperation move for %s failed", self.drone)
+                await self._teleop_reply(False, "The move failed on the ground; try again.")
+
+    async def _move(self, stick: Stick) -> None:
+        if self.heading is None:
+            await self._teleop_reply(False, "The drone's heading is not known yet (no pose).")
+            return
+        assert self.drone is not None
+        user = self.scope["user"]
+        sent = []
+        for command, value in commands_for(stick, self.heading, settings.PASTVIEW_TELEOP_STEP_M):
+            try:
+                prepared = await sync_to_async(commands.prepare)(
+                    user, self.drone.drone_id, command, {"value": value}
+                )
+                outcome = await commands.execute(prepared, timeout=TELEOP_REPLY_TIMEOUT_S)
+            except commands.CommandRefused as exc:
+                await self._teleop_reply(False, exc.message, sent)
+                return
+            if not outcome.ok:
+                error = "No reply from the drone." if outcome.timed_out else outcome.reply["error"]  # type: ignore[index]
+                await self._teleop_reply(False, error, sent)
+                return
+            sent.append({"command": command, "value": value})
+        await self._teleop_reply(True, None, sent)
+
+    async def _teleop_reply(self, ok: bool, error: str | None, sent: list | None = None) -> None:
+        await self.send_json({"type": "teleop", "ok": ok, "error": error, "sent": sent or []})

@@ -1,0 +1,31 @@
+"""`manage.py pastview`: run the past-image view service until SIGTERM/SIGINT."""
+
+from __future__ import annotations
+
+import signal
+import threading
+
+from django.conf import settings
+from django.core.management.base import BaseCommand
+
+from pastview.runner import PastViewProcess
+
+
+class Command(BaseCommand):
+    help = "Select past camera frames for every drone pose and push them to the past-view pages."
+
+    def add_arguments(self, parser) -> None:  # type: ignore[no-untyped-def]
+        parser.add_argument(
+            "--broker", default=settings.MQTT_URL, help="mqtt://user:pass@host:port"
+        )
+        parser.add_argument("--client-id", default=None)
+
+    def handle(self, *args, **options) -> None:  # type: ignore[no-untyped-def]
+        stopping = threading.Event()
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(signum, lambda *_: stopping.set())
+        process = PastViewProcess(options["broker"], client_id=options["client_id"])
+        self.stdout.write(f"pastview: {process.host}:{process.port}")
+        self.stdout.flush()
+        process.run(stopping)
+        self.stdout.write("pastview: stopped")
