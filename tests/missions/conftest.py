@@ -5,27 +5,14 @@ from __future__ import annotations
 import json
 from urllib.parse import urlsplit, urlunsplit
 
-import numpy as np
 import pytest
 
-from missions.geo import LocalFrame
+from .planning import AVEIRO, point_at, rectangle
 
-# The seed's experiments flew at the University of Aveiro campus.
-AVEIRO = LocalFrame(40.6303, -8.6575)
+__all__ = ["AVEIRO", "point_at", "rectangle"]
 # Our own Redis database for the gateway outbox: engineers running other suites at the
 # same time have gateways popping the default one.
 OUTBOX_DB = 9
-
-
-def point_at(north_m: float, east_m: float) -> tuple[float, float]:
-    return AVEIRO.point_to_latlon([north_m, east_m])
-
-
-def rectangle(east_m: float, north_m: float, *, origin=(0.0, 0.0)) -> list[list[float]]:  # type: ignore[no-untyped-def]
-    """Vertices A, B, C: A at `origin` (north, east metres), A→B east, B→C north."""
-    n0, e0 = origin
-    lat, lon = AVEIRO.to_latlon([n0, n0, n0 + north_m], [e0, e0 + east_m, e0 + east_m])
-    return np.column_stack((lat, lon)).tolist()
 
 
 def online_drone(org, drone_id: str, north: float = 0.0, east: float = 0.0, battery: float = 0.9):  # type: ignore[no-untyped-def]

@@ -6,7 +6,7 @@ import pytest
 
 from missions.handover import plan_collaboration, plan_replacement
 from missions.planning import PlanningError, coverage, extend, mission_steps
-from tests.planning.helpers import point_at, rectangle
+from tests.missions.planning import point_at, rectangle
 
 
 def with_status(steps, completed_through):

@@ -115,7 +115,7 @@ def test_malformed_and_unauthorised_input_is_dropped_counted_and_changes_nothing
 def test_handlers_never_crash_the_gateway(world_tx, broker, fresh_redis):
     gw = Gateway(
         broker.url_for("ground"),
-        dispatch={"heartbeats": "tests.ground.test_gateway.explode_handler"},
+        dispatch={"heartbeats": "tests.fleet.test_gateway.explode_handler"},
         counters=Counters(f"gateway-test-{uuid.uuid4().hex[:8]}", flush_every=1e9),
     )
     gw.start()

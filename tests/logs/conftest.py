@@ -1,4 +1,4 @@
-"""A real Celery worker on its own queue, a private logs folder, and upload helpers.
+"""For the log API and page tests: a real Celery worker on its own queue, a private logs folder, and upload helpers.
 
 The worker listens only on a queue named for this run, so workers started by other test
 folders (or other runs sharing the test Redis) never take our imports, and ours never
@@ -24,8 +24,9 @@ def logs_dir(tmp_path_factory) -> Path:  # type: ignore[no-untyped-def]
     return tmp_path_factory.mktemp("flight-logs")
 
 
-@pytest.fixture(autouse=True)
-def _logs_settings(settings, logs_dir):  # type: ignore[no-untyped-def]
+@pytest.fixture
+def logs_settings(settings, logs_dir):  # type: ignore[no-untyped-def]
+    """Imports go to our worker's queue and folder; the API and page tests use it."""
     settings.LOGS_DIR = str(logs_dir)
     settings.LOGS_IMPORT_QUEUE = QUEUE
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 import pytest
 
 from missions.selection import Candidate, is_available, select_drones
-from tests.planning.helpers import point_at
+from tests.missions.planning import point_at
 
 TARGET = point_at(0, 0)
 

@@ -15,7 +15,7 @@ from missions.planning import (
     mission_steps,
     split,
 )
-from tests.planning.helpers import AVEIRO, metres_between, point_at, rectangle
+from tests.missions.planning import AVEIRO, metres_between, point_at, rectangle
 
 
 def test_local_frame_round_trips_points_to_the_millimetre():

@@ -26,7 +26,10 @@ from .support import (
     wait_until,
 )
 
-pytestmark = pytest.mark.django_db(transaction=True)
+pytestmark = [
+    pytest.mark.django_db(transaction=True),
+    pytest.mark.usefixtures("no_snapshots_from_earlier_tests"),
+]
 
 DRONE = "ACME_1"  # the world's drone
 

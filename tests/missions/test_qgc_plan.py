@@ -9,7 +9,7 @@ import pytest
 from missions.planning import coverage, mission_steps
 from missions.qgc_plan import QgcPlanError, dumps, export_plan, export_qgc_plan, import_plan
 from onboard.protocol import encode_mission_payload
-from tests.planning.helpers import rectangle
+from tests.missions.planning import rectangle
 
 FIXTURES = Path(__file__).parent / "fixtures"
 PLANS = ["survey_photos_rtl.plan", "loiter_digicam_land.plan"]

@@ -16,7 +16,7 @@ from channels.testing import WebsocketCommunicator
 from logs.synth import synthetic_dataflash
 from tests.support.websocket import connect_websocket
 
-pytestmark = pytest.mark.django_db(transaction=True)
+pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.usefixtures("logs_settings")]
 
 
 async def _connect(user, log_id: str) -> tuple[WebsocketCommunicator, bool, int | None]:  # type: ignore[no-untyped-def]

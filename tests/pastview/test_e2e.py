@@ -20,7 +20,11 @@ from tests.support.processes import stop_process
 from .support import ServiceThread, in_own_loop, wait_until
 from .test_consumer import connect
 
-pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
+pytestmark = [
+    pytest.mark.e2e,
+    pytest.mark.django_db(transaction=True),
+    pytest.mark.usefixtures("no_snapshots_from_earlier_tests"),
+]
 
 DRONE = "ACME_1"  # the world's drone, so the portal knows it
 HOME = (40.6303, -8.6575, 12.0)

@@ -10,14 +10,14 @@ import pytest
 from django.test import Client
 
 from logs.synth import synthetic_dataflash, synthetic_ulog
-from tests.logbook.conftest import upload, wait_until_processed
+from tests.logs.conftest import upload, wait_until_processed
 from tests.logs.dfi_builder import DESCRIPTION, write_dfi
 from tests.logs.test_mission_log import mission_log
 from tests.logs.test_rosbag import write_bag
 from tests.logs.test_tlog import write_tlog
 from tests.support.paths import REAL_ULOGS
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.usefixtures("logs_settings")]
 REAL_LOGS = REAL_ULOGS
 
 

@@ -33,7 +33,7 @@ pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 # What the recording dispatch saw: (drone id, heartbeat ts), from every gateway's threads.
 SEEN: list[tuple[str, float]] = []
 SEEN_LOCK = threading.Lock()
-RECORDING = {"heartbeats": "tests.scale.test_consumers.record_heartbeat"}
+RECORDING = {"heartbeats": "tests.workers.test_consumers.record_heartbeat"}
 
 
 def record_heartbeat(drone_id: str, message: Any) -> None:

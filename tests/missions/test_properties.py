@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from missions.geo import distance_m
 from missions.handover import plan_replacement
 from missions.planning import coverage, extend_from_vectors, mission_steps, split
-from tests.planning.helpers import AVEIRO, point_at
+from tests.missions.planning import AVEIRO, point_at
 
 metres = st.floats(min_value=-300, max_value=300, allow_nan=False)
 steps = st.floats(min_value=4, max_value=40, allow_nan=False)

@@ -13,11 +13,11 @@ from playwright.sync_api import expect
 
 from logs.synth import synthetic_dataflash, synthetic_ulog
 from tests.conftest import login
-from tests.logbook.conftest import upload, wait_until_processed
-from tests.logbook.test_api import client_for
+from tests.logs.conftest import upload, wait_until_processed
 from tests.logs.dfi_builder import write_dfi
+from tests.logs.test_api import client_for
 
-pytestmark = [pytest.mark.browser, pytest.mark.e2e]
+pytestmark = [pytest.mark.browser, pytest.mark.e2e, pytest.mark.usefixtures("logs_settings")]
 
 
 def click_timeline_at(page, viewer, seconds: float, start: float, end: float) -> None:  # type: ignore[no-untyped-def]
@@ -266,7 +266,7 @@ def test_a_log_page_opened_while_processing_shows_live_progress_then_the_viewer(
 def test_the_upload_zone_explains_files_it_refuses(world_tx, page, tmp_path, logs_dir):
     from django.db import connection
 
-    from tests.logbook.conftest import QUEUE
+    from tests.logs.conftest import QUEUE
     from tests.support.live import LiveServer
 
     server = LiveServer(

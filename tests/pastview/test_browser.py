@@ -18,7 +18,11 @@ from tests.support.mosquitto import start_broker
 
 from .support import DronePublisher, ServiceThread, level
 
-pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.django_db(transaction=True),
+    pytest.mark.usefixtures("no_snapshots_from_earlier_tests"),
+]
 
 DRONE = "ACME_1"
 

@@ -6,7 +6,11 @@ import asyncio
 import json
 from concurrent.futures import ThreadPoolExecutor
 
+import pytest
+
 from logs.asgi import UploadLimitMiddleware
+
+pytestmark = pytest.mark.usefixtures("logs_settings")
 
 
 class RecordingApp:

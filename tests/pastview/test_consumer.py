@@ -13,7 +13,10 @@ from tests.support.websocket import connect_websocket
 
 from .support import in_own_loop
 
-pytestmark = pytest.mark.django_db(transaction=True)
+pytestmark = [
+    pytest.mark.django_db(transaction=True),
+    pytest.mark.usefixtures("no_snapshots_from_earlier_tests"),
+]
 
 
 async def connect(user, drone_id: str = "ACME_1") -> tuple[WebsocketCommunicator, bool, int]:  # type: ignore[no-untyped-def]

@@ -15,6 +15,8 @@ from onboard.fc.base import VehicleState
 from onboard.video import POSE_OBJECT, PoseSource, VideoConfig, VideoStreamer
 from pastview.teleop import BadInput, Stick, commands_for, heading_of
 
+pytestmark = pytest.mark.usefixtures("no_snapshots_from_earlier_tests")
+
 
 class Clock:
     """The vehicle state as the flight controller would leave it, changed by the test."""
