@@ -41,13 +41,16 @@ import signal
 import subprocess
 import sys
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 from urllib.parse import quote
 
 from . import protocol
 from .mqtt import parse_broker_urls
 from .navigation import ned_to_lla
+from .processes import Supervised, python_env
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 REPO_ROOT = PACKAGE_DIR.parent
@@ -169,20 +172,115 @@ def spread(home: tuple[float, float, float], count: int, spacing: float) -> list
     return points
 
 
+def agent_process(
+    drone_id: str,
+    folder: Path,
+    link: str,
+    broker_url: str,
+    *,
+    fc: str = "uavtalk",
+    arming_line: Path | None = None,
+    time_scale: float = 1.0,
+    extra: Sequence[str] = (),
+) -> Supervised:
+    """`python -m onboard` for one drone (not started): gear from `folder/gear`, flight
+    logs in `folder/logs`, its output in `folder/agent.log`. A UAVTalk drone arms through
+    the simulator's arming line unless `extra` says otherwise."""
+    arming = ["--arming", f"sim-line:{arming_line}"] if arming_line is not None else []
+    argv = [
+        sys.executable, "-m", "onboard",
+        "--drone-id", drone_id,
+        "--fc", fc,
+        "--link", link,
+        "--broker", broker_url,
+        *arming,
+        "--gear-dir", str(folder / "gear"),
+        "--log-dir", str(folder / "logs"),
+        "--time-scale", str(time_scale),
+        *extra,
+    ]  # fmt: skip
+    return Supervised(f"agent {drone_id}", argv, python_env(), folder / "agent.log")
+
+
+def copy_gear(folder: Path, template: Path = GEAR_EXAMPLE) -> Path:
+    """The drone's gear folder, copied from `template` the first time."""
+    gear = folder / "gear"
+    if not gear.exists():
+        folder.mkdir(parents=True, exist_ok=True)
+        shutil.copytree(template, gear)
+    return gear
+
+
 @dataclass
 class Drone:
+    """A software flight controller (`python -m firmware.sim`) and the real onboard agent."""
+
     drone_id: str
     folder: Path
     home: tuple[float, float, float]
     broker_url: str
-    sim: object = None  # firmware.sim.SimulatorProcess
-    agent: subprocess.Popen | None = None
+    sim: Any = None  # firmware.sim.SimulatorProcess
+    agent: Supervised | None = None
     restarts: int = 0
     fc: str = "uavtalk"
+    # start_simulator's options beyond home and time scale, e.g. battery_capacity_mah
+    sim_options: dict[str, Any] = field(default_factory=dict)
 
     @property
     def arming_line(self) -> Path:
         return self.folder / "arming_line"
+
+    def start(self, time_scale: float, agent_args: Sequence[str] = ()) -> Drone:
+        copy_gear(self.folder)
+        self.start_sim(time_scale)
+        self.start_agent(time_scale, agent_args)
+        return self
+
+    def start_sim(self, time_scale: float) -> None:
+        from firmware.sim import start_simulator
+
+        self.sim = start_simulator(
+            home=self.home,
+            time_scale=time_scale,
+            arming_line=self.arming_line if self.fc == "uavtalk" else None,
+            log_file=self.folder / "sim.log",
+            fc=self.fc,
+            **self.sim_options,
+        )
+
+    def start_agent(self, time_scale: float, agent_args: Sequence[str] = ()) -> None:
+        self.agent = agent_process(
+            self.drone_id,
+            self.folder,
+            self.sim.url,
+            self.broker_url,
+            fc=self.fc,
+            arming_line=self.arming_line if self.fc == "uavtalk" else None,
+            time_scale=time_scale,
+            extra=agent_args,
+        ).start()
+
+    def stop(self) -> None:
+        if self.agent is not None:
+            self.agent.stop(10)
+        if self.sim is not None:
+            self.sim.stop()
+
+
+def start_drone(
+    folder: Path,
+    drone_id: str,
+    broker_url: str,
+    home: tuple[float, float, float],
+    *,
+    time_scale: float,
+    fc: str = "uavtalk",
+    agent_args: Sequence[str] = (),
+    **sim_options: Any,
+) -> Drone:
+    """Start one drone; `broker_url` carries its credentials (several nodes: comma-separated)."""
+    drone = Drone(drone_id, folder, home, broker_url, fc=fc, sim_options=sim_options)
+    return drone.start(time_scale, agent_args)
 
 
 @dataclass
@@ -196,49 +294,10 @@ class Fleet:
 
     def start(self) -> None:
         for drone in self.drones:
-            drone.folder.mkdir(parents=True, exist_ok=True)
-            self._start_sim(drone)
-            self._start_agent(drone)
+            drone.start(self.time_scale, self.agent_args)
 
-    def _start_sim(self, drone: Drone) -> None:
-        from firmware.sim import start_simulator
-
-        drone.sim = start_simulator(
-            home=drone.home,
-            time_scale=self.time_scale,
-            arming_line=drone.arming_line if drone.fc == "uavtalk" else None,
-            log_file=drone.folder / "sim.log",
-            fc=drone.fc,
-        )
-
-    def _start_agent(self, drone: Drone) -> None:
-        args = [
-            sys.executable,
-            "-m",
-            "onboard",
-            "--drone-id",
-            drone.drone_id,
-            "--link",
-            drone.sim.url,  # type: ignore[attr-defined]
-            "--broker",
-            drone.broker_url,
-            "--fc",
-            drone.fc,
-            *(["--arming", f"sim-line:{drone.arming_line}"] if drone.fc == "uavtalk" else []),
-            "--gear-dir",
-            str(drone.folder / "gear"),
-            "--log-dir",
-            str(drone.folder / "logs"),
-            "--time-scale",
-            str(self.time_scale),
-            *self.agent_args,
-        ]
-        env = dict(os.environ)
-        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT), env.get("PYTHONPATH")]))
-        with open(drone.folder / "agent.log", "ab") as log_file:
-            drone.agent = subprocess.Popen(
-                args, stdout=subprocess.DEVNULL, stderr=log_file, cwd=REPO_ROOT, env=env
-            )
+    def restart_agent(self, drone: Drone) -> None:
+        drone.start_agent(self.time_scale, self.agent_args)
 
     def watch(self) -> None:
         """Restart what exits on its own, until stop() (one second backoff).
@@ -252,32 +311,20 @@ class Fleet:
 
     def _revive(self) -> None:
         for drone in self.drones:
-            if drone.sim is not None and not drone.sim.alive():  # type: ignore[attr-defined]
-                print(
-                    f"simulator of {drone.drone_id} exited; restarting it and its agent",
-                    file=sys.stderr,
-                    flush=True,
-                )
-                if drone.agent is not None and drone.agent.poll() is None:
-                    drone.agent.terminate()
-                    drone.agent.wait(10)
+            if drone.sim is not None and not drone.sim.alive():
+                _say(f"simulator of {drone.drone_id} exited; restarting it and its agent")
+                if drone.agent is not None:
+                    drone.agent.stop(10)
                 try:
-                    self._start_sim(drone)
+                    drone.start_sim(self.time_scale)
                 except Exception as exc:
-                    print(
-                        f"simulator of {drone.drone_id} did not restart: {exc}",
-                        file=sys.stderr,
-                        flush=True,
-                    )
+                    _say(f"simulator of {drone.drone_id} did not restart: {exc}")
                     continue
-            if drone.agent is not None and drone.agent.poll() is not None:
+            if drone.agent is not None and not drone.agent.alive:
                 drone.restarts += 1
-                print(
-                    f"agent {drone.drone_id} exited ({drone.agent.returncode}); restarting",
-                    file=sys.stderr,
-                    flush=True,
-                )
-                self._start_agent(drone)
+                code = drone.agent.process.returncode if drone.agent.process else None
+                _say(f"agent {drone.drone_id} exited ({code}); restarting")
+                self.restart_agent(drone)
 
     def stop(self) -> None:
         self._stopping.set()
@@ -285,18 +332,16 @@ class Fleet:
             self._stop_all()
 
     def _stop_all(self) -> None:
+        # Every agent is asked at once, so they drain in parallel.
         for drone in self.drones:
-            if drone.agent is not None and drone.agent.poll() is None:
-                drone.agent.send_signal(signal.SIGTERM)
+            if drone.agent is not None and drone.agent.alive:
+                drone.agent.process.terminate()  # type: ignore[union-attr]
         for drone in self.drones:
-            if drone.agent is not None:
-                try:
-                    drone.agent.wait(10)
-                except subprocess.TimeoutExpired:
-                    drone.agent.kill()
-                    drone.agent.wait()
-            if drone.sim is not None:
-                drone.sim.stop()  # type: ignore[attr-defined]
+            drone.stop()
+
+
+def _say(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
 
 
 def plan_fleet(
@@ -337,9 +382,7 @@ def plan_fleet(
         zip(chosen, spread(home, count, spacing), strict=True)
     ):
         folder = workdir / creds.drone_id
-        gear = folder / "gear"
-        if not gear.exists():
-            shutil.copytree(gear_template, gear)
+        copy_gear(folder, gear_template)
         drones.append(
             Drone(
                 creds.drone_id,
@@ -361,7 +404,7 @@ def _home(text: str) -> tuple[float, float, float]:
     return parts[0], parts[1], parts[2]
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m onboard.launcher",
         description=__doc__,
@@ -387,48 +430,66 @@ def main(argv: list[str] | None = None) -> int:
         help="flight-controller protocols given in turn, e.g. uavtalk,mavlink (env FC_MIX)",
     )
     p.add_argument("agent_args", nargs="*", help="extra agent flags, after --")
-    args = p.parse_args(argv)
-    try:
-        credentials = []
-        if args.credentials_file is not None:
-            credentials = parse_credentials(args.credentials_file.read_text())
-        fleet = plan_fleet(
-            count=args.count,
-            home=args.home,
-            workdir=args.workdir.resolve(),
-            credentials=credentials,
-            broker_url=args.broker_url,
-            provision_command=args.provision,
-            prefix=args.prefix,
-            spacing=args.spacing,
-            time_scale=args.time_scale,
-            gear_template=args.gear_template,
-            agent_args=args.agent_args,
-            fc_mix=tuple(p.strip() for p in args.fc_mix.split(",") if p.strip()),
-        )
-    except (LaunchError, OSError, ValueError) as exc:
-        print(f"onboard.launcher: {exc}", file=sys.stderr)
-        return 2
+    return p
+
+
+def _fleet_from(args: argparse.Namespace) -> Fleet:
+    credentials = []
+    if args.credentials_file is not None:
+        credentials = parse_credentials(args.credentials_file.read_text())
+    return plan_fleet(
+        count=args.count,
+        home=args.home,
+        workdir=args.workdir.resolve(),
+        credentials=credentials,
+        broker_url=args.broker_url,
+        provision_command=args.provision,
+        prefix=args.prefix,
+        spacing=args.spacing,
+        time_scale=args.time_scale,
+        gear_template=args.gear_template,
+        agent_args=args.agent_args,
+        fc_mix=tuple(p.strip() for p in args.fc_mix.split(",") if p.strip()),
+    )
+
+
+def _stop_on_signals() -> threading.Event:
+    """An event SIGTERM and SIGINT set (from now on, so a signal while starting counts)."""
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())
+    return stop
+
+
+def _run_until(fleet: Fleet, stop: threading.Event) -> None:
+    """Print each drone, keep the fleet alive until `stop` is set, then stop it."""
+    for drone in fleet.drones:
+        print(
+            f"drone: {drone.drone_id} fc={drone.fc} link={drone.sim.url} "
+            f"agent_pid={drone.agent.pid if drone.agent else None} folder={drone.folder}",
+            flush=True,
+        )
+    threading.Thread(target=fleet.watch, daemon=True).start()
+    while not stop.wait(1.0):
+        pass
+    fleet.stop()
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        fleet = _fleet_from(args)
+    except (LaunchError, OSError, ValueError) as exc:
+        print(f"onboard.launcher: {exc}", file=sys.stderr)
+        return 2
+    stop = _stop_on_signals()
     try:
         fleet.start()
     except Exception as exc:
         print(f"onboard.launcher: {exc}", file=sys.stderr)
         fleet.stop()
         return 1
-    for drone in fleet.drones:
-        print(
-            f"drone: {drone.drone_id} fc={drone.fc} link={drone.sim.url} "  # type: ignore[attr-defined]
-            f"agent_pid={drone.agent.pid if drone.agent else None} folder={drone.folder}",
-            flush=True,
-        )
-    watcher = threading.Thread(target=fleet.watch, daemon=True)
-    watcher.start()
-    while not stop.wait(1.0):
-        pass
-    fleet.stop()
+    _run_until(fleet, stop)
     return 0
 
 

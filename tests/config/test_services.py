@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 from django.test import Client
 
+from onboard.processes import stop_process
 from tests.support.celery_worker import start_worker, worker_env
-from tests.support.processes import stop_process
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -6,7 +6,7 @@ import uuid
 
 import pytest
 
-from tests.support.mosquitto import start_broker
+from workers.mosquitto import start_broker
 
 GROUND_PASSWORD = "ground-test-password"
 
@@ -109,12 +109,6 @@ def heartbeat(drone_id: str, **overrides: object) -> dict:
     }
     message.update(overrides)
     return message
-
-
-def wait_for(predicate, timeout: float = 5.0, interval: float = 0.02):  # type: ignore[no-untyped-def]
-    from tests.support.waiting import wait_for as poll
-
-    return poll(predicate, timeout, interval)
 
 
 class Responder:

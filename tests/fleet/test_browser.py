@@ -7,8 +7,9 @@ import pytest
 from django.db import connection
 
 from fleet.models import Drone
+from onboard.processes import wait_for
 
-from .conftest import client_for, wait_for
+from .conftest import client_for
 from .test_e2e import HEARTBEAT_S, IDS, start_fleet
 
 pytestmark = [pytest.mark.browser, pytest.mark.e2e, pytest.mark.django_db(transaction=True)]

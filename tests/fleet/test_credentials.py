@@ -12,8 +12,9 @@ from django.core.management import call_command
 
 from fleet import credentials
 from fleet.models import Drone
+from onboard.processes import wait_for
 
-from .conftest import client_for, mqtt_client, wait_for
+from .conftest import client_for, mqtt_client
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

@@ -10,8 +10,9 @@ import pytest
 from fleet import credentials
 from fleet.heartbeats import sweep_offline
 from fleet.models import ConnectionEvent, Drone
+from onboard.processes import wait_for
 
-from .conftest import client_for, wait_for
+from .conftest import client_for
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 

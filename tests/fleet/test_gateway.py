@@ -13,10 +13,11 @@ from django.utils import timezone
 from fleet import credentials
 from fleet.heartbeats import sweep_offline
 from fleet.models import ConnectionEvent, Drone
+from onboard.processes import wait_for
 from workers.counters import Counters, snapshot
 from workers.gateway import Gateway
 
-from .conftest import client_for, heartbeat, mqtt_client, wait_for
+from .conftest import client_for, heartbeat, mqtt_client
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from onboard.processes import stop_process
 from tests.support.celery_worker import start_worker, worker_env
-from tests.support.processes import stop_process
 
 QUEUE = f"logs-test-{uuid.uuid4().hex[:8]}"
 

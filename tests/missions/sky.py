@@ -1,5 +1,6 @@
 """End-to-end harness: a private Mosquitto, the real gateway, a real Celery worker and
-simulated drones (firmware.sim + the onboard agent, per drone), on the test database.
+simulated drones (onboard.launcher: firmware.sim and the onboard agent per drone,
+speaking UAVTalk or MAVLink), on the test database.
 
 Engineers run other suites against the same Redis at the same time, so the gateway
 outbox lives in a Redis database of our own and our Celery tasks go to a queue of our
@@ -8,10 +9,6 @@ own; neither changes what is tested.
 
 from __future__ import annotations
 
-import os
-import shutil
-import subprocess
-import sys
 import threading
 import uuid
 from dataclasses import dataclass, field
@@ -20,18 +17,15 @@ from typing import Any
 
 from django.conf import settings
 
-from firmware.sim import start_simulator
-from onboard.launcher import GEAR_EXAMPLE
+from onboard.launcher import Drone, start_drone
+from onboard.processes import stop_process, wait_for
 from tests.support.celery_worker import start_worker, worker_env
-from tests.support.mosquitto import Broker, start_broker
-from tests.support.processes import stop_process
-from tests.support.waiting import wait_for
+from workers.mosquitto import Broker, start_broker
 
 from .conftest import AVEIRO, OUTBOX_DB, point_at, redis_url_with_db
 
-ROOT = Path(__file__).resolve().parents[2]
 GROUND_PASSWORD = "ground-e2e-password"
-# Simulated seconds per real second: the seed's five-minute survey takes about 15 s.
+# Simulated seconds per real second: a five-minute survey takes about 15 s.
 TIME_SCALE = 20.0
 HOME_ALT_MSL = 12.0
 BEAT_INTERVAL_S = 1.0
@@ -43,7 +37,7 @@ class Worker:
     def __init__(self, database_name: str, log_dir: Path, broker_url: str) -> None:
         from config.celery import app
 
-        self.queue = f"h9-missions-{uuid.uuid4().hex[:8]}"
+        self.queue = f"missions-e2e-{uuid.uuid4().hex[:8]}"
         self._previous_queue = app.conf.task_default_queue
         app.conf.task_default_queue = self.queue
         env = worker_env(
@@ -72,22 +66,6 @@ class Worker:
         stop_process(self.process)
         self.log.close()
         app.conf.task_default_queue = self._previous_queue
-
-
-@dataclass
-class SimDrone:
-    drone_id: str
-    home: tuple[float, float, float]
-    folder: Path
-    broker_url: str = ""
-    sim: Any = None
-    agent: subprocess.Popen | None = None
-
-    def stop(self) -> None:
-        if self.agent is not None:
-            stop_process(self.agent)
-        if self.sim is not None:
-            self.sim.stop()
 
 
 class Ground:
@@ -150,7 +128,7 @@ class Sky:
     ground: Ground
     time_scale: float = TIME_SCALE
     gateway: Any = None
-    drones: list[SimDrone] = field(default_factory=list)
+    drones: list[Drone] = field(default_factory=list)
 
     @property
     def broker(self) -> Broker:
@@ -173,9 +151,9 @@ class Sky:
         tag = f"{self.broker.port}"  # type: ignore[union-attr]
         self.gateway = Gateway(
             self.broker.url_for("ground"),  # type: ignore[union-attr]
-            client_id=f"gw-h9-{tag}",
+            client_id=f"gw-missions-{tag}",
             persistent=True,
-            counters=Counters(f"gateway-h9-{tag}", flush_every=1e9),
+            counters=Counters(f"gateway-missions-{tag}", flush_every=1e9),
         )
         self.gateway.start()
         assert self.gateway.wait_connected(10), "the gateway did not connect"
@@ -184,55 +162,33 @@ class Sky:
         self.gateway.stop()
 
     def add_drone(
-        self, drone_id: str, *, north: float = 0.0, east: float = 0.0, extra: list[str] = ()
-    ) -> SimDrone:
-        """Provision the drone, start its simulator and agent, wait until it is online."""
+        self,
+        drone_id: str,
+        *,
+        north: float = 0.0,
+        east: float = 0.0,
+        extra: list[str] = (),  # type: ignore[assignment]
+        fc: str = "uavtalk",
+        **sim_options: Any,
+    ) -> Drone:
+        """Provision the drone and start its simulator (`sim_options` for start_simulator,
+        e.g. battery_capacity_mah) and agent, speaking `fc`; wait_online() waits for it."""
         from fleet import credentials
 
         creds = credentials.provision(drone_id, self.organisation_slug)
         lat, lon = point_at(north, east)
-        folder = self.tmp_path / drone_id
-        folder.mkdir(parents=True)
-        shutil.copytree(GEAR_EXAMPLE, folder / "gear")
         url = f"mqtt://{drone_id}:{creds.password}@127.0.0.1:{self.broker.port}"  # type: ignore[union-attr]
-        drone = SimDrone(drone_id, (lat, lon, HOME_ALT_MSL), folder, url)
-        self.drones.append(drone)
-        drone.sim = start_simulator(
-            home=drone.home,
+        drone = start_drone(
+            self.tmp_path / drone_id,
+            drone_id,
+            url,
+            (lat, lon, HOME_ALT_MSL),
             time_scale=self.time_scale,
-            arming_line=folder / "arming_line",
-            log_file=folder / "sim.log",
+            fc=fc,
+            agent_args=["--heartbeat-interval", "0.3", *extra],
+            **sim_options,
         )
-        env = dict(os.environ, PYTHONPATH=str(ROOT))
-        with open(folder / "agent.log", "ab") as log:
-            drone.agent = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "onboard",
-                    "--drone-id",
-                    drone_id,
-                    "--link",
-                    drone.sim.url,
-                    "--broker",
-                    drone.broker_url,
-                    "--arming",
-                    f"sim-line:{folder / 'arming_line'}",
-                    "--gear-dir",
-                    str(folder / "gear"),
-                    "--log-dir",
-                    str(folder / "logs"),
-                    "--time-scale",
-                    str(self.time_scale),
-                    "--heartbeat-interval",
-                    "0.3",
-                    *extra,
-                ],
-                stdout=subprocess.DEVNULL,
-                stderr=log,
-                cwd=ROOT,
-                env=env,
-            )
+        self.drones.append(drone)
         return drone
 
     def wait_online(self, timeout: float = 30.0) -> None:

@@ -1,5 +1,6 @@
-"""The seed's four experiments end to end (seed 001, ch. 5), plus pausing, duplicated
-alarms and a gateway restart: simulated drones, the real gateway, a real Celery worker."""
+"""The multi-drone platform's four experiments end to end (Paula 2018, ch. 5), flown by
+UAVTalk and by MAVLink drones, plus a mixed fleet, pausing, duplicated alarms and a gateway
+restart: simulated drones, the real gateway, a real Celery worker."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import time
 import pytest
 
 from missions.models import Assignment, Event, Mission, MissionStatus, Picture, StepStatus
+from onboard.processes import wait_for
 from tests.support.experiments import (  # noqa: F401 - `ground` is a shared fixture
     accepted_completions,
     api,
@@ -18,12 +20,14 @@ from tests.support.experiments import (  # noqa: F401 - `ground` is a shared fix
     wait_status,
 )
 from tests.support.ground import publish_as
-from tests.support.waiting import wait_for
 
 from .conftest import point_at, rectangle
 from .sky import Sky, metres
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
+# Each experiment the two flight-controller protocols fly alike, with drone ids of their own
+# (the module's broker outlives a test).
+PROTOCOLS = pytest.mark.parametrize("fc,tag", [("uavtalk", ""), ("mavlink", "M")])
 
 
 @pytest.fixture
@@ -33,9 +37,18 @@ def sky(world_tx, ground, tmp_path):  # type: ignore[no-untyped-def]  # noqa: F8
     s.close()
 
 
-def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx, sky):
-    sky.add_drone("ACME_P1", north=100)
+def drone_row(drone_id: str):  # type: ignore[no-untyped-def]
+    from fleet.models import Drone
+
+    return Drone.objects.get(drone_id=drone_id)
+
+
+@PROTOCOLS
+def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx, sky, fc, tag):
+    drone_id = f"ACME_{tag}P1"
+    sky.add_drone(drone_id, north=100, fc=fc)
     sky.wait_online()
+    assert drone_row(drone_id).fc == {"protocol": fc, "connected": True}
     caller = point_at(0, 0)
     response = api(world_tx.operator).post(
         "/api/v1/missions/panic/", {"lat": caller[0], "lon": caller[1]}, format="json"
@@ -44,10 +57,8 @@ def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx,
     mission = wait_status(response.json()["id"], {"completed", "failed", "stopped"}, 60)
     assert mission.status == MissionStatus.COMPLETED
 
-    from fleet.models import Drone
-
     def hovering_over_caller() -> bool:
-        drone = Drone.objects.get(drone_id="ACME_P1")
+        drone = drone_row(drone_id)
         return (
             drone.airborne
             and metres((drone.lat, drone.lon), caller) < 2.0
@@ -58,13 +69,16 @@ def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx,
     log = api(world_tx.operator).get(f"/api/v1/missions/{mission.pk}/log/").json()
     stages = {s["stage"]: s["duration_s"] for s in log["stages"]}
     assert set(stages) >= {"arm", "takeoff", "navigate"}
-    # Seed 5.1: climbing 10 m at ≤ 2 m/s takes at least 5 s; the whole call under a minute.
+    # Paula 2018, 5.1: climbing 10 m at ≤ 2 m/s takes at least 5 s; the whole call under a minute.
     assert stages["takeoff"] >= 4.0 and sum(stages.values()) < 60
     assert mission.assignments.get().decode_ms is not None
 
 
-def test_aerial_photography_takes_a_geotagged_picture_at_each_of_45_waypoints(world_tx, sky):
-    sky.add_drone("ACME_CAM", north=-20, east=-10)
+@PROTOCOLS
+def test_aerial_photography_takes_a_geotagged_picture_at_each_of_45_waypoints(
+    world_tx, sky, fc, tag
+):
+    sky.add_drone(f"ACME_{tag}CAM", north=-20, east=-10, fc=fc)
     sky.wait_online()
     body = {
         "name": "photography",
@@ -143,7 +157,7 @@ def test_self_replacement_hands_the_remaining_waypoints_to_a_second_drone(world_
         for drone, indexes in completed_waypoints(mission).items()
     }
     assert sorted(waypoints["ACME_R1"] + waypoints["ACME_R2"]) == waits  # none skipped
-    # Seed 5.3: 13 by the first drone, 15 by the replacement.
+    # Paula 2018, 5.3: 13 by the first drone, 15 by the replacement.
     assert len(waypoints["ACME_R1"]) >= 13 and len(waypoints["ACME_R2"]) >= 1
     completions = accepted_completions(mission)
     assert len(completions) == len(set(completions))  # no step done twice
@@ -153,18 +167,69 @@ def test_self_replacement_hands_the_remaining_waypoints_to_a_second_drone(world_
     assert decision.data["since_alarm_ms"] < 5000
 
 
-def test_collaborative_sensing_extends_the_area_to_56_waypoints_flown_by_three(world_tx, sky):
+def test_a_uavtalk_drone_running_out_of_battery_is_replaced_by_a_mavlink_drone(world_tx, sky):
+    from missions.planning import coverage, mission_steps
+
+    # A small battery: the UAVTalk drone's fail-safe raises CRITICAL (below 25 %) part
+    # way through the survey, as in Paula 2018, 5.3, and the ground hands its waypoints over.
+    sky.add_drone("ACME_UR1", north=-10, fc="uavtalk", battery_capacity_mah=300)
+    sky.add_drone("ACME_MR2", north=-40, east=-20, fc="mavlink")
+    sky.wait_online()
+    area = coverage(rectangle(60, 30), 10)
+    steps = mission_steps(area.waypoints, altitude=10)
+    client = api(world_tx.operator)
+    mission_id = client.post(
+        "/api/v1/missions/",
+        {
+            "name": "replace",
+            "steps": [{"command": s["command"], "params": s["params"]} for s in steps],
+        },
+        format="json",
+    ).json()["id"]
+    response = client.post(
+        f"/api/v1/missions/{mission_id}/start/", {"drone": "ACME_UR1"}, format="json"
+    )
+    assert response.status_code == 200, response.json()
+    mission = wait_status(mission_id, {"completed", "failed", "stopped"}, 90)
+    assert mission.status == MissionStatus.COMPLETED
+    events = "; ".join(e.message for e in mission.events.exclude(kind="step"))
+    assert "CRITICAL from ACME_UR1" in events, events
+    replacement = mission.assignments.get(reason=Assignment.Reason.REPLACEMENT)
+    assert replacement.drone.drone_id == "ACME_MR2"
+    waits = sorted(
+        mission.steps.filter(command="wait_for_flight")
+        .exclude(index__in=replacement.preparation)
+        .values_list("index", flat=True)
+    )
+    assert len(waits) == len(area.waypoints)
+    waypoints = {
+        drone: [i for i in indexes if i in waits]
+        for drone, indexes in completed_waypoints(mission).items()
+    }
+    assert sorted(waypoints["ACME_UR1"] + waypoints["ACME_MR2"]) == waits  # none skipped
+    assert len(waypoints["ACME_UR1"]) >= 1 and len(waypoints["ACME_MR2"]) >= 1
+    assert wait_for(lambda: not drone_row("ACME_UR1").airborne, 20)
+    # The ground knows which language each drone of the mixed fleet speaks.
+    assert drone_row("ACME_UR1").fc["protocol"] == "uavtalk"
+    assert drone_row("ACME_MR2").fc["protocol"] == "mavlink"
+
+
+@PROTOCOLS
+def test_collaborative_sensing_extends_the_area_to_56_waypoints_flown_by_three(
+    world_tx, sky, fc, tag
+):
     from missions.planning import coverage, mission_steps
 
     # A CO2 plume over waypoint 15 only (its neighbours are 7 m away, outside its 5 m
-    # radius); the fail-safe raises OUT_MEASURE above 1000 ppm (seed 5.4).
+    # radius); the fail-safe raises OUT_MEASURE above 1000 ppm (Paula 2018, 5.4).
     area = coverage(rectangle(35, 28), 7)
     assert len(area.waypoints) == 30
     plume_lat, plume_lon = area.waypoints[14]
     sensing = ["--plume", f"{plume_lat},{plume_lon},5,2000,CO2", "--bounds", "CO2::1000"]
-    sky.add_drone("ACME_C1", north=-10, extra=sensing)
-    sky.add_drone("ACME_C2", north=-30, east=20, extra=sensing)
-    sky.add_drone("ACME_C3", north=-30, east=45, extra=sensing)
+    ids = [f"ACME_{tag}C{n}" for n in (1, 2, 3)]
+    sky.add_drone(ids[0], north=-10, extra=sensing, fc=fc)
+    sky.add_drone(ids[1], north=-30, east=20, extra=sensing, fc=fc)
+    sky.add_drone(ids[2], north=-30, east=45, extra=sensing, fc=fc)
     sky.wait_online()
     action = [
         {"command": "sense", "params": {"sensor": "CO2"}},
@@ -184,7 +249,7 @@ def test_collaborative_sensing_extends_the_area_to_56_waypoints_flown_by_three(w
     )
     assert created.status_code == 201, created.json()
     mission_id = created.json()["id"]
-    client.post(f"/api/v1/missions/{mission_id}/start/", {"drone": "ACME_C1"}, format="json")
+    client.post(f"/api/v1/missions/{mission_id}/start/", {"drone": ids[0]}, format="json")
 
     mission = wait_status(mission_id, {"completed", "failed", "stopped"}, 120)
     assert mission.status == MissionStatus.COMPLETED
@@ -192,15 +257,15 @@ def test_collaborative_sensing_extends_the_area_to_56_waypoints_flown_by_three(w
     assert decision.data["waypoints"] == 56
     assert decision.data["area_m2"] == pytest.approx(2058, abs=1)
     parts = mission.assignments.filter(reason=Assignment.Reason.COLLABORATION)
-    assert sorted(a.drone.drone_id for a in parts) == ["ACME_C1", "ACME_C2", "ACME_C3"]
+    assert sorted(a.drone.drone_id for a in parts) == ids
     new_navigates = mission.steps.filter(
         index__in=[i for a in parts for i in a.step_indexes], command="navigate"
     )
     assert new_navigates.count() == 56
     assert new_navigates.filter(status=StepStatus.COMPLETED).count() == 56
     flown_by = {s.drone.drone_id for s in new_navigates}
-    assert flown_by == {"ACME_C1", "ACME_C2", "ACME_C3"}
-    alarming = parts.get(drone__drone_id="ACME_C1")
+    assert flown_by == set(ids)
+    alarming = parts.get(drone__drone_id=ids[0])
     assert alarming.preparation == []
     original = mission.steps.filter(command="navigate").exclude(pk__in=new_navigates)
     assert original.filter(status=StepStatus.COMPLETED).count() >= 15

@@ -4,9 +4,6 @@ to a drone and collects everything the drone publishes, in order."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -15,8 +12,8 @@ import paho.mqtt.client as paho
 from paho.mqtt.enums import CallbackAPIVersion
 
 from onboard import protocol
-
-REPO_ROOT = Path(__file__).resolve().parents[2]
+from onboard.launcher import agent_process, copy_gear
+from onboard.processes import Supervised
 
 
 class Ground:
@@ -109,48 +106,17 @@ def start_agent(
     broker_url: str,
     arming_line: Path,
     time_scale: float,
-    extra: list[str] = (),
-) -> subprocess.Popen:
-    """`python -m onboard` as a real process, its log in tmp_path/agent.log."""
-    gear = tmp_path / "gear"
-    if not gear.exists():
-        gear.mkdir()
-        for name in ("specs.json", "sensors.json"):
-            (gear / name).write_text((REPO_ROOT / "onboard" / "gear_example" / name).read_text())
-    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
-    args = [
-        sys.executable,
-        "-m",
-        "onboard",
-        "--drone-id",
+    extra: list[str] = (),  # type: ignore[assignment]
+) -> Supervised:
+    """`python -m onboard` as a real process for a simulator the test started itself, its
+    folder tmp_path (gear, logs, agent.log)."""
+    copy_gear(tmp_path)
+    return agent_process(
         drone_id,
-        "--link",
+        tmp_path,
         link,
-        "--broker",
         broker_url,
-        "--arming",
-        f"sim-line:{arming_line}",
-        "--gear-dir",
-        str(gear),
-        "--log-dir",
-        str(tmp_path / "logs"),
-        "--time-scale",
-        str(time_scale),
-        "--heartbeat-interval",
-        "0.5",
-        *extra,
-    ]
-    log = open(tmp_path / "agent.log", "ab")  # noqa: SIM115
-    try:
-        return subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=log, cwd=REPO_ROOT, env=env)
-    finally:
-        log.close()
-
-
-def wait_until(predicate, timeout: float, interval: float = 0.05) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(interval)
-    return bool(predicate())
+        arming_line=arming_line,
+        time_scale=time_scale,
+        extra=["--heartbeat-interval", "0.5", *extra],
+    ).start()

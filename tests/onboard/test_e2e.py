@@ -10,8 +10,8 @@ import pytest
 from firmware.sim import start_simulator
 from onboard import protocol
 from onboard.bridge import bridge_config
-from tests.support.mosquitto import start_broker
-from tests.support.processes import stop_process
+from onboard.processes import stop_process
+from workers.mosquitto import start_broker
 
 from .dfi_rules import check_dfi, labels
 from .ground import Ground, start_agent
@@ -68,7 +68,7 @@ def agent_for(tmp_path: Path, sim):
 
     yield start
     for process in started:
-        stop_process(process)
+        process.stop()
 
 
 def _pos(heartbeat: dict, key: str, default: float = 0.0) -> float:
@@ -146,7 +146,7 @@ def test_malformed_input_is_answered_or_dropped_and_the_agent_lives(broker, agen
         ground.send("gear", {"request_id": rid, "query": "reading", "sensor": "CO2"})
         reading = ground.wait_for("gear", lambda m: m.get("request_id") == rid)
         assert reading["ok"] and reading["reading"]["unit"] == "ppm"
-        assert process.poll() is None
+        assert process.alive
         assert ground.command("objrequest", value="FlightStatus")["ok"]
     finally:
         ground.close()
@@ -176,7 +176,7 @@ def test_a_request_delivered_twice_is_acted_on_once(broker, agent_for) -> None:
         assert len(replies) == 1 and replies[0]["ok"], replies
         statuses = [m["status"] for m in ground.on("mission") if m.get("type") == "mission"]
         assert statuses == ["accepted"], ground.on("mission")
-        assert process.poll() is None
+        assert process.alive
     finally:
         ground.close()
 
@@ -230,7 +230,7 @@ def test_a_mission_survives_a_broker_restart_and_its_log_holds_every_step(
         assert picture["name"] == completed[5]["result"]["name"] and picture["index"] == 5
     finally:
         ground.close()
-    assert stop_process(process) == 0
+    assert process.stop() == 0
     archives = sorted((tmp_path / "logs").glob("*.dfi"))
     assert archives, list((tmp_path / "logs").iterdir())
     rows = {}
@@ -349,7 +349,7 @@ def test_a_plume_and_a_draining_battery_raise_one_alarm_each(tmp_path: Path) -> 
         assert poses and set(poses[-1]["fields"]) >= {"North", "East", "Down", "qw"}
     finally:
         ground.close()
-        stop_process(process)
+        process.stop()
         sim.stop()
         broker.stop()
 
@@ -444,7 +444,7 @@ def test_the_drone_arms_through_uavtalk_receiver_channels(tmp_path: Path, broker
         assert not (tmp_path / "unused").exists()  # no arming line was involved
     finally:
         ground.close()
-        stop_process(process)
+        process.stop()
         sim.stop()
 
 
@@ -452,7 +452,7 @@ def test_a_bridged_drone_lands_when_the_ground_link_is_lost(
     broker, agent_for, tmp_path: Path
 ) -> None:
     from onboard.bridge import state_topic
-    from tests.support.mosquitto import GROUND_AND_DRONES_ACL
+    from workers.mosquitto import GROUND_AND_DRONES_ACL
 
     acl = f"user {DRONE}\ntopic read $SYS/broker/connection/#\n\n" + GROUND_AND_DRONES_ACL
     internal = start_broker(

@@ -18,10 +18,10 @@ from onboard.gear import GearError, GearManager
 from onboard.heartbeat import build_heartbeat, derive_drone_id
 from onboard.launcher import broker_url_for, parse_credentials, spread
 from onboard.navigation import ned_to_lla
+from onboard.processes import wait_for
 from onboard.sensors import SensorField, parse_plume_option
 
 from .fakes import HOME, FakeFlightController
-from .ground import wait_until
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "onboard" / "gear_example"
 
@@ -219,7 +219,7 @@ def test_the_receiver_switch_sends_the_arming_sticks() -> None:
     assert arm[:6] == [1500, 1500, 1000, 2000, 1500, 1500] and len(arm) == 8
     assert UAVTalkReceiverSwitch(fc, frames=StickFrames()).channels("arm") == arm
     switch.request_arm()
-    assert wait_until(lambda: len([c for c in fc.calls if c[0] == "write"]) >= 4, 5)
+    assert wait_for(lambda: len([c for c in fc.calls if c[0] == "write"]) >= 4, 5)
     switch.release()
     writes = [c for c in fc.calls if c[0] == "write"]
     assert len(writes) >= 4
@@ -317,11 +317,11 @@ def test_the_receiver_switch_retries_after_the_board_refuses_to_arm() -> None:
     switch = UAVTalkReceiverSwitch(fc, rate_hz=100)
     fc._state.update(arming=True)
     switch.request_arm()
-    assert wait_until(lambda: len(fc.calls) >= 2, 5)  # the switch has seen Arming
+    assert wait_for(lambda: len(fc.calls) >= 2, 5)  # the switch has seen Arming
     fc._state.update(arming=False)  # an alarm: back to Disarmed without arming
-    assert wait_until(lambda: switch.retries == 1, 5)
+    assert wait_for(lambda: switch.retries == 1, 5)
     calls = len(fc.calls)
-    assert wait_until(lambda: len(fc.calls) >= calls + 8, 5)  # neutral, then arm again
+    assert wait_for(lambda: len(fc.calls) >= calls + 8, 5)  # neutral, then arm again
     switch.release()
     assert switch.retries == 1
     yaws = [c[2]["Channel"][3] for c in fc.calls if c[0] == "write"]

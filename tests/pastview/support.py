@@ -141,15 +141,6 @@ class ServiceThread:
         self.thread.join(10)
 
 
-def wait_until(predicate, timeout: float = 10.0, interval: float = 0.02) -> bool:  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(interval)
-    return bool(predicate())
-
-
 def close(a: list[float], b: list[float], tol: float = 1e-6) -> bool:
     return all(math.isclose(x, y, abs_tol=tol) for x, y in zip(a, b, strict=True))
 

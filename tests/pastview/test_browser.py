@@ -14,7 +14,7 @@ import pytest
 from PIL import Image
 
 from tests.conftest import login
-from tests.support.mosquitto import start_broker
+from workers.mosquitto import start_broker
 
 from .support import DronePublisher, ServiceThread, level
 

@@ -13,11 +13,11 @@ from pathlib import Path
 import pytest
 
 from firmware.sim import start_simulator
+from onboard.processes import wait_for
 from tests.onboard.ground import Ground, start_agent
-from tests.support.mosquitto import start_broker
-from tests.support.processes import stop_process
+from workers.mosquitto import start_broker
 
-from .support import ServiceThread, in_own_loop, wait_until
+from .support import ServiceThread, in_own_loop
 from .test_consumer import connect
 
 pytestmark = [
@@ -58,7 +58,7 @@ def drone(tmp_path: Path, broker):
         extra=["--video-rate", "10", "--pose-rate", "50"],
     )
     yield agent
-    stop_process(agent)
+    agent.stop()
     sim.stop()
 
 
@@ -178,7 +178,7 @@ def test_the_agent_publishes_downsampled_frames_and_a_pose_stream(drone, broker)
     ground = Ground(broker.port, DRONE, password="pw", client_id="pastview-e2e-ground2")
     try:
         ground.wait_for("camera", lambda m: True, timeout=30)
-        assert wait_until(lambda: len(ground.on("camera")) >= 11, timeout=10)
+        assert wait_for(lambda: len(ground.on("camera")) >= 11, timeout=10)
         frames = ground.on("camera")
         assert all(f["jpeg"].startswith("/9j/") for f in frames)  # base64 of a JPEG's SOI
         # Every third frame of the 30 Hz camera for the 10 Hz asked (fewer on a busy machine:

@@ -14,17 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from tests.support.mosquitto import start_broker
+from onboard.processes import wait_for
+from workers.mosquitto import start_broker
 
-from .support import (
-    DronePublisher,
-    GroupListener,
-    ServiceThread,
-    close,
-    in_own_loop,
-    level,
-    wait_until,
-)
+from .support import DronePublisher, GroupListener, ServiceThread, close, in_own_loop, level
 
 pytestmark = [
     pytest.mark.django_db(transaction=True),
@@ -130,7 +123,7 @@ async def test_bad_input_is_counted_and_the_view_keeps_running(service, drone):
         status = service.service.status(DRONE)
         return bool(status) and status["poses_received"] == 3
 
-    assert wait_until(counted)
+    assert wait_for(counted)
     status = service.service.status(DRONE)
     assert status["frames_malformed"] == 1
     assert status["buffer"]["corrupt_jpeg"] == 1

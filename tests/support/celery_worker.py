@@ -9,13 +9,11 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from typing import IO
 
-from .paths import ROOT
+from workers.ground import worker_argv
 
-# Worker-to-worker chatter the tests never read; without it a worker starts faster.
-NO_CHATTER = ("--without-heartbeat", "--without-gossip", "--without-mingle")
+from .paths import ROOT
 
 
 def worker_env(database_name: str, **extra: str) -> dict[str, str]:
@@ -26,27 +24,6 @@ def worker_env(database_name: str, **extra: str) -> dict[str, str]:
         TEST_WORKER_DB_NAME=database_name,
         **extra,
     )
-
-
-def worker_argv(
-    name: str,
-    *,
-    queue: str | None = None,
-    loglevel: str = "warning",
-    pool: str = "solo",
-    concurrency: int | None = None,
-    chatter: bool = True,
-) -> list[str]:
-    """`celery -A config worker` named `name` (`%h` is the host), on `queue` if given."""
-    argv = [sys.executable, "-m", "celery", "-A", "config", "worker", "--pool", pool]
-    if concurrency is not None:
-        argv += ["--concurrency", str(concurrency)]
-    if queue is not None:
-        argv += ["-Q", queue]
-    argv += ["-l", loglevel, "-n", name]
-    if not chatter:
-        argv += NO_CHATTER
-    return argv
 
 
 def start_worker(

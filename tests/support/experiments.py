@@ -1,8 +1,8 @@
-"""What the seed's experiments share, whichever drones fly them: the module's ground (a
+"""What the multi-drone experiments share, whichever drones fly them: the module's ground (a
 private broker and a Celery worker, tests/missions/sky.py), the operator's API client,
 waiting for a mission's status, the survey missions they fly and what they leave behind.
 
-Used by tests/missions and tests/mavlink (UAVTalk and MAVLink drones) and by the
+Used by tests/missions/test_experiments.py (UAVTalk and MAVLink drones) and by the
 replicated ground (tests/support/ground.py). Django is imported inside the functions, so
 importing this module needs no settings.
 """
@@ -43,8 +43,7 @@ def api(user: Any) -> APIClient:
 
 def wait_status(mission_id: str, wanted: set[str], timeout: float) -> Mission:
     from missions.models import Mission
-
-    from .waiting import wait_for
+    from onboard.processes import wait_for
 
     def done() -> Mission | None:
         mission = Mission.objects.get(pk=mission_id)
@@ -92,7 +91,7 @@ def survey_with_alarm(
     """Survey steps with a virtual alarm right after waypoint `after` (1-based) is done,
     and the mission's extensibility."""
     from missions.planning import coverage, mission_steps
-    from tests.missions.conftest import rectangle
+    from tests.missions.planning import rectangle
 
     area = coverage(rectangle(width, height), step)
     steps = mission_steps(area.waypoints, altitude=10, intermediate_action=action)

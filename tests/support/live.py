@@ -4,11 +4,10 @@ headless Debian Chromium driven by Playwright, for browser and end-to-end tests.
 from __future__ import annotations
 
 import os
-import socket
-import subprocess
-import sys
-import time
 from pathlib import Path
+
+from onboard.processes import Supervised, free_port, python_env
+from workers.ground import web_argv
 
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = os.environ.get("CHROMIUM", "/usr/bin/chromium")
@@ -22,59 +21,24 @@ CHROMIUM_ARGS = [
 ]
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 class LiveServer:
+    """The ASGI app under uvicorn on a free port, reading `database_name`."""
+
     def __init__(self, database_name: str, extra_env: dict[str, str] | None = None):
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
-        env = dict(
-            os.environ,
+        env = python_env(
             DJANGO_SETTINGS_MODULE="config.settings.test",
             TEST_WORKER_DB_NAME=database_name,
             PYTHONUNBUFFERED="1",
             **(extra_env or {}),
         )
-        self.log = open(ROOT / ".data" / "test" / f"live-{self.port}.log", "w")  # noqa: SIM115
-        self.process = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "uvicorn",
-                "config.asgi:application",
-                "--host",
-                "127.0.0.1",
-                "--port",
-                str(self.port),
-                "--no-access-log",
-            ],
-            cwd=ROOT,
-            env=env,
-            stdout=self.log,
-            stderr=subprocess.STDOUT,
-        )
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline:
-            try:
-                with socket.create_connection(("127.0.0.1", self.port), timeout=0.2):
-                    return
-            except OSError:
-                if self.process.poll() is not None:
-                    raise RuntimeError("the live server exited; see " + self.log.name) from None
-                time.sleep(0.1)
-        raise RuntimeError("the live server did not start")
+        log = ROOT / ".data" / "test" / f"live-{self.port}.log"
+        self.process = Supervised("live server", web_argv(self.port), env, log, port=self.port)
+        self.process.start().wait_ready(30)
 
     def stop(self) -> None:
-        self.process.terminate()
-        try:
-            self.process.wait(10)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-        self.log.close()
+        self.process.stop(10)
 
 
 def launch_chromium(playwright):  # type: ignore[no-untyped-def]

@@ -11,7 +11,7 @@ from telemetry.ingest import CounterSink, DroneMap, IngestConfig, Ingestor, load
 from telemetry.live import ChannelsLivePublisher
 from telemetry.queries import conninfo_from_settings
 from tests.conftest import login
-from tests.support.mosquitto import start_broker
+from workers.mosquitto import start_broker
 
 from .support import Publisher, drone_messages
 

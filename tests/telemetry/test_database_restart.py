@@ -9,11 +9,12 @@ import time
 import psycopg
 import pytest
 
+from onboard.processes import wait_for
 from telemetry.ingest import CounterSink, DroneMap, IngestConfig, Ingestor, load_drone_ids
-from tests.support.mosquitto import start_broker
+from workers.mosquitto import start_broker
 
 from .private_postgres import start_private_postgres
-from .support import Publisher, drone_messages, wait_until
+from .support import Publisher, drone_messages
 
 pytestmark = pytest.mark.e2e
 
@@ -74,7 +75,7 @@ def test_nothing_is_lost_when_postgres_is_down_for_ten_seconds(private_db, tmp_p
         for pilot in pilots:
             pilot.join(30)
         total = sum(published.values())
-        assert wait_until(lambda: ingestor.stored >= total, 20)
+        assert wait_for(lambda: ingestor.stored >= total, 20)
         with psycopg.connect(private_db.conninfo) as conn:
             rows, distinct = conn.execute(
                 "SELECT count(*), count(DISTINCT (drone_id, object, ts)) FROM telemetry_sample"

@@ -14,6 +14,7 @@ from pathlib import Path
 import psycopg
 import pytest
 
+from onboard.processes import wait_for
 from telemetry.ingest import (
     CounterSink,
     DroneMap,
@@ -22,9 +23,9 @@ from telemetry.ingest import (
     Limits,
     load_drone_ids,
 )
-from tests.support.mosquitto import start_broker
+from workers.mosquitto import start_broker
 
-from .support import Publisher, drone_messages, wait_until
+from .support import Publisher, drone_messages
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.e2e
@@ -89,7 +90,7 @@ def test_every_object_a_drone_publishes_is_stored_exactly_once(world_tx, tmp_pat
         drone.close()
         expected = sum(len(m["objects"]) for m in messages)
         conninfo = _conninfo()
-        assert wait_until(lambda: _stored(conninfo, world_tx.drone.pk)[0] >= expected, 20)
+        assert wait_for(lambda: _stored(conninfo, world_tx.drone.pk)[0] >= expected, 20)
         process.send_signal(signal.SIGTERM)
         assert process.wait(20) == 0
         rows, distinct = _stored(conninfo, world_tx.drone.pk)
@@ -169,7 +170,7 @@ def test_bad_messages_are_counted_by_reason_and_nothing_of_them_is_stored(world_
                 ground.publish("ACME_1/telemetry/out", payload)
         ground.publish("NOBODY_9/telemetry/out", good)
         ground.publish("ACME_1/telemetry/out", good)
-        assert wait_until(lambda: ingestor.stored >= 1, 10)
+        assert wait_for(lambda: ingestor.stored >= 1, 10)
         for reason, payloads in bad.items():
             assert counters.counts.get(f"dropped.{reason}") == len(payloads), reason
         assert counters.counts["dropped.unknown_drone"] == 1
@@ -204,7 +205,7 @@ def test_a_full_buffer_counts_overflow_instead_of_growing(world_tx, tmp_path):
                 },
             )
         counts = counters.counts
-        assert wait_until(
+        assert wait_for(
             lambda: counts.get("objects_received", 0) + counts.get("overflow", 0) == 30, 10
         )
         assert ingestor.buffer.rows == 20
@@ -230,11 +231,11 @@ def test_the_ingest_reconnects_after_a_broker_restart_and_keeps_storing(world_tx
             ground.close()
 
         send(0)
-        assert wait_until(lambda: ingestor.stored == 1, 10)
+        assert wait_for(lambda: ingestor.stored == 1, 10)
         broker.restart(down_for=0.5)
-        assert wait_until(lambda: ingestor.subscriber.sessions == 2, 15)
+        assert wait_for(lambda: ingestor.subscriber.sessions == 2, 15)
         send(1)
-        assert wait_until(lambda: ingestor.stored == 2, 10)
+        assert wait_for(lambda: ingestor.stored == 2, 10)
         assert _stored(_conninfo(), world_tx.drone.pk) == (2, 2)
     finally:
         ingestor.stop()
@@ -254,7 +255,7 @@ def test_a_drone_provisioned_after_the_ingest_started_loses_no_first_sample(worl
         now = time.time()
         message = {"ts": now, "objects": [{"name": "Gyros", "ts": now, "fields": {"x": 1.0}}]}
         ground.publish("LATE_1/telemetry/out", json.dumps(message).encode())
-        assert wait_until(lambda: ingestor.stored >= 1, 10)
+        assert wait_for(lambda: ingestor.stored >= 1, 10)
         assert counters.counts.get("dropped.unknown_drone", 0) == 0
         assert _stored(conninfo, newcomer.pk) == (1, 1)
     finally:

@@ -13,7 +13,7 @@ import threading
 import time
 import urllib.error
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import ExitStack
 from typing import Any
 
@@ -22,8 +22,8 @@ import psycopg
 import pytest
 
 from fleet import credentials
+from onboard.processes import wait_for
 from telemetry.ingest import CounterSink, DroneMap, IngestConfig, Ingestor, load_drone_ids
-from tests.support import waiting
 from workers import broker, outbox
 from workers.counters import Counters
 from workers.gateway import Gateway
@@ -42,10 +42,6 @@ def record_heartbeat(drone_id: str, message: Any) -> None:
 
 
 # -- helpers shared with test_failover ------------------------------------------------------
-
-
-def wait_for(predicate: Callable[[], Any], timeout: float = 10.0, every: float = 0.05) -> Any:
-    return waiting.wait_for(predicate, timeout, every)
 
 
 def purge(cluster: Any, queue: str) -> None:

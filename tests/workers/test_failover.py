@@ -18,8 +18,9 @@ import pytest
 
 from fleet import credentials
 from onboard.mqtt import MqttLink
-from tests.support.mosquitto import start_broker
+from onboard.processes import wait_for
 from workers import outbox
+from workers.mosquitto import start_broker
 
 from .test_consumers import (
     SEEN,
@@ -32,7 +33,6 @@ from .test_consumers import (
     stored,
     telemetry,
     use_cluster,
-    wait_for,
 )
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
@@ -86,7 +86,7 @@ def test_a_killed_node_moves_the_gateway_ingest_and_drone_links_to_the_other_los
         ground.client.publish("ACME_1/control/in", text, qos=1).wait_for_publish(5)
 
     # Once the agent's subscription is in place a message gets through; then start afresh.
-    assert wait_for(lambda: to_agent("hello") or agent_inbox, 10, every=0.5)
+    assert wait_for(lambda: to_agent("hello") or agent_inbox, 10, interval=0.5)
     time.sleep(0.3)
     agent_inbox.clear()
 

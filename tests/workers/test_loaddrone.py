@@ -20,7 +20,7 @@ import pytest
 
 from onboard import protocol
 from onboard.loaddrone import Account, Fleet, grid_home, position_age
-from tests.support.mosquitto import Broker, start_broker
+from workers.mosquitto import Broker, start_broker
 
 
 class FleetThread:
@@ -336,7 +336,7 @@ def test_the_load_harness_sees_every_sample_stored_and_every_command_answered(
     tmp_path: Path,
 ) -> None:
     from bench.scale_harness import LoadConfig, run_load
-    from tests.support.mosquitto import free_port
+    from onboard.processes import free_port
 
     config = LoadConfig(
         drones=20, broker="mosquitto", duration=3.0, baseline_commands=3, mqtt_port=free_port(),

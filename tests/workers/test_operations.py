@@ -15,19 +15,20 @@ from django.test import Client, override_settings
 from rest_framework.test import APIClient
 
 from fleet.credentials import render_acl
+from onboard import processes
+from onboard.processes import free_port, stop_process
 from tests.conftest import login
-from tests.support import waiting
 from tests.support.celery_worker import start_worker, worker_env
-from tests.support.mosquitto import free_port, start_broker
-from tests.support.processes import stop_process
 from workers import operations
 from workers.broker import mosquitto_sys
 from workers.counters import Counters, instances, start_heartbeat
 from workers.gateway import Gateway
+from workers.mosquitto import start_broker
 
 
 def wait_for(condition, timeout: float = 10.0, every: float = 0.1):  # type: ignore[no-untyped-def]
-    value = waiting.wait_for(condition, timeout, every)
+    """The shared wait_for, failing the test when the condition is never met."""
+    value = processes.wait_for(condition, timeout, every)
     if not value:
         raise AssertionError("condition not met in time")
     return value

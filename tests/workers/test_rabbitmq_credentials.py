@@ -23,8 +23,9 @@ from django.test import Client
 
 from fleet import credentials
 from fleet.models import Drone
-from tests.support.mosquitto import start_broker
+from onboard.processes import wait_for
 from workers.broker.rabbitmq_admin import RabbitMQAdmin, RabbitMQAdminError, rabbit_password_hash
+from workers.mosquitto import start_broker
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -107,15 +108,6 @@ class Peer:
     def stop(self) -> None:
         self.client.disconnect()
         self.client.loop_stop()
-
-
-def wait_for(predicate, timeout: float = 5.0) -> bool:  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return bool(predicate())
 
 
 def drone_url(issued: credentials.Credentials, node: int) -> str:

@@ -9,8 +9,8 @@ from typing import Any
 import pytest
 
 from firmware.sim import start_simulator
+from onboard import processes
 from onboard.fc.mavlink import MavlinkFlightController
-from tests.support import waiting
 
 # Simulated seconds per wall second: a 10 m climb takes about a quarter of a second.
 TIME_SCALE = 20.0
@@ -19,7 +19,7 @@ HOME = (40.6303, -8.6575, 12.0)
 
 def wait_for(predicate: Callable[[], Any], timeout: float, interval: float = 0.02) -> Any:
     """Polls more often than the shared default: simulated flights pass states quickly."""
-    return waiting.wait_for(predicate, timeout, interval)
+    return processes.wait_for(predicate, timeout, interval)
 
 
 @pytest.fixture

@@ -3,9 +3,6 @@ MAVLink personality over TCP, a private Mosquitto; the ground is a plain MQTT cl
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -13,9 +10,10 @@ import pytest
 
 from firmware.sim import start_simulator
 from onboard import protocol
-from tests.onboard.ground import REPO_ROOT, Ground
-from tests.support.mosquitto import start_broker
-from tests.support.processes import stop_process
+from onboard.launcher import agent_process, copy_gear
+from onboard.processes import Supervised
+from tests.onboard.ground import Ground
+from workers.mosquitto import start_broker
 
 from .conftest import HOME, TIME_SCALE, wait_for
 
@@ -47,30 +45,16 @@ def fly(tmp_path: Path, broker):  # type: ignore[no-untyped-def]
             **sim_kwargs,
         )
         started.append(sim)
-        gear = tmp_path / "gear"
-        gear.mkdir(exist_ok=True)
-        for name in ("specs.json", "sensors.json"):
-            (gear / name).write_text((REPO_ROOT / "onboard/gear_example" / name).read_text())
-        with open(tmp_path / "agent.log", "ab") as log:
-            agent = subprocess.Popen(
-                [
-                    sys.executable, "-m", "onboard",
-                    "--drone-id", DRONE,
-                    "--fc", "mavlink",
-                    "--link", sim.link_url,
-                    "--broker", broker.url_for(DRONE),
-                    "--gear-dir", str(gear),
-                    "--log-dir", str(tmp_path / "logs"),
-                    "--time-scale", str(TIME_SCALE),
-                    "--heartbeat-interval", "0.5",
-                    "--arm-timeout", "6",
-                    *agent_args,
-                ],
-                stdout=subprocess.DEVNULL,
-                stderr=log,
-                cwd=REPO_ROOT,
-                env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
-            )  # fmt: skip
+        copy_gear(tmp_path)
+        agent = agent_process(
+            DRONE,
+            tmp_path,
+            sim.link_url,
+            broker.url_for(DRONE),
+            fc="mavlink",
+            time_scale=TIME_SCALE,
+            extra=["--heartbeat-interval", "0.5", "--arm-timeout", "6", *agent_args],
+        ).start()
         started.append(agent)
         ground = Ground(broker.port, DRONE)
         started.append(ground)
@@ -81,8 +65,8 @@ def fly(tmp_path: Path, broker):  # type: ignore[no-untyped-def]
 
     yield start
     for thing in reversed(started):
-        if isinstance(thing, subprocess.Popen):
-            assert stop_process(thing) == 0, "the agent did not stop cleanly"
+        if isinstance(thing, Supervised):
+            assert thing.stop() == 0, "the agent did not stop cleanly"
         elif isinstance(thing, Ground):
             thing.close()
         else:

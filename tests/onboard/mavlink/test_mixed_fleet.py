@@ -4,16 +4,15 @@ the ground commands each the same way."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from tests.onboard.ground import REPO_ROOT, Ground
-from tests.support.mosquitto import start_broker
-from tests.support.processes import stop_process
+from onboard.processes import REPO_ROOT, python_env, stop_process
+from tests.onboard.ground import Ground
+from workers.mosquitto import start_broker
 
 from .conftest import HOME, TIME_SCALE
 
@@ -37,7 +36,7 @@ def test_the_launcher_mixes_uavtalk_and_mavlink_drones_that_fly_alike(tmp_path: 
             "--", "--heartbeat-interval", "0.5",
         ],
         cwd=REPO_ROOT,
-        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT), FC_MIX="uavtalk,mavlink"),
+        env=python_env(FC_MIX="uavtalk,mavlink"),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -14,6 +14,7 @@ from firmware.sim import start_simulator
 from onboard.fc.base import CommandTimeout, FlightControllerError, NotConnected
 from onboard.fc.uavtalk import UAVTalkFlightController
 from onboard.links import LinkError, parse_link_url
+from onboard.processes import wait_for
 
 SCALE = 20.0
 HOME = (38.736946, -9.142685, 100.0)
@@ -40,15 +41,6 @@ class LineSwitch:
 
     def release(self) -> None:
         self.set("00")
-
-
-def wait_for(predicate, timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return predicate()
 
 
 @pytest.fixture

@@ -1,6 +1,7 @@
-"""Start private Mosquitto brokers for tests that need their own (bridges, restarts, ACLs).
+"""Private Mosquitto brokers for tests and benchmarks that need their own (bridges,
+restarts, ACLs, a measured broker nobody else loads).
 
-The suite's shared broker is started by scripts/services.sh; these are extra, throw-away
+The shared broker is started by scripts/services.sh; these are extra, throw-away
 instances on free ports, configured the same way (no anonymous access, TCP_NODELAY).
 """
 
@@ -9,20 +10,14 @@ from __future__ import annotations
 import os
 import shutil
 import signal
-import socket
 import subprocess
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from onboard.processes import free_port, port_open, wait_for
+
 MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
 MOSQUITTO_PASSWD = shutil.which("mosquitto_passwd") or "/usr/bin/mosquitto_passwd"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @dataclass
@@ -76,15 +71,11 @@ class Broker:
         self.process = subprocess.Popen(
             [MOSQUITTO, "-c", str(conf)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            try:
-                with socket.create_connection(("127.0.0.1", self.port), timeout=0.2):
-                    return self
-            except OSError:
-                if self.process.poll() is not None:
-                    raise RuntimeError(f"mosquitto exited: {self.log.read_text()}") from None
-                time.sleep(0.05)
+        process = self.process
+        if wait_for(lambda: port_open(self.port) or process.poll() is not None, timeout):
+            if process.poll() is None:
+                return self
+            raise RuntimeError(f"mosquitto exited: {self.log.read_text()}")
         raise RuntimeError("mosquitto did not start")
 
     def stop(self) -> None:
@@ -98,6 +89,8 @@ class Broker:
         self.process = None
 
     def restart(self, down_for: float = 0.0) -> None:
+        import time
+
         self.stop()
         time.sleep(down_for)
         self.start()
