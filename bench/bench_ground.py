@@ -272,10 +272,10 @@ def main() -> None:
     from fleet import credentials
     from fleet.models import Membership, Organisation, Role
     from tests.support.live import free_port
-    from tests.support.mosquitto import start_broker
     from workers import outbox
     from workers.counters import KEY_PREFIX
     from workers.counters import _client as counters_redis
+    from workers.mosquitto import start_broker
 
     db_name = connection.creation.create_test_db(verbosity=0, autoclobber=True, keepdb=False)
     tmp = Path(tempfile.mkdtemp(prefix="bench-ground-"))

@@ -192,7 +192,8 @@ class Observer:
 
 
 def start_broker(directory: Path, users: dict[str, str]):  # type: ignore[no-untyped-def]
-    from tests.support.mosquitto import GROUND_AND_DRONES_ACL, MOSQUITTO_PASSWD, Broker, free_port
+    from onboard.processes import free_port
+    from workers.mosquitto import GROUND_AND_DRONES_ACL, MOSQUITTO_PASSWD, Broker
 
     class FastBroker(Broker):
         """All users hashed by one mosquitto_passwd -U call."""
@@ -327,8 +328,8 @@ def main() -> int:
 
     from bench.common import record
     from fleet.models import Drone, Organisation
+    from onboard.processes import stop_process
     from tests.support.celery_worker import worker_argv
-    from tests.support.processes import stop_process
     from workers import outbox
 
     outbox.sync_redis().flushdb()

@@ -41,7 +41,8 @@ import psycopg
 
 from bench.common import best_of, percentile, record
 from onboard.mqttwire import connect_packet, publish_packet
-from tests.support.mosquitto import GROUND_AND_DRONES_ACL, MOSQUITTO_PASSWD, Broker, free_port
+from onboard.processes import free_port
+from workers.mosquitto import GROUND_AND_DRONES_ACL, MOSQUITTO_PASSWD, Broker
 
 ROOT = Path(__file__).resolve().parents[1]
 DB_NAME = "bench_telemetry"

@@ -106,7 +106,9 @@ class GroundProcesses:
 
     # -- what to run ------------------------------------------------------------------------
 
-    def _add(self, kind: str, make: Callable[[str], list[str]], port: int | None = None) -> Supervised:
+    def _add(
+        self, kind: str, make: Callable[[str], list[str]], port: int | None = None
+    ) -> Supervised:
         name = f"{kind}{len(self.of_kind(kind)) + 1}"
         process = Supervised(
             name,
