@@ -1,4 +1,4 @@
-"""Ground link (issue 4): command round trip REST → drone → REST, and heartbeat rate.
+"""Ground link: command round trip REST → drone → REST, and heartbeat rate.
 
     .venv/bin/python -m bench.bench_ground
 
@@ -33,8 +33,13 @@ import sys
 import tempfile
 import threading
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 from urllib.parse import urlsplit, urlunsplit
+
+from onboard.processes import Supervised, free_port, python_env
+from workers.ground import gateway_argv, web_argv
 
 ROOT = Path(__file__).resolve().parents[1]
 DB_NAME = "bench_ground"
@@ -261,17 +266,26 @@ def gateway_counter(name: str) -> float:
     return snapshot().get("gateway", {}).get(name, 0.0)
 
 
-def main() -> None:
-    setup_django()
-    from django.conf import settings
-    from django.contrib.auth import get_user_model
-    from django.db import connection
-    from rest_framework.authtoken.models import Token
+@dataclass
+class Bench:
+    """What one run set up: the broker, the drones' credentials, the ground processes."""
 
-    from bench.common import percentile
-    from fleet import credentials
-    from fleet.models import Membership, Organisation, Role
-    from tests.support.live import free_port
+    broker: Any
+    ground_password: str
+    token: str
+    names: list[str]
+    passwords: dict[str, str]
+    db_name: str
+    processes: list[Supervised] = field(default_factory=list)
+    responders: list[Responder] = field(default_factory=list)
+    base_url: str = ""
+
+
+def _set_up() -> Bench:
+    """A test database, a private broker the settings point at, an operator and 100 drones."""
+    from django.conf import settings
+    from django.db import connection
+
     from workers import outbox
     from workers.counters import KEY_PREFIX
     from workers.counters import _client as counters_redis
@@ -290,6 +304,17 @@ def main() -> None:
     settings.MQTT_PUBLIC_HOST, settings.MQTT_PUBLIC_PORT = "127.0.0.1", broker.port
     counters_redis().delete(KEY_PREFIX + "gateway")
     outbox.sync_redis().delete(outbox.outbox_key())
+    token, names, passwords = _provision()
+    return Bench(broker, ground_password, token, names, passwords, db_name)
+
+
+def _provision() -> tuple[str, list[str], dict[str, str]]:
+    """An operator's API token, the drone ids and their broker passwords."""
+    from django.contrib.auth import get_user_model
+    from rest_framework.authtoken.models import Token
+
+    from fleet import credentials
+    from fleet.models import Membership, Organisation, Role
 
     organisation = Organisation.objects.create(name="Bench", slug="bench")
     user = get_user_model().objects.create_user("bench-operator", password="x")
@@ -297,150 +322,138 @@ def main() -> None:
     token = Token.objects.create(user=user).key
     names = [drone_id(i) for i in range(100)]
     passwords = {name: credentials.provision(name, "bench").password for name in names}
+    return token, names, passwords
 
-    env = dict(
-        os.environ,
-        TEST_WORKER_DB_NAME=db_name,
-        MQTT_URL=broker.url_for("ground"),
-        MOSQUITTO_DIR=str(broker.directory),
+
+def _start_ground(bench: Bench) -> None:
+    """The real gateway and the ASGI app, on the bench database and broker."""
+    env = python_env(
+        TEST_WORKER_DB_NAME=bench.db_name,
+        MQTT_URL=bench.broker.url_for("ground"),
+        MOSQUITTO_DIR=str(bench.broker.directory),
         PYTHONUNBUFFERED="1",
         LOG_LEVEL="WARNING",
     )
-    processes = []
-    responders: list[Responder] = []
+    gateway = Supervised("gateway", gateway_argv(), env).start()
+    bench.processes.append(gateway)
+    port = free_port()
+    web = Supervised("web", [*web_argv(port), "--log-level", "warning"], env, port=port)
+    bench.processes.append(web.start())
+    web.wait_ready(30)
+    bench.base_url = web.url
+
+
+def _measure_rtts(bench: Bench) -> tuple[dict[str, tuple[list[float], list[float]]], list[float]]:
+    """REST and bare MQTT round trips with 1, then 100 drones connected; and with one
+    connected, the same HTTP stack without a drone in the loop (for the summary)."""
+    results: dict[str, tuple[list[float], list[float]]] = {}
+    read: list[float] = []
+    port = bench.broker.port
+    for count in (1, 100):
+        while len(bench.responders) < count:
+            name = bench.names[len(bench.responders)]
+            bench.responders.append(Responder(name, bench.passwords[name], port))
+        active = bench.names[:count]
+        _wait_online(bench.responders[:count])
+        samples = SAMPLES_1 if count == 1 else SAMPLES_100
+        bare = bare_mqtt_rtt(port, bench.ground_password, active, samples)
+        rest = rest_rtt(bench.base_url, bench.token, active, samples)
+        if count == 1:
+            read = rest_read_rtt(bench.base_url, bench.token, active[0], samples)
+        results[str(count)] = (rest, bare)
+    return results, read
+
+
+def _record_rtts(results: dict[str, tuple[list[float], list[float]]]) -> None:
+    from bench.common import percentile
+
+    (rest1, bare1), (rest100, bare100) = results["1"], results["100"]
+    goal_p50 = "p50 overhead under 3x the bare MQTT round trip"
+    for key, rest, bare, drones in (
+        ("ground.command_rtt_p50_1", rest1, bare1, "1 drone"),
+        ("ground.command_rtt_p50_100", rest100, bare100, "100 drones"),
+    ):
+        _record(
+            key,
+            value=statistics.median(rest),
+            unit="ms",
+            baseline_name=f"bare MQTT request/response p50, same broker, {drones}",
+            baseline_value=statistics.median(bare),
+            higher_is_better=False,
+            goal=goal_p50,
+        )
+    _record(
+        "ground.command_rtt_p99_100",
+        value=percentile(rest100, 99),
+        unit="ms",
+        baseline_name="bare MQTT request/response p99, same broker, 100 drones",
+        baseline_value=percentile(bare100, 99),
+        higher_is_better=False,
+        goal="p99 under 50 ms on loopback",
+    )
+
+
+def _measure_heartbeats(bench: Bench) -> tuple[float, float]:
+    """(the gateway's heartbeat rate, the raw paho rate of the same flood)."""
+    for responder in bench.responders:
+        responder.stop()
+    bench.responders.clear()
+    port, password = bench.broker.port, bench.ground_password
+    gateway_rate = _gateway_heartbeat_rate(port, password, bench.names)
+    bench.processes[0].stop(10)  # the baseline receiver gets the broker and the CPU to itself
+    raw_rate = _raw_rate(port, password, bench.names)
+    _record(
+        "ground.heartbeats_per_s",
+        value=gateway_rate,
+        unit="heartbeats/s",
+        baseline_name="raw paho receive rate of the same flood (one client, no work)",
+        baseline_value=raw_rate,
+        higher_is_better=True,
+        goal="as close to the raw paho rate as one UPDATE per heartbeat allows",
+    )
+    return gateway_rate, raw_rate
+
+
+def _summary(results: dict, read: list[float], rates: tuple[float, float]) -> str:
+    from bench.common import percentile
+
+    (rest1, bare1), (rest100, bare100) = results["1"], results["100"]
+    figures = {
+        "rest_p50_1": statistics.median(rest1),
+        "rest_read_p50_no_drone": statistics.median(read),
+        "bare_p50_1": statistics.median(bare1),
+        "rest_p50_100": statistics.median(rest100),
+        "rest_p99_100": percentile(rest100, 99),
+        "bare_p50_100": statistics.median(bare100),
+        "bare_p99_100": percentile(bare100, 99),
+        "gateway_heartbeats_per_s": rates[0],
+        "raw_paho_per_s": rates[1],
+    }
+    return json.dumps(figures, indent=1)
+
+
+def _tear_down(bench: Bench) -> None:
+    from django.db import connection
+
+    for responder in bench.responders:
+        responder.stop()
+    for process in bench.processes:
+        process.stop(10)
+    bench.broker.stop()
+    connection.creation.destroy_test_db(bench.db_name, verbosity=0)
+
+
+def main() -> None:
+    setup_django()
+    bench = _set_up()
     try:
-        gateway = subprocess.Popen(
-            [sys.executable, "manage.py", "gateway"],
-            cwd=ROOT,
-            env=env,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-        )
-        processes.append(gateway)
-        web_port = free_port()
-        web = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "uvicorn",
-                "config.asgi:application",
-                "--host",
-                "127.0.0.1",
-                "--port",
-                str(web_port),
-                "--no-access-log",
-                "--log-level",
-                "warning",
-            ],
-            cwd=ROOT,
-            env=env,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-        )
-        processes.append(web)
-        base_url = f"http://127.0.0.1:{web_port}"
-        _wait_port(web_port)
-
-        results: dict[str, tuple[list[float], list[float]]] = {}
-        for count in (1, 100):
-            while len(responders) < count:
-                name = names[len(responders)]
-                responders.append(Responder(name, passwords[name], broker.port))
-            active = names[:count]
-            _wait_online(responders[:count])
-            samples = SAMPLES_1 if count == 1 else SAMPLES_100
-            bare = bare_mqtt_rtt(broker.port, ground_password, active, samples)
-            rest = rest_rtt(base_url, token, active, samples)
-            if count == 1:
-                read = rest_read_rtt(base_url, token, active[0], samples)
-            results[str(count)] = (rest, bare)
-
-        rest1, bare1 = results["1"]
-        rest100, bare100 = results["100"]
-        goal_p50 = "p50 overhead under 3x the bare MQTT round trip"
-        _record(
-            "ground.command_rtt_p50_1",
-            value=statistics.median(rest1),
-            unit="ms",
-            baseline_name="bare MQTT request/response p50, same broker, 1 drone",
-            baseline_value=statistics.median(bare1),
-            higher_is_better=False,
-            goal=goal_p50,
-        )
-        _record(
-            "ground.command_rtt_p50_100",
-            value=statistics.median(rest100),
-            unit="ms",
-            baseline_name="bare MQTT request/response p50, same broker, 100 drones",
-            baseline_value=statistics.median(bare100),
-            higher_is_better=False,
-            goal=goal_p50,
-        )
-        _record(
-            "ground.command_rtt_p99_100",
-            value=percentile(rest100, 99),
-            unit="ms",
-            baseline_name="bare MQTT request/response p99, same broker, 100 drones",
-            baseline_value=percentile(bare100, 99),
-            higher_is_better=False,
-            goal="p99 under 50 ms on loopback",
-        )
-
-        for responder in responders:
-            responder.stop()
-        responders.clear()
-        gateway_rate = _gateway_heartbeat_rate(broker.port, ground_password, names)
-        gateway.terminate()  # the baseline receiver gets the broker and the CPU to itself
-        gateway.wait(10)
-        raw_rate = _raw_rate(broker.port, ground_password, names)
-        _record(
-            "ground.heartbeats_per_s",
-            value=gateway_rate,
-            unit="heartbeats/s",
-            baseline_name="raw paho receive rate of the same flood (one client, no work)",
-            baseline_value=raw_rate,
-            higher_is_better=True,
-            goal="as close to the raw paho rate as one UPDATE per heartbeat allows",
-        )
-        print(
-            json.dumps(
-                {
-                    "rest_p50_1": statistics.median(rest1),
-                    "rest_read_p50_no_drone": statistics.median(read),
-                    "bare_p50_1": statistics.median(bare1),
-                    "rest_p50_100": statistics.median(rest100),
-                    "rest_p99_100": percentile(rest100, 99),
-                    "bare_p50_100": statistics.median(bare100),
-                    "bare_p99_100": percentile(bare100, 99),
-                    "gateway_heartbeats_per_s": gateway_rate,
-                    "raw_paho_per_s": raw_rate,
-                },
-                indent=1,
-            )
-        )
+        _start_ground(bench)
+        results, read = _measure_rtts(bench)
+        _record_rtts(results)
+        rates = _measure_heartbeats(bench)
+        print(_summary(results, read, rates))
     finally:
-        for responder in responders:
-            responder.stop()
-        for process in processes:
-            process.terminate()
-        for process in processes:
-            try:
-                process.wait(10)
-            except subprocess.TimeoutExpired:
-                process.kill()
-        broker.stop()
-        connection.creation.destroy_test_db(db_name, verbosity=0)
-
-
-def _wait_port(port: int, timeout: float = 30) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
-                return
-        except OSError:
-            time.sleep(0.1)
-    raise RuntimeError(f"nothing listens on {port}")
+        _tear_down(bench)
 
 
 def _wait_online(responders: list[Responder], timeout: float = 30) -> None:

@@ -1,4 +1,4 @@
-"""Time to first plot of a processed flight log in headless Chromium (issue 7).
+"""Time to first plot of a processed flight log in headless Chromium.
 
 A 10-minute PX4 ULog (IMU and attitude at 250 Hz, position, GPS, battery) is imported into
 its columnar store, then its page is opened in headless Chromium against the real ASGI app
@@ -19,6 +19,10 @@ import statistics
 import tempfile
 from pathlib import Path
 
+from bench.browser import launch_chromium
+from onboard.processes import Supervised, free_port, python_env
+from workers.ground import web_argv
+
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.test")
 os.environ["TEST_DB_NAME"] = f"bench_logs_browser_{os.getpid()}"
 
@@ -36,14 +40,16 @@ def _prepare(logs_dir: Path) -> tuple[str, str]:
     settings.LOGS_DIR = str(logs_dir)
     connection.creation.create_test_db(verbosity=0, autoclobber=True, serialize=False)
 
-    from fleet.models import Role
+    from django.contrib.auth import get_user_model
+
+    from fleet.models import Membership, Organisation, Role
     from logs import services
     from logs.models import FlightLog, LogStatus
     from logs.synth import synthetic_ulog
-    from tests import factories
 
-    org = factories.organisation("bench")
-    user = factories.person(org, Role.OPERATOR, "bench", password=PASSWORD)
+    org = Organisation.objects.create(name="Bench", slug="bench")
+    user = get_user_model().objects.create_user("bench", password=PASSWORD)
+    Membership.objects.create(user=user, organisation=org, role=Role.OPERATOR)
     source = logs_dir / "flight.ulg"
     synthetic_ulog(source, seconds=LOG_SECONDS)
     log = FlightLog.objects.create(
@@ -55,70 +61,88 @@ def _prepare(logs_dir: Path) -> tuple[str, str]:
     return connection.settings_dict["NAME"], str(log.pk)
 
 
-def _measure(base_url: str, log_id: str) -> dict:
+def _log_in(browser, base_url: str, javascript: bool):  # type: ignore[no-untyped-def]
+    """A desktop-sized page of a fresh context, logged in as the bench operator."""
+    context = browser.new_context(
+        viewport={"width": 1440, "height": 900}, java_script_enabled=javascript
+    )
+    page = context.new_page()
+    page.goto(f"{base_url}/accounts/login/")
+    page.fill("input[name=username]", "bench")
+    page.fill("input[name=password]", PASSWORD)
+    page.click("button[type=submit]")
+    page.wait_for_load_state()
+    return context, page
+
+
+def _first_plot(page, page_url: str) -> tuple[float, int, int]:  # type: ignore[no-untyped-def]
+    """One load with JavaScript: (ms to the first drawn chart, series bytes, most points)."""
     from playwright.sync_api import Error as PlaywrightError
+
+    sizes: list[int] = []
+    points: list[int] = []
+
+    def on_response(response) -> None:  # type: ignore[no-untyped-def]
+        if "/series/" not in response.url or not response.ok:
+            return
+        try:
+            body = response.body()
+        except PlaywrightError:
+            return  # aborted by a newer request for the same chart
+        sizes.append(len(body))
+        points.append(len(json.loads(body)["t"]))
+
+    page.on("response", on_response)
+    page.goto(page_url)
+    page.wait_for_function("document.documentElement.dataset.firstPlot", timeout=30_000)
+    first = float(page.evaluate("document.documentElement.dataset.firstPlot"))
+    page.wait_for_load_state("networkidle")
+    page.remove_listener("response", on_response)
+    return first, sum(sizes), max(points, default=0)
+
+
+def _bare_html(page, page_url: str) -> float:  # type: ignore[no-untyped-def]
+    """One load without JavaScript: ms to the load event."""
+    page.goto(page_url, wait_until="load")
+    return page.evaluate("performance.getEntriesByType('navigation')[0].loadEventEnd")
+
+
+def _measure(base_url: str, log_id: str) -> dict:
     from playwright.sync_api import sync_playwright
 
-    from tests.support.live import launch_chromium
-
     page_url = f"{base_url}/logs/{log_id}/"
-    first_plot, bare_html, series_bytes, series_points = [], [], [], []
+    loads: list[tuple[float, int, int]] = []
+    bare_html: list[float] = []
     with sync_playwright() as playwright:
         browser = launch_chromium(playwright)
         try:
-            for javascript in (True, False):
-                context = browser.new_context(
-                    viewport={"width": 1440, "height": 900}, java_script_enabled=javascript
-                )
-                page = context.new_page()
-                page.goto(f"{base_url}/accounts/login/")
-                page.fill("input[name=username]", "bench")
-                page.fill("input[name=password]", PASSWORD)
-                page.click("button[type=submit]")
-                page.wait_for_load_state()
-                for _ in range(ROUNDS):
-                    if javascript:
-                        sizes: list[int] = []
-                        points: list[int] = []
-
-                        def on_response(response, sizes=sizes, points=points):  # type: ignore[no-untyped-def]
-                            if "/series/" not in response.url or not response.ok:
-                                return
-                            try:
-                                body = response.body()
-                            except PlaywrightError:
-                                return  # aborted by a newer request for the same chart
-                            sizes.append(len(body))
-                            points.append(len(json.loads(body)["t"]))
-
-                        page.on("response", on_response)
-                        page.goto(page_url)
-                        page.wait_for_function(
-                            "document.documentElement.dataset.firstPlot", timeout=30_000
-                        )
-                        first_plot.append(
-                            float(page.evaluate("document.documentElement.dataset.firstPlot"))
-                        )
-                        page.wait_for_load_state("networkidle")
-                        page.remove_listener("response", on_response)
-                        series_bytes.append(sum(sizes))
-                        series_points.append(max(points, default=0))
-                    else:
-                        page.goto(page_url, wait_until="load")
-                        bare_html.append(
-                            page.evaluate(
-                                "performance.getEntriesByType('navigation')[0].loadEventEnd"
-                            )
-                        )
-                context.close()
+            context, page = _log_in(browser, base_url, javascript=True)
+            loads = [_first_plot(page, page_url) for _ in range(ROUNDS)]
+            context.close()
+            context, page = _log_in(browser, base_url, javascript=False)
+            bare_html = [_bare_html(page, page_url) for _ in range(ROUNDS)]
+            context.close()
         finally:
             browser.close()
     return {
-        "first_plot_s": statistics.median(first_plot) / 1000,
+        "first_plot_s": statistics.median(load[0] for load in loads) / 1000,
         "bare_html_s": statistics.median(bare_html) / 1000,
-        "series_bytes": int(statistics.median(series_bytes)),
-        "max_points_per_series": max(series_points),
+        "series_bytes": int(statistics.median(load[1] for load in loads)),
+        "max_points_per_series": max(load[2] for load in loads),
     }
+
+
+def _live_server(database: str, logs_dir: Path) -> Supervised:
+    """The ASGI app under uvicorn on the bench database, its logs in `logs_dir`."""
+    port = free_port()
+    env = python_env(
+        TEST_WORKER_DB_NAME=database,
+        PYTHONUNBUFFERED="1",
+        LOGS_DIR=str(logs_dir),
+        MAP_TILE_URL="",
+    )
+    server = Supervised("web", web_argv(port), env, logs_dir / "web.log", port=port)
+    return server.start().wait_ready(30)
 
 
 def main() -> None:
@@ -128,14 +152,13 @@ def main() -> None:
     from django.db import connection
 
     from bench.common import record
-    from tests.support.live import LiveServer
 
     original_database = connection.settings_dict["NAME"]
     logs_dir = Path(tempfile.mkdtemp(prefix="bench-logs-"))
     server = None
     try:
         database, log_id = _prepare(logs_dir)
-        server = LiveServer(database, extra_env={"LOGS_DIR": str(logs_dir), "MAP_TILE_URL": ""})
+        server = _live_server(database, logs_dir)
         result = _measure(server.url, log_id)
         record(
             "logs.first_plot_s",

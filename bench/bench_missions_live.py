@@ -1,4 +1,4 @@
-"""Replacement latency (issue 5): a CRITICAL alarm reaching the broker → the replacement
+"""Replacement latency: a CRITICAL alarm reaching the broker → the replacement
 drone accepting its mission, with 1 and with 100 candidate drones connected.
 
     .venv/bin/python -m bench.bench_missions_live
@@ -18,17 +18,21 @@ Baseline in the same run: a bare MQTT publish → receive through the same broke
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import threading
 import time
 import uuid
 from pathlib import Path
+from typing import Any
 from urllib.parse import urlsplit, urlunsplit
+
+from onboard.processes import Supervised, free_port, python_env, wait_for
+from workers.ground import gateway_argv, worker_argv
 
 ROOT = Path(__file__).resolve().parents[1]
 DB_NAME = "bench_missions_live"
@@ -192,27 +196,9 @@ class Observer:
 
 
 def start_broker(directory: Path, users: dict[str, str]):  # type: ignore[no-untyped-def]
-    from onboard.processes import free_port
-    from workers.mosquitto import GROUND_AND_DRONES_ACL, MOSQUITTO_PASSWD, Broker
+    from workers.mosquitto import GROUND_AND_DRONES_ACL, Broker
 
-    class FastBroker(Broker):
-        """All users hashed by one mosquitto_passwd -U call."""
-
-        def write_config(self) -> Path:
-            everyone, self.users = self.users, {}
-            conf = super().write_config()
-            self.users = everyone
-            passwd = self.directory / "passwd"
-            passwd.write_text("".join(f"{u}:{p}\n" for u, p in everyone.items()))
-            subprocess.run([MOSQUITTO_PASSWD, "-U", str(passwd)], check=True)
-            return conf
-
-    return FastBroker(directory, free_port(), users, GROUND_AND_DRONES_ACL).start()
-
-
-def spawn(args: list[str], env: dict[str, str], log: Path) -> subprocess.Popen:
-    with open(log, "w") as handle:
-        return subprocess.Popen(args, cwd=ROOT, env=env, stdout=handle, stderr=subprocess.STDOUT)
+    return Broker(directory, free_port(), users, GROUND_AND_DRONES_ACL).start()
 
 
 def bare_round_trip(port: int, password: str, observer: Observer, samples: int = 100) -> float:
@@ -238,6 +224,94 @@ def bare_round_trip(port: int, password: str, observer: Observer, samples: int =
     return statistics.median(times)
 
 
+class Fleet:
+    """The failing drone and `size` candidates on a line north of it, 15 m apart, beating
+    every second until stopped."""
+
+    def __init__(self, size: int, broker, passwords: dict[str, str]) -> None:  # type: ignore[no-untyped-def]
+        from missions.geo import LocalFrame
+
+        self.frame = LocalFrame(*HOME)
+        self.names = [drone_id(i) for i in range(size + 1)]
+        self.emulators = [
+            Emulator(broker.port, name, passwords[name], self.frame.point_to_latlon([15.0 * i, 0]))
+            for i, name in enumerate(self.names)
+        ]
+        self._stopping = threading.Event()
+        self._beater = threading.Thread(target=self._beat, daemon=True)
+
+    @property
+    def failing(self) -> Emulator:
+        return self.emulators[0]
+
+    def start(self) -> Fleet:
+        from fleet.models import Drone
+
+        for emulator in self.emulators:
+            assert emulator.connected.wait(10)
+            emulator.heartbeat()
+        self._beater.start()
+
+        def online() -> bool:
+            rows = Drone.objects.filter(drone_id__in=self.names, online=True)
+            return rows.count() == len(self.names)
+
+        assert wait_for(online, 30, interval=0.1), "emulated drones did not come online"
+        return self
+
+    def _beat(self) -> None:
+        while not self._stopping.wait(1.0):
+            for emulator in self.emulators:
+                emulator.heartbeat()
+
+    def stop(self) -> None:
+        self._stopping.set()
+        self._beater.join()
+        for emulator in self.emulators:
+            emulator.stop()
+
+
+def survey_steps(frame) -> list[dict]:  # type: ignore[no-untyped-def]
+    """Arm, take off, six waypoints 10 m apart, land."""
+    steps = [{"command": "arm"}, {"command": "takeoff", "params": {"altitude": 10}}]
+    for k in range(6):
+        lat, lon = frame.point_to_latlon([10.0 * k, 5.0])
+        steps += [
+            {"command": "navigate", "params": {"lat": lat, "lon": lon}},
+            {"command": "wait_for_flight"},
+        ]
+    return [*steps, {"command": "land"}]
+
+
+def one_sample(fleet: Fleet, observer: Observer, steps: list[dict], n: int) -> tuple[float, Any]:
+    """Start a mission on the failing drone, raise its alarm: (seconds until a candidate
+    accepted, the mission)."""
+    from fleet.models import Drone, Organisation
+    from missions.services import create_mission, start_mission
+
+    organisation = Organisation.objects.get(slug="bench")
+    mission = create_mission(organisation=organisation, name=f"bench {n}", steps=steps)
+    failing_drone = Drone.objects.get(drone_id=fleet.failing.name)
+    assignment = start_mission(mission, drone=failing_drone).assignment
+    time.sleep(0.3)  # the failing drone accepts its own start first
+    accepted = observer.expect_accept_from(set(fleet.names[1:]))
+    started = time.perf_counter()
+    fleet.failing.alarm(str(mission.pk), str(assignment.pk))
+    assert accepted.wait(10), f"no replacement accepted (fleet {len(fleet.names) - 1})"
+    return observer.arrived - started, mission
+
+
+def decision_seconds(mission) -> float | None:  # type: ignore[no-untyped-def]
+    """The ground's own time from alarm to decision, once the decision is on record."""
+    from missions.models import Event
+
+    def decided():  # type: ignore[no-untyped-def]
+        return Event.objects.filter(mission=mission, data__decision="replacement").first()
+
+    decision = wait_for(decided, 1.0, interval=0.02)
+    return decision.data.get("since_alarm_ms", 0.0) / 1000 if decision is not None else None
+
+
 def measure(fleet_size: int, broker, passwords: dict[str, str], observer: Observer) -> dict:  # type: ignore[no-untyped-def]
     """Median, p95 and the ground's own decision time for one fleet size."""
     import statistics
@@ -245,74 +319,21 @@ def measure(fleet_size: int, broker, passwords: dict[str, str], observer: Observ
     from django.db import connections
 
     from bench.common import percentile
-    from fleet.models import Drone, Organisation
-    from missions.geo import LocalFrame
-    from missions.models import Event
-    from missions.services import create_mission, start_mission, stop_mission
+    from missions.services import stop_mission
 
-    frame = LocalFrame(*HOME)
-    organisation = Organisation.objects.get(slug="bench")
-    names = [drone_id(i) for i in range(fleet_size + 1)]  # the failing one + candidates
-    emulators = []
-    for i, name in enumerate(names):
-        # Candidates on a line north of the failing drone, 15 m apart.
-        position = frame.point_to_latlon([15.0 * i, 0.0])
-        emulators.append(Emulator(broker.port, name, passwords[name], position))
-    beating = threading.Event()
-
-    def beat() -> None:
-        while not beating.wait(1.0):
-            for emulator in emulators:
-                emulator.heartbeat()
-
-    for emulator in emulators:
-        assert emulator.connected.wait(10)
-        emulator.heartbeat()
-    beater = threading.Thread(target=beat, daemon=True)
-    beater.start()
-    deadline = time.monotonic() + 30
-    while Drone.objects.filter(drone_id__in=names, online=True).count() < len(names):
-        assert time.monotonic() < deadline, "emulated drones did not come online"
-        time.sleep(0.1)
-    failing = emulators[0]
-    candidates = {name for name in names[1:]}
-    waypoints = [frame.point_to_latlon([10.0 * k, 5.0]) for k in range(6)]
-    steps = [{"command": "arm"}, {"command": "takeoff", "params": {"altitude": 10}}]
-    for lat, lon in waypoints:
-        steps += [
-            {"command": "navigate", "params": {"lat": lat, "lon": lon}},
-            {"command": "wait_for_flight"},
-        ]
-    steps.append({"command": "land"})
+    fleet = Fleet(fleet_size, broker, passwords).start()
+    steps = survey_steps(fleet.frame)
     latencies, decisions = [], []
     for sample in range(WARMUP + SAMPLES):
-        mission = create_mission(organisation=organisation, name=f"bench {sample}", steps=steps)
-        failing_drone = Drone.objects.get(drone_id=failing.name)
-        assignment = start_mission(mission, drone=failing_drone).assignment
-        time.sleep(0.3)  # the failing drone accepts its own start first
-        accepted = observer.expect_accept_from(candidates)
-        started = time.perf_counter()
-        failing.alarm(str(mission.pk), str(assignment.pk))
-        assert accepted.wait(10), f"no replacement accepted (fleet {fleet_size})"
-        elapsed = observer.arrived - started
+        elapsed, mission = one_sample(fleet, observer, steps, sample)
         if sample >= WARMUP:
             latencies.append(elapsed)
-            decision = None
-            for _ in range(50):
-                decision = Event.objects.filter(
-                    mission=mission, data__decision="replacement"
-                ).first()
-                if decision:
-                    break
-                time.sleep(0.02)
+            decision = decision_seconds(mission)
             if decision is not None:
-                decisions.append(decision.data.get("since_alarm_ms", 0.0) / 1000)
+                decisions.append(decision)
         stop_mission(mission, reason="benchmark sample done")
         time.sleep(0.2)
-    beating.set()
-    beater.join()
-    for emulator in emulators:
-        emulator.stop()
+    fleet.stop()
     connections.close_all()
     return {
         "median": statistics.median(latencies),
@@ -321,75 +342,78 @@ def measure(fleet_size: int, broker, passwords: dict[str, str], observer: Observ
     }
 
 
+def start_ground(broker, db_name: str, workdir: Path) -> list[Supervised]:  # type: ignore[no-untyped-def]
+    """The real gateway and a Celery worker on the bench database, broker and Redis."""
+    from django.conf import settings
+
+    env = python_env(
+        TEST_WORKER_DB_NAME=db_name,
+        MQTT_URL=broker.url_for("ground"),
+        REDIS_URL=settings.REDIS_URL,
+        PYTHONUNBUFFERED="1",
+    )
+    worker = worker_argv(f"bench-{uuid.uuid4().hex[:6]}@%h", chatter=False)
+    return [
+        Supervised("gateway", gateway_argv(), env, workdir / "gateway.log").start(),
+        Supervised("worker", worker, env, workdir / "worker.log").start(),
+    ]
+
+
+def record_latency(size: int, figures: dict, baseline: float) -> None:
+    from bench.common import record
+
+    record(
+        f"missions.replacement_latency_{size}",
+        value=round(figures["median"], 4),
+        unit="s",
+        baseline_name="bare MQTT publish→receive, same broker (median)",
+        baseline_value=round(baseline, 5),
+        higher_is_better=False,
+        goal="under 0.5 s on loopback",
+        p95=round(figures["p95"], 4),
+        ground_decision_median_s=figures["decision_median"],
+        candidates=size,
+        samples=SAMPLES,
+    )
+
+
+def run(db_name: str, workdir: Path, stack: contextlib.ExitStack) -> None:
+    """Broker, drones, ground; then the baseline and each fleet size, recorded."""
+    from django.conf import settings
+
+    from fleet.models import Drone, Organisation
+
+    passwords = {drone_id(i): uuid.uuid4().hex for i in range(max(FLEETS) + 1)}
+    ground_password = uuid.uuid4().hex
+    broker = start_broker(workdir / "mosquitto", {"ground": ground_password, **passwords})
+    stack.callback(broker.stop)
+    # The outbox is per broker: this process, the gateway and the worker agree on it.
+    settings.MQTT_URL = broker.url_for("ground")
+    organisation = Organisation.objects.create(name="Bench", slug="bench")
+    Drone.objects.bulk_create(Drone(organisation=organisation, drone_id=name) for name in passwords)
+    for process in start_ground(broker, db_name, workdir):
+        stack.callback(process.stop, 15)
+    observer = Observer(broker.port, ground_password)
+    time.sleep(3)  # gateway subscribed, worker ready
+    baseline = bare_round_trip(broker.port, ground_password, observer)
+    for size in FLEETS:
+        record_latency(size, measure(size, broker, passwords, observer), baseline)
+
+
 def main() -> int:
     setup_django()
-    from django.conf import settings
-    from django.db import connection
+    from django.db import connection, connections
 
-    from bench.common import record
-    from fleet.models import Drone, Organisation
-    from onboard.processes import stop_process
-    from tests.support.celery_worker import worker_argv
     from workers import outbox
 
     outbox.sync_redis().flushdb()
     original_name = connection.settings_dict["NAME"]
     db_name = connection.creation.create_test_db(verbosity=0, autoclobber=True, keepdb=False)
     workdir = Path(tempfile.mkdtemp(prefix="bench-missions-"))
-    processes: list[subprocess.Popen] = []
-    broker = None
     try:
-        passwords = {drone_id(i): uuid.uuid4().hex for i in range(max(FLEETS) + 1)}
-        ground_password = uuid.uuid4().hex
-        broker = start_broker(workdir / "mosquitto", {"ground": ground_password, **passwords})
-        # The outbox is per broker: this process, the gateway and the worker agree on it.
-        settings.MQTT_URL = broker.url_for("ground")
-        organisation = Organisation.objects.create(name="Bench", slug="bench")
-        Drone.objects.bulk_create(
-            Drone(organisation=organisation, drone_id=name) for name in passwords
-        )
-        env = dict(
-            os.environ,
-            TEST_WORKER_DB_NAME=db_name,
-            MQTT_URL=broker.url_for("ground"),
-            REDIS_URL=settings.REDIS_URL,
-            PYTHONUNBUFFERED="1",
-        )
-        processes.append(
-            spawn([sys.executable, "manage.py", "gateway"], env, workdir / "gateway.log")
-        )
-        processes.append(
-            spawn(
-                worker_argv(f"bench-{uuid.uuid4().hex[:6]}@%h", chatter=False),
-                env,
-                workdir / "worker.log",
-            )
-        )
-        observer = Observer(broker.port, ground_password)
-        time.sleep(3)  # gateway subscribed, worker ready
-        baseline = bare_round_trip(broker.port, ground_password, observer)
-        for size in FLEETS:
-            figures = measure(size, broker, passwords, observer)
-            record(
-                f"missions.replacement_latency_{size}",
-                value=round(figures["median"], 4),
-                unit="s",
-                baseline_name="bare MQTT publish→receive, same broker (median)",
-                baseline_value=round(baseline, 5),
-                higher_is_better=False,
-                goal="under 0.5 s on loopback",
-                p95=round(figures["p95"], 4),
-                ground_decision_median_s=figures["decision_median"],
-                candidates=size,
-                samples=SAMPLES,
-            )
+        with contextlib.ExitStack() as stack:  # stops the ground, then the broker
+            run(db_name, workdir, stack)
     finally:
-        for process in processes:
-            stop_process(process, 15)
-        if broker is not None:
-            broker.stop()
-        from django.db import connections
-
         connections.close_all()
         connection.creation.destroy_test_db(original_name, verbosity=0)
         outbox.sync_redis().flushdb()

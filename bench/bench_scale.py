@@ -1,4 +1,4 @@
-"""Scale-out (issue 11): a thousand load drones against the whole ground side, on Mosquitto
+"""Scale-out: a thousand load drones against the whole ground side, on Mosquitto
 and on a two-node RabbitMQ cluster, in the same run.
 
     .venv/bin/python -m bench.bench_scale [--drones 1000] [--duration 20]
@@ -84,60 +84,61 @@ def _record(key: str, value: float | None, baseline_value: float | None, **figur
     record(key, value=value, baseline_value=baseline_value, **figure)  # type: ignore[arg-type]
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--drones", type=int, default=1000)
-    parser.add_argument("--small", type=int, default=100, help="drones of the baseline run")
-    parser.add_argument("--duration", type=float, default=20.0, help="seconds measured per run")
-    args = parser.parse_args()
-    n = args.drones
+def _measure_all(drones: int, small: int, duration: float) -> dict[str, LoadResult | None]:
+    """The four runs, by name; a run that failed is None."""
 
-    small = _run(LoadConfig(drones=args.small, broker="mosquitto", duration=args.duration))
-    mosquitto = _run(LoadConfig(drones=n, broker="mosquitto", duration=args.duration))
-    # The cluster with the small fleet too: on a small machine the two RabbitMQ nodes run
-    # out of CPU long before 1 000 drones, and this shows where the design itself stands.
-    rabbit_small = _run(
-        LoadConfig(
-            drones=args.small, broker="rabbitmq", duration=args.duration, gateways=2, ingests=2
-        )
-    )
-    rabbit = _run(
-        LoadConfig(drones=n, broker="rabbitmq", duration=args.duration, gateways=2, ingests=2)
-    )
-    runs = {
-        "mosquitto_small": None if small is None else _figures(small),
-        "mosquitto": None if mosquitto is None else _figures(mosquitto),
-        "rabbitmq_small": None if rabbit_small is None else _figures(rabbit_small),
-        "rabbitmq": None if rabbit is None else _figures(rabbit),
+    def cluster(n: int) -> LoadConfig:
+        return LoadConfig(drones=n, broker="rabbitmq", duration=duration, gateways=2, ingests=2)
+
+    return {
+        "mosquitto_small": _run(LoadConfig(drones=small, broker="mosquitto", duration=duration)),
+        "mosquitto": _run(LoadConfig(drones=drones, broker="mosquitto", duration=duration)),
+        # The cluster with the small fleet too: on a small machine the two RabbitMQ nodes
+        # run out of CPU long before 1 000 drones, and this shows where the design stands.
+        "rabbitmq_small": _run(cluster(small)),
+        "rabbitmq": _run(cluster(drones)),
     }
-    if mosquitto is None:
-        print("no Mosquitto figures: nothing recorded", flush=True)
-        return 1
 
-    if small is not None:
-        _record(
-            "scale.ingest_1000_lag_s",
-            mosquitto.lag_p99_s,
-            small.lag_p99_s,
-            unit="s",
-            baseline_name=f"p99 ingest lag with {args.small} drones",
-            higher_is_better=False,
-            goal="< 1 s with 1 000 drones at 10 Hz",
-            rabbitmq=None if rabbit is None else rabbit.lag_p99_s,
-            rabbitmq_small=None if rabbit_small is None else rabbit_small.lag_p99_s,
-            runs=runs,
-        )
-        _record(
-            "scale.map_staleness_p99",
-            mosquitto.map_staleness_p99_s,
-            small.map_staleness_p99_s,
-            unit="s",
-            baseline_name=f"p99 fleet-map staleness with {args.small} drones",
-            higher_is_better=False,
-            goal="< 1 s per drone",
-            rabbitmq=None if rabbit is None else rabbit.map_staleness_p99_s,
-            rabbitmq_small=None if rabbit_small is None else rabbit_small.map_staleness_p99_s,
-        )
+
+def _of(result: LoadResult | None, name: str) -> object:
+    """A figure of a run, None when the run failed."""
+    return None if result is None else getattr(result, name)
+
+
+def _record_against_small(runs: dict[str, LoadResult | None], small_drones: int) -> None:
+    """Lag and map staleness with the full fleet, against the small one (Mosquitto)."""
+    small, mosquitto = runs["mosquitto_small"], runs["mosquitto"]
+    rabbit, rabbit_small = runs["rabbitmq"], runs["rabbitmq_small"]
+    if small is None or mosquitto is None:
+        return
+    _record(
+        "scale.ingest_1000_lag_s",
+        mosquitto.lag_p99_s,
+        small.lag_p99_s,
+        unit="s",
+        baseline_name=f"p99 ingest lag with {small_drones} drones",
+        higher_is_better=False,
+        goal="< 1 s with 1 000 drones at 10 Hz",
+        rabbitmq=_of(rabbit, "lag_p99_s"),
+        rabbitmq_small=_of(rabbit_small, "lag_p99_s"),
+        runs={name: None if run is None else _figures(run) for name, run in runs.items()},
+    )
+    _record(
+        "scale.map_staleness_p99",
+        mosquitto.map_staleness_p99_s,
+        small.map_staleness_p99_s,
+        unit="s",
+        baseline_name=f"p99 fleet-map staleness with {small_drones} drones",
+        higher_is_better=False,
+        goal="< 1 s per drone",
+        rabbitmq=_of(rabbit, "map_staleness_p99_s"),
+        rabbitmq_small=_of(rabbit_small, "map_staleness_p99_s"),
+    )
+
+
+def _record_command_rtt(runs: dict[str, LoadResult | None]) -> None:
+    mosquitto, rabbit = runs["mosquitto"], runs["rabbitmq"]
+    assert mosquitto is not None
     _record(
         "scale.command_rtt_p99_1000",
         mosquitto.command_rtt_p99_s,
@@ -146,26 +147,44 @@ def main() -> int:
         baseline_name="p99 command round trip to one drone, no fleet connected",
         higher_is_better=False,
         goal="a connected fleet barely slows a command",
-        rabbitmq=None if rabbit is None else rabbit.command_rtt_p99_s,
-        rabbitmq_no_fleet=None if rabbit is None else rabbit.baseline_rtt_p99_s,
-        rabbitmq_small=None if rabbit_small is None else rabbit_small.command_rtt_p99_s,
+        rabbitmq=_of(rabbit, "command_rtt_p99_s"),
+        rabbitmq_no_fleet=_of(rabbit, "baseline_rtt_p99_s"),
+        rabbitmq_small=_of(runs["rabbitmq_small"], "command_rtt_p99_s"),
     )
-    if rabbit is not None:
-        _record(
-            "scale.rabbitmq_vs_mosquitto_ingest",
-            round(rabbit.ingest_per_s, 1),
-            round(mosquitto.ingest_per_s, 1),
-            unit="samples/s",
-            baseline_name=f"samples stored per second on Mosquitto, {n} drones",
-            higher_is_better=True,
-            goal=f"the cluster stores what {n} drones send ({n * 10} samples/s)",
-            rabbitmq_lost=rabbit.lost,
-            mosquitto_lost=mosquitto.lost,
-            rabbitmq_small_per_s=None
-            if rabbit_small is None
-            else round(rabbit_small.ingest_per_s, 1),
-            rabbitmq_small_lost=None if rabbit_small is None else rabbit_small.lost,
-        )
+
+
+def _record_cluster_ingest(runs: dict[str, LoadResult | None], drones: int) -> None:
+    mosquitto, rabbit, rabbit_small = runs["mosquitto"], runs["rabbitmq"], runs["rabbitmq_small"]
+    if rabbit is None or mosquitto is None:
+        return
+    _record(
+        "scale.rabbitmq_vs_mosquitto_ingest",
+        round(rabbit.ingest_per_s, 1),
+        round(mosquitto.ingest_per_s, 1),
+        unit="samples/s",
+        baseline_name=f"samples stored per second on Mosquitto, {drones} drones",
+        higher_is_better=True,
+        goal=f"the cluster stores what {drones} drones send ({drones * 10} samples/s)",
+        rabbitmq_lost=rabbit.lost,
+        mosquitto_lost=mosquitto.lost,
+        rabbitmq_small_per_s=None if rabbit_small is None else round(rabbit_small.ingest_per_s, 1),
+        rabbitmq_small_lost=_of(rabbit_small, "lost"),
+    )
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--drones", type=int, default=1000)
+    parser.add_argument("--small", type=int, default=100, help="drones of the baseline run")
+    parser.add_argument("--duration", type=float, default=20.0, help="seconds measured per run")
+    args = parser.parse_args()
+    runs = _measure_all(args.drones, args.small, args.duration)
+    if runs["mosquitto"] is None:
+        print("no Mosquitto figures: nothing recorded", flush=True)
+        return 1
+    _record_against_small(runs, args.small)
+    _record_command_rtt(runs)
+    _record_cluster_ingest(runs, args.drones)
     return 0
 
 

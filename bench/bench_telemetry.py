@@ -1,4 +1,4 @@
-"""Telemetry ingest and query benchmarks (issue 6).
+"""Telemetry ingest and query benchmarks.
 
     .venv/bin/python -m bench.bench_telemetry
 
@@ -27,8 +27,8 @@ import json
 import multiprocessing as mp
 import os
 import socket
-import subprocess
 import sys
+import tempfile
 import threading
 import time
 from datetime import UTC, datetime, timedelta
@@ -41,8 +41,8 @@ import psycopg
 
 from bench.common import best_of, percentile, record
 from onboard.mqttwire import connect_packet, publish_packet
-from onboard.processes import free_port
-from workers.mosquitto import GROUND_AND_DRONES_ACL, MOSQUITTO_PASSWD, Broker
+from onboard.processes import Supervised, free_port, python_env, wait_for
+from workers.mosquitto import GROUND_AND_DRONES_ACL, Broker
 
 ROOT = Path(__file__).resolve().parents[1]
 DB_NAME = "bench_telemetry"
@@ -120,19 +120,6 @@ def fresh_database() -> str:
     return conninfo
 
 
-class BenchBroker(Broker):
-    """Like the tests' broker, but 1 000 users hashed by one mosquitto_passwd -U call."""
-
-    def write_config(self) -> Path:
-        users, self.users = self.users, {}
-        conf = super().write_config()
-        self.users = users
-        passwd = self.directory / "passwd"
-        passwd.write_text("".join(f"{u}:{p}\n" for u, p in users.items()))
-        subprocess.run([MOSQUITTO_PASSWD, "-U", str(passwd)], check=True)
-        return conf
-
-
 # ---------------------------------------------------------------------------------------
 # Raw MQTT 3.1.1 load generator
 
@@ -148,7 +135,8 @@ def _drain(sock: socket.socket) -> None:
     sock.setblocking(True)
 
 
-def load_worker(port: int, ids: list[str], mode: str, start_at: float, out: mp.Queue) -> None:
+def _connect_all(port: int, ids: list[str]) -> list[socket.socket]:
+    """One raw MQTT connection per drone, each CONNACKed."""
     sockets = []
     for i in ids:
         sock = socket.create_connection(("127.0.0.1", port))
@@ -158,70 +146,59 @@ def load_worker(port: int, ids: list[str], mode: str, start_at: float, out: mp.Q
         if ack[:2] != b"\x20\x02" or ack[3] != 0:
             raise RuntimeError(f"{i}: CONNACK {ack!r}")
         sockets.append(sock)
+    return sockets
+
+
+def _steady_payload(ts: float) -> bytes:
+    """One AttitudeActual, as a drone streams it."""
+    fields = {"q1": 1.0, "q2": 0.0, "q3": 0.0, "q4": 0.0, "Roll": 1.5, "Pitch": -0.5, "Yaw": 87.0}
+    objects = [{"name": "AttitudeActual", "ts": ts, "fields": fields}]
+    return json.dumps({"ts": ts, "objects": objects}).encode()
+
+
+def _max_payload(seq: int, ts: float) -> bytes:
+    """OBJECTS_PER_MAX_MESSAGE objects in one message."""
+    fields = {"x": seq * 0.5, "y": 1.0, "z": -9.8, "temperature": 31.5}
+    objects = [{"name": name, "ts": ts, "fields": fields} for name in MAX_OBJECT_NAMES]
+    return json.dumps({"ts": ts, "objects": objects}).encode()
+
+
+def _publish_steady(sockets: list[socket.socket], topics: list[str], start_at: float) -> int:
+    """Every drone at STEADY_HZ for STEADY_S seconds, on a fixed schedule; objects sent."""
+    period = 1.0 / STEADY_HZ
+    end = start_at + STEADY_S
+    objects = 0
+    tick = 0
+    while (due := start_at + tick * period) < end:
+        delay = due - time.time()
+        if delay > 0:
+            time.sleep(delay)
+        for sock, topic in zip(sockets, topics, strict=True):
+            sock.sendall(publish_packet(topic, _steady_payload(time.time())))
+            objects += 1
+        tick += 1
+    return objects
+
+
+def _publish_max(sockets: list[socket.socket], topics: list[str]) -> int:
+    """MAX_MESSAGES messages per drone as fast as the broker takes them; objects sent."""
+    base = time.time() - 60
+    objects = 0
+    for seq in range(MAX_MESSAGES):
+        for sock, topic in zip(sockets, topics, strict=True):
+            sock.sendall(publish_packet(topic, _max_payload(seq, base + seq * 0.001)))
+            objects += OBJECTS_PER_MAX_MESSAGE
+    return objects
+
+
+def load_worker(port: int, ids: list[str], mode: str, start_at: float, out: mp.Queue) -> None:
+    sockets = _connect_all(port, ids)
     topics = [f"{i}/telemetry/out" for i in ids]
     time.sleep(max(0.0, start_at - time.time()))
-    objects = 0
     if mode == "steady":
-        period = 1.0 / STEADY_HZ
-        tick = 0
-        end = start_at + STEADY_S
-        while True:
-            due = start_at + tick * period
-            if due >= end:
-                break
-            delay = due - time.time()
-            if delay > 0:
-                time.sleep(delay)
-            for sock, topic in zip(sockets, topics, strict=True):
-                ts = time.time()
-                payload = json.dumps(
-                    {
-                        "ts": ts,
-                        "objects": [
-                            {
-                                "name": "AttitudeActual",
-                                "ts": ts,
-                                "fields": {
-                                    "q1": 1.0,
-                                    "q2": 0.0,
-                                    "q3": 0.0,
-                                    "q4": 0.0,
-                                    "Roll": 1.5,
-                                    "Pitch": -0.5,
-                                    "Yaw": 87.0,
-                                },
-                            }
-                        ],
-                    }
-                ).encode()
-                sock.sendall(publish_packet(topic, payload))
-                objects += 1
-            tick += 1
+        objects = _publish_steady(sockets, topics, start_at)
     else:
-        base = time.time() - 60
-        for seq in range(MAX_MESSAGES):
-            for sock, topic in zip(sockets, topics, strict=True):
-                ts = base + seq * 0.001
-                payload = json.dumps(
-                    {
-                        "ts": ts,
-                        "objects": [
-                            {
-                                "name": name,
-                                "ts": ts,
-                                "fields": {
-                                    "x": seq * 0.5,
-                                    "y": 1.0,
-                                    "z": -9.8,
-                                    "temperature": 31.5,
-                                },
-                            }
-                            for name in MAX_OBJECT_NAMES
-                        ],
-                    }
-                ).encode()
-                sock.sendall(publish_packet(topic, payload))
-                objects += OBJECTS_PER_MAX_MESSAGE
+        objects = _publish_max(sockets, topics)
     for sock in sockets:
         _drain(sock)
         sock.sendall(b"\xe0\x00")  # DISCONNECT
@@ -254,49 +231,20 @@ def collect(workers: list[mp.Process], out: mp.Queue) -> int:
 
 
 class IngestProcess:
-    def __init__(self, conninfo: str, mqtt_url: str) -> None:
-        env = {
-            **os.environ,
-            "DJANGO_SETTINGS_MODULE": "config.settings.test",
-            "LOG_LEVEL": "WARNING",
-        }
-        self.process = subprocess.Popen(
-            [
-                sys.executable,
-                "manage.py",
-                "ingest_telemetry",
-                "--database-url",
-                conninfo,
-                "--mqtt-url",
-                mqtt_url,
-                "--no-live",
-                "--processes",
-                str(INGEST_PROCESSES),
-            ],
-            cwd=ROOT,
-            env={**env, "LOG_LEVEL": "INFO"},
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-        )
-        self.ready = threading.Event()
-        self.output: list[str] = []
-        threading.Thread(target=self._read, daemon=True).start()
-        if not self.ready.wait(30):
-            raise RuntimeError("ingest did not subscribe:\n" + "".join(self.output))
+    """`manage.py ingest_telemetry` on the bench database; its memory sampled meanwhile."""
+
+    def __init__(self, conninfo: str, mqtt_url: str, log: Path) -> None:
+        argv = [sys.executable, "manage.py", "ingest_telemetry", "--database-url", conninfo,
+                "--mqtt-url", mqtt_url, "--no-live", "--processes", str(INGEST_PROCESSES)]  # fmt: skip
+        env = python_env(DJANGO_SETTINGS_MODULE="config.settings.test", LOG_LEVEL="INFO")
+        self.process = Supervised("ingest", argv, env, log).start()
+        # Ready once every reader has subscribed.
+        if not wait_for(lambda: self.process.output().count("subscribed") >= INGEST_PROCESSES, 30):
+            raise RuntimeError("ingest did not subscribe:\n" + self.process.output())
         self.ps = psutil.Process(self.process.pid)
         self.peak_rss = 0
         self._sampling = True
         threading.Thread(target=self._sample, daemon=True).start()
-
-    def _read(self) -> None:
-        subscribed = 0
-        for line in self.process.stdout:  # type: ignore[union-attr]
-            self.output.append(line)
-            if "subscribed" in line:
-                subscribed += 1
-                if subscribed == INGEST_PROCESSES:
-                    self.ready.set()
 
     def _processes(self) -> list[psutil.Process]:
         """The processes that ingest: the children when the command supervises several."""
@@ -316,8 +264,7 @@ class IngestProcess:
 
     def stop(self) -> None:
         self._sampling = False
-        self.process.terminate()
-        self.process.wait(60)
+        self.process.stop(60)
 
 
 def stored(conn: psycopg.Connection) -> int:
@@ -516,21 +463,19 @@ def bench_range(conninfo: str) -> None:
     )
 
 
-def main() -> None:
-    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.test")
-    import tempfile
-
-    conninfo = fresh_database()
+def _ingest_phases(conninfo: str) -> tuple[dict, dict, int, int]:
+    """The steady and max phases through a private broker and the real ingest:
+    (steady, max, idle RSS, peak RSS)."""
     directory = Path(tempfile.mkdtemp(prefix="bench-telemetry-"))
     users = {"ground": "ground-pw", **{drone_id(i): "pw" for i in range(DRONES)}}
-    broker = BenchBroker(
+    broker = Broker(
         directory,
         free_port(),
         users,
         GROUND_AND_DRONES_ACL,
         "max_connections -1\nmax_queued_messages 100000\n",
     ).start()
-    ingest = IngestProcess(conninfo, broker.url_for("ground"))
+    ingest = IngestProcess(conninfo, broker.url_for("ground"), directory / "ingest.log")
     try:
         time.sleep(1)
         idle_rss = ingest.rss()
@@ -540,16 +485,13 @@ def main() -> None:
             conn.execute("TRUNCATE telemetry_sample")
             peak = phase_max(conn, broker.port)
             print("max:", peak, flush=True)
-        peak_rss = ingest.peak_rss
+        return steady, peak, idle_rss, ingest.peak_rss
     finally:
         ingest.stop()
         broker.stop()
-    with psycopg.connect(conninfo, autocommit=True) as conn:
-        conn.execute("TRUNCATE telemetry_sample")
-        copy_rate = baseline_copy(conn, peak["published"])
-        conn.execute("TRUNCATE telemetry_sample")
-    insert_rate = baseline_insert(conninfo)
 
+
+def _record_ingest(steady: dict, peak: dict, copy_rate: float, insert_rate: float) -> None:
     load = (
         f"{WORKERS} processes × {DRONES // WORKERS} raw MQTT 3.1.1 connections, one per "
         "drone with its own credentials, QoS 0 PUBLISH written to blocking sockets"
@@ -598,6 +540,9 @@ def main() -> None:
         load_generator=load,
         ingest_processes=INGEST_PROCESSES,
     )
+
+
+def _record_memory(idle_rss: int, peak_rss: int) -> None:
     record(
         "telemetry.ingest_peak_rss",
         value=peak_rss / 2**20,
@@ -610,6 +555,19 @@ def main() -> None:
         per="largest single ingest process",
         phases="steady 10 000 objects/s, then max rate",
     )
+
+
+def main() -> None:
+    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.test")
+    conninfo = fresh_database()
+    steady, peak, idle_rss, peak_rss = _ingest_phases(conninfo)
+    with psycopg.connect(conninfo, autocommit=True) as conn:
+        conn.execute("TRUNCATE telemetry_sample")
+        copy_rate = baseline_copy(conn, peak["published"])
+        conn.execute("TRUNCATE telemetry_sample")
+    insert_rate = baseline_insert(conninfo)
+    _record_ingest(steady, peak, copy_rate, insert_rate)
+    _record_memory(idle_rss, peak_rss)
     bench_range(conninfo)
 
 

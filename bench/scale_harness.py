@@ -27,7 +27,6 @@ import contextlib
 import json
 import os
 import secrets
-import signal
 import subprocess
 import sys
 import tempfile
@@ -44,7 +43,8 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from onboard.loaddrone import Account, grid_home, position_age  # noqa: E402
-from tests.support.ground import GroundProcess  # noqa: E402
+from onboard.processes import Supervised, port_open, python_env, wait_for  # noqa: E402
+from workers.ground import GroundProcesses  # noqa: E402
 
 PY = sys.executable
 MANAGE = str(ROOT / "manage.py")
@@ -178,16 +178,6 @@ def _with_path(url: str, path: str) -> str:
     return urlunsplit((parts.scheme, parts.netloc, path, parts.query, parts.fragment))
 
 
-def _port_open(port: int) -> bool:
-    import socket
-
-    try:
-        with socket.create_connection(("127.0.0.1", port), timeout=0.3):
-            return True
-    except OSError:
-        return False
-
-
 def _script(*argv: str, env: dict[str, str] | None = None, timeout: float = 240) -> str:
     result = subprocess.run(
         argv, cwd=ROOT, env={**os.environ, **(env or {})}, capture_output=True, text=True,
@@ -235,7 +225,7 @@ class Broker:
 
     def start(self) -> dict[str, str]:
         if self.kind == "mosquitto":
-            self.started = not _port_open(self.config.mqtt_port)
+            self.started = not port_open(self.config.mqtt_port)
             _script(str(ROOT / "scripts" / "services.sh"), "mosquitto-start", "loadtest",
                     env=self.script_env)  # fmt: skip
             password = (self.data_dir / "secrets" / "mqtt_ground_password").read_text().strip()
@@ -243,7 +233,7 @@ class Broker:
             return {"MQTT_BROKER": "mosquitto", "MQTT_URL": url, "MQTT_URLS": url,
                     "MOSQUITTO_DIR": str(self.data_dir / "mosquitto")}  # fmt: skip
         nodes = str(self.config.rabbit_nodes)
-        self.started = not _port_open(self.config.rabbit_port_base + 11)
+        self.started = not port_open(self.config.rabbit_port_base + 11)
         rabbit = str(ROOT / "scripts" / "rabbitmq.sh")
         _script(rabbit, "start", "loadtest", nodes, env=self.script_env)
         out = _script(rabbit, "env", "loadtest", nodes, env=self.script_env)
@@ -342,47 +332,74 @@ def ground_env(config: LoadConfig, services: dict[str, str]) -> dict[str, str]:
 
 
 def provision_main(argv: list[str]) -> int:
+    """Print (JSON) the run's drone accounts, their database ids, an API token and a
+    session cookie for the operator."""
     parser = argparse.ArgumentParser(prog="scale_harness provision")
     parser.add_argument("--drones", type=int, required=True)
     args = parser.parse_args(argv)
     import django
 
     django.setup()
-    from django.contrib.auth import (
-        BACKEND_SESSION_KEY,
-        HASH_SESSION_KEY,
-        SESSION_KEY,
-        get_user_model,
-    )
-    from django.contrib.sessions.backends.db import SessionStore
     from django.core.management import call_command
-    from rest_framework.authtoken.models import Token
-
-    from fleet import credentials
-    from fleet.models import Membership, Organisation, Role
 
     call_command("migrate", "--noinput", verbosity=0)
+    user, organisation = _operator()
+    _start_empty(organisation)
+    accounts, pks, seconds = _provision_drones(args.drones)
+    token, cookie = _credentials_of(user)
+    out = {"accounts": accounts, "pks": pks, "token": token, "cookie": cookie}
+    json.dump({**out, "provision_s": seconds}, sys.stdout)
+    return 0
+
+
+def _operator():  # type: ignore[no-untyped-def]
+    """The load test's organisation and its admin (created once)."""
+    from django.contrib.auth import get_user_model
+
+    from fleet.models import Membership, Organisation, Role
+
     organisation, _ = Organisation.objects.get_or_create(slug=ORG, defaults={"name": "Load test"})
     user, _ = get_user_model().objects.get_or_create(username="loadtest")
     Membership.objects.get_or_create(
         user=user, organisation=organisation, defaults={"role": Role.ADMIN}
     )
-    token, _ = Token.objects.get_or_create(user=user)
+    return user, organisation
+
+
+def _start_empty(organisation) -> None:  # type: ignore[no-untyped-def]
+    """Our own database: each run starts empty and with every drone offline, so what is
+    counted and seen online is this run's."""
     from django.db import connection
 
     from fleet.models import Drone
 
-    # Our own database: start each run empty and with every drone offline, so what is
-    # counted and seen online is this run's.
     with connection.cursor() as cursor:
         cursor.execute("TRUNCATE telemetry_sample")
     Drone.objects.filter(organisation=organisation).update(online=False)
+
+
+def _credentials_of(user) -> tuple[str, str]:  # type: ignore[no-untyped-def]
+    """The user's API token and a logged-in session cookie (for the fleet websocket)."""
+    from django.contrib.auth import BACKEND_SESSION_KEY, HASH_SESSION_KEY, SESSION_KEY
+    from django.contrib.sessions.backends.db import SessionStore
+    from rest_framework.authtoken.models import Token
+
+    token, _ = Token.objects.get_or_create(user=user)
     session = SessionStore()
     session[SESSION_KEY] = str(user.pk)
     session[BACKEND_SESSION_KEY] = "django.contrib.auth.backends.ModelBackend"
     session[HASH_SESSION_KEY] = user.get_session_auth_hash()
     session.save()
-    ids = [f"LOAD_{i:04d}" for i in range(args.drones)]
+    return token.key, f"sessionid={session.session_key}"
+
+
+def _provision_drones(count: int) -> tuple[list[dict], dict[str, int], float]:
+    """(accounts, database id per drone id, seconds provisioning took)."""
+    from django.db import connection
+
+    from fleet import credentials
+
+    ids = [f"LOAD_{i:04d}" for i in range(count)]
     began = time.perf_counter()
     issued = credentials.provision_many(ids, ORG)
     seconds = time.perf_counter() - began
@@ -394,17 +411,7 @@ def provision_main(argv: list[str]) -> int:
         urls = c.urls or (f"mqtt://{c.host}:{c.port}",)
         k = i % len(urls)  # spread the fleet over a cluster's nodes; the rest are fail-overs
         accounts.append(Account(c.drone_id, c.password, urls[k:] + urls[:k], grid_home(i)))
-    json.dump(
-        {
-            "accounts": [a.to_dict() for a in accounts],
-            "pks": pks,
-            "token": token.key,
-            "cookie": f"sessionid={session.session_key}",
-            "provision_s": seconds,
-        },
-        sys.stdout,
-    )
-    return 0
+    return [a.to_dict() for a in accounts], pks, seconds
 
 
 # ---------------------------------------------------------------------------------------
@@ -422,39 +429,27 @@ class LoadProcess:
         argv = [PY, "-m", "onboard.loaddrone", "--fleet", str(self.path),
                 "--rate", str(config.rate), "--heartbeat", str(config.heartbeat),
                 "--stats-interval", "1"]  # fmt: skip
-        self.log = open(folder / f"{name}.log", "wb")  # noqa: SIM115 - closed in stop()
-        self.process = subprocess.Popen(
-            argv, cwd=ROOT, stdout=subprocess.PIPE, stderr=self.log, text=True,
-            env=dict(os.environ, PYTHONPATH=str(ROOT)), start_new_session=True,
-        )  # fmt: skip
-        self.reader = threading.Thread(target=self._read, daemon=True)
-        self.reader.start()
+        self.process = Supervised(
+            name, argv, python_env(), folder / f"{name}.log", on_line=self._line
+        ).start()
 
-    def _read(self) -> None:
-        assert self.process.stdout is not None
-        for line in self.process.stdout:
-            try:
-                stats = json.loads(line)
-            except ValueError:
-                continue
-            if stats.get("type") == "final":
-                self.final = stats
-            self.latest = stats
+    def _line(self, line: str) -> None:
+        try:
+            stats = json.loads(line)
+        except ValueError:
+            return  # a log line, not stats
+        if not isinstance(stats, dict):
+            return
+        if stats.get("type") == "final":
+            self.final = stats
+        self.latest = stats
 
     @property
     def online(self) -> int:
         return int(self.latest.get("online", 0))
 
     def stop(self) -> dict:
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            try:
-                self.process.wait(20)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.process.pid, signal.SIGKILL)
-                self.process.wait()
-        self.reader.join(5)
-        self.log.close()
+        self.process.stop(20)
         return self.final or self.latest
 
 
@@ -691,58 +686,185 @@ def stored_since(conninfo: str, pks: list[int], since: float, until: float = 4e9
     return int(row[0]) if row else 0
 
 
-def _wait(predicate, timeout: float, interval: float = 0.25) -> bool:  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(interval)
-    return False
-
-
 # ---------------------------------------------------------------------------------------
 # One run.
 
 
-def _start_ground(
-    config: LoadConfig, env: dict[str, str], folder: Path, ground: dict[str, list[GroundProcess]]
+@dataclass
+class Run:
+    """One run's place, services and what it started (stopped in reverse by run_load)."""
+
+    config: LoadConfig
+    folder: Path
+    result: LoadResult
+    broker: Broker
+    loads: list[LoadProcess] = field(default_factory=list)
+    probes: list = field(default_factory=list)
+    services: dict[str, str] = field(default_factory=dict)
+    data: dict = field(default_factory=dict)  # what provisioning printed
+    accounts: list[Account] = field(default_factory=list)
+    pks: list[int] = field(default_factory=list)
+    ground: GroundProcesses | None = None
+    roles: dict[str, list[psutil.Process]] = field(default_factory=dict)
+    began: float = 0.0  # wall time the first load drone started: samples since count
+
+    @property
+    def conninfo(self) -> str:
+        return self.services["DATABASE_URL"]
+
+    @property
+    def web(self) -> str:
+        assert self.ground is not None
+        return self.ground.web_urls[0]
+
+    def online(self, count: int | None = None) -> int:
+        return online_in_database(self.conninfo, self.pks[:count])
+
+    def stored(self, until: float = 4e9) -> int:
+        return stored_since(self.conninfo, self.pks, self.began, until)
+
+
+def _provision(run: Run, env: dict[str, str]) -> None:
+    """The drones' accounts, made by `provision_main` in a process of the run's settings."""
+    out = subprocess.run(
+        [PY, "-m", "bench.scale_harness", "provision", "--drones", str(run.config.drones)],
+        cwd=ROOT, env=env, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    if out.returncode != 0:
+        raise RuntimeError(f"provisioning failed:\n{out.stderr[-3000:]}")
+    run.data = json.loads(out.stdout)
+    run.result.notes.append(
+        f"provisioned {run.config.drones} drones in {run.data['provision_s']:.2f} s"
+    )
+    run.accounts = [Account.from_dict(a) for a in run.data["accounts"]]
+    run.pks = [run.data["pks"][a.drone_id] for a in run.accounts]
+
+
+def _start_ground(run: Run, env: dict[str, str]) -> None:
+    """Web, gateway and ingest processes (workers.ground), and who to weigh for memory."""
+    config = run.config
+    run.ground = GroundProcesses(run.folder, env, client_prefix="loadtest")
+    run.ground.add(web=config.webs, gateways=config.gateways, ingests=config.ingests)
+    run.ground.start(90)
+    run.roles = {
+        kind: [psutil.Process(p.pid) for p in run.ground.of_kind(kind) if p.pid]
+        for kind in ("web", "gateway", "ingest")
+    }
+    run.roles["broker"] = run.broker.processes()
+
+
+def _baseline(run: Run) -> None:
+    """Command round trips to one drone with no fleet connected (the same command path)."""
+    run.began = time.time()
+    run.loads.append(LoadProcess(run.accounts[:1], run.config, run.folder, "load0"))
+    if not wait_for(lambda: run.online(1) == 1, 30, interval=0.25):
+        raise RuntimeError("the first load drone never came online")
+    probe = CommandProbe(
+        run.web, run.data["token"], [run.accounts[0].drone_id], run.config.command_interval
+    )
+    probe.run_count(5)  # warm-up: connections, first queries
+    probe.rtts.clear()
+    probe.run_count(run.config.baseline_commands)
+    probe.client.close()
+    run.result.baseline_rtt_p50_s = percentile(probe.rtts, 0.5)
+    run.result.baseline_rtt_p99_s = percentile(probe.rtts, 0.99)
+
+
+def _connect_fleet(run: Run) -> MapProbe:
+    """The fleet map's websocket first, then every other load drone, until all are online."""
+    config = run.config
+    homes = {a.drone_id: a.home for a in run.accounts if a.home is not None}
+    url = run.web.replace("http", "ws") + f"/ws/fleet/?org={ORG}"
+    map_probe = MapProbe(url, run.data["cookie"], homes).start()
+    run.probes.append(map_probe)
+    _say(config, f"connecting {config.drones} load drones")
+    began = time.monotonic()
+    rest = run.accounts[1:]
+    for k in range(0, len(rest), config.per_process):
+        name = f"load{len(run.loads)}"
+        run.loads.append(LoadProcess(rest[k : k + config.per_process], config, run.folder, name))
+    wait_for(lambda: sum(p.online for p in run.loads) >= config.drones, 60, interval=0.25)
+    wait_for(lambda: run.online() >= config.drones, 20, interval=1.0)
+    run.result.connect_s = time.monotonic() - began
+    run.result.online = run.online()
+    _say(config, f"{run.result.online} drones online in {run.result.connect_s:.1f} s; measuring")
+    time.sleep(3.0)  # let the first burst of online events settle
+    return map_probe
+
+
+def _measure(run: Run, map_probe: MapProbe) -> tuple[LagProbe, CommandProbe]:
+    """The measured window: lag, commands and the map probe running, memory halfway,
+    CPU and rows stored over the whole of it."""
+    config, result = run.config, run.result
+    busy = dict(run.roles, **{"load drones": [psutil.Process(p.process.pid) for p in run.loads]})
+    cpu_before = cpu_seconds(busy)
+    stored_at_start = run.stored()
+    start = time.time()
+    map_probe.reset()
+    lag = LagProbe(run.conninfo, run.pks, run.began).start()
+    ids = [a.drone_id for a in run.accounts]
+    commands = CommandProbe(run.web, run.data["token"], ids, config.command_interval).start()
+    run.probes += [lag, commands]
+    time.sleep(config.duration / 2)
+    result.rss_loaded_mib = rss_mib(run.roles)
+    if "RABBITMQ_API_URLS" in run.services:
+        depths = rabbit_queue_depths(run.services["RABBITMQ_API_URLS"])
+        result.notes.append(f"queue depths mid-run: {depths}")
+    time.sleep(config.duration / 2)
+    seconds = time.time() - start
+    cpu_after = cpu_seconds(busy)
+    result.cores = {role: (cpu_after[role] - cpu_before.get(role, 0.0)) / seconds
+                    for role in cpu_after}  # fmt: skip
+    # Sustained throughput: rows the ingest wrote while measured, whenever they were sent
+    # (a backlogged broker delivers old samples; they count, as the work was done).
+    result.ingest_per_s = (run.stored() - stored_at_start) / seconds
+    for probe in (commands, lag, map_probe):
+        probe.stop()
+    return lag, commands
+
+
+def _drain(run: Run) -> None:
+    """Stop the fleet, let the ingest drain, count what was sent and what arrived."""
+    finals = [p.stop() for p in run.loads]
+    run.loads.clear()
+    stats = sum_stats(finals)
+    run.result.load_stats = stats
+    run.result.sent = stats.get("telemetry_objects", 0)
+    stored = -1
+    for _ in range(60):  # until the count stops moving (the ingest has drained)
+        now_stored = run.stored()
+        if now_stored == stored:
+            break
+        stored = now_stored
+        time.sleep(1.0)
+    run.result.stored = stored
+
+
+def _summarise(
+    result: LoadResult, lag: LagProbe, commands: CommandProbe, map_probe: MapProbe
 ) -> None:
-    """Start web, gateway and ingest processes into `ground` (filled before anything waits,
-    so the caller stops them even when one never becomes ready)."""
-    from tests.support.ground import free_port
-
-    ground.update(web=[], gateway=[], ingest=[])
-    for i in range(config.webs):
-        port = free_port()
-        argv = [PY, "-m", "uvicorn", "config.asgi:application", "--host", "127.0.0.1",
-                "--port", str(port), "--no-access-log"]  # fmt: skip
-        ground["web"].append(GroundProcess(f"web{i + 1}", argv, env, folder / f"web{i + 1}.log",
-                                           port=port))  # fmt: skip
-    # On RabbitMQ the gateway's MQTT connection only publishes; messages come over AMQP.
-    amqp = config.broker == "rabbitmq"
-    gateway_ready = ("connected to", "consuming") if amqp else ("connected to",)
-    ingest_ready = ("consuming",) if amqp else ("subscribed",)
-    for i in range(config.gateways):
-        name = f"gateway{i + 1}"
-        argv = [PY, MANAGE, "gateway", "--client-id", f"loadtest-{name}"]
-        ground["gateway"].append(
-            GroundProcess(name, argv, env, folder / f"{name}.log", ready_text=gateway_ready)
+    result.lag_samples = len(lag.lags)
+    result.lag_p50_s = percentile(lag.lags, 0.5)
+    result.lag_p99_s = percentile(lag.lags, 0.99)
+    if lag.missing:
+        result.notes.append(
+            f"{lag.missing} drone-seconds with no sample stored yet (counted as lag ≥ the "
+            "time since the run began)"
         )
-    for i in range(config.ingests):
-        name = f"ingest{i + 1}"
-        argv = [PY, MANAGE, "ingest_telemetry"]
-        ground["ingest"].append(
-            GroundProcess(name, argv, env, folder / f"{name}.log", ready_text=ingest_ready)
-        )
-    every = [p for procs in ground.values() for p in procs]
-    for process in every:
-        process.start()
-    for process in every:
-        process.wait_ready(90)
-
-
-def _stop_ground(ground: dict[str, list[GroundProcess]]) -> None:
-    _stop_all([p for procs in ground.values() for p in procs])
+    result.commands = len(commands.rtts) + len(commands.failures)
+    result.command_failures = len(commands.failures)
+    result.command_rtt_p50_s = percentile(commands.rtts, 0.5)
+    result.command_rtt_p99_s = percentile(commands.rtts, 0.99)
+    if commands.failures:
+        result.notes.append(f"first command failure: {commands.failures[0]}")
+    result.map_updates = len(map_probe.ages)
+    result.map_drones = len(map_probe.drones)
+    result.map_staleness_p50_s = percentile(map_probe.ages, 0.5)
+    result.map_staleness_p99_s = percentile(map_probe.ages, 0.99)
+    if map_probe.error:
+        result.notes.append(f"fleet websocket: {map_probe.error}")
+    growth = sum(result.rss_loaded_mib.values()) - sum(result.rss_idle_mib.values())
+    result.kib_per_drone = growth * 1024 / (result.online or 1)
 
 
 def _stop_all(items: list) -> None:
@@ -754,148 +876,38 @@ def _stop_all(items: list) -> None:
             print(f"[loadtest] could not stop {item!r}: {exc}", file=sys.stderr)
 
 
+def _stop_ground(run: Run) -> None:
+    if run.ground is not None:
+        run.ground.stop()
+
+
 def run_load(config: LoadConfig) -> LoadResult:
     """One whole run; everything started is stopped, whatever happens."""
-    result = LoadResult(config.broker, config.drones, config.rate, config.duration)
     config.data_dir.mkdir(parents=True, exist_ok=True)
     folder = Path(tempfile.mkdtemp(prefix=f"run-{config.broker}-", dir=config.data_dir))
-    broker = Broker(config)
-    ground: dict[str, list[GroundProcess]] = {}
-    loads: list[LoadProcess] = []
-    probes: list = []
+    result = LoadResult(config.broker, config.drones, config.rate, config.duration)
+    run = Run(config, folder, result, Broker(config))
     with contextlib.ExitStack() as stack:
         # Run in reverse: load drones, probes, ground processes, then the broker.
-        stack.callback(broker.stop)
-        stack.callback(_stop_ground, ground)
-        stack.callback(_stop_all, probes)
-        stack.callback(_stop_all, loads)
+        stack.callback(run.broker.stop)
+        stack.callback(_stop_ground, run)
+        stack.callback(_stop_all, run.probes)
+        stack.callback(_stop_all, run.loads)
         _say(config, f"services and {config.broker} (logs in {folder})")
-        services = database_and_redis(config)
-        services.update(broker.start())
-        env = ground_env(config, services)
+        run.services = database_and_redis(config)
+        run.services.update(run.broker.start())
+        env = ground_env(config, run.services)
         _say(config, f"provisioning {config.drones} drones")
-        out = subprocess.run(
-            [PY, "-m", "bench.scale_harness", "provision", "--drones", str(config.drones)],
-            cwd=ROOT, env=env, capture_output=True, text=True, timeout=600,
-        )  # fmt: skip
-        if out.returncode != 0:
-            raise RuntimeError(f"provisioning failed:\n{out.stderr[-3000:]}")
-        data = json.loads(out.stdout)
-        result.notes.append(f"provisioned {config.drones} drones in {data['provision_s']:.2f} s")
-        accounts = [Account.from_dict(a) for a in data["accounts"]]
-        pks = [data["pks"][a.drone_id] for a in accounts]
-        conninfo = services["DATABASE_URL"]
+        _provision(run, env)
         _say(config, "starting the ground processes")
-        _start_ground(config, env, folder, ground)
-        web = ground["web"][0].url
-        roles = {
-            "web": [psutil.Process(p.process.pid) for p in ground["web"] if p.process],
-            "gateway": [psutil.Process(p.process.pid) for p in ground["gateway"] if p.process],
-            "ingest": [psutil.Process(p.process.pid) for p in ground["ingest"] if p.process],
-            "broker": broker.processes(),
-        }
+        _start_ground(run, env)
         time.sleep(2.0)
-        result.rss_idle_mib = rss_mib(roles)
-
-        # Baseline: one drone, no fleet, the same command path.
-        run_start = time.time()
-        loads.append(LoadProcess(accounts[:1], config, folder, "load0"))
-        if not _wait(lambda: online_in_database(conninfo, pks[:1]) == 1, 30):
-            raise RuntimeError("the first load drone never came online")
-        baseline = CommandProbe(web, data["token"], [accounts[0].drone_id], config.command_interval)
-        baseline.run_count(5)  # warm-up: connections, first queries
-        baseline.rtts.clear()
-        baseline.run_count(config.baseline_commands)
-        baseline.client.close()
-        result.baseline_rtt_p50_s = percentile(baseline.rtts, 0.5)
-        result.baseline_rtt_p99_s = percentile(baseline.rtts, 0.99)
-
-        # The fleet.
-        homes = {a.drone_id: a.home for a in accounts if a.home is not None}
-        map_probe = MapProbe(web.replace("http", "ws") + f"/ws/fleet/?org={ORG}", data["cookie"],
-                             homes).start()  # fmt: skip
-        probes.append(map_probe)
-        _say(config, f"connecting {config.drones} load drones")
-        began = time.monotonic()
-        rest = accounts[1:]
-        for k in range(0, len(rest), config.per_process):
-            name = f"load{len(loads)}"
-            loads.append(LoadProcess(rest[k : k + config.per_process], config, folder, name))
-        _wait(lambda: sum(p.online for p in loads) >= config.drones, 60)
-        _wait(lambda: online_in_database(conninfo, pks) >= config.drones, 20, 1.0)
-        result.connect_s = time.monotonic() - began
-        result.online = online_in_database(conninfo, pks)
-        _say(config, f"{result.online} drones online in {result.connect_s:.1f} s; measuring")
-        time.sleep(3.0)  # let the first burst of online events settle
-
-        busy = dict(roles, **{"load drones": [psutil.Process(p.process.pid) for p in loads]})
-        cpu_before = cpu_seconds(busy)
-        stored_at_start = stored_since(conninfo, pks, run_start)
-        measure_start = time.time()
-        map_probe.reset()
-        lag = LagProbe(conninfo, pks, run_start).start()
-        probes.append(lag)
-        commands = CommandProbe(web, data["token"], [a.drone_id for a in accounts],
-                                config.command_interval).start()  # fmt: skip
-        probes.append(commands)
-        time.sleep(config.duration / 2)
-        result.rss_loaded_mib = rss_mib(roles)
-        if "RABBITMQ_API_URLS" in services:
-            depths = rabbit_queue_depths(services["RABBITMQ_API_URLS"])
-            result.notes.append(f"queue depths mid-run: {depths}")
-        time.sleep(config.duration / 2)
-        measure_end = time.time()
-        stored_at_end = stored_since(conninfo, pks, run_start)
-        cpu_after = cpu_seconds(busy)
-        result.cores = {
-            role: (cpu_after[role] - cpu_before.get(role, 0.0)) / (measure_end - measure_start)
-            for role in cpu_after
-        }
-        commands.stop()
-        lag.stop()
-        map_probe.stop()
-
-        # Stop the fleet, let the ingest drain, count what arrived.
-        finals = [p.stop() for p in loads]
-        loads.clear()
-        stats = sum_stats(finals)
-        result.load_stats = stats
-        result.sent = stats.get("telemetry_objects", 0)
-        stored = -1
-        for _ in range(60):  # until the count stops moving (the ingest has drained)
-            now_stored = stored_since(conninfo, pks, run_start)
-            if now_stored == stored:
-                break
-            stored = now_stored
-            time.sleep(1.0)
-        result.stored = stored
-        # Sustained throughput: rows the ingest wrote while measured, whenever they were sent
-        # (a backlogged broker delivers old samples; they count, as the work was done).
-        result.ingest_per_s = (stored_at_end - stored_at_start) / (measure_end - measure_start)
-
-        result.lag_samples = len(lag.lags)
-        result.lag_p50_s = percentile(lag.lags, 0.5)
-        result.lag_p99_s = percentile(lag.lags, 0.99)
-        if lag.missing:
-            result.notes.append(
-                f"{lag.missing} drone-seconds with no sample stored yet (counted as lag ≥ the "
-                "time since the run began)"
-            )
-        result.commands = len(commands.rtts) + len(commands.failures)
-        result.command_failures = len(commands.failures)
-        result.command_rtt_p50_s = percentile(commands.rtts, 0.5)
-        result.command_rtt_p99_s = percentile(commands.rtts, 0.99)
-        if commands.failures:
-            result.notes.append(f"first command failure: {commands.failures[0]}")
-        result.map_updates = len(map_probe.ages)
-        result.map_drones = len(map_probe.drones)
-        result.map_staleness_p50_s = percentile(map_probe.ages, 0.5)
-        result.map_staleness_p99_s = percentile(map_probe.ages, 0.99)
-        if map_probe.error:
-            result.notes.append(f"fleet websocket: {map_probe.error}")
-        connected = result.online or 1
-        growth = sum(result.rss_loaded_mib.values()) - sum(result.rss_idle_mib.values())
-        result.kib_per_drone = growth * 1024 / connected
+        result.rss_idle_mib = rss_mib(run.roles)
+        _baseline(run)
+        map_probe = _connect_fleet(run)
+        lag, commands = _measure(run, map_probe)
+        _drain(run)
+        _summarise(result, lag, commands, map_probe)
     return result
 
 

@@ -79,10 +79,10 @@ class Supervised:
     It runs in a process group of its own, so `kill()` ends it and its children (a worker
     pool, an ingest's children) the way a crash would, and a terminal's Ctrl-C reaches
     only whoever supervises it. Its output (stdout and stderr) is appended to `log_path`,
-    and with `echo` (a prefix) also written line by line to this process's stdout;
-    `on_exit(code)` is called when a process echoed that way ends. Readiness is judged on
-    what the current start wrote: every line of `ready_text` seen and, when `port` is set,
-    the port accepting connections.
+    and with `echo` (a prefix) also written line by line to this process's stdout, and
+    with `on_line` also given to it line by line; `on_exit(code)` is called when a process
+    read that way ends. Readiness is judged on what the current start wrote: every line of
+    `ready_text` seen and, when `port` is set, the port accepting connections.
     """
 
     name: str
@@ -93,11 +93,13 @@ class Supervised:
     port: int | None = None
     cwd: Path = REPO_ROOT
     echo: str | None = None
+    on_line: Callable[[str], None] | None = None
     on_exit: Callable[[int], None] | None = None
     process: subprocess.Popen | None = None
     starts: int = 0
     _log_offset: int = field(default=0, repr=False)
     _echoed: list[str] = field(default_factory=list, repr=False)
+    _pump_thread: threading.Thread | None = field(default=None, repr=False)
 
     @property
     def url(self) -> str:
@@ -120,7 +122,7 @@ class Supervised:
                 list(self.argv),
                 cwd=self.cwd,
                 env=dict(self.env) if self.env is not None else None,
-                stdout=subprocess.PIPE if self.echo is not None else log,
+                stdout=subprocess.PIPE if self._read_lines else log,
                 stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL,
                 start_new_session=True,
@@ -129,21 +131,30 @@ class Supervised:
             if log is not subprocess.DEVNULL:
                 log.close()  # type: ignore[union-attr]
         self.starts += 1
-        if self.echo is not None:
+        if self._read_lines:
             self._echoed = []
-            threading.Thread(target=self._pump, args=(self.process,), daemon=True).start()
+            self._pump_thread = threading.Thread(target=self._pump, args=(self.process,))
+            self._pump_thread.daemon = True
+            self._pump_thread.start()
         return self
 
+    @property
+    def _read_lines(self) -> bool:
+        return self.echo is not None or self.on_line is not None
+
     def _pump(self, process: subprocess.Popen) -> None:
-        """Echo each line with the prefix, keep it for readiness, append it to the log."""
+        """Keep each line for readiness, append it to the log, echo it, hand it on."""
         assert process.stdout is not None
         log = open(self.log_path, "ab") if self.log_path else None  # noqa: SIM115
         try:
             for raw in process.stdout:
                 line = raw.decode(errors="replace")
                 self._echoed.append(line)
-                sys.stdout.write(f"{self.echo}{line}")
-                sys.stdout.flush()
+                if self.echo is not None:
+                    sys.stdout.write(f"{self.echo}{line}")
+                    sys.stdout.flush()
+                if self.on_line is not None:
+                    self.on_line(line)
                 if log is not None:
                     log.write(raw)
                     log.flush()
@@ -164,7 +175,7 @@ class Supervised:
 
     def output(self) -> str:
         """What this process wrote since its last start."""
-        if self.echo is not None:
+        if self._read_lines:
             return "".join(self._echoed)
         if self.log_path is None or not self.log_path.exists():
             return ""
@@ -218,6 +229,8 @@ class Supervised:
             except subprocess.TimeoutExpired:
                 pass
         self.kill(signal.SIGKILL)
+        if self._pump_thread is not None:
+            self._pump_thread.join(5)  # the last lines are read before we return
         return self.process.returncode
 
     def restart(self, timeout: float = 60.0) -> None:

@@ -106,8 +106,7 @@ def test_a_drone_killed_mid_flight_goes_offline_within_three_heartbeats_and_come
         lambda: Drone.objects.filter(drone_id=victim.drone_id, airborne=True).exists(), 15
     )
 
-    victim.agent.kill()
-    victim.agent.wait()
+    victim.agent.kill()  # SIGKILL, as a crash: no goodbye message
 
     def offline() -> bool:
         sweep_offline()  # what Celery beat runs every OFFLINE_SWEEP_INTERVAL_S
@@ -122,7 +121,7 @@ def test_a_drone_killed_mid_flight_goes_offline_within_three_heartbeats_and_come
     status, body = control(client, command="land", droneID=victim.drone_id)
     assert status == 409 and "offline" in body["error"]
 
-    fleet._start_agent(victim)
+    fleet.restart_agent(victim)
     assert wait_for(
         lambda: Drone.objects.filter(drone_id=victim.drone_id, online=True).exists(), 20
     )

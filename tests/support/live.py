@@ -1,24 +1,15 @@
-"""A live ASGI server (uvicorn, the same app `make run` serves) on the test database, and a
-headless Debian Chromium driven by Playwright, for browser and end-to-end tests."""
+"""A live ASGI server (uvicorn, the same app `make run` serves) on the test database, and
+the headless Chromium (bench.browser), for browser and end-to-end tests."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
+from bench.browser import launch_chromium
 from onboard.processes import Supervised, free_port, python_env
 from workers.ground import web_argv
 
 ROOT = Path(__file__).resolve().parents[2]
-CHROMIUM = os.environ.get("CHROMIUM", "/usr/bin/chromium")
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--disable-gpu",
-    "--no-first-run",
-]
 
 
 class LiveServer:
@@ -41,5 +32,4 @@ class LiveServer:
         self.process.stop(10)
 
 
-def launch_chromium(playwright):  # type: ignore[no-untyped-def]
-    return playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+__all__ = ["LiveServer", "launch_chromium"]
