@@ -199,7 +199,10 @@ def agent_process(
         "--time-scale", str(time_scale),
         *extra,
     ]  # fmt: skip
-    return Supervised(f"agent {drone_id}", argv, python_env(), folder / "agent.log")
+    # In the launcher's process group: whatever ends the launcher's group ends its agents.
+    return Supervised(
+        f"agent {drone_id}", argv, python_env(), folder / "agent.log", own_group=False
+    )
 
 
 def copy_gear(folder: Path, template: Path = GEAR_EXAMPLE) -> Path:

@@ -78,7 +78,8 @@ class Supervised:
 
     It runs in a process group of its own, so `kill()` ends it and its children (a worker
     pool, an ingest's children) the way a crash would, and a terminal's Ctrl-C reaches
-    only whoever supervises it. Its output (stdout and stderr) is appended to `log_path`,
+    only whoever supervises it; with `own_group=False` it stays in its supervisor's group
+    instead, so that whatever ends the supervisor's group ends it too. Its output (stdout and stderr) is appended to `log_path`,
     and with `echo` (a prefix) also written line by line to this process's stdout, and
     with `on_line` also given to it line by line; `on_exit(code)` is called when a process
     read that way ends. Readiness is judged on what the current start wrote: every line of
@@ -92,6 +93,7 @@ class Supervised:
     ready_text: tuple[str, ...] = ()
     port: int | None = None
     cwd: Path = REPO_ROOT
+    own_group: bool = True
     echo: str | None = None
     on_line: Callable[[str], None] | None = None
     on_exit: Callable[[int], None] | None = None
@@ -125,7 +127,7 @@ class Supervised:
                 stdout=subprocess.PIPE if self._read_lines else log,
                 stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL,
-                start_new_session=True,
+                start_new_session=self.own_group,
             )
         finally:
             if log is not subprocess.DEVNULL:
@@ -203,16 +205,19 @@ class Supervised:
         raise RuntimeError(f"{self.name} not ready in {timeout:.0f} s:\n{self.output()[-3000:]}")
 
     def send(self, sig: int) -> None:
-        """Send `sig` to the whole process group."""
+        """Send `sig` to the process and, when it has its own group, to the whole group."""
         if self.process is None:
             return
         try:
-            os.killpg(self.process.pid, sig)
+            if self.own_group:
+                os.killpg(self.process.pid, sig)
+            elif self.process.poll() is None:
+                self.process.send_signal(sig)
         except ProcessLookupError:
             pass
 
     def kill(self, sig: int = signal.SIGKILL) -> None:
-        """End the whole process group with `sig` (SIGKILL: a crash, nothing drained)."""
+        """End it (its whole group) with `sig` (SIGKILL: a crash, nothing drained)."""
         self.send(sig)
         if sig == signal.SIGKILL and self.process is not None:
             self.process.wait(10)

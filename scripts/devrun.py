@@ -19,8 +19,22 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from onboard.processes import Supervised  # noqa: E402
+from workers.ground import (  # noqa: E402
+    MANAGE,
+    beat_argv,
+    gateway_argv,
+    ingest_argv,
+    pastview_argv,
+    web_argv,
+    worker_argv,
+)
+
 PY = str(ROOT / ".venv" / "bin" / "python")
 COLOURS = ["36", "33", "35", "32", "34", "31", "96", "93"]
+WIDTH = 8  # the name column of the prefixed output
 
 
 def command_exists(name: str) -> bool:
@@ -36,59 +50,74 @@ def services_down() -> bool:
     return "down" in out
 
 
-class Supervisor:
-    def __init__(self) -> None:
-        self.procs: list[tuple[str, subprocess.Popen]] = []
+class Foreground:
+    """The processes `make run` started, their output prefixed on ours; the first to exit
+    on its own (or Ctrl-C) stops them all."""
+
+    def __init__(self, env: dict[str, str]) -> None:
+        self.env = env
+        self.processes: list[Supervised] = []
         self.stopping = threading.Event()
-        self.width = 8
 
-    def start(self, name: str, argv: list[str], env: dict[str, str]) -> None:
-        colour = COLOURS[len(self.procs) % len(COLOURS)]
-        proc = subprocess.Popen(
-            argv,
-            cwd=ROOT,
-            env=env,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            start_new_session=True,  # its own process group, so Ctrl-C reaches us only
-            text=True,
-            bufsize=1,
-        )
-        self.procs.append((name, proc))
-        prefix = (
-            f"\033[{colour}m{name:<{self.width}}|\033[0m "
-            if sys.stdout.isatty()
-            else f"{name:<{self.width}}| "
-        )
-        threading.Thread(target=self._pump, args=(name, proc, prefix), daemon=True).start()
+    def start(self, name: str, argv: list[str]) -> None:
+        colour = COLOURS[len(self.processes) % len(COLOURS)]
+        plain = f"{name:<{WIDTH}}| "
+        prefix = f"\033[{colour}m{name:<{WIDTH}}|\033[0m " if sys.stdout.isatty() else plain
 
-    def _pump(self, name: str, proc: subprocess.Popen, prefix: str) -> None:
-        assert proc.stdout is not None
-        for line in proc.stdout:
-            sys.stdout.write(prefix + line)
-            sys.stdout.flush()
-        code = proc.wait()
-        if not self.stopping.is_set():
-            sys.stdout.write(f"{prefix}exited with code {code}; stopping everything\n")
-            self.stopping.set()
+        def exited(code: int) -> None:
+            if not self.stopping.is_set():
+                sys.stdout.write(f"{prefix}exited with code {code}; stopping everything\n")
+                self.stopping.set()
+
+        process = Supervised(name, argv, self.env, echo=prefix, on_exit=exited)
+        self.processes.append(process.start())
 
     def stop(self) -> None:
+        """SIGTERM to each leader (Celery and uvicorn stop their own children cleanly),
+        15 s for all of them, then nothing of any group outlives it."""
         self.stopping.set()
-        # SIGTERM to each leader only: Celery and uvicorn stop their own children cleanly.
-        for _name, proc in self.procs:
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGTERM)
-        deadline = time.monotonic() + 15
-        for _name, proc in self.procs:
-            try:
-                proc.wait(max(0.1, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-            try:  # and nothing of its group outlives it
-                os.killpg(proc.pid, signal.SIGTERM)
-            except ProcessLookupError:
-                pass
+        for process in self.processes:
+            if process.alive:
+                process.process.terminate()  # type: ignore[union-attr]
+        for process in self.processes:
+            process.stop(15)
+
+
+def prepare(web_port: int) -> tuple[bool, dict[str, str]]:
+    """Start the services if they are down, migrate, create the demo account: (whether we
+    started the services, the environment of every process)."""
+    started_services = services_down()
+    if started_services:
+        subprocess.run([str(ROOT / "scripts" / "services.sh"), "start", "run"], check=True)
+    env = dict(os.environ, DJANGO_SETTINGS_MODULE="config.settings.local", PYTHONUNBUFFERED="1")
+    manage = [PY, MANAGE]
+    subprocess.run([*manage, "migrate", "--noinput", "-v", "0"], check=True, env=env)
+    url = f"http://127.0.0.1:{web_port}/"
+    subprocess.run([*manage, "bootstrap_demo", "--url", url], check=True, env=env)
+    return started_services, env
+
+
+def start_platform(run: Foreground, web_port: int, drones: int) -> None:
+    """One of each ground process, and the simulated drones when asked for."""
+    run.start("web", with_python(web_argv(web_port)))
+    if command_exists("gateway"):
+        run.start("gateway", with_python(gateway_argv()))
+    if command_exists("ingest_telemetry"):
+        run.start("ingest", with_python(ingest_argv()))
+    run.start("pastview", with_python(pastview_argv()))
+    run.start("worker", with_python(worker_argv("worker@%h", loglevel="info", pool="prefork",
+                                                 concurrency=2)))  # fmt: skip
+    run.start("beat", with_python(beat_argv(ROOT / ".data" / "run" / "celerybeat-schedule")))
+    if drones > 0:
+        if command_exists("run_simulated_drones"):
+            run.start("drones", [PY, MANAGE, "run_simulated_drones", str(drones)])
+        else:
+            print("DRONES was given but simulated drones are not available in this version")
+
+
+def with_python(argv: list[str]) -> list[str]:
+    """The command run by the checkout's virtualenv Python (this script may run on another)."""
+    return [PY, *argv[1:]]
 
 
 def main() -> int:
@@ -96,77 +125,17 @@ def main() -> int:
     parser.add_argument("--drones", type=int, default=int(os.environ.get("DRONES", "0")))
     parser.add_argument("--web-port", type=int, default=int(os.environ.get("WEB_PORT", "8000")))
     args = parser.parse_args()
-
-    started_services = services_down()
-    if started_services:
-        subprocess.run([str(ROOT / "scripts" / "services.sh"), "start", "run"], check=True)
-    env = dict(os.environ, DJANGO_SETTINGS_MODULE="config.settings.local", PYTHONUNBUFFERED="1")
-    manage = [PY, str(ROOT / "manage.py")]
-    subprocess.run([*manage, "migrate", "--noinput", "-v", "0"], check=True, env=env)
-    subprocess.run(
-        [*manage, "bootstrap_demo", "--url", f"http://127.0.0.1:{args.web_port}/"],
-        check=True,
-        env=env,
-    )
-
-    sup = Supervisor()
-    signal.signal(signal.SIGINT, lambda *_: sup.stopping.set())
-    signal.signal(signal.SIGTERM, lambda *_: sup.stopping.set())
-    sup.start(
-        "web",
-        [
-            PY,
-            "-m",
-            "uvicorn",
-            "config.asgi:application",
-            "--host",
-            "127.0.0.1",
-            "--port",
-            str(args.web_port),
-            "--no-access-log",
-        ],
-        env,
-    )
-    if command_exists("gateway"):
-        sup.start("gateway", [*manage, "gateway"], env)
-    if command_exists("ingest_telemetry"):
-        sup.start("ingest", [*manage, "ingest_telemetry"], env)
-    sup.start("pastview", [*manage, "pastview"], env)  # pastview: one level deeper
-    sup.start(
-        "worker",
-        [
-            PY,
-            "-m",
-            "celery",
-            "-A",
-            "config",
-            "worker",
-            "-l",
-            "info",
-            "--concurrency",
-            "2",
-            "-n",
-            "worker@%h",
-        ],
-        env,
-    )
-    schedule = ROOT / ".data" / "run" / "celerybeat-schedule"
-    sup.start(
-        "beat",
-        [PY, "-m", "celery", "-A", "config", "beat", "-l", "info", "--schedule", str(schedule)],
-        env,
-    )
-    if args.drones > 0:
-        if command_exists("run_simulated_drones"):
-            sup.start("drones", [*manage, "run_simulated_drones", str(args.drones)], env)
-        else:
-            print("DRONES was given but simulated drones are not available in this version")
+    started_services, env = prepare(args.web_port)
+    run = Foreground(env)
+    signal.signal(signal.SIGINT, lambda *_: run.stopping.set())
+    signal.signal(signal.SIGTERM, lambda *_: run.stopping.set())
+    start_platform(run, args.web_port, args.drones)
     try:
-        while not sup.stopping.is_set():
+        while not run.stopping.is_set():
             time.sleep(0.2)
     finally:
         print("stopping…", flush=True)
-        sup.stop()
+        run.stop()
         if started_services:
             subprocess.run([str(ROOT / "scripts" / "services.sh"), "stop", "run"])
     return 0
