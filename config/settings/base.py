@@ -177,7 +177,7 @@ CELERY_TASK_REJECT_ON_WORKER_LOST = True
 CELERY_WORKER_PREFETCH_MULTIPLIER = 1
 CELERY_TASK_TIME_LIMIT = env_int("CELERY_TASK_TIME_LIMIT", 30 * 60)
 CELERY_TASK_SOFT_TIME_LIMIT = env_int("CELERY_TASK_SOFT_TIME_LIMIT", 25 * 60)
-# Reliability (issue 11): a task is acknowledged only after it ran (acks late), and one
+# Reliability: a task is acknowledged only after it ran (acks late), and one
 # whose worker process died is put back (reject on worker lost), so a worker killed
 # mid-task loses nothing; every task is idempotent, so a rerun changes nothing twice.
 # When the whole worker dies, Redis has no broker-side redelivery: the message waits in
@@ -199,7 +199,7 @@ if env_str("CELERY_TASK_DEFAULT_QUEUE", ""):
 CELERY_RESULT_EXPIRES = 3600
 CELERY_BEAT_SCHEDULE: dict = {}
 
-# Drone link: heartbeats every 5 s; offline after 3 missed ones (PROTOCOL.md, issue 4).
+# Drone link: heartbeats every 5 s; offline after 3 missed ones (docs/protocol.md).
 HEARTBEAT_INTERVAL_S = env_float("HEARTBEAT_INTERVAL_S", 5.0)
 OFFLINE_AFTER_MISSED_HEARTBEATS = env_int("OFFLINE_AFTER_MISSED_HEARTBEATS", 3)
 COMMAND_TIMEOUT_S = env_float("COMMAND_TIMEOUT_S", 15.0)
@@ -256,17 +256,19 @@ MQTT_PUBLIC_HOST = env_str("MQTT_PUBLIC_HOST", "")
 MQTT_PUBLIC_PORT = env_int("MQTT_PUBLIC_PORT", 0)
 
 # --- missions ---
-# Coverage requests above this many waypoints are refused (issue 5, item 2).
+# Coverage requests above this many waypoints are refused, so one request cannot tie up a worker.
 MISSIONS_MAX_WAYPOINTS = env_int("MISSIONS_MAX_WAYPOINTS", 50_000)
 # A drone at or below this battery fraction is never chosen for a mission.
 MISSIONS_BATTERY_RESERVE = env_float("MISSIONS_BATTERY_RESERVE", 0.3)
-# Drones brought in by an OUT_MEASURE alarm (seed 001, 5.4: two).
+# Drones brought in by an OUT_MEASURE alarm: two, as in the collaborative-sensing
+# experiment of [Paula 2018], §5.4.
 MISSIONS_JOINING_DRONES = env_int("MISSIONS_JOINING_DRONES", 2)
 # A mission start not published by a gateway within this long is dropped as stale.
 MISSIONS_START_TTL_S = env_float("MISSIONS_START_TTL_S", 60.0)
 # Paused missions (no drone to replace a failing one) look for a drone this often.
 MISSIONS_RESUME_INTERVAL_S = env_float("MISSIONS_RESUME_INTERVAL_S", 5.0)
-# The panic button's hover altitude (seed 001, 5.1: 10 m).
+# The panic button's hover altitude: 10 m, as in the panic-button experiment of
+# [Paula 2018], §5.1.
 MISSIONS_PANIC_ALTITUDE = env_float("MISSIONS_PANIC_ALTITUDE", 10.0)
 CELERY_BEAT_SCHEDULE["missions.resume_paused"] = {
     "task": "missions.resume_paused",
