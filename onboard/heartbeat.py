@@ -43,7 +43,7 @@ def first_mac_address(sys_net: Path = SYS_NET) -> bytes | None:
 
 
 def derive_drone_id(prefix: str = DEFAULT_PREFIX, mac: bytes | None = None) -> str:
-    """`<PREFIX>_<XXXXXX>`: upper-case hex of the MAC's last 3 bytes (docs/protocol.md Identity)."""
+    """`<PREFIX>_<XXXXXX>`: upper-case hex of the MAC's last 3 bytes (docs/protocol.md, "Identity and units")."""
     if mac is None:
         mac = first_mac_address()
     if mac is None:

@@ -3,7 +3,7 @@
 Two loops, both on the wall clock:
 
 - video: the camera runs at ``source_hz`` (30 Hz) and every ``source_hz / rate_hz``-th
-  frame (2 Hz by default, the rate [Nassar 2016] downsampled its 30 Hz video to)
+  frame (2 Hz by default, the rate [Nassar 2017] downsampled its 30 Hz video to)
   is published on ``<id>/camera/out`` with the pose at capture (docs/protocol.md "Camera
   frame"). Frames that would be dropped are never rendered.
 - pose: ``pose_hz`` samples a second (up to 200) go out as telemetry objects named

@@ -1,7 +1,7 @@
 """Frame evaluation functions of the past-image view: score every stored frame against a pose.
 
 Each function is a frozen dataclass holding its coefficients and reference values (the
-SPIRIT defaults are those of [Nassar 2016]), serialisable to and from a dict for settings
+SPIRIT defaults are those of [Nassar 2017]), serialisable to and from a dict for settings
 and the page. The lowest score wins. All frames are scored at once with numpy;
 ``spirit_scores_loop`` is the straightforward per-frame version, kept as the benchmark
 baseline and a test oracle.
@@ -220,7 +220,7 @@ class Murata(EvaluationFunction):
 
 @dataclass(frozen=True, slots=True)
 class Spirit(EvaluationFunction):
-    """The SPIRIT function of [Nassar 2016], five weighted terms.
+    """The SPIRIT function of [Nassar 2017], five weighted terms.
 
     centrality      |drone off the camera axis| / d_ref
     direction       (yaw of the drone relative to the frame)^2
@@ -228,7 +228,7 @@ class Spirit(EvaluationFunction):
     direction_with_current  (yaw of the frame relative to the displayed frame)^2
     distance_with_current   |frame - displayed frame| / d_ref
     Centrality uses the two axes across the camera's line of sight (the frame of
-    [Nassar 2016] looked along y). A drone behind the camera cannot be in the picture, so there its
+    [Nassar 2017] looked along y). A drone behind the camera cannot be in the picture, so there its
     whole distance counts as off-centre.
     The last two terms are zero while no frame is displayed.
     """

@@ -1,6 +1,6 @@
 """Selection service for one drone: stored frames in, the best past view out, per pose.
 
-``PastView`` downsamples the incoming video (30 Hz -> 2 Hz by default, as [Nassar 2016]
+``PastView`` downsamples the incoming video (30 Hz -> 2 Hz by default, as [Nassar 2017]
 did to simulate line-of-sight conditions), stores frames in a ``FrameBuffer``, tracks the pose
 stream, and for each new pose picks the lowest-scoring frame under the configured
 evaluation function. It returns plain dicts ready for the page and sends a frame's JPEG
@@ -36,7 +36,7 @@ PERIOD_SLACK_S = 1e-3
 
 @dataclass(frozen=True)
 class PastViewSettings:
-    """Per-drone settings; defaults from [Nassar 2016]."""
+    """Per-drone settings; defaults from [Nassar 2017]."""
 
     capacity: int = 30
     min_distance_m: float = 0.25

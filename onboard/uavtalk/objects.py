@@ -1,7 +1,7 @@
 """UAVObject definitions loaded from dRonin-style XML, their ids and their wire packing.
 
 The object id is the firmware's own shift-add-XOR hash over the definition (docs/uavtalk.md,
-"Object id"), so a real board and this code agree on ids without a hard-coded table.
+"Object ids"), so a real board and this code agree on ids without a hard-coded table.
 """
 
 from __future__ import annotations
