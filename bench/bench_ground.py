@@ -1,4 +1,4 @@
-"""Ground link (issue 4): command round trip REST → drone → REST, and heartbeat rate.
+"""Ground link: command round trip REST → drone → REST, and heartbeat rate.
 
     .venv/bin/python -m bench.bench_ground
 

@@ -1,4 +1,4 @@
-"""Time to first plot of a processed flight log in headless Chromium (issue 7).
+"""Time to first plot of a processed flight log in headless Chromium.
 
 A 10-minute PX4 ULog (IMU and attitude at 250 Hz, position, GPS, battery) is imported into
 its columnar store, then its page is opened in headless Chromium against the real ASGI app

@@ -1,4 +1,4 @@
-"""Replacement latency (issue 5): a CRITICAL alarm reaching the broker → the replacement
+"""Replacement latency: a CRITICAL alarm reaching the broker → the replacement
 drone accepting its mission, with 1 and with 100 candidate drones connected.
 
     .venv/bin/python -m bench.bench_missions_live

@@ -1,4 +1,4 @@
-"""Scale-out (issue 11): a thousand load drones against the whole ground side, on Mosquitto
+"""Scale-out: a thousand load drones against the whole ground side, on Mosquitto
 and on a two-node RabbitMQ cluster, in the same run.
 
     .venv/bin/python -m bench.bench_scale [--drones 1000] [--duration 20]

@@ -1,4 +1,4 @@
-"""Telemetry ingest and query benchmarks (issue 6).
+"""Telemetry ingest and query benchmarks.
 
     .venv/bin/python -m bench.bench_telemetry
 

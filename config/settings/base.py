@@ -193,7 +193,7 @@ if env.str("CELERY_TASK_DEFAULT_QUEUE", ""):
 CELERY_RESULT_EXPIRES = 3600
 CELERY_BEAT_SCHEDULE: dict = {}
 
-# Drone link: heartbeats every 5 s; a drone is offline after 3 missed ones.
+# Drone link: heartbeats every 5 s; offline after 3 missed ones (docs/protocol.md).
 HEARTBEAT_INTERVAL_S = env.float("HEARTBEAT_INTERVAL_S", 5.0)
 OFFLINE_AFTER_MISSED_HEARTBEATS = env.int("OFFLINE_AFTER_MISSED_HEARTBEATS", 3)
 COMMAND_TIMEOUT_S = env.float("COMMAND_TIMEOUT_S", 15.0)
@@ -250,17 +250,19 @@ MQTT_PUBLIC_HOST = env.str("MQTT_PUBLIC_HOST", "")
 MQTT_PUBLIC_PORT = env.int("MQTT_PUBLIC_PORT", 0)
 
 # --- missions ---
-# Coverage requests above this many waypoints are refused.
+# Coverage requests above this many waypoints are refused, so one request cannot tie up a worker.
 MISSIONS_MAX_WAYPOINTS = env.int("MISSIONS_MAX_WAYPOINTS", 50_000)
 # A drone at or below this battery fraction is never chosen for a mission.
 MISSIONS_BATTERY_RESERVE = env.float("MISSIONS_BATTERY_RESERVE", 0.3)
-# Drones brought in by an OUT_MEASURE alarm (Paula 2018, 5.4: two).
+# Drones brought in by an OUT_MEASURE alarm: two, as in the collaborative-sensing
+# experiment of [Paula 2018], §5.4.
 MISSIONS_JOINING_DRONES = env.int("MISSIONS_JOINING_DRONES", 2)
 # A mission start not published by a gateway within this long is dropped as stale.
 MISSIONS_START_TTL_S = env.float("MISSIONS_START_TTL_S", 60.0)
 # Paused missions (no drone to replace a failing one) look for a drone this often.
 MISSIONS_RESUME_INTERVAL_S = env.float("MISSIONS_RESUME_INTERVAL_S", 5.0)
-# The panic button's hover altitude (Paula 2018, 5.1: 10 m).
+# The panic button's hover altitude: 10 m, as in the panic-button experiment of
+# [Paula 2018], §5.1.
 MISSIONS_PANIC_ALTITUDE = env.float("MISSIONS_PANIC_ALTITUDE", 10.0)
 CELERY_BEAT_SCHEDULE["missions.resume_paused"] = {
     "task": "missions.resume_paused",

@@ -1,4 +1,4 @@
-"""The missions engineer's end-to-end harness (tests/missions/sky.py), with drones that
+"""The missions end-to-end harness (tests/missions/sky.py), with drones that
 speak MAVLink: the simulator's MAVLink personality and the agent with `--fc mavlink`.
 One Sky can mix both; UAVTalk drones are started as the harness starts them."""
 

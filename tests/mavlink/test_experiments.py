@@ -1,6 +1,6 @@
-"""The seed's four experiments (seed 001, ch. 5) with MAVLink-simulated drones, and the
+"""The four experiments of [Paula 2018], chapter 5, with MAVLink-simulated drones, and the
 self-replacement experiment with a UAVTalk drone replaced by a MAVLink one: the missions
-engineer's harness and helpers, the real gateway, a real Celery worker."""
+harness and helpers, the real gateway, a real Celery worker."""
 
 from __future__ import annotations
 
@@ -59,7 +59,8 @@ def test_the_panic_button_brings_a_mavlink_drone_to_hover_over_the_caller(world_
     assert wait_for(hovering_over_caller, 10), sky.describe()
     log = api(world_tx.operator).get(f"/api/v1/missions/{mission.pk}/log/").json()
     stages = {s["stage"]: s["duration_s"] for s in log["stages"]}
-    # Seed 5.1: climbing 10 m at ≤ 2 m/s takes at least 5 s; the whole call under a minute.
+    # [Paula 2018], §5.1: climbing 10 m at ≤ 2 m/s takes at least 5 s; the whole call
+    # under a minute.
     assert stages["takeoff"] >= 4.0 and sum(stages.values()) < 60
 
 
@@ -94,7 +95,7 @@ def test_a_uavtalk_drone_running_out_of_battery_is_replaced_by_a_mavlink_drone(w
     from missions.planning import coverage, mission_steps
 
     # A small battery: the UAVTalk drone's fail-safe raises CRITICAL (below 25 %) part
-    # way through the survey, as in seed 5.3, and the ground hands its waypoints over.
+    # way through the survey, as in [Paula 2018], §5.3, and the ground hands its waypoints over.
     sky.add_drone("ACME_UR1", north=-10, fc="uavtalk", battery_capacity_mah=300)
     sky.add_drone("ACME_MR2", north=-40, east=-20, fc="mavlink")
     sky.wait_online()

@@ -10,10 +10,10 @@ import pytest
 
 from missions.geo import LocalFrame
 
-# The seed's experiments flew at the University of Aveiro campus.
+# The experiments of [Paula 2018] flew at the University of Aveiro campus.
 AVEIRO = LocalFrame(40.6303, -8.6575)
-# Our own Redis database for the gateway outbox: engineers running other suites at the
-# same time have gateways popping the default one.
+# Our own Redis database for the gateway outbox: other suites running at the same time
+# have gateways popping the default one.
 OUTBOX_DB = 9
 
 

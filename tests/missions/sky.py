@@ -1,7 +1,7 @@
 """End-to-end harness: a private Mosquitto, the real gateway, a real Celery worker and
 simulated drones (firmware.sim + the onboard agent, per drone), on the test database.
 
-Engineers run other suites against the same Redis at the same time, so the gateway
+Other suites may run against the same Redis at the same time, so the gateway
 outbox lives in a Redis database of our own and our Celery tasks go to a queue of our
 own; neither changes what is tested.
 """
@@ -31,7 +31,7 @@ from .conftest import AVEIRO, OUTBOX_DB, point_at, redis_url_with_db
 
 ROOT = Path(__file__).resolve().parents[2]
 GROUND_PASSWORD = "ground-e2e-password"
-# Simulated seconds per real second: the seed's five-minute survey takes about 15 s.
+# Simulated seconds per real second: a five-minute survey takes about 15 s.
 TIME_SCALE = 20.0
 HOME_ALT_MSL = 12.0
 BEAT_INTERVAL_S = 1.0

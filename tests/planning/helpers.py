@@ -1,4 +1,4 @@
-"""Areas built from exact metres, so the seed's sizes reach the planner as clicked vertices."""
+"""Areas built from exact metres, so experiment sizes reach the planner as clicked vertices."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 
 from missions.geo import LocalFrame
 
-# The seed's experiments flew at the University of Aveiro campus.
+# The experiments of [Paula 2018] flew at the University of Aveiro campus.
 AVEIRO = LocalFrame(40.6303, -8.6575)
 
 

@@ -4,7 +4,7 @@ and beat, each a real subprocess on the test database, each killable and restart
 Every process reads the database pytest-django created (TEST_WORKER_DB_NAME, see
 config/settings/test.py) and gets the same environment: the broker settings (a private
 Mosquitto, or a RabbitCluster's `settings_env()`), a REDIS_URL, and a Celery queue of its
-own, so engineers running other suites against the same Redis never take our tasks.
+own, so other suites running against the same Redis never take our tasks.
 Each process runs in its own process group: `kill()` ends it and its children (a Celery
 pool, an ingest supervisor's children) the way a crash would.
 """
