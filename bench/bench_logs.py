@@ -1,4 +1,4 @@
-"""Flight-log import and level-of-detail benchmarks (issue 7).
+"""Flight-log import and level-of-detail benchmarks.
 
 Run: .venv/bin/python -m bench.bench_logs [--bin-slice-mb N]
 

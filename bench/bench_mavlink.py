@@ -1,4 +1,4 @@
-"""A MAVLink drone against a UAVTalk drone in the same run (issue 10).
+"""A MAVLink drone against a UAVTalk drone in the same run.
 
 Both are the simulator (same vehicle model, time scale 1) driven by the real drivers:
 MAVLink over TCP (as to ArduPilot SITL), UAVTalk over a pty (as to a dRonin board on USB).

@@ -1,6 +1,6 @@
 """Mission decode + queue on the drone, for 45 and 5 000 steps.
 
-The seed measured 3.5–6.3 ms on a Raspberry Pi 2 (seed 001, chapter 5). The figure here is
+[Paula 2018], chapter 5, measured 3.5–6.3 ms on a Raspberry Pi 2. The figure here is
 the mission worker's whole intake: base64 → JSON → every step validated → FIFO queue;
 the baseline is a plain `json.loads(base64.b64decode(...))` of the same payload, in the
 same run, so the ratio is the price of validation.
@@ -70,7 +70,7 @@ def measure(count: int) -> None:
         baseline_name="json.loads(base64.b64decode(payload)) without validation",
         baseline_value=base,
         higher_is_better=False,
-        goal="below the seed's 3.5-6.3 ms on a Raspberry Pi 2 for a 45-step mission",
+        goal="below the 3.5-6.3 ms of [Paula 2018] on a Raspberry Pi 2 for a 45-step mission",
         steps=count,
         payload_bytes=len(payload),
     )

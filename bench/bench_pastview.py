@@ -1,6 +1,6 @@
 """Past-image view: SPIRIT frame selection time per pose, vectorised vs per-frame loop.
 
-Seed 002 scored frames one at a time (up to 0.3 ms each) and lagged from about twenty
+[Nassar 2017] scored frames one at a time (up to 0.3 ms each) and lagged from about twenty
 frames. Poses arrive at up to 200 Hz, so a selection must take well under 5 ms; the goal
 is a 1 000-frame buffer in under 1 ms. Both implementations score the same frames against
 the same poses in this run. Run: .venv/bin/python -m bench.bench_pastview

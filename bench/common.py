@@ -1,7 +1,7 @@
 """Shared helpers for benchmarks: timing and the results file every benchmark updates.
 
 Each figure is written with a baseline measured in the same run, so the ratio holds on a
-noisy machine (ARCHITECTURE.md, quality bar).
+noisy machine (docs/architecture.md, quality bar).
 """
 
 from __future__ import annotations

@@ -159,7 +159,8 @@ class DroneCommandView(AsyncAPIView):
             504: OpenApiResponse(description="no reply in time"),
         },
         description=(
-            "Send one command of seed table 4.2 (`params` as in PROTOCOL.md). A reply with "
+            "Send one command of the `/control` command set (`params` as in docs/protocol.md). "
+            "A reply with "
             "`ok: false` is the drone's own refusal."
         ),
     )

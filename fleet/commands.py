@@ -1,4 +1,4 @@
-"""The Drone Manager (seed 001, 3.4.2.2, 4.2.3, table 4.2): commands with real replies.
+"""The Drone Manager: commands with real replies, the REST command set of [Paula 2018], table 4.2.
 
 A command is checked here before anything is sent (who may, which drone, which
 parameters, is it safe), logged with its sender, sent through the gateway (workers.outbox)
@@ -24,7 +24,7 @@ from .models import ROLE_RANK, CommandLog, Drone, Role
 
 log = logging.getLogger(__name__)
 
-# Seed table 4.2: queries answered by the Drone Identifier (GET) ...
+# The command set: queries answered by the Drone Identifier (GET) ...
 QUERY_COMMANDS = ("discover", "getgear")
 GET_COMMANDS = ("discover", "getgear", "objrequest")
 # ... and the Mission Planner's two (POST), routed to the hooks in settings.
@@ -33,7 +33,7 @@ ALL_COMMANDS = (*QUERY_COMMANDS, *protocol.CONTROL_COMMANDS, *CHAIN_COMMANDS)
 POST_COMMANDS = tuple(c for c in ALL_COMMANDS if c not in GET_COMMANDS)
 # What `POST /api/v1/drones/{id}/commands/` takes (the queries are GET resources there).
 API_COMMANDS = (*protocol.CONTROL_COMMANDS, *CHAIN_COMMANDS)
-# Refused while airborne unless forced (PROTOCOL.md "Control"; seed: destructive in flight).
+# Refused while airborne unless forced: they would drop the drone (docs/protocol.md "Control").
 UNSAFE_IN_FLIGHT = ("disarm", "resetfc")
 
 
@@ -113,7 +113,7 @@ def _refuse(entry_fields: dict, refusal: CommandRefused) -> CommandRefused:
 
 
 def prepare(user: Any, drone_id: str, command: str, params: dict | None) -> Prepared:
-    """Every check of issue 4 in order: drone (404), role (403), params (400), state (409).
+    """Every check in order: drone (404), role (403), params (400), state (409).
 
     Returns the pending log entry with a fresh request id; refusals are logged too.
     """
@@ -177,7 +177,7 @@ async def send(user: Any, drone_id: str, command: str, params: dict | None) -> O
 
 
 def discover(user: Any) -> dict:
-    """Seed `discover`: the user's drones with their state, specs and sensors."""
+    """`discover`: the user's drones with their state, specs and sensors."""
     drones = Drone.objects.for_user(user).order_by("drone_id")
     return {"drones": [drone_summary(d) for d in drones]}
 

@@ -1,6 +1,7 @@
-"""The seed-compatible `/control` endpoint (seed 001, table 4.2; PROTOCOL.md).
+"""The `/control` endpoint, compatible with the REST command set of [Paula 2018], table 4.2
+(docs/protocol.md).
 
-Same parameter names and GET/POST split as the seed, as query string or form fields.
+Same parameter names and GET/POST split as that table, as query string or form fields.
 It answers when the drone answers: `{"ok": true, "request_id", "result"}`; otherwise
 `{"ok": false, "error"}` with 400, 401/403, 404, 405 (wrong method for the command),
 409 (offline, unsafe, or refused by the drone), 504 (no reply in time).
@@ -21,7 +22,7 @@ from . import commands
 from .async_views import AsyncAPIView
 from .commands import CommandRefused
 
-# Seed parameter → command parameter (the names are the same; these are the ones passed on).
+# `/control` parameter → command parameter (the names are the same; these are the ones passed on).
 COMMAND_PARAMS = ("value", "lat", "lon", "altitude_delta", "altitude", "force")
 
 
@@ -77,7 +78,7 @@ def _error(status: int, message: str, request_id: str | None = None) -> Response
 
 
 class ControlView(AsyncAPIView):
-    """Seed table 4.2 at `/control`: every command, answered with the drone's own reply."""
+    """The `/control` command set: every command, answered with the drone's own reply."""
 
     @extend_schema(
         operation_id="control_get",
@@ -92,7 +93,7 @@ class ControlView(AsyncAPIView):
         operation_id="control_post",
         request={"application/x-www-form-urlencoded": ControlParams},
         responses={200: CONTROL_OK, **ERRORS},
-        description="POST commands: every other command of seed table 4.2.",
+        description="POST commands: every other command of the `/control` command set.",
     )
     async def post(self, request: Request) -> Response:
         data = {**request.query_params.dict()}
@@ -103,7 +104,7 @@ class ControlView(AsyncAPIView):
         return await self.control(request, data, commands.POST_COMMANDS)
 
     def handle_exception(self, exc: Exception) -> Response:
-        """Authentication and permission errors in the seed's shape, not the API's."""
+        """Authentication and permission errors in the `{ok, error}` shape, not the API's."""
         response = super().handle_exception(exc)
         if isinstance(response.data, dict) and "error" in response.data:
             response.data = {"ok": False, "error": response.data["error"]}

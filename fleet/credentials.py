@@ -120,7 +120,7 @@ class Credentials:
     urls: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
-        """The JSON `provision_drone` prints (PROTOCOL.md, "Ground side contract")."""
+        """The JSON `provision_drone` prints (docs/protocol.md, "Provisioning a drone")."""
         mqtt = {
             "host": self.host,
             "port": self.port,

@@ -1,4 +1,4 @@
-"""The Drone Identifier (seed 001, 3.4.2.1 and 4.2.1): who is connected, where, with what.
+"""The Drone Identifier: who is connected, where, with what.
 
 Plain functions the gateway calls per message, and the offline sweep the Celery beat
 runs. Each returns None when the message was taken, or a short reason when it was

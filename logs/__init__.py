@@ -1,4 +1,4 @@
-"""Flight-log import, columnar storage, level-of-detail and analysis (issue 7).
+"""Flight-log import, columnar storage, level-of-detail and analysis.
 
 Plain modules without Django: the upload API, the Celery import task and the viewer call
 `import_log`, `store.import_to_store` / `store.open_store`, `lod.downsample` and `analysis`.

@@ -11,14 +11,14 @@ import numpy as np
 from logs.series import LogData, find_special
 from logs.store import NS, LogStore
 
-# Seed 000 (5.2.1) trusted intervals under 20 ms for the 200 Hz AR.Drone navdata; a default
+# [Procházka 2016], §5.2.1, trusted intervals under 20 ms for 200 Hz AR.Drone navdata; a default
 # that suits 50 Hz streams too. Longer gaps leave the drone where it was.
 DEFAULT_MAX_GAP_S = 0.1
 
 
 @dataclass
 class Trajectory:
-    """Positions from the start point: x to the north, y to the west (seed 000, 5.2.1),
+    """Positions from the start point: x to the north, y to the west ([Procházka 2016], §5.2.1),
     in the velocity's length unit (mm/s in -> mm out)."""
 
     t: np.ndarray  # seconds
@@ -66,8 +66,8 @@ def rotation_matrix(
     yaw: float | np.ndarray, pitch: float | np.ndarray, roll: float | np.ndarray
 ) -> np.ndarray:
     """Body-to-world rotation (x forward, y right, z down; radians): first yaw about z, then
-    pitch about the new y, then roll about the newest x — the order seed 000 (4.2.1) found
-    experimentally. Arrays give a stack of matrices (..., 3, 3)."""
+    pitch about the new y, then roll about the newest x — the order [Procházka 2016],
+    §4.2.1, found experimentally. Arrays give a stack of matrices (..., 3, 3)."""
     yaw, pitch, roll = np.asarray(yaw, float), np.asarray(pitch, float), np.asarray(roll, float)
     return _axis(yaw, 2) @ _axis(pitch, 1) @ _axis(roll, 0)
 

@@ -118,7 +118,7 @@ def _norm(name: str) -> str:
     return re.sub(r"[^a-z0-9]", "", name.lower())
 
 
-# Names from seed 000 (DFI special quantities) plus the spellings PX4, ArduPilot, MAVLink
+# Names of the DFI special quantities ([Procházka 2016]) plus the spellings PX4, ArduPilot, MAVLink
 # and ardrone_autonomy use; compared after lower-casing and dropping non-alphanumerics.
 _SCALAR_NAMES = {
     "altitude": {"altitude", "alt", "altd", "relativealt", "altrel"},

@@ -1,4 +1,4 @@
-"""Collaborative extension on an OUT_MEASURE alarm (seed 001, 3.1.6 and 5.4), once per mission.
+"""Collaborative extension on an OUT_MEASURE alarm, once per mission.
 
 The area is rebuilt around the alarm position from the mission's extensibility parameters
 (`vectors`, `step_distance`, `intermediate_action`), larger by 50 % per joining drone; the

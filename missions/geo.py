@@ -1,7 +1,7 @@
 """A local metric frame: WGS84 lat/lon ↔ North/East metres about a reference point.
 
-The linearisation is the one the drones use (seed 001, fig. 4.13, taken from dRonin's
-GCS): N = R·Δlat, E = R·cos(lat₀)·Δlon with R = 6 378 137 m. Over a mission area
+The linearisation is the one the drones use (dRonin's GCS, as in [Paula 2018], fig. 4.13):
+N = R·Δlat, E = R·cos(lat₀)·Δlon with R = 6 378 137 m. Over a mission area
 (a few km) its error is far below GPS noise, and planning in the same frame as the
 Navigation Processor keeps the ground's "one step apart" equal to the drone's.
 Everything is vectorised: arrays of any shape go in, arrays of the same shape come out.
@@ -22,7 +22,7 @@ MAX_ABS_LATITUDE = 89.0
 
 @dataclass(frozen=True)
 class LocalFrame:
-    """North/East metres about (lat0, lon0); `alt0` raises the radius as in fig. 4.13."""
+    """North/East metres about (lat0, lon0); `alt0` raises the radius, as the drones do."""
 
     lat0: float
     lon0: float

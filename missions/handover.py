@@ -1,15 +1,15 @@
 """Pure planning of handovers: which steps, with which indexes, go to which drone.
 
-Replacement (seed 001, 5.3, on a CRITICAL alarm): the replacement drone gets preparation
+Replacement (on a CRITICAL alarm): the replacement drone gets preparation
 steps (arm, take off to the mission altitude, fly to where the failing drone stopped)
 and then every step not yet completed, with its ORIGINAL index, in index order.
 
-Collaboration (seed 001, 5.4, on an OUT_MEASURE alarm): the rebuilt area's parts go to
+Collaboration (on an OUT_MEASURE alarm): the rebuilt area's parts go to
 the drones; the alarming drone is already flying and keeps its part without preparation,
 each joining drone arms and takes off first. The original mission's steps not yet
 completed are superseded by the new plan.
 
-Index rule, for both: step indexes are the mission's index space (PROTOCOL.md: an index
+Index rule, for both: step indexes are the mission's index space (docs/protocol.md: an index
 is kept when a step changes hands, and it must be ≥ 0), so every NEW step — preparation
 or a new area's waypoint — gets a fresh index after the mission's highest one, in the
 order listed here. New steps are therefore mission steps like any other: the caller

@@ -1,4 +1,4 @@
-"""The mission log (seed 001, 4.2.4): one JSON document with the mission, its drones, its
+"""The mission log: one JSON document with the mission, its drones, its
 assignments and every event, readable by the log viewer page and by
 `logs.importers.mission` (events with `ts`, `drone_id`, `type`, `status`,
 `index`, `position`, `duration_s`).

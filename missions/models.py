@@ -44,7 +44,7 @@ class StepStatus(models.TextChoices):
     STARTED = "started", "Started"
     COMPLETED = "completed", "Completed"
     FAILED = "failed", "Failed"
-    # Replaced by a collaborative re-plan (seed 001, 5.4): no drone will fly it any more.
+    # Replaced by a collaborative re-plan: no drone will fly it any more.
     SUPERSEDED = "superseded", "Superseded"
 
 
@@ -91,7 +91,7 @@ class Mission(models.Model):
         max_length=12, choices=MissionStatus.choices, default=MissionStatus.DRAFT
     )
     altitude = models.FloatField(default=10.0)
-    # Extensibility parameters (seed 4.2.4): the area and step a collaboration rebuilds.
+    # Extensibility parameters: the area and step a collaboration rebuilds.
     extensibility = models.JSONField(null=True, blank=True)
     created_by = models.ForeignKey(
         settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL

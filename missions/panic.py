@@ -1,4 +1,4 @@
-"""The panic button (seed 001, 5.1): the nearest available drone arms, climbs to 10 m,
+"""The panic button: the nearest available drone arms, climbs to 10 m ([Paula 2018], §5.1),
 flies to the caller and hovers there (no land: it stays until an operator decides)."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ def panic_steps(lat: float, lon: float, altitude: float) -> list[dict]:
     return [
         {"command": "arm", "params": {}},
         {"command": "takeoff", "params": {"altitude": altitude}},
-        # Climb first, then fly: each stage is timed on its own (seed figure 5.8).
+        # Climb first, then fly: each stage is timed on its own ([Paula 2018], figure 5.8).
         {"command": "wait_for_flight", "params": {}},
         {"command": "navigate", "params": {"lat": lat, "lon": lon}},
         {"command": "wait_for_flight", "params": {}},

@@ -1,8 +1,8 @@
-"""Mission pictures (seed 001, 5.2): stored geotagged, thumbnailed, zipped for OpenDroneMap.
+"""Mission pictures: stored geotagged, thumbnailed, zipped for OpenDroneMap.
 
 Geotagging writes an EXIF GPS block into the JPEG without re-encoding it (the APP1
 segment is replaced), so pictures keep their quality. The optional barrel-distortion
-correction is ImageMagick's `-distort barrel 'A B C D'` (the seed's listing 5.1) done
+correction is ImageMagick's `-distort barrel 'A B C D'` ([Paula 2018], listing 5.1) done
 with numpy: a destination pixel at normalised radius r samples the source at
 r · (A r³ + B r² + C r + D), radius 1 being half the smaller image side.
 """
@@ -31,7 +31,8 @@ from onboard import protocol
 
 log = logging.getLogger(__name__)
 
-# Seed 001, listing 5.1 (GoPro Hero3): `convert -distort barrel '0.1 -0.32 0'`, D = 1.22.
+# The GoPro Hero3 correction of [Paula 2018], listing 5.1:
+# `convert -distort barrel '0.1 -0.32 0'`, D = 1.22.
 BARREL_COEFFICIENTS = (0.10, -0.32, 0.0, 1.22)
 THUMBNAIL_SIZE = (240, 240)
 GPS_IFD = 0x8825

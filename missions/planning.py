@@ -1,4 +1,4 @@
-"""Coverage geometry for missions (seed 001, 4.2.4 and ch. 5): plain values in, plain values out.
+"""Coverage geometry for missions: plain values in, plain values out.
 
 The user clicks three consecutive corners A, B, C of a parallelogram. In a local metric
 frame (missions.geo), v = B − A and w = C − B; the fourth corner is A + w. A side of
@@ -6,7 +6,7 @@ length L holds floor(L / step) + 1 waypoints, so consecutive waypoints are exact
 step apart, and the path is a serpentine: rows run along v, the first from A towards B,
 each next row one step further along w and in the opposite direction.
 
-`vectors` and `step_distance` (with `intermediate_action`) are the seed's extensibility
+`vectors` and `step_distance` (with `intermediate_action`) are the mission's extensibility
 parameters: enough to rebuild the same shape around a new centre (`extend_from_vectors`).
 """
 
@@ -289,13 +289,13 @@ def extend_from_vectors(
 ) -> Extension:
     """Rebuild the stored shape around `center`, larger by 50 % per joining drone.
 
-    Rule (seed 001, 5.4.4): the target area is the original |v × w| × (1 + 0.5 × joining
+    Rule ([Paula 2018], §5.4.4): the target area is the original |v × w| × (1 + 0.5 × joining
     drones); the step and the directions of v and w are kept. Both sides are scaled by
     one factor and rounded to whole steps (the aspect is kept); of those grids, the one
-    whose area is closest to the target wins, a tie going to the smaller. The seed's
+    whose area is closest to the target wins, a tie going to the smaller. The experiment's
     28 × 35 m at 7 m (4 × 5 steps, 980 m²) with two joining drones targets 1960 m²: the
     candidates around it are 5 × 7 steps (1715 m², +75 %) and 6 × 7 steps (2058 m²,
-    +110 %), so 6 × 7 steps = 42 × 49 m, 7 × 8 = 56 waypoints, as in the seed.
+    +110 %), so 6 × 7 steps = 42 × 49 m, 7 × 8 = 56 waypoints, as there.
 
     The waypoints are split into joining_drones + 1 contiguous parts; with
     `drone_positions` (one [lat, lon] per drone, the alarming drone first by convention)
@@ -480,7 +480,7 @@ def mission_steps(
     wait_tolerance: tuple[float, float] = (DEFAULT_TOLERANCE, DEFAULT_TOLERANCE),
     start_index: int = 0,
 ) -> list[dict]:
-    """PROTOCOL.md steps flying the waypoints: [arm, takeoff,] (navigate, wait, actions…)*, [land].
+    """Mission steps flying the waypoints: [arm, takeoff,] (navigate, wait, actions…)*, [land].
 
     Indexes run from `start_index` in list order. `wait_tolerance` is (horizontal, vertical)
     in metres for every wait_for_flight.

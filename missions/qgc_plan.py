@@ -1,8 +1,8 @@
 """QGroundControl `.plan` files (JSON, fileType "Plan", version 1) ↔ our mission steps.
 
-Mission items map onto PROTOCOL.md steps, altitudes relative to home (frame 3). A survey
-or corridor scan is read from the items QGroundControl generated for it and saved inside
-it (TransectStyleComplexItem.Items); it re-exports as those simple items.
+Mission items map onto mission steps (docs/protocol.md), altitudes relative to home
+(frame 3). A survey or corridor scan is read from the items QGroundControl generated for
+it and saved inside it (TransectStyleComplexItem.Items); it re-exports as those simple items.
 
 | item | steps |
 |---|---|

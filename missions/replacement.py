@@ -1,4 +1,4 @@
-"""Replacing a drone that must stop (seed 001, 3.1.5 and 5.3), exactly once per failure.
+"""Replacing a drone that must stop, exactly once per failure.
 
 The failing assignment's row lock serialises concurrent runs; the one-to-one
 `Assignment.replaces` makes a second replacement of the same failure impossible, so a

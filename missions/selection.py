@@ -1,4 +1,4 @@
-"""Which drones may join or replace a mission (seed 001, 4.2.4 and 5.4.2), on plain values.
+"""Which drones may join or replace a mission, on plain values.
 
 A drone is available when it is online, not flying another mission and its battery is
 above the reserve. Available drones are taken nearest first to where they are needed,

@@ -1,4 +1,4 @@
-"""Mission execution (seed 001, 3.1.4 and 4.2.4): create, start, stop, and apply progress.
+"""Mission execution: create, start, stop, and apply progress.
 
 Plain functions over the models. Views, the gateway handlers, Celery tasks and the
 `/control` chain hooks call them. Messages to drones go through the gateway's Redis
@@ -56,7 +56,7 @@ class MissionError(ValueError):
 
 
 def validate_steps(raw_steps: Any) -> list[dict]:
-    """Steps as the API receives them → PROTOCOL.md steps, indexes 0..n-1 in list order.
+    """Steps as the API receives them → mission steps, indexes 0..n-1 in list order.
 
     An `index` given by the client must equal its position (the mission's index space is
     dense); commands and params are checked with the drone's own rules.

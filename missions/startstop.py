@@ -1,4 +1,4 @@
-"""`startchain` / `stopchain` on `/control` (seed table 4.2), tracked as missions.
+"""`startchain` / `stopchain` on `/control`, tracked as missions.
 
 Named by settings.MISSION_START_STOP_HANDLERS, which `fleet.commands` calls.
 """
@@ -17,7 +17,7 @@ from missions.services import MissionError, create_mission, start_mission, stop_
 
 
 def _steps(mission: str) -> list:
-    """The seed's `mission`: base64 of a bare list of steps or of a full payload."""
+    """The `mission` parameter: base64 of a bare list of steps or of a full payload."""
     try:
         data = json.loads(base64.b64decode(mission.encode("ascii"), validate=True))
     except (binascii.Error, ValueError, UnicodeError):

@@ -1,4 +1,4 @@
-"""Onboard agent: bridges the ground's MQTT contract (PROTOCOL.md) to a flight controller.
+"""Onboard agent: bridges the ground's MQTT contract (docs/protocol.md) to a flight controller.
 
 This package must never import Django; it is installed on drones on its own.
 """

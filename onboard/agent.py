@@ -1,7 +1,7 @@
-"""The onboard agent: wires the flight controller to the broker (seed 001, 3.3.2.2 and 4.1.2).
+"""The onboard agent: wires the flight controller to the broker.
 
 Inputs arrive on `<id>/control/in`, `<id>/mission/in` and `<id>/gear/in`; everything the
-drone says goes out on the `<id>/<channel>/out` topics of PROTOCOL.md. Malformed input is
+drone says goes out on the `<id>/<channel>/out` topics of docs/protocol.md. Malformed input is
 answered with an error when it carries a request_id, otherwise dropped and counted; no
 input can stop the agent.
 """

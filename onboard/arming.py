@@ -1,8 +1,8 @@
 """Arming Switch backends: dRonin arms only from receiver inputs, never from a command.
 
 Every backend offers `request_arm()`, `request_disarm()` and `release()`; the flight
-controller driver calls them and waits for FlightStatus.Armed, which is the only truth
-(seed 001, 4.1.2.4). Backends:
+controller driver calls them and waits for FlightStatus.Armed, which is the only truth.
+Backends:
 
 - `SimulatedLine(path)`: the simulator's arming line, a two-character file: request pin
   then mode pin ("00" idle, "10" request arm, "11" request disarm).
@@ -137,7 +137,7 @@ class GpiodLine:
 class StickFrames:
     """The arm/disarm/safe stick pulses, when firmware/arming_switch is not installed.
 
-    Same values as firmware/arming_switch/frames.json (seed 001 Figure 4.16): pulse HIGH
+    Same values as firmware/arming_switch/frames.json: pulse HIGH
     times in microseconds, channel order pitch, roll, throttle, yaw, switch3, switch2.
     """
 

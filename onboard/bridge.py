@@ -1,7 +1,7 @@
-"""The drone's internal Mosquitto broker, bridged to the ground broker (seed 001 Listing 4.3).
+"""The drone's internal Mosquitto broker, bridged to the ground broker.
 
 The bridge relays the drone's own `<id>/control|mission|gear/in` topics in and every
-`+/<channel>/out` topic out (PROTOCOL.md "Drones may run an internal broker"), logging in
+`+/<channel>/out` topic out (docs/protocol.md, "Internal broker"), logging in
 to the ground broker with the drone's own credentials.
 
 `python -m onboard.bridge --drone-id ID --ground mqtt://ID:PASS@host:1883 [--port 1884]`

@@ -1,4 +1,4 @@
-"""Command executor: PROTOCOL.md control commands → flight-controller calls, typed errors.
+"""Command executor: control commands (docs/protocol.md) → flight-controller calls, typed errors.
 
 Control requests from the ground and mission steps both go through `Controller.execute`,
 so a step behaves exactly like the same command sent by hand.
@@ -152,7 +152,7 @@ class Controller:
             raise CommandError(_sentence(exc, "The picture could not be taken")) from exc
 
     def _do_objrequest(self, params: dict, context: dict) -> dict:
-        # PROTOCOL.md: the result is the object's latest fields, as the board names them.
+        # docs/protocol.md: the result is the object's latest fields, as the board names them.
         return dict(self.fc.request_object(params["value"]))
 
     # -- link and board -------------------------------------------------------------------

@@ -1,6 +1,6 @@
 """Gear Manager: drone specs and sensor list from JSON files, sensor readings, the camera.
 
-Seed 001, 4.1.4: specs.json (Listing 4.1) and sensors.json (Listing 4.2) are read from a
+specs.json and sensors.json (the gear files of [Paula 2018], listings 4.1 and 4.2) are read from a
 configurable folder and re-read periodically; a change is announced on `<id>/gear/out`.
 An optional sensor_field.json there places simulated plumes (see sensors.py).
 """

@@ -1,4 +1,4 @@
-"""Heartbeats (seed 001, 4.1.2: every 5 s) and the drone id derived from the MAC address."""
+"""Heartbeats (every 5 s, docs/protocol.md) and the drone id derived from the MAC address."""
 
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ def first_mac_address(sys_net: Path = SYS_NET) -> bytes | None:
 
 
 def derive_drone_id(prefix: str = DEFAULT_PREFIX, mac: bytes | None = None) -> str:
-    """`<PREFIX>_<XXXXXX>`: upper-case hex of the MAC's last 3 bytes (PROTOCOL.md Identity)."""
+    """`<PREFIX>_<XXXXXX>`: upper-case hex of the MAC's last 3 bytes (docs/protocol.md, "Identity and units")."""
     if mac is None:
         mac = first_mac_address()
     if mac is None:

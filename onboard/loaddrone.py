@@ -1,7 +1,7 @@
 """Lightweight load drones: hundreds of protocol-correct drones in one process, no simulator.
 
 Each load drone is its own MQTT 3.1.1 client (client id = drone id, clean_session=False,
-its own credentials) that subscribes `<id>/+/in`, sends heartbeats (PROTOCOL.md, every 5 s)
+its own credentials) that subscribes `<id>/+/in`, sends heartbeats (docs/protocol.md, every 5 s)
 and telemetry (10 Hz, the send time in `ts` so the ground's lag can be measured), answers
 control commands and gear queries as the real agent does, and flies missions fast-forwarded
 (step progress as the real mission worker sends it). It fails over between broker nodes.

@@ -1,4 +1,4 @@
-"""Logger: a per-flight recording in the DFI format (../shared/DFI_FORMAT.md).
+"""Logger: a per-flight recording in the DFI format (docs/dfi-format.md).
 
 Every telemetry object type gets its own value file (one toplevelgroup); commands,
 responses, mission events, steps, arming events and alarms get theirs. Rows are appended

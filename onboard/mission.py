@@ -1,6 +1,6 @@
 """Mission Worker: decode a base64 mission, queue its steps, run them one by one.
 
-Seed 001, 4.1.2.3: the mission arrives as one base64 message; it is decoded (and the decode
+The mission arrives as one base64 message; it is decoded (and the decode
 timed), its steps go into a FIFO task queue, each step is handed to the component that
 executes it, and progress goes back to the ground for every step. The worker runs on its
 own thread and never waits for the ground: when the link drops the mission goes on and
@@ -74,7 +74,7 @@ def decode_mission(start: protocol.MissionStart) -> tuple[protocol.MissionPayloa
 
 
 def queue_steps(payload: protocol.MissionPayload) -> queue.Queue:
-    """The FIFO task queue of seed 001 Figure 4.14, filled in mission order."""
+    """The FIFO task queue of the mission's steps, filled in mission order."""
     steps: queue.Queue = queue.Queue()
     for step in payload.steps:
         steps.put_nowait(step)

@@ -235,7 +235,7 @@ class MqttLink:
             return
         sock = client.socket()
         if sock is not None:
-            try:  # Nagle + delayed ACK cost ~40 ms per request/response (UAVTALK.md)
+            try:  # Nagle + delayed ACK cost ~40 ms per request/response (docs/uavtalk.md)
                 sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             except OSError:
                 pass

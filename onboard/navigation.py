@@ -1,7 +1,7 @@
 """Navigation Processor: coordinates and commands → navigation targets for the flight controller.
 
-dRonin only takes NED targets, so geographic requests are converted with the formula the
-seed adapted from the dRonin GCS (seed 001, Figure 4.13; UAVTALK.md "LLA → NED"): a sphere
+dRonin only takes NED targets, so geographic requests are converted with the dRonin GCS's
+formula ([Paula 2018], figure 4.13; docs/uavtalk.md "LLA → NED"): a sphere
 of radius 6 378 137 m plus the home altitude, linearised about home.
 """
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from .fc.base import FlightController, VehicleState
 
-EARTH_RADIUS = 6_378_137.0  # metres, seed 001 Figure 4.13
+EARTH_RADIUS = 6_378_137.0  # metres, [Paula 2018] figure 4.13
 
 # (lat, lon, alt MSL) of home, as the flight controller's HomeLocation holds it.
 Home = tuple[float, float, float]
@@ -77,7 +77,7 @@ def current_ned(state: VehicleState) -> NED | None:
 def inside_cylinder(
     actual: NED, goal: NED, *, horizontal_tolerance: float, vertical_tolerance: float
 ) -> bool:
-    """Seed 001 Algorithm 1: inside the tolerance cylinder centred on the goal."""
+    """Inside the tolerance cylinder centred on the goal ([Paula 2018], algorithm 1)."""
     vertical_error = goal[2] - actual[2]
     horizontal_error = math.hypot(goal[0] - actual[0], goal[1] - actual[1])
     return abs(vertical_error) < vertical_tolerance and horizontal_error < horizontal_tolerance

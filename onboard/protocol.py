@@ -1,4 +1,4 @@
-"""The wire contract of PROTOCOL.md, in one place: message schemas and strict parsers.
+"""The wire contract of docs/protocol.md, in one place: message schemas and strict parsers.
 
 Both sides import this module (the ground too), so it depends on the standard library
 only. Every parser takes a decoded JSON object, accepts unknown extra fields, and raises
@@ -23,7 +23,7 @@ REQUEST_ID_RE = re.compile(r"^[0-9a-f]{32}$")
 OBJECT_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,63}$")
 MAX_ID_LENGTH = 128
 
-# Control commands (PROTOCOL.md "Control") and the extra commands a mission step may use.
+# Control commands (docs/protocol.md "Control") and the extra commands a mission step may use.
 CONTROL_COMMANDS = (
     "arm",
     "disarm",
@@ -53,7 +53,7 @@ DEFAULT_TAKEOFF_ALTITUDE = 10.0
 DEFAULT_TOLERANCE = 2.0
 MAX_ALTITUDE = 1000.0
 
-# Topic channels, each with the direction it flows (PROTOCOL.md "Topics").
+# Topic channels, each with the direction it flows (docs/protocol.md "Topics").
 IN_CHANNELS = ("control", "mission", "gear")
 OUT_CHANNELS = (
     "control",
@@ -78,7 +78,7 @@ QOS = {
 
 
 class ProtocolError(ValueError):
-    """A message that breaks PROTOCOL.md; `field` names the offending field (dotted path)."""
+    """A message that breaks docs/protocol.md; `field` names the offending field (dotted path)."""
 
     def __init__(self, field: str, message: str) -> None:
         super().__init__(f"{field}: {message}")

@@ -1,17 +1,17 @@
-"""Camera frames and the pose stream for the ground's past-image view (seed 002, SPIRIT).
+"""Camera frames and the pose stream for the ground's past-image view (SPIRIT).
 
 Two loops, both on the wall clock:
 
 - video: the camera runs at ``source_hz`` (30 Hz) and every ``source_hz / rate_hz``-th
-  frame (2 Hz by default, as the seed downsampled to simulate line-of-sight conditions)
-  is published on ``<id>/camera/out`` with the pose at capture (PROTOCOL.md "Camera
+  frame (2 Hz by default, the rate [Nassar 2017] downsampled its 30 Hz video to)
+  is published on ``<id>/camera/out`` with the pose at capture (docs/protocol.md "Camera
   frame"). Frames that would be dropped are never rendered.
 - pose: ``pose_hz`` samples a second (up to 200) go out as telemetry objects named
   ``Pose`` on ``<id>/telemetry/out``, batched every ``batch_s``; fields ``North``, ``East``,
   ``Down`` (m) and ``qx``, ``qy``, ``qz``, ``qw`` (body to NED). The telemetry message is
   the contract's generic carrier for flight data, so no new topic is needed.
 
-The simulated pose source behaves like the seed's motion capture: the flight
+The simulated pose source behaves like a motion-capture tracker: the flight
 controller's estimate (position dead-reckoned with the velocity between the 1 Hz
 PositionActual updates) with sub-millimetre jitter, and, when the estimate goes stale,
 the last pose repeated unchanged -- which the ground reads as "tracking lost" (two poses
@@ -46,7 +46,7 @@ Renderer = Callable[[tuple[float, float, float], tuple[float, float, float, floa
 @dataclass(frozen=True)
 class VideoConfig:
     source_hz: float = 30.0
-    rate_hz: float = 2.0  # frames published per second; the seed's 30 Hz -> 2 Hz
+    rate_hz: float = 2.0  # frames published per second; 30 Hz -> 2 Hz by default
     pose_hz: float = 50.0  # pose samples per second; 0 turns the stream off
     batch_s: float = 0.05  # pose samples are sent in one telemetry message this often
     time_scale: float = 1.0  # simulation speed-up: velocities are per simulated second
@@ -96,7 +96,7 @@ def orientation_of(state: VehicleState) -> tuple[float, float, float, float] | N
 
 
 class PoseSource:
-    """The drone's pose now, from the flight controller's state, seed-mocap style.
+    """The drone's pose now, from the flight controller's state, as motion capture gives it.
 
     ``sample`` returns None until the state has a position and an attitude.
     """
@@ -123,7 +123,7 @@ class PoseSource:
             if state.ned != self._ned:
                 self._ned, self._ned_at = state.ned, now
             if self._last is not None and now - state.updated_at > self.config.stale_after_s:
-                # A lost tracker resends the last pose (seed 002, "Motion capture").
+                # A lost tracker resends the last pose: the ground reads that as tracking lost.
                 self.stale_samples += 1
                 return self._last
             pose = (self._extrapolate(state, now), self._jitter(orientation))

@@ -2,7 +2,7 @@ from django.apps import AppConfig
 
 
 class PastViewConfig(AppConfig):
-    """The past-image view (seed 002) as an app: its settings model and `manage.py pastview`."""
+    """The past-image view as an app: its settings model and `manage.py pastview`."""
 
     name = "pastview"
     label = "pastview"

@@ -1,7 +1,8 @@
-"""Per-drone buffer of past camera frames (seed 002, "Selection of past images").
+"""Per-drone buffer of past camera frames.
 
 A frame is stored only when it is at least 25 cm or 10 degrees of yaw from the last
-stored one, at most ``capacity`` frames are kept (30 in the seed: 15 s at 2 Hz) and the
+stored one, at most ``capacity`` frames are kept (30 by default: 15 s at 2 Hz, the
+thresholds and size of [Nassar 2017]) and the
 oldest is dropped first. Bad frames (out of order, corrupt JPEG, NaN pose) are dropped
 and counted; the buffer never raises on bad input.
 

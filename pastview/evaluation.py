@@ -1,9 +1,10 @@
-"""Frame evaluation functions of seed 002: score every stored frame against a pose.
+"""Frame evaluation functions of the past-image view: score every stored frame against a pose.
 
 Each function is a frozen dataclass holding its coefficients and reference values (the
-seed's defaults), serialisable to and from a dict for settings and the page. The lowest
-score wins. All frames are scored at once with numpy; ``spirit_scores_loop`` is the
-straightforward per-frame version, kept as the benchmark baseline and a test oracle.
+SPIRIT defaults are those of [Nassar 2017]), serialisable to and from a dict for settings
+and the page. The lowest score wins. All frames are scored at once with numpy;
+``spirit_scores_loop`` is the straightforward per-frame version, kept as the benchmark
+baseline and a test oracle.
 
 Frame poses are those of the drone at capture; the camera looks along the body's forward
 axis, tilted down by ``camera_pitch_down_deg``. Angles in the scores are radians.
@@ -142,11 +143,11 @@ class EvaluationFunction:
 
 @dataclass(frozen=True, slots=True)
 class ConstantTimeDelay(EvaluationFunction):
-    """Shiroma et al.: the frame whose age is closest to ``ref_delay_s``."""
+    """[Shiroma 2004]: the frame whose age is closest to ``ref_delay_s``."""
 
     name: ClassVar[str] = "constant_time_delay"
     NON_NEGATIVE: ClassVar[frozenset[str]] = frozenset({"ref_delay_s"})
-    ref_delay_s: float = 2.0  # our default: the seed gives no value (4 frames at 2 Hz)
+    ref_delay_s: float = 2.0  # our default: 4 frames at 2 Hz
 
     def scores(self, frames: FrameSet, pose: Pose, current: Pose | None = None) -> np.ndarray:
         return np.abs(frames.timestamps - (pose.ts - self.ref_delay_s))
@@ -154,7 +155,7 @@ class ConstantTimeDelay(EvaluationFunction):
     def select(
         self, frames: FrameSet, pose: Pose, current: Pose | None = None
     ) -> tuple[int, float]:
-        # Frames are chronological: a binary search, as the seed suggests, not a scan.
+        # Frames are chronological: a binary search, not a scan.
         target = pose.ts - self.ref_delay_s
         ts = frames.timestamps
         right = int(np.searchsorted(ts, target))
@@ -169,7 +170,7 @@ class ConstantTimeDelay(EvaluationFunction):
 
 @dataclass(frozen=True, slots=True)
 class ConstantDistance(EvaluationFunction):
-    """Shiroma et al.: the frame whose distance to the drone is closest to the reference."""
+    """[Shiroma 2004]: the frame whose distance to the drone is closest to the reference."""
 
     name: ClassVar[str] = "constant_distance"
     POSITIVE: ClassVar[frozenset[str]] = frozenset({"ref_distance"})
@@ -182,14 +183,14 @@ class ConstantDistance(EvaluationFunction):
 
 @dataclass(frozen=True, slots=True)
 class Murata(EvaluationFunction):
-    """Murata et al. (3D): height of the viewpoint above the drone, azimuth, tilt, distance.
+    """[Murata 2014] (3D): height of the viewpoint above the drone, azimuth, tilt, distance.
 
     E = a1 ((h - h_ref)/h_ref)^2 + a2 beta^2 + a3 (alpha - alpha_ref)^2
         + a4 ((|d| - l_ref)/l_ref)^2
     with h the viewpoint's height above the drone, beta the yaw of the drone relative to
     the frame (azimuth), alpha the tilt (depression angle from the viewpoint down to the
-    drone) and d the offset between them. The seed names the terms but gives no values:
-    unit coefficients, 1 m height and a tilt consistent with it at 2.5 m are our defaults.
+    drone) and d the offset between them. The terms are those of [Murata 2014]; unit
+    coefficients, 1 m height and a tilt consistent with it at 2.5 m are our defaults.
     """
 
     name: ClassVar[str] = "murata"
@@ -219,16 +220,16 @@ class Murata(EvaluationFunction):
 
 @dataclass(frozen=True, slots=True)
 class Spirit(EvaluationFunction):
-    """The SPIRIT function (seed 002, "SPIRIT evaluation function"), five weighted terms.
+    """The SPIRIT function of [Nassar 2017], five weighted terms.
 
     centrality      |drone off the camera axis| / d_ref
     direction       (yaw of the drone relative to the frame)^2
     distance        ((|drone - frame| - d_ref) / d_ref)^2
     direction_with_current  (yaw of the frame relative to the displayed frame)^2
     distance_with_current   |frame - displayed frame| / d_ref
-    The seed's centrality uses the two axes across the camera's line of sight (its frame
-    looked along y). A drone behind the camera cannot be in the picture, so there its
-    whole distance counts as off-centre, as the seed's code also penalised that case.
+    Centrality uses the two axes across the camera's line of sight (the frame of
+    [Nassar 2017] looked along y). A drone behind the camera cannot be in the picture, so there its
+    whole distance counts as off-centre.
     The last two terms are zero while no frame is displayed.
     """
 
@@ -335,7 +336,7 @@ def spirit_scores_loop(
     pose: Pose,
     current: Pose | None = None,
 ) -> list[float]:
-    """The SPIRIT function one frame at a time in plain Python, as the seed ran it.
+    """The SPIRIT function one frame at a time in plain Python.
 
     The benchmark's baseline and the tests' oracle for ``Spirit.scores``.
     """

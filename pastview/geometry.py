@@ -1,6 +1,6 @@
 """Quaternion and relative-pose helpers, vectorised over arrays of frames.
 
-Conventions: quaternions are ``(qx, qy, qz, qw)`` arrays (the wire order of PROTOCOL.md)
+Conventions: quaternions are ``(qx, qy, qz, qw)`` arrays (the wire order of docs/protocol.md)
 rotating body vectors into the world frame; positions are NED metres; the body frame is
 forward-right-down, so yaw is the heading from north, clockwise seen from above.
 """
@@ -58,7 +58,7 @@ def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def rotation_matrices(q: np.ndarray) -> np.ndarray:
     """Body-to-world rotation matrix of unit quaternion(s): (4,) -> (3, 3), (N, 4) -> (N, 3, 3).
 
-    The matrix of seed 002's "Poses" chapter.
+    The standard matrix of a unit quaternion (x, y, z, w).
     """
     q = np.asarray(q, dtype=float)
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
@@ -109,7 +109,7 @@ def relative_position(
 ) -> np.ndarray:
     """The drone's position in each frame's own reference, (N, 3) or (3,).
 
-    Seed 002: the world offset rotated by the inverse of the frame's orientation.
+    The world offset rotated by the inverse of the frame's orientation.
     """
     offset = np.asarray(position, dtype=float) - np.asarray(frame_positions, dtype=float)
     return rotate(conjugate(frame_orientations), offset)
@@ -118,8 +118,8 @@ def relative_position(
 def relative_orientation(frame_orientations: np.ndarray, orientation: np.ndarray) -> np.ndarray:
     """The drone's orientation in each frame's reference: conj(q_frame) * q_drone.
 
-    Seed 002 writes this product with hatted quaternions; the frame's one must be
-    inverted for the result to be relative to the frame, as in its relative position.
+    The frame's quaternion is inverted so that the result is relative to the frame, as
+    the relative position is.
     """
     return multiply(conjugate(frame_orientations), orientation)
 
@@ -158,5 +158,5 @@ class Pose:
         return cls(stamp, p, unit), repaired
 
     def to_dict(self) -> dict[str, list[float]]:
-        """PROTOCOL.md's pose object: ``{"position": [n, e, d], "orientation": [qx, qy, qz, qw]}``."""
+        """The protocol's pose object: ``{"position": [n, e, d], "orientation": [qx, qy, qz, qw]}``."""
         return {"position": self.position.tolist(), "orientation": self.orientation.tolist()}

@@ -1,7 +1,7 @@
 """Selection service for one drone: stored frames in, the best past view out, per pose.
 
-``PastView`` downsamples the incoming video (30 Hz -> 2 Hz by default, as seed 002 did to
-simulate line-of-sight conditions), stores frames in a ``FrameBuffer``, tracks the pose
+``PastView`` downsamples the incoming video (30 Hz -> 2 Hz by default, as [Nassar 2017]
+did to simulate line-of-sight conditions), stores frames in a ``FrameBuffer``, tracks the pose
 stream, and for each new pose picks the lowest-scoring frame under the configured
 evaluation function. It returns plain dicts ready for the page and sends a frame's JPEG
 only when the choice changes. No Django, no MQTT: the consumer that feeds it owns I/O.
@@ -36,13 +36,13 @@ PERIOD_SLACK_S = 1e-3
 
 @dataclass(frozen=True)
 class PastViewSettings:
-    """Per-drone settings; defaults from seed 002."""
+    """Per-drone settings; defaults from [Nassar 2017]."""
 
     capacity: int = 30
     min_distance_m: float = 0.25
     min_yaw_deg: float = 10.0
     video_hz: float = 2.0  # frames kept per second of video; 0 keeps every frame
-    store_while_lost: bool = False  # the seed stores frames only while the pose is tracked
+    store_while_lost: bool = False  # frames are stored only while the pose is tracked
     evaluation: EvaluationFunction = field(default_factory=Spirit)
 
     def __post_init__(self) -> None:
@@ -137,7 +137,7 @@ class PastView:
     # Frames --------------------------------------------------------------------------
 
     def add_frame(self, msg: object) -> bool:
-        """Take one camera message (PROTOCOL.md); True when it was stored in the buffer.
+        """Take one camera message (docs/protocol.md); True when it was stored in the buffer.
 
         Malformed, out-of-order, downsampled-away and (while tracking is lost) untracked
         frames are counted in ``stats``; the buffer counts its own drops.

@@ -1,8 +1,8 @@
-"""Teleoperation from the past-view page: stick input to small relative moves (seed 002).
+"""Teleoperation from the past-view page: stick input to small relative moves.
 
 The page sends stick deflections in the drone's own frame (forward, right, up; each
 -1..1). One move is at most ``step_m`` along each axis, turned into the North/East
-commands of PROTOCOL.md by the drone's heading. Relative commands add to the last target
+commands of docs/protocol.md by the drone's heading. Relative commands add to the last target
 (onboard/navigation.py), so small steps at a bounded rate keep the target at most one
 step ahead of the drone: when input stops, the drone stops within a step.
 """

@@ -1,4 +1,4 @@
-"""Pose tracking (seed 002, "Motion capture"): is the pose stream still live?
+"""Pose tracking: is the pose stream still live?
 
 A tracker that loses the drone keeps sending the last known pose with fresh time stamps.
 So tracking counts as lost when two consecutive poses are identical but for their time

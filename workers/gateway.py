@@ -210,7 +210,7 @@ class Gateway:
             return
         sock = client.socket()
         if sock is not None:
-            # Nagle + delayed ACKs add ~40 ms per command round trip (UAVTALK.md).
+            # Nagle + delayed ACKs add ~40 ms per command round trip (docs/uavtalk.md).
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         if self.consumer is None:
             filters = [(subscription(ch), protocol.QOS[ch]) for ch in self.channels]

@@ -37,7 +37,7 @@ log = logging.getLogger(__name__)
 # The processes a deployment runs; each is listed even when nothing of it reports.
 PROCESSES = ("web", "gateway", "ingest", "pastview", "celery")
 
-LAG_LIMIT_S = 1.0  # issue 11: sustained ingest with lag < 1 s
+LAG_LIMIT_S = 1.0  # sustained ingest must keep its lag under 1 s
 QUEUE_DEPTH_LIMIT = 10_000  # messages waiting anywhere: more is "falling behind" at once
 TREND_WINDOW_S = 60.0  # "rising" and "growing" compare with the oldest sample this recent
 TREND_MIN_AGE_S = 3.0  # ...that is at least this old, so two quick reloads do not compare

@@ -4,20 +4,14 @@ from __future__ import annotations
 
 from django.core.exceptions import ImproperlyConfigured
 
-from config.env import (
-    BASE_DIR,
-    database_from_url,
-    env_bool,
-    env_float,
-    env_int,
-    env_list,
-    env_str,
-)
+from config.env import BASE_DIR, database_from_url, env
 
-SECRET_KEY = env_str("SECRET_KEY", "insecure-development-key-change-me")
-DEBUG = env_bool("DEBUG", False)
-ALLOWED_HOSTS = env_list("ALLOWED_HOSTS", ["127.0.0.1", "localhost", "[::1]"])
-CSRF_TRUSTED_ORIGINS = env_list("CSRF_TRUSTED_ORIGINS", [])
+SECRET_KEY = env.str("SECRET_KEY", "insecure-development-key-change-me")
+DEBUG = env.bool("DEBUG", False)
+ALLOWED_HOSTS = env.list(
+    "ALLOWED_HOSTS", cast=str.strip, default=["127.0.0.1", "localhost", "[::1]"]
+)
+CSRF_TRUSTED_ORIGINS = env.list("CSRF_TRUSTED_ORIGINS", cast=str.strip, default=[])
 
 INSTALLED_APPS = [
     "django.contrib.admin",
@@ -71,28 +65,28 @@ TEMPLATES = [
 
 DATABASES = {
     "default": database_from_url(
-        env_str("DATABASE_URL", "postgresql://skyhive:skyhive@127.0.0.1:54330/skyhive")
+        env.str("DATABASE_URL", "postgresql://skyhive:skyhive@127.0.0.1:54330/skyhive")
     )
 }
 DEFAULT_AUTO_FIELD = "django.db.models.BigAutoField"
 
-REDIS_URL = env_str("REDIS_URL", "redis://127.0.0.1:63790/0")
-MQTT_URL = env_str("MQTT_URL", "mqtt://ground:ground@127.0.0.1:1883")
+REDIS_URL = env.str("REDIS_URL", "redis://127.0.0.1:63790/0")
+MQTT_URL = env.str("MQTT_URL", "mqtt://ground:ground@127.0.0.1:1883")
 # The ground broker: "mosquitto" (one node, the default) or "rabbitmq" (MQTT plugin,
 # clusterable; docs/scaling.md). With several nodes, MQTT_URLS lists every node's MQTT
 # listener in the order clients try them; AMQP_URLS are the same nodes' AMQP listeners
 # (the gateway and ingest consume from shared queues there, as RabbitMQ 3.10's MQTT
 # plugin has no shared subscriptions); RABBITMQ_API_URLS their management APIs (per-drone
 # users and permissions, queue depths on the status page).
-MQTT_BROKER = env_str("MQTT_BROKER", "mosquitto")
+MQTT_BROKER = env.str("MQTT_BROKER", "mosquitto")
 if MQTT_BROKER not in ("mosquitto", "rabbitmq"):
     raise ImproperlyConfigured(f"MQTT_BROKER must be mosquitto or rabbitmq, not {MQTT_BROKER!r}")
-MQTT_URLS = env_list("MQTT_URLS", [MQTT_URL])
-AMQP_URLS = env_list("AMQP_URLS", [])
-RABBITMQ_API_URLS = env_list("RABBITMQ_API_URLS", [])
+MQTT_URLS = env.list("MQTT_URLS", cast=str.strip, default=[MQTT_URL])
+AMQP_URLS = env.list("AMQP_URLS", cast=str.strip, default=[])
+RABBITMQ_API_URLS = env.list("RABBITMQ_API_URLS", cast=str.strip, default=[])
 # Where Mosquitto's password and ACL files live, and its pid file for the SIGHUP reload.
-MOSQUITTO_DIR = env_str("MOSQUITTO_DIR", str(BASE_DIR / ".data" / "run" / "mosquitto"))
-DATA_DIR = env_str("DATA_DIR", str(BASE_DIR / ".data" / "run"))
+MOSQUITTO_DIR = env.str("MOSQUITTO_DIR", str(BASE_DIR / ".data" / "run" / "mosquitto"))
+DATA_DIR = env.str("DATA_DIR", str(BASE_DIR / ".data" / "run"))
 
 CACHES = {
     "default": {
@@ -127,13 +121,13 @@ STATIC_URL = "/static/"
 STATICFILES_DIRS = [BASE_DIR / "static"]
 # Served from the apps' and project's static folders; production collects to STATIC_ROOT.
 WHITENOISE_USE_FINDERS = True
-MEDIA_ROOT = env_str("MEDIA_ROOT", str(BASE_DIR / ".data" / "run" / "media"))
+MEDIA_ROOT = env.str("MEDIA_ROOT", str(BASE_DIR / ".data" / "run" / "media"))
 MEDIA_URL = "/media/"
 
 # Uploads are streamed to disk (never held in memory) beyond this size.
 FILE_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
 DATA_UPLOAD_MAX_MEMORY_SIZE = 10 * 1024 * 1024
-LOG_UPLOAD_MAX_BYTES = env_int("LOG_UPLOAD_MAX_BYTES", 2 * 1024**3)
+LOG_UPLOAD_MAX_BYTES = env.int("LOG_UPLOAD_MAX_BYTES", 2 * 1024**3)
 
 REST_FRAMEWORK = {
     "DEFAULT_AUTHENTICATION_CLASSES": [
@@ -167,17 +161,17 @@ SPECTACULAR_SETTINGS = {
     },
 }
 
-CELERY_BROKER_URL = env_str("CELERY_BROKER_URL", REDIS_URL)
-CELERY_RESULT_BACKEND = env_str("CELERY_RESULT_BACKEND", REDIS_URL)
+CELERY_BROKER_URL = env.str("CELERY_BROKER_URL", REDIS_URL)
+CELERY_RESULT_BACKEND = env.str("CELERY_RESULT_BACKEND", REDIS_URL)
 CELERY_TASK_SERIALIZER = "json"
 CELERY_RESULT_SERIALIZER = "json"
 CELERY_ACCEPT_CONTENT = ["json"]
 CELERY_TASK_ACKS_LATE = True
 CELERY_TASK_REJECT_ON_WORKER_LOST = True
 CELERY_WORKER_PREFETCH_MULTIPLIER = 1
-CELERY_TASK_TIME_LIMIT = env_int("CELERY_TASK_TIME_LIMIT", 30 * 60)
-CELERY_TASK_SOFT_TIME_LIMIT = env_int("CELERY_TASK_SOFT_TIME_LIMIT", 25 * 60)
-# Reliability (issue 11): a task is acknowledged only after it ran (acks late), and one
+CELERY_TASK_TIME_LIMIT = env.int("CELERY_TASK_TIME_LIMIT", 30 * 60)
+CELERY_TASK_SOFT_TIME_LIMIT = env.int("CELERY_TASK_SOFT_TIME_LIMIT", 25 * 60)
+# Reliability: a task is acknowledged only after it ran (acks late), and one
 # whose worker process died is put back (reject on worker lost), so a worker killed
 # mid-task loses nothing; every task is idempotent, so a rerun changes nothing twice.
 # When the whole worker dies, Redis has no broker-side redelivery: the message waits in
@@ -185,7 +179,7 @@ CELERY_TASK_SOFT_TIME_LIMIT = env_int("CELERY_TASK_SOFT_TIME_LIMIT", 25 * 60)
 # puts it back (config/celery.py checks often). It must exceed the longest task
 # (CELERY_TASK_TIME_LIMIT) or a slow task would run twice; tests set a short one.
 CELERY_BROKER_TRANSPORT_OPTIONS = {
-    "visibility_timeout": env_float("CELERY_VISIBILITY_TIMEOUT", 3600.0),
+    "visibility_timeout": env.float("CELERY_VISIBILITY_TIMEOUT", 3600.0),
 }
 # Keep retrying the broker for ever (Celery stops after 100 attempts by default): a Redis
 # restart must not end the worker.
@@ -194,43 +188,43 @@ CELERY_BROKER_CONNECTION_MAX_RETRIES = None
 # Replicated deployments (and test runs sharing one Redis) may name their own queue. Only
 # when asked: a configured default queue can no longer be changed on `app.conf` at run
 # time, which the end-to-end tests with an in-process gateway do.
-if env_str("CELERY_TASK_DEFAULT_QUEUE", ""):
-    CELERY_TASK_DEFAULT_QUEUE = env_str("CELERY_TASK_DEFAULT_QUEUE", "celery")
+if env.str("CELERY_TASK_DEFAULT_QUEUE", ""):
+    CELERY_TASK_DEFAULT_QUEUE = env.str("CELERY_TASK_DEFAULT_QUEUE", "celery")
 CELERY_RESULT_EXPIRES = 3600
 CELERY_BEAT_SCHEDULE: dict = {}
 
-# Drone link: heartbeats every 5 s; offline after 3 missed ones (PROTOCOL.md, issue 4).
-HEARTBEAT_INTERVAL_S = env_float("HEARTBEAT_INTERVAL_S", 5.0)
-OFFLINE_AFTER_MISSED_HEARTBEATS = env_int("OFFLINE_AFTER_MISSED_HEARTBEATS", 3)
-COMMAND_TIMEOUT_S = env_float("COMMAND_TIMEOUT_S", 15.0)
+# Drone link: heartbeats every 5 s; offline after 3 missed ones (docs/protocol.md).
+HEARTBEAT_INTERVAL_S = env.float("HEARTBEAT_INTERVAL_S", 5.0)
+OFFLINE_AFTER_MISSED_HEARTBEATS = env.int("OFFLINE_AFTER_MISSED_HEARTBEATS", 3)
+COMMAND_TIMEOUT_S = env.float("COMMAND_TIMEOUT_S", 15.0)
 
 LOGGING = {
     "version": 1,
     "disable_existing_loggers": False,
     "formatters": {"plain": {"format": "%(asctime)s %(levelname)s %(name)s: %(message)s"}},
     "handlers": {"console": {"class": "logging.StreamHandler", "formatter": "plain"}},
-    "root": {"handlers": ["console"], "level": env_str("LOG_LEVEL", "INFO")},
+    "root": {"handlers": ["console"], "level": env.str("LOG_LEVEL", "INFO")},
     "loggers": {"django.db.backends": {"level": "WARNING"}},
 }
 
 # --- telemetry ---
 # Raw samples are kept this many days, then only the 1-second and 1-minute aggregates.
-TELEMETRY_RAW_RETENTION_DAYS = env_int("TELEMETRY_RAW_RETENTION_DAYS", 14)
-TELEMETRY_1S_RETENTION_DAYS = env_int("TELEMETRY_1S_RETENTION_DAYS", 90)
-TELEMETRY_1M_RETENTION_DAYS = env_int("TELEMETRY_1M_RETENTION_DAYS", 730)
+TELEMETRY_RAW_RETENTION_DAYS = env.int("TELEMETRY_RAW_RETENTION_DAYS", 14)
+TELEMETRY_1S_RETENTION_DAYS = env.int("TELEMETRY_1S_RETENTION_DAYS", 90)
+TELEMETRY_1M_RETENTION_DAYS = env.int("TELEMETRY_1M_RETENTION_DAYS", 730)
 # Daily partitions are created this many days ahead by the beat task.
-TELEMETRY_PARTITIONS_AHEAD_DAYS = env_int("TELEMETRY_PARTITIONS_AHEAD_DAYS", 3)
+TELEMETRY_PARTITIONS_AHEAD_DAYS = env.int("TELEMETRY_PARTITIONS_AHEAD_DAYS", 3)
 # The ingest process flushes a COPY batch at this many rows or this often, whichever first.
-TELEMETRY_FLUSH_ROWS = env_int("TELEMETRY_FLUSH_ROWS", 5000)
-TELEMETRY_FLUSH_INTERVAL_S = env_float("TELEMETRY_FLUSH_INTERVAL_S", 0.2)
+TELEMETRY_FLUSH_ROWS = env.int("TELEMETRY_FLUSH_ROWS", 5000)
+TELEMETRY_FLUSH_INTERVAL_S = env.float("TELEMETRY_FLUSH_INTERVAL_S", 0.2)
 # Rows held in memory while the database is away; beyond this, messages are counted as overflow.
-TELEMETRY_BUFFER_ROWS = env_int("TELEMETRY_BUFFER_ROWS", 500_000)
-TELEMETRY_MAX_MESSAGE_BYTES = env_int("TELEMETRY_MAX_MESSAGE_BYTES", 256 * 1024)
+TELEMETRY_BUFFER_ROWS = env.int("TELEMETRY_BUFFER_ROWS", 500_000)
+TELEMETRY_MAX_MESSAGE_BYTES = env.int("TELEMETRY_MAX_MESSAGE_BYTES", 256 * 1024)
 # Accepted object timestamps relative to the ground's clock.
-TELEMETRY_MAX_PAST_S = env_float("TELEMETRY_MAX_PAST_S", 7 * 86400)
-TELEMETRY_MAX_FUTURE_S = env_float("TELEMETRY_MAX_FUTURE_S", 300)
+TELEMETRY_MAX_PAST_S = env.float("TELEMETRY_MAX_PAST_S", 7 * 86400)
+TELEMETRY_MAX_FUTURE_S = env.float("TELEMETRY_MAX_FUTURE_S", 300)
 # Live values pushed to dashboards at most this often per drone.
-TELEMETRY_LIVE_HZ = env_float("TELEMETRY_LIVE_HZ", 5)
+TELEMETRY_LIVE_HZ = env.float("TELEMETRY_LIVE_HZ", 5)
 CELERY_BEAT_SCHEDULE["telemetry-maintain-partitions"] = {
     "task": "telemetry.maintain_partitions",
     "schedule": 3600.0,
@@ -238,36 +232,38 @@ CELERY_BEAT_SCHEDULE["telemetry-maintain-partitions"] = {
 
 # --- ground link ---
 # Live fleet updates: at most one per drone per this many seconds (state changes always).
-FLEET_PUSH_INTERVAL_S = env_float("FLEET_PUSH_INTERVAL_S", 1.0)
+FLEET_PUSH_INTERVAL_S = env.float("FLEET_PUSH_INTERVAL_S", 1.0)
 # The offline sweep (fleet.sweep_offline) runs this often under Celery beat.
-OFFLINE_SWEEP_INTERVAL_S = env_float("OFFLINE_SWEEP_INTERVAL_S", 2.0)
+OFFLINE_SWEEP_INTERVAL_S = env.float("OFFLINE_SWEEP_INTERVAL_S", 2.0)
 CELERY_BEAT_SCHEDULE["fleet.sweep_offline"] = {
     "task": "fleet.sweep_offline",
     "schedule": OFFLINE_SWEEP_INTERVAL_S,
     "options": {"expires": OFFLINE_SWEEP_INTERVAL_S},
 }
 # Map tiles for the fleet map; empty shows a plain background (tests, offline sites).
-MAP_TILE_URL = env_str("MAP_TILE_URL", "https://tile.openstreetmap.org/{z}/{x}/{y}.png")
-MAP_TILE_ATTRIBUTION = env_str("MAP_TILE_ATTRIBUTION", "&copy; OpenStreetMap contributors")
+MAP_TILE_URL = env.str("MAP_TILE_URL", "https://tile.openstreetmap.org/{z}/{x}/{y}.png")
+MAP_TILE_ATTRIBUTION = env.str("MAP_TILE_ATTRIBUTION", "&copy; OpenStreetMap contributors")
 # Broker users kept in Mosquitto's passwd file when it is regenerated from the drones.
-MQTT_SERVICE_USERS = env_list("MQTT_SERVICE_USERS", ["ground"])
+MQTT_SERVICE_USERS = env.list("MQTT_SERVICE_USERS", cast=str.strip, default=["ground"])
 # What provision_drone tells a drone to connect to (default: MQTT_URL's host and port).
-MQTT_PUBLIC_HOST = env_str("MQTT_PUBLIC_HOST", "")
-MQTT_PUBLIC_PORT = env_int("MQTT_PUBLIC_PORT", 0)
+MQTT_PUBLIC_HOST = env.str("MQTT_PUBLIC_HOST", "")
+MQTT_PUBLIC_PORT = env.int("MQTT_PUBLIC_PORT", 0)
 
 # --- missions ---
-# Coverage requests above this many waypoints are refused (issue 5, item 2).
-MISSIONS_MAX_WAYPOINTS = env_int("MISSIONS_MAX_WAYPOINTS", 50_000)
+# Coverage requests above this many waypoints are refused, so one request cannot tie up a worker.
+MISSIONS_MAX_WAYPOINTS = env.int("MISSIONS_MAX_WAYPOINTS", 50_000)
 # A drone at or below this battery fraction is never chosen for a mission.
-MISSIONS_BATTERY_RESERVE = env_float("MISSIONS_BATTERY_RESERVE", 0.3)
-# Drones brought in by an OUT_MEASURE alarm (seed 001, 5.4: two).
-MISSIONS_JOINING_DRONES = env_int("MISSIONS_JOINING_DRONES", 2)
+MISSIONS_BATTERY_RESERVE = env.float("MISSIONS_BATTERY_RESERVE", 0.3)
+# Drones brought in by an OUT_MEASURE alarm: two, as in the collaborative-sensing
+# experiment of [Paula 2018], §5.4.
+MISSIONS_JOINING_DRONES = env.int("MISSIONS_JOINING_DRONES", 2)
 # A mission start not published by a gateway within this long is dropped as stale.
-MISSIONS_START_TTL_S = env_float("MISSIONS_START_TTL_S", 60.0)
+MISSIONS_START_TTL_S = env.float("MISSIONS_START_TTL_S", 60.0)
 # Paused missions (no drone to replace a failing one) look for a drone this often.
-MISSIONS_RESUME_INTERVAL_S = env_float("MISSIONS_RESUME_INTERVAL_S", 5.0)
-# The panic button's hover altitude (seed 001, 5.1: 10 m).
-MISSIONS_PANIC_ALTITUDE = env_float("MISSIONS_PANIC_ALTITUDE", 10.0)
+MISSIONS_RESUME_INTERVAL_S = env.float("MISSIONS_RESUME_INTERVAL_S", 5.0)
+# The panic button's hover altitude: 10 m, as in the panic-button experiment of
+# [Paula 2018], §5.1.
+MISSIONS_PANIC_ALTITUDE = env.float("MISSIONS_PANIC_ALTITUDE", 10.0)
 CELERY_BEAT_SCHEDULE["missions.resume_paused"] = {
     "task": "missions.resume_paused",
     "schedule": MISSIONS_RESUME_INTERVAL_S,
@@ -282,15 +278,15 @@ MISSION_START_STOP_HANDLERS = {
 
 # --- flight logs ---
 # Uploaded logs and their columnar stores, one folder per organisation and log.
-LOGS_DIR = env_str("LOGS_DIR", f"{DATA_DIR}/logs")
+LOGS_DIR = env.str("LOGS_DIR", f"{DATA_DIR}/logs")
 # The Celery queue the import task goes to (a worker started with `-Q celery,logs` keeps
 # long imports away from the fleet's short periodic tasks when this is set to "logs").
-LOGS_IMPORT_QUEUE = env_str("LOGS_IMPORT_QUEUE", "celery")
+LOGS_IMPORT_QUEUE = env.str("LOGS_IMPORT_QUEUE", "celery")
 # ZIP archives (DFI): total uncompressed size and per-member compression ratio (ZIP bombs).
-LOGS_MAX_UNCOMPRESSED_BYTES = env_int("LOGS_MAX_UNCOMPRESSED_BYTES", 2 * 1024**3)
-LOGS_MAX_COMPRESSION_RATIO = env_float("LOGS_MAX_COMPRESSION_RATIO", 200.0)
+LOGS_MAX_UNCOMPRESSED_BYTES = env.int("LOGS_MAX_UNCOMPRESSED_BYTES", 2 * 1024**3)
+LOGS_MAX_COMPRESSION_RATIO = env.float("LOGS_MAX_COMPRESSION_RATIO", 200.0)
 # The most points one series request may ask for with `points` (min/max buckets).
-LOGS_MAX_PLOT_POINTS = env_int("LOGS_MAX_PLOT_POINTS", 20_000)
+LOGS_MAX_PLOT_POINTS = env.int("LOGS_MAX_PLOT_POINTS", 20_000)
 # The log status enum in the OpenAPI schema (other apps also have a "status").
 SPECTACULAR_SETTINGS["ENUM_NAME_OVERRIDES"]["FlightLogStatusEnum"] = "logs.models.LogStatus"
 
@@ -298,6 +294,6 @@ SPECTACULAR_SETTINGS["ENUM_NAME_OVERRIDES"]["FlightLogStatusEnum"] = "logs.model
 INSTALLED_APPS += ["pastview"]  # app label "pastview"
 # Relative poses reach the page at most this often per drone (new frames and tracking
 # events are pushed at once); teleoperation moves are rate-limited and bounded per step.
-PASTVIEW_PUSH_HZ = env_float("PASTVIEW_PUSH_HZ", 30.0)
-PASTVIEW_TELEOP_HZ = env_float("PASTVIEW_TELEOP_HZ", 4.0)
-PASTVIEW_TELEOP_STEP_M = env_float("PASTVIEW_TELEOP_STEP_M", 0.5)
+PASTVIEW_PUSH_HZ = env.float("PASTVIEW_PUSH_HZ", 30.0)
+PASTVIEW_TELEOP_HZ = env.float("PASTVIEW_TELEOP_HZ", 4.0)
+PASTVIEW_TELEOP_STEP_M = env.float("PASTVIEW_TELEOP_STEP_M", 0.5)

@@ -1,15 +1,16 @@
 """Production settings: everything secret or host-specific must come from the environment."""
 
-import os
-
 from django.core.exceptions import ImproperlyConfigured
+
+from config.env import env
 
 from .base import *  # noqa: F403
 
 DEBUG = False
 STATIC_ROOT = BASE_DIR / "staticfiles"  # noqa: F405 - `make collectstatic` fills it
 WHITENOISE_USE_FINDERS = False
-if not os.environ.get("SECRET_KEY"):
+# Empty also when unset or naming (with a leading `$`) a variable that is unset.
+if not env.str("SECRET_KEY", ""):
     raise ImproperlyConfigured("SECRET_KEY must be set in production")
 
 SECURE_PROXY_SSL_HEADER = ("HTTP_X_FORWARDED_PROTO", "https")

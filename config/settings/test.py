@@ -2,7 +2,7 @@
 
 import os
 
-from config.env import BASE_DIR, read_data_env
+from config.env import BASE_DIR, env, read_data_env
 
 read_data_env(BASE_DIR / ".data" / "test" / "env")
 # The suite starts and stops many threads that touch the ORM; with a pool each finished
@@ -17,9 +17,9 @@ from .base import DATABASES  # noqa: E402
 DEBUG = False
 PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher"]
 # Parallel runs (helpers, CI shards) each get their own test database.
-DATABASES["default"]["TEST"] = {"NAME": os.environ.get("TEST_DB_NAME", "test_skyhive")}
+DATABASES["default"]["TEST"] = {"NAME": env.str("TEST_DB_NAME", "test_skyhive")}
 ALLOWED_HOSTS = ["*"]
 
 # A Celery worker started by a test must read the database pytest-django created.
-if os.environ.get("TEST_WORKER_DB_NAME"):
-    DATABASES["default"]["NAME"] = os.environ["TEST_WORKER_DB_NAME"]
+if env.str("TEST_WORKER_DB_NAME", ""):
+    DATABASES["default"]["NAME"] = env.str("TEST_WORKER_DB_NAME")

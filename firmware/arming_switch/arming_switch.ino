@@ -1,6 +1,6 @@
 // Arming-switch emulator for the Arduino Nano (ATmega328P, 16 MHz).
 //
-// Sits between the radio receiver and the flight controller (seed 001, 4.1.2.4): forwards
+// Sits between the radio receiver and the flight controller: forwards
 // the receiver's inverted PPM frames, sends the arming or disarming frame while the
 // companion computer raises REQUEST, and sends the safe frame when the receiver is lost.
 // All decisions live in arming.cpp / ppm.cpp (plain C++, host-tested); this file only

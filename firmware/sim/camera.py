@@ -3,7 +3,7 @@
 The ground is the NED plane d = 0 painted with a deterministic texture in world
 coordinates (checkerboard, coloured grid lines, smooth colour blobs), so two pictures
 differ when taken from different places and a rotation of the camera is visible. Tests
-and the past-image view (seed 002) get real, decodable images without a real camera.
+and the past-image view get real, decodable images without a real camera.
 
 Conventions: positions are NED metres, orientations are body-to-world quaternions
 ``(qx, qy, qz, qw)`` with the body frame forward-right-down (x forward, y right, z down).

@@ -1,4 +1,4 @@
-"""The flight controller's arming decision from receiver input (seed 001, 4.1.2.4).
+"""The flight controller's arming decision from receiver input.
 
 dRonin arms only from stick positions: throttle low with yaw right held for the arming
 time arms, throttle low with yaw left held for the disarming time disarms. Thresholds and

@@ -1,6 +1,6 @@
 """The simulated board's UAVTalk side, sans-I/O: bytes in, bytes out, driven by `tick(now)`.
 
-Behaves as a dRonin board does (UAVTALK.md): answers the telemetry handshake, streams
+Behaves as a dRonin board does (docs/uavtalk.md): answers the telemetry handshake, streams
 objects at their update periods in simulated time, answers OBJ_REQ (NACK when unknown),
 acks OBJ_ACK writes, resends its own acked objects up to three times 250 ms apart, and
 drops to Disconnected after 8 s without hearing from the ground (wall-clock seconds: the

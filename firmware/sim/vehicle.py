@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 from firmware.sim.receiver import ARMED, ARMING, DISARMED, ReceiverArming
 
-# One LLA↔NED for the whole project: the sphere dRonin linearises about home (UAVTALK.md).
+# One LLA↔NED for the whole project: the sphere dRonin linearises about home (docs/uavtalk.md).
 from onboard.navigation import euler_to_quaternion, lla_to_ned, ned_to_lla
 
 AUTONOMOUS_MODES = ("PositionHold", "PathPlanner", "ReturnToHome", "TabletControl")

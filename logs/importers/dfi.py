@@ -1,4 +1,4 @@
-"""DFI recordings (seed 000, attachment 4; ../shared/DFI_FORMAT.md): a ZIP archive with
+"""DFI recordings (docs/dfi-format.md): a ZIP archive with
 description.xml and comma- or tab-separated value files, one per timeline layer."""
 
 from __future__ import annotations
@@ -315,7 +315,7 @@ class DfiImporter:
             raise LogFormatError(
                 f"The archive member {file!r} is corrupt or truncated: {describe(exc)}."
             ) from exc
-        # On-board stamps are the more precise (seed 000, 7.5): they become the layer's clock.
+        # On-board stamps are the more precise: they become the layer's clock.
         main = next((c for c in direct_times if c.attrs["source"] == "board"), direct_times[0])
         source = main.attrs["source"]
         for i, col in enumerate(columns):

@@ -1,6 +1,6 @@
 """ROS 1 bags through `rosbags`: every topic's numeric fields flattened into series, plus
 the AR.Drone topics (ardrone_autonomy Navdata, cmd_vel) tagged as the special quantities
-(seed 000, 7.6.1)."""
+([Procházka 2016], §7.6.1)."""
 
 from __future__ import annotations
 

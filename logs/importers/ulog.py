@@ -110,7 +110,7 @@ class UlogImporter:
     @staticmethod
     def _add_euler(log: LogData, layer: str, data: dict, times: np.ndarray) -> None:
         """PX4 logs attitude only as a quaternion (w, x, y, z; body FRD to NED); the 3D view
-        and the trajectory want yaw, pitch, roll in the seed's order (z, then y, then x)."""
+        and the trajectory want yaw, pitch, roll in that order (z, then y, then x)."""
         w, x, y, z = (data[f"q[{i}]"].astype(np.float64) for i in range(4))
         angles = {
             "roll": np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),

@@ -1,4 +1,4 @@
-"""MAVLink driver for PX4 / ArduPilot flight controllers (seed 001, 6.2.4; issue 10).
+"""MAVLink driver for PX4 / ArduPilot flight controllers.
 
 Layers, as for UAVTalk: `MavlinkCodec` is sans-I/O (bytes in, messages out, counted
 drops), links are named by URL (`serial:`, `tcp://`, `udp://`), and

@@ -1,4 +1,4 @@
-"""UAVTalk driver for dRonin flight controllers (seed 001, 4.1.2.1; UAVTALK.md).
+"""UAVTalk driver for dRonin flight controllers (docs/uavtalk.md).
 
 One I/O thread owns the link: it reads and decodes frames, ACKs every OBJ_ACK, runs the
 telemetry handshake and keep-alive, reopens the line when it vanishes and keeps
@@ -46,7 +46,7 @@ log = logging.getLogger(__name__)
 
 EARTH_RADIUS = 6_378_137.0
 HANDSHAKE_RETRY_S = 0.5
-KEEPALIVE_S = 2.0  # well under the 6 s USB keep-alive (UAVTALK.md, Connection)
+KEEPALIVE_S = 2.0  # well under the 6 s USB keep-alive (docs/uavtalk.md, Connection)
 SILENCE_TIMEOUT_S = 8.0  # nothing heard for this long: start the handshake again
 IAP_STEPS = (1122, 2233, 3344)
 IAP_GAP_S = 0.6  # board seconds between reset steps (the firmware accepts 0.5 to 5 s)
@@ -465,7 +465,7 @@ class UAVTalkFlightController(LinkDriver):
 
 
 def _position(ned: tuple[float, float, float], home: tuple[float, float, float]) -> dict:
-    """lat/lon/alt above home from NED and home: the exact inverse of the seed's LLA→NED."""
+    """lat/lon/alt above home from NED and home: the exact inverse of navigation's LLA→NED."""
     home_lat, home_lon, home_alt = home
     radius = home_alt + EARTH_RADIUS
     lat = home_lat + math.degrees(ned[0] / radius)

@@ -1,6 +1,6 @@
 """UAVTalk framing: encode frames and decode a byte stream into frames (sans-I/O).
 
-Frame (UAVTALK.md): sync 0x3C | type | length u16 (bytes before the CRC) | object id u32 |
+Frame (docs/uavtalk.md): sync 0x3C | type | length u16 (bytes before the CRC) | object id u32 |
 [instance id u16] | [timestamp u16 when type has 0x80] | payload | CRC-8.
 The decoder never raises on input: whatever it cannot use is counted and skipped.
 """

@@ -1,7 +1,7 @@
 """UAVObject definitions loaded from dRonin-style XML, their ids and their wire packing.
 
-The object id is the firmware's own shift-add-XOR hash over the definition (UAVTALK.md,
-"Object id"), so a real board and this code agree on ids without a hard-coded table.
+The object id is the firmware's own shift-add-XOR hash over the definition (docs/uavtalk.md,
+"Object ids"), so a real board and this code agree on ids without a hard-coded table.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ FIELD_TYPES: tuple[tuple[str, str, int], ...] = (
 TYPE_INDEX = {name: index for index, (name, _, _) in enumerate(FIELD_TYPES)}
 ENUM_TYPE = TYPE_INDEX["enum"]
 FLOAT_TYPE = TYPE_INDEX["float"]
-MAX_OBJECT_BYTES = 243  # Largest payload a UAVTalk packet can carry (UAVTALK.md).
+MAX_OBJECT_BYTES = 243  # Largest payload a UAVTalk packet can carry (docs/uavtalk.md).
 UPDATE_MODES = ("manual", "periodic", "onchange", "throttled")
 
 METADATA_STRUCT = struct.Struct("<BHHH")  # flags, flight period, GCS period, logging period

@@ -6,7 +6,7 @@
   const config = JSON.parse(document.getElementById("planner-config").textContent);
   const $ = (id) => document.getElementById(id);
 
-  // Parameter forms per step command (PROTOCOL.md): name, kind, default.
+  // Parameter forms per step command (docs/protocol.md): name, kind, default.
   const PARAMS = {
     arm: [], land: [], takepic: [], rebuildtelemetry: [],
     disarm: [["force", "bool", false]],

@@ -1,4 +1,4 @@
-/* The panic button (seed 001, 5.1): the phone's position goes to the platform, which
+/* The panic button: the phone's position goes to the platform, which
    sends the nearest available drone; this page follows it until it hovers overhead. */
 (function () {
   "use strict";

@@ -1,4 +1,4 @@
-// The drone drawn over a past frame (seed 002, "Rendering"), with three.js.
+// The drone drawn over a past frame, with three.js.
 //
 // The canvas lies over the frame's picture. Its camera is the frame's camera: the same
 // horizontal field of view, tilted down by the mount angle from the body's forward axis.
@@ -41,7 +41,7 @@ function droneModel(box) {
   const L = length / 2;
   const W = width / 2;
   // The arrow on the top face points forward, its left half red and its right half
-  // green (the seed's navigation-light colouring), so both show from behind and above.
+  // green (navigation-light colouring), so both show from behind and above.
   const half = (side) => [
     [0.9 * L, 0], [0.1 * L, 0], [0.1 * L, side * 0.6 * W], // head
     [0.1 * L, 0], [-0.8 * L, 0], [-0.8 * L, side * 0.25 * W], // shaft

@@ -5,7 +5,7 @@
   const root = document.getElementById("telemetry-dashboard");
   if (!root || typeof uPlot === "undefined") return;
 
-  // The panels of the seed's Telemetry Dashboard (figure 4.23), plus battery and altitude.
+  // The panels of the Telemetry Dashboard of [Paula 2018], figure 4.23, plus battery and altitude.
   // Each series: [object, field, label].
   const PANELS = [
     { id: "barometer", title: "Barometer", unit: "kPa", series: [["BaroAltitude", "Pressure", "Pressure"]] },

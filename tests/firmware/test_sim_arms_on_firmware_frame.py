@@ -1,4 +1,4 @@
-"""The simulated flight controller arms on exactly the frame the firmware sends (issue 9)."""
+"""The simulated flight controller arms on exactly the frame the firmware sends."""
 
 from __future__ import annotations
 

@@ -37,7 +37,7 @@ def test_an_operator_arms_a_drone_through_control_and_gets_its_reply(world_tx, o
     assert (entry.command, entry.outcome, entry.user) == ("arm", "ok", world_tx.operator)
 
 
-def test_navigate_sends_the_seed_parameters_normalised(world_tx, online):
+def test_navigate_sends_the_control_parameters_normalised(world_tx, online):
     response = client_for(world_tx.operator).post(
         "/control?command=navigate&droneID=ACME_1", {"lat": "40.1", "lon": "-8.5"}
     )

@@ -37,7 +37,7 @@ def test_the_drone_page_offers_every_command_to_operators_only(world):
     client = Client()
     client.force_login(world.operator)
     html = client.get("/drones/ACME_1/").content.decode()
-    for command in CONTROL_COMMANDS:  # every command of PROTOCOL.md has a form
+    for command in CONTROL_COMMANDS:  # every control command has a form
         assert f'data-command="{command}"' in html, command
     assert html.count("data-confirm=") == 2  # disarm and resetfc ask first
     assert _config(html)["commandUrl"] == "/api/v1/drones/ACME_1/commands/"

@@ -1,4 +1,4 @@
-"""Builds DFI archives by hand for the tests (the format of DFI_FORMAT.md)."""
+"""Builds DFI archives by hand for the tests (the format of docs/dfi-format.md)."""
 
 from __future__ import annotations
 

@@ -20,8 +20,9 @@ RATE = 200.0
 
 
 def _rectangle_flight(noise: float = 0.0):
-    """Fly forward only at 0.5 m/s, turning 90 degrees right at every corner (seed 000,
-    5.2.2): 6 m, 3 m, 6 m, 3 m, landing where it started. Velocity in mm/s, yaw in degrees."""
+    """Fly forward only at 0.5 m/s, turning 90 degrees right at every corner (the
+    rectangle of [Procházka 2016], §5.2.2): 6 m, 3 m, 6 m, 3 m, landing where it started.
+    Velocity in mm/s, yaw in degrees."""
     rng = np.random.default_rng(2)
     t, vx, vy, yaw = [], [], [], []
     now, heading = 0.0, 0.0

@@ -19,7 +19,7 @@ def test_group_tree_follows_the_series_paths():
     assert log.layers == ["nav", "cmd"]
 
 
-def test_special_quantities_are_matched_by_seed_names_and_flat_fields():
+def test_special_quantities_are_matched_by_dfi_names_and_flat_fields():
     log = LogData(format="test")
     for path in (
         "a/Acceleration/x",

@@ -10,8 +10,8 @@ import pytest
 from .planning import AVEIRO, point_at, rectangle
 
 __all__ = ["AVEIRO", "point_at", "rectangle"]
-# Our own Redis database for the gateway outbox: engineers running other suites at the
-# same time have gateways popping the default one.
+# Our own Redis database for the gateway outbox: other suites running at the same time
+# have gateways popping the default one.
 OUTBOX_DB = 9
 
 

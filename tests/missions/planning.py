@@ -7,7 +7,7 @@ import numpy as np
 
 from missions.geo import LocalFrame
 
-# The multi-drone platform's experiments flew at the University of Aveiro campus.
+# The experiments of [Paula 2018] flew at the University of Aveiro campus.
 AVEIRO = LocalFrame(40.6303, -8.6575)
 
 

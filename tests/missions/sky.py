@@ -2,7 +2,7 @@
 simulated drones (onboard.launcher: firmware.sim and the onboard agent per drone,
 speaking UAVTalk or MAVLink), on the test database.
 
-Engineers run other suites against the same Redis at the same time, so the gateway
+Other suites may run against the same Redis at the same time, so the gateway
 outbox lives in a Redis database of our own and our Celery tasks go to a queue of our
 own; neither changes what is tested.
 """

@@ -38,7 +38,7 @@ def _mission_body(**extra: object) -> dict:
     }
 
 
-def test_coverage_of_the_seed_photography_area_has_45_waypoints(world):
+def test_coverage_of_the_photography_area_has_45_waypoints(world):
     body = {"vertices": rectangle(64, 32), "step_distance": 8, "altitude": 10}
     response = client_for(world.operator).post("/api/v1/missions/coverage/", body, format="json")
     assert response.status_code == 200, response.json()
@@ -71,7 +71,7 @@ def test_bad_coverage_input_is_a_400_naming_the_field(world, body, field):
     assert error["error"].startswith(field) or field in error["fields"], error
 
 
-def test_extension_of_the_seed_sensing_area_has_56_waypoints_in_three_parts(world):
+def test_extension_of_the_sensing_area_has_56_waypoints_in_three_parts(world):
     center = point_at(14, 17.5)
     body = {
         "vertices": rectangle(35, 28),

@@ -27,7 +27,7 @@ def test_local_frame_round_trips_points_to_the_millimetre():
     assert np.max(np.abs(back_e - east)) < 1e-6
 
 
-def test_local_frame_follows_the_seed_linearisation():
+def test_local_frame_follows_the_dronin_linearisation():
     north, east = AVEIRO.to_ne(40.6303 + 0.001, -8.6575 + 0.001)
     assert float(north) == pytest.approx(EARTH_RADIUS_M * math.radians(0.001))
     assert float(east) == pytest.approx(
@@ -115,7 +115,7 @@ def test_one_square_kilometre_at_five_metres_is_about_forty_thousand_waypoints()
     assert len(coverage(rectangle(1000, 1000), 5).waypoints) == 201 * 201
 
 
-def test_extension_reproduces_the_seed_56_waypoints_over_2058_m2():
+def test_extension_reproduces_56_waypoints_over_2058_m2():
     centre = point_at(14, 17.5)
     result = extend(rectangle(35, 28), 7, center=centre, joining_drones=2)
     assert len(result.waypoints) == 56

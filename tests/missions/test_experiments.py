@@ -1,6 +1,6 @@
-"""The multi-drone platform's four experiments end to end (Paula 2018, ch. 5), flown by
-UAVTalk and by MAVLink drones, plus a mixed fleet, pausing, duplicated alarms and a gateway
-restart: simulated drones, the real gateway, a real Celery worker."""
+"""The four experiments of [Paula 2018], chapter 5, end to end, flown by UAVTalk and by
+MAVLink drones, plus a mixed fleet, pausing, duplicated alarms and a gateway restart:
+simulated drones, the real gateway, a real Celery worker."""
 
 from __future__ import annotations
 
@@ -69,7 +69,8 @@ def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx,
     log = api(world_tx.operator).get(f"/api/v1/missions/{mission.pk}/log/").json()
     stages = {s["stage"]: s["duration_s"] for s in log["stages"]}
     assert set(stages) >= {"arm", "takeoff", "navigate"}
-    # Paula 2018, 5.1: climbing 10 m at ≤ 2 m/s takes at least 5 s; the whole call under a minute.
+    # [Paula 2018], §5.1: climbing 10 m at ≤ 2 m/s takes at least 5 s; the whole call
+    # under a minute.
     assert stages["takeoff"] >= 4.0 and sum(stages.values()) < 60
     assert mission.assignments.get().decode_ms is not None
 
@@ -157,7 +158,7 @@ def test_self_replacement_hands_the_remaining_waypoints_to_a_second_drone(world_
         for drone, indexes in completed_waypoints(mission).items()
     }
     assert sorted(waypoints["ACME_R1"] + waypoints["ACME_R2"]) == waits  # none skipped
-    # Paula 2018, 5.3: 13 by the first drone, 15 by the replacement.
+    # [Paula 2018], §5.3: 13 by the first drone, 15 by the replacement.
     assert len(waypoints["ACME_R1"]) >= 13 and len(waypoints["ACME_R2"]) >= 1
     completions = accepted_completions(mission)
     assert len(completions) == len(set(completions))  # no step done twice
@@ -171,7 +172,8 @@ def test_a_uavtalk_drone_running_out_of_battery_is_replaced_by_a_mavlink_drone(w
     from missions.planning import coverage, mission_steps
 
     # A small battery: the UAVTalk drone's fail-safe raises CRITICAL (below 25 %) part
-    # way through the survey, as in Paula 2018, 5.3, and the ground hands its waypoints over.
+    # way through the survey, as in [Paula 2018], §5.3, and the ground hands its waypoints
+    # over.
     sky.add_drone("ACME_UR1", north=-10, fc="uavtalk", battery_capacity_mah=300)
     sky.add_drone("ACME_MR2", north=-40, east=-20, fc="mavlink")
     sky.wait_online()
@@ -221,7 +223,7 @@ def test_collaborative_sensing_extends_the_area_to_56_waypoints_flown_by_three(
     from missions.planning import coverage, mission_steps
 
     # A CO2 plume over waypoint 15 only (its neighbours are 7 m away, outside its 5 m
-    # radius); the fail-safe raises OUT_MEASURE above 1000 ppm (Paula 2018, 5.4).
+    # radius); the fail-safe raises OUT_MEASURE above 1000 ppm ([Paula 2018], §5.4).
     area = coverage(rectangle(35, 28), 7)
     assert len(area.waypoints) == 30
     plume_lat, plume_lon = area.waypoints[14]

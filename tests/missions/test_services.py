@@ -212,7 +212,7 @@ def test_replacement_with_no_drone_available_pauses_and_resumes_when_one_comes_o
     )
 
 
-def test_out_measure_extends_the_seed_area_and_splits_it_among_three_drones(world, outbox):
+def test_out_measure_extends_the_area_and_splits_it_among_three_drones(world, outbox):
     vertices = rectangle(35, 28)
     area = coverage(vertices, 7)
     assert len(area.waypoints) == 30

@@ -1,4 +1,4 @@
-"""An independent check of a DFI archive against every rule of DFI_FORMAT.md."""
+"""An independent check of a DFI archive against every rule of docs/dfi-format.md."""
 
 from __future__ import annotations
 

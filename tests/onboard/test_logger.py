@@ -1,4 +1,4 @@
-"""The DFI flight log: written incrementally, zipped at the end, valid per DFI_FORMAT.md."""
+"""The DFI flight log: written incrementally, zipped at the end, valid per docs/dfi-format.md."""
 
 from __future__ import annotations
 

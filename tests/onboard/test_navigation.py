@@ -1,4 +1,4 @@
-"""LLA↔NED with the seed's formula, and commands → navigation targets."""
+"""LLA↔NED with the dRonin GCS formula, and commands → navigation targets."""
 
 from __future__ import annotations
 
@@ -20,8 +20,8 @@ from onboard.navigation import (
 from .fakes import HOME, FakeFlightController
 
 
-def test_lla_to_ned_follows_the_seed_formula() -> None:
-    # Seed 001 Figure 4.13, written out with its own constant.
+def test_lla_to_ned_follows_the_dronin_formula() -> None:
+    # [Paula 2018], figure 4.13, written out with its own constant.
     deg = 0.017453293
     lat, lon, alt = 40.6312, -8.6561, 42.0
     home_lat, home_lon, home_alt = HOME

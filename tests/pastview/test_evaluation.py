@@ -225,7 +225,7 @@ def test_every_function_round_trips_through_a_dict(function):
     assert data["function"] == function.name
 
 
-def test_spirit_defaults_are_the_seed_coefficients():
+def test_spirit_defaults_are_the_published_coefficients():
     assert Spirit().to_dict() == {
         "function": "spirit",
         "coeff_centrality": 4.0,

@@ -1,4 +1,4 @@
-"""What the multi-drone experiments share, whichever drones fly them: the module's ground (a
+"""What the experiments share, whichever drones fly them: the module's ground (a
 private broker and a Celery worker, tests/missions/sky.py), the operator's API client,
 waiting for a mission's status, the survey missions they fly and what they leave behind.
 

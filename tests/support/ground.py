@@ -4,7 +4,7 @@ drones (onboard.launcher), a private Redis, and what a user does against them.
 Every process reads the database pytest-django created (TEST_WORKER_DB_NAME, see
 config/settings/test.py) and gets the same environment: the broker settings (a private
 Mosquitto, or a RabbitCluster's `settings_env()`), a REDIS_URL, and a Celery queue of its
-own, so engineers running other suites against the same Redis never take our tasks.
+own, so other suites running against the same Redis never take our tasks.
 """
 
 from __future__ import annotations

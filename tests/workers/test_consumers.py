@@ -1,4 +1,4 @@
-"""Competing consumers on a real two-node RabbitMQ cluster (issue 11, items 1 and 2).
+"""Competing consumers on a real two-node RabbitMQ cluster.
 
 Drones are real RabbitMQ users (fleet.credentials) publishing over MQTT to either node;
 the gateways and ingests read the shared AMQP queues. Each message must be handled by

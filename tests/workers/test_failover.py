@@ -1,4 +1,4 @@
-"""A RabbitMQ node killed under the ground and the drones (issue 11, item 2; faults).
+"""A RabbitMQ node killed under the ground and the drones.
 
 The test kills (kill -9) the node a gateway, an ingest and a drone's agent link are
 connected to while the other node stays up, then checks that they moved there on their

@@ -1,4 +1,4 @@
-"""Faults the replicated ground recovers from on its own (issue 11, "Bad input / faults"):
+"""Faults the replicated ground recovers from on its own:
 a gateway killed, a Celery worker killed mid-task, Redis restarted, a broker node killed.
 No test helps the platform along: it breaks one part and checks the outcome a user sees."""
 

@@ -1,4 +1,4 @@
-"""The load drone speaks PROTOCOL.md to a real Mosquitto, as the real agent does.
+"""The load drone speaks docs/protocol.md to a real Mosquitto, as the real agent does.
 
 A private broker with the project's drone ACL (each drone may write only `<id>/+/out`)
 and a paho client as the ground: whatever the load drones send must parse with

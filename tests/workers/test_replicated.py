@@ -1,4 +1,4 @@
-"""Every ground process twice (issue 11, item 3): a mission with replacement flown by
+"""Every ground process twice: a mission with replacement flown by
 simulated drones through two web instances, two gateways, two ingests and two Celery
 workers decides once, tracks every step once and stores every telemetry sample once."""
 

@@ -12,8 +12,9 @@ using ppm::Verdict;
 namespace {
 
 // A receiver capture that starts mid-frame, with the few microseconds of jitter a real
-// receiver shows, followed by three complete frames (values: figure 4.17 sticks, then
-// yaw and switches moved). Throttle 497 and switch 1502 are inside the margin and clamp.
+// receiver shows, followed by three complete frames (values: the sticks of
+// [Paula 2018], figure 4.17, then yaw and switches moved). Throttle 497 and switch 1502
+// are inside the margin and clamp.
 const Segment kRecorded[] = {
     {true, 734},   {false, 501}, {true, 1497}, {false, 499}, {true, 503},   {false, 500},
     {true, 9000},  {false, 499}, {true, 1002}, {false, 500}, {true, 998},   {false, 497},

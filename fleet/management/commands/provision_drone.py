@@ -1,6 +1,6 @@
-"""`manage.py provision_drone <ID>... [--org SLUG]`: new broker passwords (PROTOCOL.md).
+"""`manage.py provision_drone <ID>... [--org SLUG]`: new broker passwords (docs/protocol.md).
 
-One id prints one JSON object, as PROTOCOL.md's "Ground side contract" says; several ids
+One id prints one JSON object, as docs/protocol.md's "Provisioning a drone" says; several ids
 are provisioned in one broker update and print a JSON list of those objects. `--sync`
 rebuilds the broker's drone users from the database instead (a replaced broker node or
 cluster) and prints what it did.

@@ -29,7 +29,7 @@ class Command(BaseCommand):
         parser.add_argument(
             "--home",
             default=os.environ.get("SIM_HOME", "40.6303,-8.6575"),
-            help="LAT,LON where the simulated drones stand (default: Aveiro, as in the seed)",
+            help="LAT,LON where the simulated drones stand (default: Aveiro university campus)",
         )
         parser.add_argument(
             "--time-scale", type=float, default=float(os.environ.get("SIM_TIME_SCALE", "1"))

@@ -1,5 +1,5 @@
-// The 3D attitude view: a quadcopter turned by the log's Euler angles in the order seed 000
-// (4.2.1) found: yaw about the vertical first, then pitch, then roll.
+// The 3D attitude view: a quadcopter turned by the log's Euler angles in the order
+// [Procházka 2016], §4.2.1, found: yaw about the vertical first, then pitch, then roll.
 
 import * as THREE from "../../vendor/three/three.module.min.js";
 import { getJSON } from "./api.js";

@@ -53,7 +53,7 @@ export class MapView {
       this.title.textContent = "Trajectory";
       this.note.textContent = `estimated, no GPS · ${track.unit || "units"} from the start, north up`;
       this.map = L.map(this.el, { crs: L.CRS.Simple, minZoom: -30, maxZoom: 10, zoomSnap: 0.25, attributionControl: false });
-      // x is north and y is west (seed 000, 5.2.1): north up, east to the right.
+      // x is north and y is west (logs/analysis.py): north up, east to the right.
       tracks = [{ name: "estimated", t: track.t, points: track.x.map((x, i) => [x ?? 0, -(track.y[i] ?? 0)]) }];
     }
     const bounds = L.latLngBounds([]);
