@@ -38,6 +38,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from . import protocol
+from .mission import decode_mission
 from .mqttwire import MqttError, connect_packet, publish_packet, split_packets, subscribe_packet
 from .navigation import lla_to_ned, ned_to_lla
 
@@ -135,6 +136,7 @@ class LoadDrone:
         self.mission: asyncio.Task | None = None
         self.mission_ref: protocol.MissionRef | None = None
         self._mission_stop: asyncio.Event | None = None
+        self._mission_request_id: str | None = None
 
     # -- what it says ---------------------------------------------------------------------
 
@@ -324,90 +326,74 @@ class LoadDrone:
         try:
             request = protocol.parse_mission_request(obj)
         except protocol.ProtocolError as exc:
-            request_id = protocol.request_id_of(obj)
             self.stats.dropped["mission"] += 1
-            if request_id is not None:
-                mission_id = obj.get("mission_id")
-                mission_id = mission_id if isinstance(mission_id, str) and mission_id else "unknown"
-                self._report(
-                    protocol.MissionProgress(
-                        mission_id, None, "rejected", error=_sentence(exc), request_id=request_id
-                    )
-                )
+            refusal = protocol.mission_refusal(obj, _sentence(exc))
+            if refusal is not None:
+                self._report(refusal)
             return
         if isinstance(request, protocol.MissionStop):
-            if self.mission_ref is None or self.mission_ref.mission_id != request.mission_id:
-                not_running = "The mission is not running on this drone."
-                self._report(protocol.mission_reply(request, "stopped", error=not_running))
-            elif self._mission_stop is not None:
-                self._mission_stop.set()
-            return
-        began = time.perf_counter()
+            self._stop_mission(request)
+        else:
+            self._start_mission(request)
+
+    def _stop_mission(self, request: protocol.MissionStop) -> None:
+        if self.mission_ref is None or self.mission_ref.mission_id != request.mission_id:
+            not_running = "The mission is not running on this drone."
+            self._report(protocol.mission_reply(request, "stopped", error=not_running))
+        elif self._mission_stop is not None:
+            self._mission_request_id = request.request_id  # the stop is what gets answered
+            self._mission_stop.set()
+
+    def _start_mission(self, request: protocol.MissionStart) -> None:
+        # The same checks, and the same answers, as the agent's mission worker.
         try:
-            payload = protocol.decode_mission_payload(request.payload)
-            if payload.mission_id != request.mission_id:
-                raise protocol.ProtocolError("payload.mission_id", "does not match the message")
-            if payload.assignment_id != request.assignment_id:
-                raise protocol.ProtocolError("payload.assignment_id", "does not match the message")
+            payload, decode_ms = decode_mission(request)
         except protocol.ProtocolError as exc:
             self._report(protocol.mission_reply(request, "rejected", error=_sentence(exc)))
             return
-        decode_ms = (time.perf_counter() - began) * 1000.0
         if self.mission is not None and not self.mission.done():
             busy = "Another mission is still running; stop it first."
             self._report(protocol.mission_reply(request, "rejected", error=busy))
             return
         self._report(protocol.mission_reply(request, "accepted", decode_ms=decode_ms))
         self._mission_stop = asyncio.Event()
+        self._mission_request_id = request.request_id
         self.mission = asyncio.get_running_loop().create_task(
-            self._fly(payload, request.request_id, self._mission_stop)
+            self._fly(payload, self._mission_stop)
         )
 
-    async def _fly(
-        self, payload: protocol.MissionPayload, request_id: str, stop: asyncio.Event
-    ) -> None:
-        mission_id, assignment_id = payload.mission_id, payload.assignment_id
+    async def _fly(self, payload: protocol.MissionPayload, stop: asyncio.Event) -> None:
         try:
             for step in payload.steps:
                 if stop.is_set():
-                    self._report(
-                        protocol.MissionProgress(
-                            mission_id,
-                            assignment_id,
-                            "stopped",
-                            error="stopped by the ground",
-                            request_id=request_id,
-                        )
-                    )
+                    self._end(payload, "stopped", "stopped by the ground")
                     return
-                self.mission_ref = protocol.MissionRef(mission_id, assignment_id, step.index)
+                self.mission_ref = protocol.MissionRef(
+                    payload.mission_id, payload.assignment_id, step.index
+                )
                 self._step(payload, step, "started")
                 began = time.monotonic()
                 try:
                     result = await self._run_step(payload, step, stop)
                 except CommandRefused as exc:
                     self._step(payload, step, "failed", began=began, error=str(exc))
-                    reason = (
-                        "stopped by the ground"
-                        if stop.is_set()
-                        else f"Step {step.index} ({step.command}) failed: {exc}"
-                    )
-                    self._report(
-                        protocol.MissionProgress(
-                            mission_id,
-                            assignment_id,
-                            "stopped",
-                            error=reason,
-                            request_id=request_id if stop.is_set() else None,
-                        )
+                    failed = f"Step {step.index} ({step.command}) failed: {exc}"
+                    self._end(
+                        payload, "stopped", "stopped by the ground" if stop.is_set() else failed
                     )
                     return
                 self._step(payload, step, "completed", began=began, result=result)
                 self.stats.steps_completed += 1
             self.stats.missions_completed += 1
-            self._report(protocol.MissionProgress(mission_id, assignment_id, "completed"))
+            self._end(payload, "completed")
         finally:
             self.mission_ref = None
+
+    def _end(self, payload: protocol.MissionPayload, status: str, error: str | None = None) -> None:
+        """The mission's last report, naming (when stopped) the start request, or the stop
+        request when the ground asked for it, as the agent's mission worker does."""
+        request_id = self._mission_request_id
+        self._report(protocol.mission_end(payload, status, error=error, request_id=request_id))
 
     async def _run_step(
         self, payload: protocol.MissionPayload, step: protocol.Step, stop: asyncio.Event

@@ -679,6 +679,41 @@ def step_progress(
     )
 
 
+def mission_end(
+    payload: MissionPayload,
+    status: str,
+    *,
+    error: str | None = None,
+    request_id: str | None = None,
+) -> MissionProgress:
+    """A running mission's last word: `completed`, or `stopped` with why, naming the stop
+    request when the ground asked for it."""
+    return MissionProgress(
+        payload.mission_id,
+        payload.assignment_id,
+        status,
+        error=error,
+        request_id=request_id if status == "stopped" else None,
+    )
+
+
+def mission_refusal(obj: Any, error: str) -> MissionProgress | None:
+    """The `rejected` answer to a mission request that does not parse; None when it names
+    no request id (nobody waits for an answer)."""
+    request_id = request_id_of(obj)
+    if request_id is None:
+        return None
+    mission_id = obj.get("mission_id")
+    assignment_id = obj.get("assignment_id")
+    return MissionProgress(
+        mission_id if isinstance(mission_id, str) and mission_id else "unknown",
+        assignment_id if isinstance(assignment_id, str) else None,
+        "rejected",
+        error=error,
+        request_id=request_id,
+    )
+
+
 def parse_mission_progress(obj: Any) -> MissionProgress | StepProgress:
     """A `<id>/mission/out` message (mission status or step progress)."""
     obj = _object(obj, "message")
