@@ -24,7 +24,6 @@ import multiprocessing as mp
 import os
 import shutil
 import socket
-import subprocess
 import tempfile
 import threading
 import time
@@ -34,6 +33,7 @@ from pathlib import Path
 
 from bench.common import record
 from onboard.mqttwire import connect_packet, publish_packet
+from onboard.processes import Supervised, free_port
 from workers.broker import share_filter
 from workers.broker.mqtt_reader import Subscriber
 
@@ -56,14 +56,8 @@ def telemetry_payload() -> bytes:
     return json.dumps(sample).encode()
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def start_mosquitto(directory: Path) -> tuple[subprocess.Popen, int]:
-    """A throw-away broker on a free port, accepting connections within 10 s."""
+def start_mosquitto(directory: Path) -> Supervised:
+    """A throw-away anonymous broker on a free port, accepting connections within 10 s."""
     port = free_port()
     lines = [
         f"listener {port} 127.0.0.1",
@@ -76,18 +70,8 @@ def start_mosquitto(directory: Path) -> tuple[subprocess.Popen, int]:
         lines.append("user root")
     conf = directory / "mosquitto.conf"
     conf.write_text("\n".join(lines) + "\n")
-    process = subprocess.Popen(
-        [MOSQUITTO, "-c", str(conf)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
-    )
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
-            return process, port
-        except OSError:
-            time.sleep(0.05)
-    process.kill()
-    raise RuntimeError(f"mosquitto did not listen on port {port}")
+    broker = Supervised("mosquitto", [MOSQUITTO, "-c", str(conf)], port=port)
+    return broker.start().wait_ready(10)
 
 
 def publish(port: int, count: int, ready: ProcessEvent, go: ProcessEvent) -> None:
@@ -182,7 +166,9 @@ def main() -> None:
     rates: dict[str, list[float]] = {"reader": [], "paho": []}
     lost = 0
     with tempfile.TemporaryDirectory(prefix="bench-mqtt-reader-") as tmp:
-        broker, port = start_mosquitto(Path(tmp))
+        broker = start_mosquitto(Path(tmp))
+        port = broker.port
+        assert port is not None
         try:
             for _ in range(ROUNDS):
                 for name, start in (("reader", reader_subscriber), ("paho", paho_subscriber)):
@@ -191,8 +177,7 @@ def main() -> None:
                     lost += missing
                     print(f"{name}: {rate:,.0f} messages/s ({missing} lost)", flush=True)
         finally:
-            broker.terminate()
-            broker.wait(10)
+            broker.stop(10)
     record(
         "telemetry.mqtt_reader_msgs_per_s",
         value=max(rates["reader"]),

@@ -20,6 +20,7 @@ import pytest
 
 from onboard import protocol
 from onboard.loaddrone import Account, Fleet, grid_home, position_age
+from onboard.processes import wait_for
 from workers.mosquitto import Broker, start_broker
 
 
@@ -86,13 +87,10 @@ class Ground:
         return [protocol.parse_message(t, p)[2] for t, p in raw]
 
     def wait_for(self, predicate: Callable[[], object], timeout: float = 10.0) -> object:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            found = predicate()
-            if found:
-                return found
-            time.sleep(0.02)
-        raise AssertionError("timed out waiting for the load drone")
+        found = wait_for(predicate, timeout, interval=0.02)
+        if not found:
+            raise AssertionError("timed out waiting for the load drone")
+        return found
 
     def reply_to(self, drone_id: str, request_id: str) -> protocol.ControlResponse:
         def find() -> protocol.ControlResponse | None:
