@@ -43,12 +43,15 @@ class Broker:
     def write_config(self) -> Path:
         self.directory.mkdir(parents=True, exist_ok=True)
         passwd = self.directory / "passwd"
-        if any(":" in password for password in self.users.values()):
-            raise ValueError("mosquitto_passwd -U cannot take a password with a colon")
-        # Plain text hashed in place by one call: a thousand users take a second, not minutes.
-        passwd.write_text("".join(f"{user}:{password}\n" for user, password in self.users.items()))
-        if self.users:
+        # Plain text hashed in place by one call (a thousand users take a second, not
+        # minutes); that format cannot hold a password with a colon: those one by one.
+        plain = {user: password for user, password in self.users.items() if ":" not in password}
+        passwd.write_text("".join(f"{user}:{password}\n" for user, password in plain.items()))
+        if plain:
             subprocess.run([MOSQUITTO_PASSWD, "-U", str(passwd)], check=True)
+        for user, password in self.users.items():
+            if user not in plain:
+                subprocess.run([MOSQUITTO_PASSWD, "-b", str(passwd), user, password], check=True)
         acl = self.directory / "acl"
         acl.write_text(self.acl)
         conf = self.directory / "mosquitto.conf"

@@ -17,7 +17,7 @@ from onboard.mavlink_mission import MissionUploader, native_runs, plan_native_ru
 
 from .conftest import TIME_SCALE
 
-FIXTURES = Path(__file__).resolve().parents[1] / "planning" / "fixtures"
+FIXTURES = Path(__file__).resolve().parents[2] / "missions" / "fixtures"
 
 
 def mission_items(steps: list[protocol.Step], home: tuple[float, float, float]):  # type: ignore[no-untyped-def]
