@@ -1,5 +1,9 @@
 """Start N simulated drones: a flight-controller simulator and an onboard agent each.
 
+This is the one simulated-fleet launcher: `make run` runs it (through `manage.py
+run_simulated_drones`), and the end-to-end tests and benchmarks start their drones with
+`start_drone()` (or an agent for a simulator of their own with `agent_process()`).
+
     python -m onboard.launcher --count 3 --home 40.6303,-8.6575 \\
         --broker-url mqtt://127.0.0.1:1883 --credentials-file creds.json
 
@@ -236,7 +240,11 @@ class Drone:
     def start(self, time_scale: float, agent_args: Sequence[str] = ()) -> Drone:
         copy_gear(self.folder)
         self.start_sim(time_scale)
-        self.start_agent(time_scale, agent_args)
+        try:
+            self.start_agent(time_scale, agent_args)
+        except BaseException:
+            self.stop()  # no simulator left behind without its agent
+            raise
         return self
 
     def start_sim(self, time_scale: float) -> None:
