@@ -9,7 +9,6 @@ own, so other suites running against the same Redis never take our tasks.
 
 from __future__ import annotations
 
-import subprocess
 import time
 import uuid
 from collections.abc import Callable, Iterator
@@ -18,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from onboard.launcher import Drone, start_drone
-from onboard.processes import free_port, port_open, python_env, stop_process
+from onboard.processes import Supervised, free_port, python_env
 from onboard.processes import wait_for as poll
 from workers import ground as replicas
 
@@ -59,28 +58,20 @@ class PrivateRedis:
         self.directory = Path(directory)
         self.directory.mkdir(parents=True, exist_ok=True)
         self.port = free_port()
-        self.process: subprocess.Popen | None = None
+        argv = ["redis-server", "--port", str(self.port), "--bind", "127.0.0.1",
+                "--save", "", "--appendonly", "no", "--dir", str(self.directory)]  # fmt: skip
+        self.process = Supervised("redis", argv, None, self.directory / "redis.log", port=self.port)
 
     @property
     def url(self) -> str:
         return f"redis://127.0.0.1:{self.port}/0"
 
     def start(self, timeout: float = 10.0) -> PrivateRedis:
-        argv = ["redis-server", "--port", str(self.port), "--bind", "127.0.0.1",
-                "--save", "", "--appendonly", "no", "--dir", str(self.directory)]  # fmt: skip
-        with open(self.directory / "redis.log", "ab") as log:
-            self.process = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT)
-        process = self.process
-        if not poll(lambda: port_open(self.port) or process.poll() is not None, timeout):
-            raise RuntimeError("redis-server did not start")
-        if process.poll() is not None:
-            raise RuntimeError("redis-server exited; see " + str(self.directory))
+        self.process.start().wait_ready(timeout)
         return self
 
     def stop(self) -> None:
-        if self.process is not None:
-            stop_process(self.process)
-        self.process = None
+        self.process.stop(10)
 
 
 # -- a replicated ground with simulated drones, for end-to-end scenarios ------------------
