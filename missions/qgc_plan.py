@@ -301,7 +301,7 @@ class _Reader:
 
     def waypoint(
         self,
-        command: int,
+        command: Any,
         p: list,
         hint: dict,
         coordinate: tuple[float, float],
