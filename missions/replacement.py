@@ -92,12 +92,7 @@ def replace_drone(
         stop_position = _stop_position(alarm, failing)
         remaining = [s for s in view if s["status"] != StepStatus.COMPLETED]
         if not remaining:
-            record(
-                mission,
-                Event.Kind.DECISION,
-                "nothing left to hand over",
-                data={"decision": "no_replacement_needed", "assignment": str(failing.pk)},
-            )
+            _nothing_left(mission, failing)
             return None
         select_began = time.perf_counter()
         drone = _nearest_replacement(
@@ -172,6 +167,15 @@ def _stop_failing(mission: Mission, failing: Assignment) -> None:
     )
     transaction.on_commit(lambda: send_stop(failing_id, str(mission.pk)))
     transaction.on_commit(lambda: send_control(failing_id, "land"))
+
+
+def _nothing_left(mission: Mission, failing: Assignment) -> None:
+    record(
+        mission,
+        Event.Kind.DECISION,
+        "nothing left to hand over",
+        data={"decision": "no_replacement_needed", "assignment": str(failing.pk)},
+    )
 
 
 def _nearest_replacement(
