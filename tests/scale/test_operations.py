@@ -14,7 +14,6 @@ import pytest
 from django.test import Client, override_settings
 from rest_framework.test import APIClient
 
-from fleet.credentials import render_acl
 from tests.conftest import login
 from tests.support import waiting
 from tests.support.celery_worker import start_worker, worker_env
@@ -22,6 +21,7 @@ from tests.support.mosquitto import free_port, start_broker
 from tests.support.processes import stop_process
 from workers import operations
 from workers.broker import mosquitto_sys
+from workers.broker.credentials import render_acl
 from workers.counters import Counters, instances, start_heartbeat
 from workers.gateway import Gateway
 

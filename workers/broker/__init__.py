@@ -35,6 +35,7 @@ __all__ = [
     "cluster_urls",
     "competing_consumer",
     "mqtt_urls",
+    "rabbitmq_api_urls",
     "routing_key",
     "same_node",
     "share_filter",
@@ -65,6 +66,11 @@ def mqtt_urls() -> list[str]:
 
 def amqp_urls() -> list[str]:
     return list(settings.AMQP_URLS)
+
+
+def rabbitmq_api_urls() -> list[str]:
+    """Every RabbitMQ node's management API (empty on Mosquitto)."""
+    return list(settings.RABBITMQ_API_URLS) if uses_amqp() else []
 
 
 def same_node(a: str, b: str) -> bool:
