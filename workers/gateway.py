@@ -9,7 +9,8 @@ the mirrored AMQP queue `skyhive.gateway` (workers.broker). It parses each messa
 dropped and counted, never raised. Outbound, it takes from the Redis outbox
 (`workers.outbox`) and publishes to `<id>/<channel>/in`, moving to the next broker node when
 its node is lost; what it took stays on its own list until the broker acknowledges it,
-so a gateway killed in between loses nothing.
+so a gateway killed in between loses nothing. Being connected anyway, it also writes the
+broker's figures for the operations page (workers.broker.figures).
 """
 
 from __future__ import annotations

@@ -21,6 +21,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 import redis
+from celery import current_app
 from django.conf import settings
 
 from workers import counters
@@ -141,9 +142,8 @@ def queue_figures() -> dict[str, Any]:
 
 def celery_figures() -> dict[str, Any]:
     """Workers answering a broadcast ping now, and those seen within the last hour."""
-    from config.celery import app
-
-    replies = app.control.ping(timeout=CELERY_PING_TIMEOUT_S) or []
+    # The project's Celery app (config.celery), made current when config is imported.
+    replies = current_app.control.ping(timeout=CELERY_PING_TIMEOUT_S) or []
     now = time.time()
     alive = sorted(name for reply in replies for name in reply)
     client = counters._client()
