@@ -18,12 +18,12 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
-from urllib.parse import urlsplit
 
 import redis
 from celery import current_app
 from django.conf import settings
 
+from onboard.mqtt import parse_broker_url
 from workers import counters
 from workers.broker import figures as broker_figures
 from workers.broker.figures import unavailable
@@ -178,8 +178,8 @@ def celery_figures() -> dict[str, Any]:
 
 def broker_figures_now() -> dict[str, Any]:
     """What the gateways last wrote about the configured broker."""
-    parts = urlsplit(settings.MQTT_URL)
-    address = f"{parts.hostname or '127.0.0.1'}:{parts.port or 1883}"
+    node = parse_broker_url(settings.MQTT_URL)  # as the gateways name the node they are on
+    address = f"{node.host}:{node.port}"
     return broker_figures.read_figures(counters._client(), settings.MQTT_BROKER, address)
 
 
