@@ -8,7 +8,7 @@ from fleet import api as fleet_api
 from fleet.control import ControlView
 from logs import urls as logs_urls
 from missions import api as missions_api
-from workers import views as operations_views
+from telemetry import views as operations_views
 
 from .health import health
 

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-from channels.db import database_sync_to_async
-from channels.generic.websocket import AsyncJsonWebsocketConsumer
+from typing import Any
 
+from channels.db import database_sync_to_async
+
+from fleet.consumers import CLOSE_NOT_FOUND, GroupConsumer
 from logs.models import FlightLog
 
 
@@ -21,33 +23,19 @@ def _snapshot(log_id: str) -> dict:
     return {"type": "status", "status": log.status, "progress": log.progress, "error": log.error}
 
 
-class LogProgressConsumer(AsyncJsonWebsocketConsumer):
+class LogProgressConsumer(GroupConsumer):
     """`/ws/logs/<uuid>/`: the log's status now, then every progress and status change."""
 
-    group: str | None = None
+    # Outsiders learn nothing, not even that the log exists.
+    refused_code = CLOSE_NOT_FOUND
 
-    async def connect(self) -> None:
-        user = self.scope.get("user")
-        if user is None or not user.is_authenticated:
-            await self.close(code=4401)
-            return
-        log = await _visible_log(user, str(self.scope["url_route"]["kwargs"]["log_id"]))
-        if log is None:
-            # Outsiders learn nothing, not even that the log exists.
-            await self.close(code=4404)
-            return
-        self.group = log.group_name
-        await self.channel_layer.group_add(self.group, self.channel_name)
-        await self.accept()
-        # Read after joining the group, so no change between the two is lost.
+    async def authorise(self, user: Any) -> FlightLog | None:
+        return await _visible_log(user, str(self.scope["url_route"]["kwargs"]["log_id"]))
+
+    def group_for(self, log: FlightLog) -> str:
+        return log.group_name
+
+    async def welcome(self, log: FlightLog) -> None:
         await self.send_json(await _snapshot(str(log.pk)))
 
-    async def disconnect(self, code: int) -> None:
-        if self.group:
-            await self.channel_layer.group_discard(self.group, self.channel_name)
-
-    async def receive_json(self, content: dict, **kwargs: object) -> None:
-        return  # clients only listen
-
-    async def flightlog_event(self, event: dict) -> None:
-        await self.send_json(event["payload"])
+    flightlog_event = GroupConsumer.send_payload

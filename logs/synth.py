@@ -204,12 +204,42 @@ def synthetic_ulog(path: Path, *, seconds: float, rate_hz: float = 250.0) -> Non
     )
 
 
+# UNIT and FMTU contents: unit of each id, unit ids of each message's columns (# marks
+# the instance column).
+_DATAFLASH_UNITS = {
+    "s": "s",
+    "E": "rad/s",
+    "o": "m/s/s",
+    "d": "deg",
+    "D": "deglatitude",
+    "U": "deglongitude",
+    "m": "m",
+    "n": "m/s",
+    "v": "V",
+    "A": "A",
+    "a": "Ah",
+    "%": "%",
+    "Y": "PWM",
+    "-": "",
+    "#": "instance",
+}
+_DATAFLASH_UNIT_IDS = {
+    "IMU": "sEEEooo#",
+    "ATT": "sddddd",
+    "GPS": "s---DUmnn",
+    "BAT": "svAa%",
+    "RCOU": "sYYYY",
+    "MSG": "s-",
+}
+
+
 def synthetic_dataflash(
     path: Path, *, seconds: float, rate_hz: float = 400.0
 ) -> dict[str, tuple[str, np.ndarray]]:
     """An ArduPilot .bin with two IMUs, ATT, GPS, BAT, RCOU, MSG (scaled types c/C/e/E/L
     included) and the UNIT/FMTU messages that give units and mark instance columns."""
     rng = np.random.default_rng(11)
+    units, unit_ids = _DATAFLASH_UNITS, _DATAFLASH_UNIT_IDS
     spec = {
         "UNIT": ("QbZ", "TimeUS,Id,Label", None),
         "FMTU": ("QBNN", "TimeUS,FmtType,UnitIds,MultIds", None),
@@ -219,31 +249,6 @@ def synthetic_dataflash(
         "BAT": ("Qffdb", "TimeUS,Volt,Curr,CurrTot,RemPct", 10),
         "RCOU": ("QHHHH", "TimeUS,C1,C2,C3,C4", rate_hz / 8),
         "MSG": ("QZ", "TimeUS,Message", 0.5),
-    }
-    units = {
-        "s": "s",
-        "E": "rad/s",
-        "o": "m/s/s",
-        "d": "deg",
-        "D": "deglatitude",
-        "U": "deglongitude",
-        "m": "m",
-        "n": "m/s",
-        "v": "V",
-        "A": "A",
-        "a": "Ah",
-        "%": "%",
-        "Y": "PWM",
-        "-": "",
-        "#": "instance",
-    }
-    unit_ids = {
-        "IMU": "sEEEooo#",
-        "ATT": "sddddd",
-        "GPS": "s---DUmnn",
-        "BAT": "svAa%",
-        "RCOU": "sYYYY",
-        "MSG": "s-",
     }
     type_ids = {name: 129 + number for number, name in enumerate(spec)}
     messages = {}

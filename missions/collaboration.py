@@ -15,9 +15,10 @@ from collections.abc import Mapping
 from django.conf import settings
 from django.db import transaction
 
-from missions.handover import plan_collaboration
+from fleet.models import Drone
+from missions.handover import Handover, plan_collaboration
 from missions.models import STEP_DONE, Assignment, Event, Mission, MissionStatus, Step, StepStatus
-from missions.planning import PlanningError, Vectors, extend_from_vectors
+from missions.planning import Extension, PlanningError, Vectors, extend_from_vectors
 from missions.services import nearest_available, record, send_assignment, send_stop
 
 
@@ -45,13 +46,9 @@ def collaborate(
         mission = Mission.objects.select_for_update().filter(pk=mission_id).first()
         if mission is None or mission.status != MissionStatus.RUNNING:
             return []
-        if mission.assignments.filter(reason=Assignment.Reason.COLLABORATION).exists():
-            return _decline(mission, "already extended: alarm noted", "collaboration_ignored")
-        params = mission.extensibility or {}
-        if not params.get("vectors") or not params.get("step_distance"):
-            return _decline(
-                mission, "no extensibility parameters: alarm noted", "collaboration_ignored"
-            )
+        refusal = _why_not_extensible(mission)
+        if refusal is not None:
+            return _decline(mission, refusal, "collaboration_ignored")
         alarming = (
             Assignment.objects.select_related("drone")
             .filter(pk=assignment_id, mission=mission)
@@ -63,114 +60,178 @@ def collaborate(
         center = _center(alarm, alarming)
         if center is None:
             return _decline(mission, "the alarm has no position", "collaboration_ignored")
-        alarming_id = alarming.drone.drone_id
         joining = nearest_available(
             mission.organisation_id,
             target=center,
             count=settings.MISSIONS_JOINING_DRONES,
-            exclude=[alarming_id],
+            exclude=[alarming.drone.drone_id],
         )
-        drones = [alarming.drone, *joining]
-        positions = [list(center)] + [[d.lat, d.lon] for d in joining]
         plan_began = time.perf_counter()
         try:
-            extension = extend_from_vectors(
-                Vectors.from_dict(params["vectors"]),
-                params["step_distance"],
-                center=center,
-                joining_drones=len(joining),
-                drone_positions=positions,
-                max_waypoints=settings.MISSIONS_MAX_WAYPOINTS,
-            )
-            steps = [
-                {"index": s.index, "command": s.command, "params": s.params, "status": s.status}
-                for s in mission.steps.order_by("index")
-            ]
-            handover = plan_collaboration(
-                [
-                    {
-                        **s,
-                        "status": StepStatus.COMPLETED if s["status"] in STEP_DONE else s["status"],
-                    }
-                    for s in steps
-                ],
-                extension=extension,
-                drone_ids=[d.drone_id for d in drones],
-                alarming_drone=alarming_id,
-                altitude=mission.altitude,
-                intermediate_action=params.get("intermediate_action"),
-            )
+            extension, handover = _plan(mission, center, alarming, joining)
         except PlanningError as exc:
             return _decline(mission, f"extension impossible: {exc}", "collaboration_failed")
         plan_ms = (time.perf_counter() - plan_began) * 1000
-        mission.steps.filter(index__in=handover.superseded_indexes).exclude(
-            status__in=STEP_DONE
-        ).update(status=StepStatus.SUPERSEDED)
-        Step.objects.bulk_create(
-            Step(mission=mission, index=s["index"], command=s["command"], params=s["params"])
-            for s in handover.new_steps
+        _supersede(mission, handover)
+        stopped = _stop_flying(mission)
+        drones = [alarming.drone, *joining]
+        created = _create_parts(mission, handover, drones, stopped)
+        timings = {
+            "plan_ms": round(plan_ms, 3),
+            "task_ms": round((time.perf_counter() - began) * 1000, 3),
+        }
+        _record_collaboration(
+            mission, alarming, center, drones, extension, handover, alarm_event_id, timings
         )
-        # Every drone still flying the old plan stops; the alarming one then takes its part.
-        flying = list(
-            mission.assignments.filter(status__in=Assignment.ACTIVE).select_related("drone")
+        _record_handovers(mission, alarming, center, created, handover)
+    return created
+
+
+def _why_not_extensible(mission: Mission) -> str | None:
+    """The mission is extended once, and only with its extensibility parameters."""
+    if mission.assignments.filter(reason=Assignment.Reason.COLLABORATION).exists():
+        return "already extended: alarm noted"
+    params = mission.extensibility or {}
+    if not params.get("vectors") or not params.get("step_distance"):
+        return "no extensibility parameters: alarm noted"
+    return None
+
+
+def _plan(
+    mission: Mission,
+    center: tuple[float, float],
+    alarming: Assignment,
+    joining: list[Drone],
+) -> tuple[Extension, Handover]:
+    """The rebuilt area around `center` and its split among the alarming and joining drones."""
+    params = mission.extensibility
+    extension = extend_from_vectors(
+        Vectors.from_dict(params["vectors"]),
+        params["step_distance"],
+        center=center,
+        joining_drones=len(joining),
+        drone_positions=[list(center)] + [[d.lat, d.lon] for d in joining],
+        max_waypoints=settings.MISSIONS_MAX_WAYPOINTS,
+    )
+    # Done steps count as completed for the planner, whatever way they ended.
+    steps = [
+        {
+            "index": s.index,
+            "command": s.command,
+            "params": s.params,
+            "status": StepStatus.COMPLETED if s.status in STEP_DONE else s.status,
+        }
+        for s in mission.steps.order_by("index")
+    ]
+    handover = plan_collaboration(
+        steps,
+        extension=extension,
+        drone_ids=[d.drone_id for d in [alarming.drone, *joining]],
+        alarming_drone=alarming.drone.drone_id,
+        altitude=mission.altitude,
+        intermediate_action=params.get("intermediate_action"),
+    )
+    return extension, handover
+
+
+def _supersede(mission: Mission, handover: Handover) -> None:
+    """The old plan's steps not yet done are superseded; the new area's steps are stored."""
+    mission.steps.filter(index__in=handover.superseded_indexes).exclude(
+        status__in=STEP_DONE
+    ).update(status=StepStatus.SUPERSEDED)
+    Step.objects.bulk_create(
+        Step(mission=mission, index=s["index"], command=s["command"], params=s["params"])
+        for s in handover.new_steps
+    )
+
+
+def _stop_flying(mission: Mission) -> set[str]:
+    """Every drone still flying the old plan stops (after the commit); their ids."""
+    flying = list(mission.assignments.filter(status__in=Assignment.ACTIVE).select_related("drone"))
+    mission.assignments.filter(status__in=Assignment.ACTIVE).update(
+        status=Assignment.Status.STOPPED
+    )
+    for old in flying:
+        drone_id = old.drone.drone_id
+        transaction.on_commit(lambda d=drone_id: send_stop(d, str(mission.pk)))
+    return {old.drone.drone_id for old in flying}
+
+
+def _create_parts(
+    mission: Mission, handover: Handover, drones: list[Drone], stopped: set[str]
+) -> list[Assignment]:
+    """One assignment per part: sent now, or queued for a drone that must stop first
+    (a drone runs one mission at a time; its stop report releases the queued part)."""
+    by_id = {d.drone_id: d for d in drones}
+    created = []
+    for part in handover.assignments:
+        preparation = list(part.preparation_indexes)
+        queued = part.drone_id in stopped
+        assignment = Assignment.objects.create(
+            mission=mission,
+            drone=by_id[part.drone_id],
+            step_indexes=[s["index"] for s in part.steps if s["index"] not in preparation],
+            preparation=preparation,
+            reason=Assignment.Reason.COLLABORATION,
+            status=Assignment.Status.QUEUED if queued else Assignment.Status.SENT,
         )
-        mission.assignments.filter(status__in=Assignment.ACTIVE).update(
-            status=Assignment.Status.STOPPED
-        )
-        for old in flying:
-            drone_id = old.drone.drone_id
-            transaction.on_commit(lambda d=drone_id: send_stop(d, str(mission.pk)))
-        by_id = {d.drone_id: d for d in drones}
-        stopped_ids = {old.drone.drone_id for old in flying}
-        created = []
-        for part in handover.assignments:
-            preparation = list(part.preparation_indexes)
-            queued = part.drone_id in stopped_ids
-            assignment = Assignment.objects.create(
-                mission=mission,
-                drone=by_id[part.drone_id],
-                step_indexes=[s["index"] for s in part.steps if s["index"] not in preparation],
-                preparation=preparation,
-                reason=Assignment.Reason.COLLABORATION,
-                status=Assignment.Status.QUEUED if queued else Assignment.Status.SENT,
-            )
-            created.append(assignment)
-            if not queued:
-                transaction.on_commit(lambda a=assignment: send_assignment(a))
+        created.append(assignment)
+        if not queued:
+            transaction.on_commit(lambda a=assignment: send_assignment(a))
+    return created
+
+
+def _record_collaboration(
+    mission: Mission,
+    alarming: Assignment,
+    center: tuple[float, float],
+    drones: list[Drone],
+    extension: Extension,
+    handover: Handover,
+    alarm_event_id: int | None,
+    timings: dict[str, float],
+) -> None:
+    record(
+        mission,
+        Event.Kind.DECISION,
+        f"extended around the alarm: {len(extension.waypoints)} waypoints over "
+        f"{extension.area_m2:g} m² for {len(drones)} drones",
+        drone=alarming.drone,
+        data={
+            "decision": "collaboration",
+            "center": list(center),
+            "waypoints": len(extension.waypoints),
+            "area_m2": extension.area_m2,
+            "target_area_m2": extension.target_area_m2,
+            "shape": list(extension.shape),
+            "drones": [d.drone_id for d in drones],
+            "parts": [p.waypoint_indexes for p in extension.parts],
+            "superseded": handover.superseded_indexes,
+            "alarm": alarm_event_id,
+            **timings,
+        },
+    )
+
+
+def _record_handovers(
+    mission: Mission,
+    alarming: Assignment,
+    center: tuple[float, float],
+    created: list[Assignment],
+    handover: Handover,
+) -> None:
+    for assignment, part in zip(created, handover.assignments, strict=True):
         record(
             mission,
-            Event.Kind.DECISION,
-            f"extended around the alarm: {len(extension.waypoints)} waypoints over "
-            f"{extension.area_m2:g} m² for {len(drones)} drones",
-            drone=alarming.drone,
+            Event.Kind.HANDOVER,
+            f"{part.drone_id}: {len(part.waypoint_indexes)} waypoints of the new area",
+            drone=assignment.drone,
             data={
-                "decision": "collaboration",
-                "center": list(center),
-                "waypoints": len(extension.waypoints),
-                "area_m2": extension.area_m2,
-                "target_area_m2": extension.target_area_m2,
-                "shape": list(extension.shape),
-                "drones": [d.drone_id for d in drones],
-                "parts": [p.waypoint_indexes for p in extension.parts],
-                "superseded": handover.superseded_indexes,
-                "alarm": alarm_event_id,
-                "plan_ms": round(plan_ms, 3),
-                "task_ms": round((time.perf_counter() - began) * 1000, 3),
+                "from": alarming.drone.drone_id,
+                "to": part.drone_id,
+                "position": {"lat": center[0], "lon": center[1]},
+                "waypoints": part.waypoint_indexes,
+                "preparation": part.preparation_indexes,
+                "reason": "collaboration",
             },
         )
-        for assignment, part in zip(created, handover.assignments, strict=True):
-            record(
-                mission,
-                Event.Kind.HANDOVER,
-                f"{part.drone_id}: {len(part.waypoint_indexes)} waypoints of the new area",
-                drone=assignment.drone,
-                data={
-                    "from": alarming_id,
-                    "to": part.drone_id,
-                    "position": {"lat": center[0], "lon": center[1]},
-                    "waypoints": part.waypoint_indexes,
-                    "preparation": part.preparation_indexes,
-                    "reason": "collaboration",
-                },
-            )
-    return created

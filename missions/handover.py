@@ -105,6 +105,41 @@ def _last_navigation_target(done: list[Mapping[str, Any]]) -> tuple[float, float
     return None
 
 
+def _preparation(
+    done: list[Mapping[str, Any]],
+    remaining: list[Mapping[str, Any]],
+    stop_position: tuple[float, float] | None,
+    altitude: float,
+    wait: dict[str, float],
+) -> list[tuple[str, dict]]:
+    """Arm, take off and fly to where the failing drone stopped; then back to its last
+    waypoint when the first remaining step must happen there (a wait or an action)."""
+    # mission_steps validates the altitude and the coordinates for us.
+    target = (
+        (float(stop_position[0]), float(stop_position[1]))
+        if stop_position is not None
+        else _last_navigation_target(done)
+    )
+    points = [] if target is None else [target]
+    body = [
+        (s["command"], s["params"])
+        for s in mission_steps(
+            points,
+            altitude=altitude,
+            append_land=False,
+            wait_tolerance=(wait["horizontal_tolerance"], wait["vertical_tolerance"]),
+        )
+    ]
+    waypoint = _last_navigation_target(done)
+    first = remaining[0]["command"]
+    needs_waypoint = first not in ("navigate", "land", "takeoff", "arm")
+    if waypoint is not None and needs_waypoint and waypoint != target:
+        body.append(("navigate", {"lat": waypoint[0], "lon": waypoint[1]}))
+        if first != "wait_for_flight":
+            body.append(("wait_for_flight", dict(wait)))
+    return body
+
+
 def plan_replacement(
     steps: Sequence[Mapping[str, Any]],
     *,
@@ -132,32 +167,10 @@ def plan_replacement(
     horizontal, vertical = wait_tolerance
     wait = {"horizontal_tolerance": float(horizontal), "vertical_tolerance": float(vertical)}
 
-    body: list[tuple[str, dict]] = []
     starts_from_scratch = not done and remaining[0]["command"] == "arm"
-    if not starts_from_scratch:
-        # mission_steps validates the altitude and the coordinates for us.
-        target = (
-            (float(stop_position[0]), float(stop_position[1]))
-            if stop_position is not None
-            else _last_navigation_target(done)
-        )
-        points = [] if target is None else [target]
-        body += [
-            (s["command"], s["params"])
-            for s in mission_steps(
-                points,
-                altitude=altitude,
-                append_land=False,
-                wait_tolerance=(wait["horizontal_tolerance"], wait["vertical_tolerance"]),
-            )
-        ]
-        waypoint = _last_navigation_target(done)
-        first = remaining[0]["command"]
-        needs_waypoint = first not in ("navigate", "land", "takeoff", "arm")
-        if waypoint is not None and needs_waypoint and waypoint != target:
-            body.append(("navigate", {"lat": waypoint[0], "lon": waypoint[1]}))
-            if first != "wait_for_flight":
-                body.append(("wait_for_flight", dict(wait)))
+    body = (
+        [] if starts_from_scratch else _preparation(done, remaining, stop_position, altitude, wait)
+    )
     preparation = _renumber(body, next_index)
     handed = [_plain(s) for s in remaining]
     assignment = Assignment(

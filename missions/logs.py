@@ -10,7 +10,7 @@ import json
 from collections import defaultdict
 from typing import Any
 
-from missions.models import Mission
+from missions.models import Assignment, Event, Mission, Step
 from missions.services import MissionError
 
 FORMAT = "skyhive-mission-log"
@@ -31,84 +31,95 @@ def build_log(mission: Mission) -> dict:
     for step in steps:
         if step.drone is not None:
             drones.setdefault(step.drone.drone_id, step.drone)
-    out_events = []
-    for event in events:
-        data = event.data or {}
-        ts = data.get("ts") or event.at.timestamp()
-        row: dict[str, Any] = {
-            "ts": ts,
-            "at": _iso(event.at),
-            "type": event.kind,
-            "drone_id": event.drone.drone_id if event.drone else None,
-            "message": event.message,
-        }
-        for key in (
-            "index",
-            "command",
-            "status",
-            "position",
-            "duration_s",
-            "level",
-            "decode_ms",
-            "error",
-            "assignment",
-            "ignored",
-            "decision",
-            "from",
-            "to",
-        ):
-            if data.get(key) is not None:
-                row[key] = data[key]
-        if event.kind in ("decision", "handover"):
-            row["data"] = data
-        out_events.append(row)
     return {
         "format": FORMAT,
         "version": VERSION,
-        "mission": {
-            "id": str(mission.pk),
-            "name": mission.name,
-            "organisation": mission.organisation.slug,
-            "status": mission.status,
-            "altitude": mission.altitude,
-            "extensibility": mission.extensibility,
-            "created_at": _iso(mission.created_at),
-            "started_at": _iso(mission.started_at),
-            "ended_at": _iso(mission.ended_at),
-        },
+        "mission": _mission_row(mission),
         "drones": [
             {"id": drone_id, "name": drone.name or drone_id} for drone_id, drone in drones.items()
         ],
-        "assignments": [
-            {
-                "id": str(a.pk),
-                "drone_id": a.drone.drone_id,
-                "reason": a.reason,
-                "status": a.status,
-                "step_indexes": a.step_indexes,
-                "preparation": a.preparation,
-                "replaces": str(a.replaces_id) if a.replaces_id else None,
-                "decode_ms": a.decode_ms,
-                "created_at": _iso(a.created_at),
-            }
-            for a in assignments
-        ],
-        "steps": [
-            {
-                "index": s.index,
-                "command": s.command,
-                "params": s.params,
-                "status": s.status,
-                "drone_id": s.drone.drone_id if s.drone else None,
-                "started_at": _iso(s.started_at),
-                "ended_at": _iso(s.ended_at),
-                "position": s.position,
-                "duration_s": s.duration_s,
-            }
-            for s in steps
-        ],
+        "assignments": [_assignment_row(a) for a in assignments],
+        "steps": [_step_row(s) for s in steps],
         "stages": stages(steps),
-        "events": out_events,
+        "events": [_event_row(event) for event in events],
+    }
+
+
+# Event data worth a column of its own in the log (the importer reads these).
+_EVENT_FIELDS = (
+    "index",
+    "command",
+    "status",
+    "position",
+    "duration_s",
+    "level",
+    "decode_ms",
+    "error",
+    "assignment",
+    "ignored",
+    "decision",
+    "from",
+    "to",
+)
+
+
+def _event_row(event: Event) -> dict[str, Any]:
+    """One event; decisions and handovers keep their whole data (timings, plans)."""
+    data = event.data or {}
+    row: dict[str, Any] = {
+        "ts": data.get("ts") or event.at.timestamp(),
+        "at": _iso(event.at),
+        "type": event.kind,
+        "drone_id": event.drone.drone_id if event.drone else None,
+        "message": event.message,
+    }
+    for key in _EVENT_FIELDS:
+        if data.get(key) is not None:
+            row[key] = data[key]
+    if event.kind in ("decision", "handover"):
+        row["data"] = data
+    return row
+
+
+def _mission_row(mission: Mission) -> dict[str, Any]:
+    return {
+        "id": str(mission.pk),
+        "name": mission.name,
+        "organisation": mission.organisation.slug,
+        "status": mission.status,
+        "altitude": mission.altitude,
+        "extensibility": mission.extensibility,
+        "created_at": _iso(mission.created_at),
+        "started_at": _iso(mission.started_at),
+        "ended_at": _iso(mission.ended_at),
+    }
+
+
+def _assignment_row(a: Assignment) -> dict[str, Any]:
+    return {
+        "id": str(a.pk),
+        "drone_id": a.drone.drone_id,
+        "reason": a.reason,
+        "status": a.status,
+        "step_indexes": a.step_indexes,
+        "preparation": a.preparation,
+        "replaces": str(a.replaces_id) if a.replaces_id else None,
+        "decode_ms": a.decode_ms,
+        "created_at": _iso(a.created_at),
+    }
+
+
+def _step_row(s: Step) -> dict[str, Any]:
+    return {
+        "index": s.index,
+        "command": s.command,
+        "params": s.params,
+        "status": s.status,
+        "drone_id": s.drone.drone_id if s.drone else None,
+        "started_at": _iso(s.started_at),
+        "ended_at": _iso(s.ended_at),
+        "position": s.position,
+        "duration_s": s.duration_s,
     }
 
 

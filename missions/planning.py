@@ -305,10 +305,7 @@ def extend_from_vectors(
         vectors = Vectors.from_dict(vectors)
     step = _step(step_distance)
     center_ll = _latlon(center, "center")
-    if isinstance(joining_drones, bool) or not isinstance(joining_drones, int):
-        raise PlanningError("joining_drones", "must be a whole number")
-    if joining_drones < 0:
-        raise PlanningError("joining_drones", "must not be negative")
+    _check_joining(joining_drones)
     v = np.asarray(vectors.v, dtype=float)
     w = np.asarray(vectors.w, dtype=float)
     len_v, len_w, sin_angle = _shape_of(v, w, "vectors")
@@ -325,15 +322,6 @@ def extend_from_vectors(
     origin = -(new_v + new_w) / 2.0
     grid_n, grid_e = _serpentine_ne(origin, v_hat, w_hat, m + 1, n + 1, step)
     waypoints = _points(frame, grid_n, grid_e)
-    count = joining_drones + 1
-    if drone_positions is None:
-        parts = [Part(indexes) for indexes in _chunks(len(waypoints), count)]
-    else:
-        if len(drone_positions) != count:
-            raise PlanningError(
-                "drone_positions", f"expected {count} positions (joining drones + 1)"
-            )
-        parts = split(waypoints, drone_positions)
     return Extension(
         waypoints=waypoints,
         area_m2=round(m * n * step * step * sin_angle, 3),
@@ -342,8 +330,26 @@ def extend_from_vectors(
         step_distance=step,
         shape=(n + 1, m + 1),
         center=center_ll,
-        parts=parts,
+        parts=_parts(waypoints, joining_drones + 1, drone_positions),
     )
+
+
+def _check_joining(joining_drones: int) -> None:
+    if isinstance(joining_drones, bool) or not isinstance(joining_drones, int):
+        raise PlanningError("joining_drones", "must be a whole number")
+    if joining_drones < 0:
+        raise PlanningError("joining_drones", "must not be negative")
+
+
+def _parts(
+    waypoints: list[list[float]], count: int, drone_positions: Sequence[Sequence[float]] | None
+) -> list[Part]:
+    """`count` contiguous parts; with drone positions, each given the drone it suits best."""
+    if drone_positions is None:
+        return [Part(indexes) for indexes in _chunks(len(waypoints), count)]
+    if len(drone_positions) != count:
+        raise PlanningError("drone_positions", f"expected {count} positions (joining drones + 1)")
+    return split(waypoints, drone_positions)
 
 
 def extend(

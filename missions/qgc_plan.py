@@ -202,6 +202,8 @@ class _Reader:
             self.item(_obj(raw, inner_where), inner_where)
 
     def item(self, item: Mapping, where: str) -> None:
+        """One mission item as Skyhive steps; what Skyhive would not restore by itself is
+        kept in a `qgc` hint so the plan exports back as it came."""
         self.where = where
         kind = item.get("type")
         if kind == "ComplexItem":
@@ -210,6 +212,29 @@ class _Reader:
         if kind != "SimpleItem":
             raise QgcPlanError(where, f"unknown item type {kind!r}")
         command = item.get("command")
+        p, hint = self.simple_params(item, command, where)
+        if command in CAMERA_COMMANDS:
+            if p != _DEFAULT_CAMERA[IMAGE_START_CAPTURE] or command != IMAGE_START_CAPTURE:
+                hint["p"] = p
+            self.add("takepic", {"qgc": hint} if len(hint) > 1 else {})
+            return
+        if command == NAV_RETURN_TO_LAUNCH:
+            self.return_to_launch(p, hint, where)
+            return
+        coordinate = None if p[4] is None and p[5] is None else _latlon(p[4], p[5], where)
+        alt = self.relative_altitude(item, _num(p[6], f"{where}.params[6]"), where)
+        if command == NAV_TAKEOFF:
+            self.takeoff(p, hint, coordinate, alt, where)
+            return
+        if coordinate is None:
+            raise QgcPlanError(where, "needs a latitude and longitude")
+        if command == NAV_LAND:
+            self.land(p, hint, coordinate, alt)
+            return
+        self.waypoint(command, p, hint, coordinate, alt, where)
+
+    def simple_params(self, item: Mapping, command: Any, where: str) -> tuple[list, dict]:
+        """A supported command's seven params and the hint of what differs from defaults."""
         if command not in SUPPORTED_COMMANDS:
             advice = _ADVICE.get(command, "") if isinstance(command, int) else ""
             raise QgcPlanError(
@@ -226,55 +251,65 @@ class _Reader:
             hint["autoContinue"] = item.get("autoContinue")
         if "AltitudeMode" in item and item["AltitudeMode"] != ALTITUDE_MODE_RELATIVE:
             hint["AltitudeMode"] = item["AltitudeMode"]
-
         if command not in COORDINATE_COMMANDS and item.get("frame") != FRAME_MISSION:
             hint["frame"] = item.get("frame")
-        if command in CAMERA_COMMANDS:
-            if p != _DEFAULT_CAMERA[IMAGE_START_CAPTURE] or command != IMAGE_START_CAPTURE:
-                hint["p"] = p
-            self.add("takepic", {"qgc": hint} if len(hint) > 1 else {})
-            return
-        if command == NAV_RETURN_TO_LAUNCH:
-            if self.home is None:
-                raise QgcPlanError(where, "return to launch needs plannedHomePosition")
-            if p != [0] * 7:
-                hint["p"] = p
-            self.navigate(self.home[0], self.home[1], None, hint)
+        return p, hint
+
+    def return_to_launch(self, p: list, hint: dict, where: str) -> None:
+        if self.home is None:
+            raise QgcPlanError(where, "return to launch needs plannedHomePosition")
+        if p != [0] * 7:
+            hint["p"] = p
+        self.navigate(self.home[0], self.home[1], None, hint)
+        self.add("wait_for_flight", {})
+        self.add("land", {})
+
+    def takeoff(
+        self,
+        p: list,
+        hint: dict,
+        coordinate: tuple[float, float] | None,
+        alt: float,
+        where: str,
+    ) -> None:
+        """Take off (arming first, once); a take-off spot off home is kept as a hint."""
+        if alt < 0.5:
+            raise QgcPlanError(f"{where}.params[6]", "takeoff altitude must be at least 0.5 m")
+        if p[:4] != _DEFAULT_P[NAV_TAKEOFF]:
+            hint["p"] = p[:4]
+        if coordinate is not None and (self.home is None or list(coordinate) != self.home[:2]):
+            hint["coordinate"] = list(coordinate)
+        if not self.armed:
+            self.add("arm", {})
+            self.armed = True
+        self.add("takeoff", {"altitude": alt, "qgc": hint})
+        self.altitude = alt
+
+    def land(self, p: list, hint: dict, coordinate: tuple[float, float], alt: float) -> None:
+        """Land where the drone is, or fly to the landing spot first."""
+        lat, lon = coordinate
+        if p[:4] != _DEFAULT_P[NAV_LAND]:
+            hint["p"] = p[:4]
+        hint["coordinate"] = [lat, lon, alt]
+        if (lat, lon) == self.position or (lat, lon) == (0, 0):
+            self.add("land", {"qgc": hint})
+        else:
+            self.navigate(lat, lon, None, hint)
             self.add("wait_for_flight", {})
             self.add("land", {})
-            return
+        self.altitude = 0.0
 
-        coordinate = None if p[4] is None and p[5] is None else _latlon(p[4], p[5], where)
-        alt = self.relative_altitude(item, _num(p[6], f"{where}.params[6]"), where)
-        if command == NAV_TAKEOFF:
-            if alt < 0.5:
-                raise QgcPlanError(f"{where}.params[6]", "takeoff altitude must be at least 0.5 m")
-            if p[:4] != _DEFAULT_P[NAV_TAKEOFF]:
-                hint["p"] = p[:4]
-            if coordinate is not None and (self.home is None or list(coordinate) != self.home[:2]):
-                hint["coordinate"] = list(coordinate)
-            if not self.armed:
-                self.add("arm", {})
-                self.armed = True
-            self.add("takeoff", {"altitude": alt, "qgc": hint})
-            self.altitude = alt
-            return
-        if coordinate is None:
-            raise QgcPlanError(where, "needs a latitude and longitude")
+    def waypoint(
+        self,
+        command: Any,
+        p: list,
+        hint: dict,
+        coordinate: tuple[float, float],
+        alt: float,
+        where: str,
+    ) -> None:
+        """Waypoint or loiter: the hold/loiter time becomes a sleep after arrival."""
         lat, lon = coordinate
-        if command == NAV_LAND:
-            if p[:4] != _DEFAULT_P[NAV_LAND]:
-                hint["p"] = p[:4]
-            hint["coordinate"] = [lat, lon, alt]
-            if (lat, lon) == self.position or (lat, lon) == (0, 0):
-                self.add("land", {"qgc": hint})
-            else:
-                self.navigate(lat, lon, None, hint)
-                self.add("wait_for_flight", {})
-                self.add("land", {})
-            self.altitude = 0.0
-            return
-        # Waypoint or loiter: the hold/loiter time becomes a sleep after arrival.
         derived = (0, 1) if command == NAV_WAYPOINT else (0,)
         extra = [None if i in derived else value for i, value in enumerate(p[:4])]
         default = [None if i in derived else v for i, v in enumerate(_DEFAULT_P[command])]

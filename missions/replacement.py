@@ -14,7 +14,9 @@ from collections.abc import Mapping
 
 from django.db import transaction
 
-from missions.handover import plan_replacement
+from fleet.models import Drone
+from missions.handover import Assignment as PlannedAssignment
+from missions.handover import Handover, plan_replacement
 from missions.models import (
     STEP_DONE,
     Assignment,
@@ -75,141 +77,200 @@ def replace_drone(
     available one; pause the mission when there is none. Returns the new assignment."""
     began = time.perf_counter()
     with transaction.atomic():
-        mission = Mission.objects.select_for_update().filter(pk=mission_id).first()
-        failing = (
-            # Only the assignment's row: locking the joined drone too would block every
-            # event of that drone (their foreign key checks) while we plan.
-            Assignment.objects.select_for_update(of=("self",))
-            .select_related("drone")
-            .filter(pk=assignment_id, mission_id=mission_id)
-            .first()
-        )
+        mission, failing = _lock(mission_id, assignment_id)
         if mission is None or failing is None:
             return None
         existing = Assignment.objects.filter(replaces=failing).first()
         if existing is not None:
-            if not _dispatched(existing):
-                # A run that died between its commit and the send: send now. Should the
-                # first send have gone out after all, the busy drone rejects this one.
-                transaction.on_commit(lambda: dispatch(existing))
-            return existing
-        if mission.status not in (MissionStatus.RUNNING, MissionStatus.PAUSED):
-            return None
-        if failing.status in (Assignment.Status.COMPLETED, Assignment.Status.REJECTED):
+            return _already_replaced(existing)
+        if not _replaceable(mission, failing):
             return None
         alarm = Event.objects.filter(pk=alarm_event_id, mission=mission).first()
-        failing_id = failing.drone.drone_id
-        if failing.status in Assignment.ACTIVE:
-            failing.transition(Assignment.Status.STOPPED)
-            failing.save(update_fields=["status"])
-            record(
-                mission,
-                Event.Kind.DECISION,
-                f"{failing_id} told to stop and land",
-                drone=failing.drone,
-                data={"decision": "stop_failing", "assignment": str(failing.pk)},
-            )
-            transaction.on_commit(lambda: send_stop(failing_id, str(mission.pk)))
-            transaction.on_commit(lambda: send_control(failing_id, "land"))
+        _stop_failing(mission, failing)
         own = set(failing.step_indexes) | set(failing.preparation)
         view = planner_view(mission, own, _raising_step(mission, alarm))
         stop_position = _stop_position(alarm, failing)
         remaining = [s for s in view if s["status"] != StepStatus.COMPLETED]
         if not remaining:
-            record(
-                mission,
-                Event.Kind.DECISION,
-                "nothing left to hand over",
-                data={"decision": "no_replacement_needed", "assignment": str(failing.pk)},
-            )
+            _nothing_left(mission, failing)
             return None
         select_began = time.perf_counter()
-        target = stop_position or _first_navigation(remaining)
-        # A drone this mission already had to replace is not brought back into it.
-        replaced = mission.assignments.filter(replaced_by__isnull=False).values_list(
-            "drone__drone_id", flat=True
-        )
-        found = nearest_available(
-            mission.organisation_id, target=target, exclude=[failing_id, *replaced]
+        drone = _nearest_replacement(
+            mission, failing, stop_position or _first_navigation(remaining)
         )
         select_ms = (time.perf_counter() - select_began) * 1000
-        if not found:
+        if drone is None:
             _pause(mission, failing, stop_position, alarm)
             return None
-        drone = found[0]
         plan_began = time.perf_counter()
-        try:
-            handover = plan_replacement(
-                view,
-                stop_position=stop_position,
-                altitude=mission.altitude,
-                drone_id=drone.drone_id,
-            )
-        except PlanningError as exc:
-            record(
-                mission,
-                Event.Kind.DECISION,
-                f"replacement impossible: {exc}",
-                data={"decision": "replacement_failed", "error": str(exc)},
-            )
+        handover = _plan_handover(mission, view, stop_position, drone)
+        if handover is None:
             return None
-        plan = handover.assignments[0]
-        Step.objects.bulk_create(
-            Step(mission=mission, index=s["index"], command=s["command"], params=s["params"])
-            for s in handover.new_steps
-        )
-        replacement = Assignment.objects.create(
-            mission=mission,
-            drone=drone,
-            step_indexes=plan.handed_over_indexes,
-            preparation=plan.preparation_indexes,
-            reason=Assignment.Reason.REPLACEMENT,
-            status=Assignment.Status.SENT,
-            replaces=failing,
-        )
-        if mission.status == MissionStatus.PAUSED:
-            move_mission(mission, MissionStatus.RUNNING)
-        plan_ms = (time.perf_counter() - plan_began) * 1000
+        replacement = _commit(mission, failing, drone, handover)
         timings = {
             "select_ms": round(select_ms, 3),
-            "plan_ms": round(plan_ms, 3),
+            "plan_ms": round((time.perf_counter() - plan_began) * 1000, 3),
             "task_ms": round((time.perf_counter() - began) * 1000, 3),
         }
         if alarm is not None and alarm.data.get("received_at"):
             timings["since_alarm_ms"] = round((time.time() - alarm.data["received_at"]) * 1000, 3)
-        record(
-            mission,
-            Event.Kind.DECISION,
-            f"{drone.drone_id} replaces {failing_id}",
-            drone=drone,
-            data={
-                "decision": "replacement",
-                "failing": failing_id,
-                "drone_id": drone.drone_id,
-                "assignment": str(replacement.pk),
-                "replaces": str(failing.pk),
-                "alarm": alarm_event_id,
-                **timings,
-            },
-        )
-        record(
-            mission,
-            Event.Kind.HANDOVER,
-            f"{failing_id} → {drone.drone_id}: {len(plan.handed_over_indexes)} steps",
-            drone=drone,
-            data={
-                "from": failing_id,
-                "to": drone.drone_id,
-                "position": None
-                if stop_position is None
-                else {"lat": stop_position[0], "lon": stop_position[1]},
-                "handed_over": plan.handed_over_indexes,
-                "preparation": plan.preparation_indexes,
-                "reason": "replacement",
-            },
+        _record_replacement(
+            replacement, handover.assignments[0], stop_position, alarm_event_id, timings
         )
         transaction.on_commit(lambda: dispatch(replacement))
     return replacement
+
+
+def _lock(mission_id: str, assignment_id: str) -> tuple[Mission | None, Assignment | None]:
+    """Lock the mission and the failing assignment: concurrent runs for one failure queue here."""
+    mission = Mission.objects.select_for_update().filter(pk=mission_id).first()
+    failing = (
+        # Only the assignment's row: locking the joined drone too would block every
+        # event of that drone (their foreign key checks) while we plan.
+        Assignment.objects.select_for_update(of=("self",))
+        .select_related("drone")
+        .filter(pk=assignment_id, mission_id=mission_id)
+        .first()
+    )
+    return mission, failing
+
+
+def _already_replaced(existing: Assignment) -> Assignment:
+    """A second run for the same failure changes nothing but a send that never went."""
+    if not _dispatched(existing):
+        # A run that died between its commit and the send: send now. Should the
+        # first send have gone out after all, the busy drone rejects this one.
+        transaction.on_commit(lambda: dispatch(existing))
+    return existing
+
+
+def _replaceable(mission: Mission, failing: Assignment) -> bool:
+    """Only a running or paused mission replaces, and only an assignment not yet over."""
+    if mission.status not in (MissionStatus.RUNNING, MissionStatus.PAUSED):
+        return False
+    return failing.status not in (Assignment.Status.COMPLETED, Assignment.Status.REJECTED)
+
+
+def _stop_failing(mission: Mission, failing: Assignment) -> None:
+    """Tell a drone still flying its assignment to stop and land (after the commit)."""
+    if failing.status not in Assignment.ACTIVE:
+        return
+    failing_id = failing.drone.drone_id
+    failing.transition(Assignment.Status.STOPPED)
+    failing.save(update_fields=["status"])
+    record(
+        mission,
+        Event.Kind.DECISION,
+        f"{failing_id} told to stop and land",
+        drone=failing.drone,
+        data={"decision": "stop_failing", "assignment": str(failing.pk)},
+    )
+    transaction.on_commit(lambda: send_stop(failing_id, str(mission.pk)))
+    transaction.on_commit(lambda: send_control(failing_id, "land"))
+
+
+def _nothing_left(mission: Mission, failing: Assignment) -> None:
+    record(
+        mission,
+        Event.Kind.DECISION,
+        "nothing left to hand over",
+        data={"decision": "no_replacement_needed", "assignment": str(failing.pk)},
+    )
+
+
+def _nearest_replacement(
+    mission: Mission, failing: Assignment, target: tuple[float, float] | None
+) -> Drone | None:
+    """The available drone nearest to `target`, never one this mission already replaced."""
+    replaced = mission.assignments.filter(replaced_by__isnull=False).values_list(
+        "drone__drone_id", flat=True
+    )
+    found = nearest_available(
+        mission.organisation_id, target=target, exclude=[failing.drone.drone_id, *replaced]
+    )
+    return found[0] if found else None
+
+
+def _plan_handover(
+    mission: Mission, view: list[dict], stop_position: tuple[float, float] | None, drone: Drone
+) -> Handover | None:
+    """The replacement's plan, or None (recorded) when no plan can reach the remaining steps."""
+    try:
+        return plan_replacement(
+            view, stop_position=stop_position, altitude=mission.altitude, drone_id=drone.drone_id
+        )
+    except PlanningError as exc:
+        record(
+            mission,
+            Event.Kind.DECISION,
+            f"replacement impossible: {exc}",
+            data={"decision": "replacement_failed", "error": str(exc)},
+        )
+        return None
+
+
+def _commit(mission: Mission, failing: Assignment, drone: Drone, handover: Handover) -> Assignment:
+    """Store the new steps and the replacing assignment; a paused mission runs again."""
+    plan = handover.assignments[0]
+    Step.objects.bulk_create(
+        Step(mission=mission, index=s["index"], command=s["command"], params=s["params"])
+        for s in handover.new_steps
+    )
+    replacement = Assignment.objects.create(
+        mission=mission,
+        drone=drone,
+        step_indexes=plan.handed_over_indexes,
+        preparation=plan.preparation_indexes,
+        reason=Assignment.Reason.REPLACEMENT,
+        status=Assignment.Status.SENT,
+        replaces=failing,
+    )
+    if mission.status == MissionStatus.PAUSED:
+        move_mission(mission, MissionStatus.RUNNING)
+    return replacement
+
+
+def _record_replacement(
+    replacement: Assignment,
+    plan: PlannedAssignment,
+    stop_position: tuple[float, float] | None,
+    alarm_event_id: int | None,
+    timings: dict[str, float],
+) -> None:
+    """The decision (with its timings) and the handover it makes, for the mission log."""
+    mission, drone, failing = replacement.mission, replacement.drone, replacement.replaces
+    failing_id = failing.drone.drone_id
+    record(
+        mission,
+        Event.Kind.DECISION,
+        f"{drone.drone_id} replaces {failing_id}",
+        drone=drone,
+        data={
+            "decision": "replacement",
+            "failing": failing_id,
+            "drone_id": drone.drone_id,
+            "assignment": str(replacement.pk),
+            "replaces": str(failing.pk),
+            "alarm": alarm_event_id,
+            **timings,
+        },
+    )
+    record(
+        mission,
+        Event.Kind.HANDOVER,
+        f"{failing_id} → {drone.drone_id}: {len(plan.handed_over_indexes)} steps",
+        drone=drone,
+        data={
+            "from": failing_id,
+            "to": drone.drone_id,
+            "position": None
+            if stop_position is None
+            else {"lat": stop_position[0], "lon": stop_position[1]},
+            "handed_over": plan.handed_over_indexes,
+            "preparation": plan.preparation_indexes,
+            "reason": "replacement",
+        },
+    )
 
 
 def dispatch(assignment: Assignment) -> None:

@@ -56,6 +56,13 @@ def _plume(text: str) -> Any:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m onboard", description=__doc__)
+    _add_connections(p)
+    _add_behaviour(p)
+    return p
+
+
+def _add_connections(p: argparse.ArgumentParser) -> None:
+    """Who the drone is and how it reaches its flight controller, broker and arming switch."""
     p.add_argument("--drone-id", type=_drone_id, help="default: <PREFIX>_<last 3 MAC bytes>")
     p.add_argument("--id-prefix", default=DEFAULT_PREFIX, help="prefix of a MAC-derived id")
     p.add_argument(
@@ -85,6 +92,10 @@ def build_parser() -> argparse.ArgumentParser:
         default="none",
         help="sim-line:PATH | gpiod:CHIP:REQUEST_LINE:MODE_LINE | uavtalk-receiver | none",
     )
+
+
+def _add_behaviour(p: argparse.ArgumentParser) -> None:
+    """Files, rates, safety thresholds and the simulated sensors."""
     p.add_argument("--gear-dir", type=Path, help="folder with specs.json and sensors.json")
     p.add_argument("--log-dir", type=Path, help="folder for DFI flight logs")
     p.add_argument("--pictures-dir", type=Path, help="default: <log-dir>/pictures")
@@ -119,7 +130,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--pose-rate", type=float, default=0.0, help="Pose samples per second")
     p.add_argument("--arm-timeout", type=_positive, default=20.0, help="seconds")
     p.add_argument("--log-level", default="INFO")
-    return p
 
 
 def build_arming(spec: str) -> Any:

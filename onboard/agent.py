@@ -115,7 +115,19 @@ class Agent:
             link_loss_timeout=config.link_loss_timeout,
             link_loss_action=config.link_loss_action,
         )
-        self.mqtt = MqttLink(
+        self.mqtt = self._mqtt_link(config)
+        self.heartbeater = Heartbeater(config.heartbeat_interval, self._beat)
+        self.video: Any = None
+        self._control_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="control")
+        self._telemetry: list[protocol.TelemetryObject] = []
+        self._telemetry_lock = threading.Lock()
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+
+    def _mqtt_link(self, config: AgentConfig) -> MqttLink:
+        """The broker connection: this drone's `in` channels, and the bridge's state topic
+        when behind an internal broker."""
+        return MqttLink(
             config.broker_url,
             client_id=f"skyhive-agent-{self.drone_id}",
             subscriptions=[protocol.topic(self.drone_id, c, "in") for c in protocol.IN_CHANNELS]
@@ -124,13 +136,6 @@ class Agent:
             on_connection=self._on_connection,
             keepalive=config.mqtt_keepalive,
         )
-        self.heartbeater = Heartbeater(config.heartbeat_interval, self._beat)
-        self.video: Any = None
-        self._control_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="control")
-        self._telemetry: list[protocol.TelemetryObject] = []
-        self._telemetry_lock = threading.Lock()
-        self._stop = threading.Event()
-        self._threads: list[threading.Thread] = []
 
     # -- lifecycle ------------------------------------------------------------------------
 

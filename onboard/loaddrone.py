@@ -26,7 +26,6 @@ import asyncio
 import json
 import logging
 import math
-import random
 import signal
 import struct
 import sys
@@ -41,6 +40,7 @@ from . import protocol
 from .mission import decode_mission
 from .mqttwire import MqttError, connect_packet, publish_packet, split_packets, subscribe_packet
 from .navigation import lla_to_ned, ned_to_lla
+from .retry import Backoff
 
 log = logging.getLogger(__name__)
 
@@ -529,7 +529,8 @@ class Session(asyncio.Protocol):
 
     async def run(self, first_delay: float = 0.0) -> None:
         await asyncio.sleep(first_delay)
-        backoff = 0.2
+        # Jittered, so a thousand drones losing one node do not all land at once.
+        backoff = Backoff(0.2, 5.0, jitter=True)
         loop = asyncio.get_running_loop()
         while not self._closing:
             host, port = _address(self.account.urls[self.node])
@@ -537,15 +538,13 @@ class Session(asyncio.Protocol):
             try:
                 await asyncio.wait_for(loop.create_connection(lambda: self, host, port), 10)
                 await self._lost.wait()
-                backoff = 0.2
+                backoff.reset()
             except (OSError, TimeoutError):
                 self.fleet.stats.connect_failures += 1
             if self._closing:
                 break
             self.node = (self.node + 1) % len(self.account.urls)
-            # Jittered, so a thousand drones losing one node do not all land at once.
-            await asyncio.sleep(backoff * (0.5 + random.random()))
-            backoff = min(backoff * 2, 5.0)
+            await asyncio.sleep(backoff.failed())
 
     def close(self) -> None:
         self._closing = True

@@ -18,6 +18,7 @@ import queue
 import struct
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -179,64 +180,29 @@ class MissionUploader:
         outcome: dict[str, int] = {}
         last_sent: list[Any] = [None]
 
-        def send_count() -> None:
-            fc.send("mission_count", fc.target_system, fc.target_component, len(items), 0)
-
-        def send_item(seq: int) -> None:
-            item = items[seq]
-            fc.send(
-                "mission_item_int",
-                fc.target_system,
-                fc.target_component,
-                seq,
-                item.frame,
-                item.command,
-                int(seq == 0),
-                item.autocontinue,
-                *item.params,
-                item.x,
-                item.y,
-                item.z,
-                0,
-            )
-            self.stats["items_sent"] += 1
-
         def on_message(msg: Any) -> None:
             kind = msg.get_type()
             if kind in ("MISSION_REQUEST_INT", "MISSION_REQUEST"):
                 if getattr(msg, "mission_type", 0) != 0 or not 0 <= msg.seq < len(items):
                     return
-                send_item(msg.seq)
+                self._send_item(items, msg.seq)
                 last_sent[0] = msg.seq
                 progress.set()
             elif kind == "MISSION_ACK" and getattr(msg, "mission_type", 0) == 0:
                 outcome["result"] = msg.type
                 done.set()
 
+        def resend() -> None:
+            # Silence after the count or after an item: send that one again.
+            if last_sent[0] is None:
+                self._send_count(items)
+            else:
+                self._send_item(items, last_sent[0])
+
         fc.add_message_handler(on_message)
         try:
-            send_count()
-            silent = 0
-            while not done.is_set():
-                if progress.wait(self.item_timeout):
-                    progress.clear()
-                    silent = 0
-                    continue
-                if done.is_set():
-                    break
-                fc._require_connected()
-                silent += 1
-                if silent > self.retries:
-                    self.stats["failures"] += 1
-                    raise MissionUploadError(
-                        f"The autopilot stopped answering the mission upload "
-                        f"({self.retries} resends, {self.item_timeout:g} s each)"
-                    )
-                self.stats["resends"] += 1
-                if last_sent[0] is None:
-                    send_count()
-                else:
-                    send_item(last_sent[0])
+            self._send_count(items)
+            self._until_done(done, progress, resend)
         finally:
             fc.remove_message_handler(on_message)
         result = outcome["result"]
@@ -246,6 +212,53 @@ class MissionUploader:
                 f"The autopilot refused the mission: {enum_name('MAV_MISSION_RESULT', result)}"
             )
         self.stats["uploads"] += 1
+
+    def _send_count(self, items: list[MissionItem]) -> None:
+        fc = self.fc
+        fc.send("mission_count", fc.target_system, fc.target_component, len(items), 0)
+
+    def _send_item(self, items: list[MissionItem], seq: int) -> None:
+        fc, item = self.fc, items[seq]
+        fc.send(
+            "mission_item_int",
+            fc.target_system,
+            fc.target_component,
+            seq,
+            item.frame,
+            item.command,
+            int(seq == 0),
+            item.autocontinue,
+            *item.params,
+            item.x,
+            item.y,
+            item.z,
+            0,
+        )
+        self.stats["items_sent"] += 1
+
+    def _until_done(
+        self, done: threading.Event, progress: threading.Event, resend: Callable[[], None]
+    ) -> None:
+        """Wait while the autopilot makes progress; resend after each silent `item_timeout`
+        and give up after `retries` silences in a row."""
+        silent = 0
+        while not done.is_set():
+            if progress.wait(self.item_timeout):
+                progress.clear()
+                silent = 0
+                continue
+            if done.is_set():
+                break
+            self.fc._require_connected()
+            silent += 1
+            if silent > self.retries:
+                self.stats["failures"] += 1
+                raise MissionUploadError(
+                    f"The autopilot stopped answering the mission upload "
+                    f"({self.retries} resends, {self.item_timeout:g} s each)"
+                )
+            self.stats["resends"] += 1
+            resend()
 
     def download(self) -> list[MissionItem]:
         """MISSION_REQUEST_LIST, then every item by MISSION_REQUEST_INT (to verify)."""

@@ -21,10 +21,10 @@ from typing import Any
 
 from asgiref.sync import sync_to_async
 from channels.db import database_sync_to_async
-from channels.generic.websocket import AsyncJsonWebsocketConsumer
 from django.conf import settings
 
 from fleet import commands
+from fleet.consumers import CLOSE_NOT_FOUND, GroupConsumer
 from fleet.models import Drone, Role
 from fleet.permissions import require_role
 from workers import outbox
@@ -59,29 +59,31 @@ def settings_dict(drone: Drone) -> dict[str, Any]:
     return (row or ViewSettings(drone=drone)).to_dict()
 
 
-class PastViewConsumer(AsyncJsonWebsocketConsumer):
+class PastViewConsumer(GroupConsumer):
     drone: Drone | None = None
-    group: str | None = None
+    # Another organisation's drone is as unknown as none.
+    refused_code = CLOSE_NOT_FOUND
 
-    async def connect(self) -> None:
-        user = self.scope.get("user")
-        if user is None or not user.is_authenticated:
-            await self.close(code=4401)
-            return
-        drone_id = self.scope["url_route"]["kwargs"]["drone_id"]
-        drone, can_operate = await _drone_and_role(user, drone_id)
-        if drone is None:  # another organisation's drone is as unknown as none
-            await self.close(code=4404)
-            return
-        self.drone, self.can_operate = drone, can_operate
+    async def authorise(self, user: Any) -> tuple[Drone, bool] | None:
+        drone, can_operate = await _drone_and_role(
+            user, self.scope["url_route"]["kwargs"]["drone_id"]
+        )
+        return None if drone is None else (drone, can_operate)
+
+    def group_for(self, target: tuple[Drone, bool]) -> str:
+        return group_name(target[0].drone_id)
+
+    async def joined(self, target: tuple[Drone, bool]) -> None:
+        self.drone, self.can_operate = target
         self.heading: float | None = None
         self.pending: Stick | None = None
         self.wakeup = asyncio.Event()
         self.worker: asyncio.Task | None = None
-        self.group = group_name(drone.drone_id)
-        await self.channel_layer.group_add(self.group, self.channel_name)
-        self.watch = asyncio.ensure_future(self._keep_watching(drone.drone_id))
-        await self.accept()
+        self.watch = asyncio.ensure_future(self._keep_watching(self.drone.drone_id))
+
+    async def welcome(self, target: tuple[Drone, bool]) -> None:
+        """Who may do what and the settings, then the last stored snapshot, if any."""
+        drone, can_operate = target
         await self.send_json(
             {
                 "type": "hello",
@@ -100,8 +102,7 @@ class PastViewConsumer(AsyncJsonWebsocketConsumer):
             await self.send_json({"type": "snapshot", **snapshot})
 
     async def disconnect(self, code: int) -> None:
-        if self.group:
-            await self.channel_layer.group_discard(self.group, self.channel_name)
+        await super().disconnect(code)
         for task in (getattr(self, "worker", None), getattr(self, "watch", None)):
             if task is not None:
                 task.cancel()

@@ -25,8 +25,9 @@ from rest_framework.response import Response
 from config.api import StrictSerializer
 from fleet.models import DRONE_ID_RE, Drone
 from onboard.protocol import OBJECT_NAME_RE
+from workers import ingest_status as status
 
-from . import queries, status
+from . import queries
 
 MAX_RANGE = timedelta(days=400)
 

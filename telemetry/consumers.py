@@ -7,10 +7,11 @@ drone as watched so the ingest process pushes for it at all (see telemetry.live)
 from __future__ import annotations
 
 import time
+from typing import Any
 
 from channels.db import database_sync_to_async
-from channels.generic.websocket import AsyncJsonWebsocketConsumer
 
+from fleet.consumers import GroupConsumer
 from fleet.models import Drone
 
 from . import live, queries
@@ -31,29 +32,24 @@ def _mark_watched(drone_pk: int) -> None:
     live.mark_watched(drone_pk)
 
 
-class TelemetryConsumer(AsyncJsonWebsocketConsumer):
-    group: str | None = None
+class TelemetryConsumer(GroupConsumer):
     drone_pk: int | None = None
     _marked_at = 0.0
 
-    async def connect(self) -> None:
-        user = self.scope.get("user")
-        if user is None or not user.is_authenticated:
-            await self.close(code=4401)
-            return
-        drone_id = self.scope["url_route"]["kwargs"]["drone_id"]
-        drone = await _visible_drone(user, drone_id)
-        if drone is None:
-            # Same answer for "not yours" and "does not exist": no probing other fleets.
-            await self.close(code=4403)
-            return
+    async def authorise(self, user: Any) -> Drone | None:
+        # Same answer for "not yours" and "does not exist": no probing other fleets.
+        return await _visible_drone(user, self.scope["url_route"]["kwargs"]["drone_id"])
+
+    def group_for(self, drone: Drone) -> str:
+        return live.group_name(drone.pk)
+
+    async def joined(self, drone: Drone) -> None:
         self.drone_pk = drone.pk
-        self.group = live.group_name(drone.pk)
-        await self.channel_layer.group_add(self.group, self.channel_name)
-        await self.accept()
+
+    async def welcome(self, drone: Drone) -> None:
         await self._keep_watched()
         await self.send_json(
-            {"type": "snapshot", "drone_id": drone_id, "objects": await _latest(drone.pk)}
+            {"type": "snapshot", "drone_id": drone.drone_id, "objects": await _latest(drone.pk)}
         )
 
     async def _keep_watched(self) -> None:
@@ -61,11 +57,7 @@ class TelemetryConsumer(AsyncJsonWebsocketConsumer):
             self._marked_at = time.monotonic()
             await _mark_watched(self.drone_pk)
 
-    async def disconnect(self, code: int) -> None:
-        if self.group:
-            await self.channel_layer.group_discard(self.group, self.channel_name)
-
-    async def receive_json(self, content: dict, **kwargs: object) -> None:
+    async def receive_json(self, content: Any, **kwargs: object) -> None:
         # Pages ping every 20 s so a drone silent for a while is still pushed when it resumes.
         await self._keep_watched()
 

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 import psycopg
 
 from onboard.protocol import OBJECT_NAME_RE, ProtocolError, parse_telemetry
+from onboard.retry import Backoff
 
 from . import storage
 
@@ -440,7 +441,7 @@ class Ingestor:
     def _writer(self) -> None:
         pending: list[Chunk] = []
         retrying = False
-        backoff = 0.1
+        backoff = Backoff(0.1, 2.0)
         while True:
             if not pending:
                 if self._stop_writing.is_set() and self.buffer.rows == 0:
@@ -458,15 +459,15 @@ class Ingestor:
                     # The database is away: keep the batch, retry it idempotently, since a
                     # connection lost around COMMIT leaves us not knowing if it landed.
                     self.counters.incr("db_errors")
-                    log.warning("telemetry write failed, retrying in %.1f s: %s", backoff, exc)
+                    wait = backoff.failed()
+                    log.warning("telemetry write failed, retrying in %.1f s: %s", wait, exc)
                     self._drop_connection()
                     retrying = True
-                    if self._abandon.wait(backoff):
+                    if self._abandon.wait(wait):
                         rows = sum(c.rows for c in pending) + self.buffer.queued
                         self.counters.incr("lost_at_shutdown", rows)
                         log.error("stopped with %d rows never written", rows)
                         return
-                    backoff = min(backoff * 2, 2.0)
                     continue
                 except psycopg.Error as exc:
                     rows = sum(c.rows for c in pending)
@@ -478,7 +479,7 @@ class Ingestor:
                 self.buffer.release(sum(c.rows for c in pending))
                 pending = []
                 retrying = False
-                backoff = 0.1
+                backoff.reset()
             self._report()
 
     def _record_stored(self, chunks: list[Chunk]) -> None:

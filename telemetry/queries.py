@@ -198,44 +198,53 @@ def query_range(
         "width": bucket,
         "fields": list(fields),
     }
+    result = Range(
+        object_name, start, end, bucket, source, [], [], {name: Series() for name in fields}
+    )
     if source == "raw":
-        values = sql.SQL(", ").join(
-            sql.SQL("(fields->>{})::float8 AS {}").format(
-                sql.Literal(name), sql.Identifier(f"v{i}")
-            )
-            for i, name in enumerate(fields)
-        )
-        aggregates = sql.SQL(", ").join(
-            sql.SQL("{agg}({v})").format(agg=sql.SQL(agg), v=sql.Identifier(f"v{i}"))
-            for i in range(len(fields))
-            for agg in ("min", "max", "avg")
-        )
-        # `fields` holds only numbers (migration 0002), so the cast cannot fail. OFFSET 0
-        # keeps the subquery whole: otherwise each aggregate re-extracts its field.
-        query = sql.SQL(
-            "SELECT extract(epoch FROM b)::float8, count(*), {aggregates} FROM ("
-            "SELECT date_bin(%(width)s, ts, %(start)s) AS b, {values} FROM telemetry_sample "
-            "WHERE drone_id = %(drone)s AND object = %(object)s "
-            "AND ts >= %(start)s AND ts < %(end)s OFFSET 0) s GROUP BY b ORDER BY b"
-        ).format(aggregates=aggregates, values=values)
-        with transaction.atomic(), _cursor() as cursor:
-            # JIT compiling this one-pass aggregate costs more (~150 ms) than it saves.
-            cursor.execute("SET LOCAL jit = off")
-            cursor.execute(query, params)
-            rows = cursor.fetchall()
-        result = Range(
-            object_name, start, end, bucket, source, [], [], {name: Series() for name in fields}
-        )
-        for row in rows:
-            result.t.append(row[0])
-            result.count.append(row[1])
-            for i, name in enumerate(fields):
-                s = result.series[name]
-                s.min.append(row[2 + 3 * i])
-                s.max.append(row[3 + 3 * i])
-                s.avg.append(row[4 + 3 * i])
-        return result
-    table = "telemetry_rollup_1s" if source == "1s" else "telemetry_rollup_1m"
+        _fill_from_raw(result, fields, params)
+    else:
+        table = "telemetry_rollup_1s" if source == "1s" else "telemetry_rollup_1m"
+        _fill_from_rollup(result, fields, params, table)
+    return result
+
+
+def _fill_from_raw(result: Range, fields: Sequence[str], params: dict) -> None:
+    """Bucket the raw samples: one row per bucket, min/max/avg of every field side by side."""
+    values = sql.SQL(", ").join(
+        sql.SQL("(fields->>{})::float8 AS {}").format(sql.Literal(name), sql.Identifier(f"v{i}"))
+        for i, name in enumerate(fields)
+    )
+    aggregates = sql.SQL(", ").join(
+        sql.SQL("{agg}({v})").format(agg=sql.SQL(agg), v=sql.Identifier(f"v{i}"))
+        for i in range(len(fields))
+        for agg in ("min", "max", "avg")
+    )
+    # `fields` holds only numbers (migration 0002), so the cast cannot fail. OFFSET 0
+    # keeps the subquery whole: otherwise each aggregate re-extracts its field.
+    query = sql.SQL(
+        "SELECT extract(epoch FROM b)::float8, count(*), {aggregates} FROM ("
+        "SELECT date_bin(%(width)s, ts, %(start)s) AS b, {values} FROM telemetry_sample "
+        "WHERE drone_id = %(drone)s AND object = %(object)s "
+        "AND ts >= %(start)s AND ts < %(end)s OFFSET 0) s GROUP BY b ORDER BY b"
+    ).format(aggregates=aggregates, values=values)
+    with transaction.atomic(), _cursor() as cursor:
+        # JIT compiling this one-pass aggregate costs more (~150 ms) than it saves.
+        cursor.execute("SET LOCAL jit = off")
+        cursor.execute(query, params)
+        rows = cursor.fetchall()
+    for row in rows:
+        result.t.append(row[0])
+        result.count.append(row[1])
+        for i, name in enumerate(fields):
+            s = result.series[name]
+            s.min.append(row[2 + 3 * i])
+            s.max.append(row[3 + 3 * i])
+            s.avg.append(row[4 + 3 * i])
+
+
+def _fill_from_rollup(result: Range, fields: Sequence[str], params: dict, table: str) -> None:
+    """Re-bucket a rollup: counts add up, the average is weighted by each row's count."""
     query = sql.SQL(
         "SELECT extract(epoch FROM date_bin(%(width)s, bucket, %(start)s))::float8 AS b, field, "
         "sum(n), min(min), max(max), sum(avg * n) / sum(n) FROM {table} "
@@ -248,9 +257,6 @@ def query_range(
     by_bucket: dict[float, dict[str, tuple]] = {}
     for b, name, n, lo, hi, avg in rows:
         by_bucket.setdefault(b, {})[name] = (n, lo, hi, avg)
-    result = Range(
-        object_name, start, end, bucket, source, [], [], {name: Series() for name in fields}
-    )
     for b in sorted(by_bucket):
         values = by_bucket[b]
         result.t.append(b)
@@ -260,7 +266,6 @@ def query_range(
             result.series[name].min.append(lo)
             result.series[name].max.append(hi)
             result.series[name].avg.append(avg)
-    return result
 
 
 # ---------------------------------------------------------------------------------------

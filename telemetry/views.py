@@ -1,17 +1,26 @@
-"""Telemetry pages: the organisation overview, a drone's dashboard, the ingest status."""
+"""Telemetry pages: the organisation overview, a drone's dashboard, the ingest status, and
+the operations page (every process instance and the figures to watch) with its JSON API."""
 
 from __future__ import annotations
 
 from datetime import UTC, datetime
+from typing import Any
 
 from django.contrib.auth.decorators import login_required
+from django.core.exceptions import PermissionDenied
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, render
+from drf_spectacular.types import OpenApiTypes
+from drf_spectacular.utils import extend_schema
+from rest_framework.decorators import api_view
+from rest_framework.request import Request
+from rest_framework.response import Response
 
-from fleet.models import Drone
+from fleet.models import Drone, Membership, Role
 from workers import operations
+from workers.ingest_status import ingest_status as read_ingest_status
 
-from . import queries, status
+from . import queries
 
 # What the overview shows per drone: battery and the flight controller's link statistics.
 OVERVIEW_OBJECTS = ["FlightBatteryState", "FlightTelemetryStats", "GCSTelemetryStats"]
@@ -59,5 +68,43 @@ def ingest_status(request: HttpRequest) -> HttpResponse:
     return render(
         request,
         "telemetry/status.html",
-        {"status": status.ingest_status(), "show_watch": operations.may_see(request.user)},
+        {"status": read_ingest_status(), "show_watch": may_see(request.user)},
     )
+
+
+# -- operations -------------------------------------------------------------------------------
+
+REFRESH_S = 5
+
+
+def may_see(user: Any) -> bool:
+    """Operators and admins (of any of their organisations) and staff see the operations
+    figures; viewers do not: host names, pids and queue depths are the platform's, not
+    their organisation's."""
+    if not getattr(user, "is_authenticated", False):
+        return False
+    if user.is_staff:
+        return True
+    return Membership.objects.filter(user=user, role__in=[Role.OPERATOR, Role.ADMIN]).exists()
+
+
+@login_required
+def operations_page(request: HttpRequest) -> HttpResponse:
+    if not may_see(request.user):
+        raise PermissionDenied("The operations page is for operators and admins.")
+    return render(
+        request,
+        "operations/index.html",
+        {"figures": operations.gather(), "refresh_s": REFRESH_S},
+    )
+
+
+@extend_schema(
+    summary="Process instances, queues, broker and the figures to watch",
+    responses={200: OpenApiTypes.OBJECT},
+)
+@api_view(["GET"])
+def operations_api(request: Request) -> Response:
+    if not may_see(request.user):
+        raise PermissionDenied("The operations figures are for operators and admins.")
+    return Response(operations.gather())

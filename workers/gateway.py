@@ -9,7 +9,8 @@ the mirrored AMQP queue `skyhive.gateway` (workers.broker). It parses each messa
 dropped and counted, never raised. Outbound, it takes from the Redis outbox
 (`workers.outbox`) and publishes to `<id>/<channel>/in`, moving to the next broker node when
 its node is lost; what it took stays on its own list until the broker acknowledges it,
-so a gateway killed in between loses nothing.
+so a gateway killed in between loses nothing. Being connected anyway, it also writes the
+broker's figures for the operations page (workers.broker.figures).
 """
 
 from __future__ import annotations
@@ -31,7 +32,9 @@ from django.db.utils import InterfaceError, OperationalError
 from django.utils.module_loading import import_string
 
 from onboard import protocol
+from onboard.retry import Backoff, retry_call
 from workers import broker, outbox
+from workers.broker.figures import RabbitMQPoller
 from workers.broker.mosquitto_sys import SYS_FILTER, SysView
 from workers.counters import Counters, is_alive
 
@@ -94,19 +97,7 @@ class Gateway:
         self.owner = self.counters.identity
         self.taken = outbox.taken_key(self.outbox, self.owner)
         self.db_retry_s = db_retry_s
-        table = DISPATCH if dispatch is None else dispatch
-        batch_table = (
-            (BATCH_DISPATCH if dispatch is None else {})
-            if batch_dispatch is None
-            else batch_dispatch
-        )
-        self.handlers: dict[str, Callable[[str, Any], str | None] | None] = {
-            channel: import_string(path) if path else None for channel, path in table.items()
-        }
-        self.batch_handlers: dict[str, Callable[[list[tuple[str, Any]]], list[str | None]]] = {
-            channel: import_string(path) for channel, path in batch_table.items()
-        }
-        self.channels = sorted(set(self.handlers) | set(self.batch_handlers))
+        self._load_handlers(dispatch, batch_dispatch)
         self._queue: queue.Queue[tuple[str, str, Any]] = queue.Queue(maxsize=MAX_QUEUED)
         self._finish = threading.Event()
         self._batch_thread = threading.Thread(
@@ -114,46 +105,79 @@ class Gateway:
         )
         self.connected = threading.Event()
         self.stopping = threading.Event()
-        # On RabbitMQ the drones' messages come from a shared AMQP queue; the MQTT
-        # connection only publishes, so it needs no session of its own.
-        self.consumer: broker.Consumer | None = None
-        if amqp_urls is not None or broker.uses_amqp():
-            self.consumer = broker.competing_consumer(
-                SHARE_GROUP,
-                self.channels,
-                self._on_consumed,
-                client_id=client_id or f"gateway-{socket.gethostname()}-{os.getpid()}",
-                amqp_urls=list(amqp_urls) if amqp_urls is not None else broker.amqp_urls(),
-                prefetch=AMQP_PREFETCH,
-                counters=self.counters,
-            )
-            persistent = False
+        stable_id = client_id
+        client_id = client_id or f"gateway-{socket.gethostname()}-{os.getpid()}"
+        self.consumer = self._amqp_consumer(client_id, amqp_urls)
+        # On RabbitMQ the MQTT connection only publishes, so it needs no session of its own.
+        persistent = persistent and self.consumer is None
+        if persistent and not stable_id:
+            raise ValueError("a persistent gateway session needs a stable client_id")
+        self.client = self._mqtt_client(client_id, persistent)
+        self.failover = broker.attach_failover(self.client, self.urls)
+        self.sys_view, self.rabbitmq_poller = self._broker_watch()
+        self._outbox_thread = threading.Thread(
+            target=self._publish_outbox, name="gateway-outbox", daemon=True
+        )
+
+    def _load_handlers(
+        self, dispatch: dict[str, str | None] | None, batch_dispatch: dict[str, str] | None
+    ) -> None:
+        """The handlers named by dotted path; without a `dispatch`, the platform's tables
+        (and no batch handlers unless named, when a `dispatch` is given)."""
+        table = DISPATCH if dispatch is None else dispatch
+        if batch_dispatch is None:
+            batch_dispatch = BATCH_DISPATCH if dispatch is None else {}
+        self.handlers: dict[str, Callable[[str, Any], str | None] | None] = {
+            channel: import_string(path) if path else None for channel, path in table.items()
+        }
+        self.batch_handlers: dict[str, Callable[[list[tuple[str, Any]]], list[str | None]]] = {
+            channel: import_string(path) for channel, path in batch_dispatch.items()
+        }
+        self.channels = sorted(set(self.handlers) | set(self.batch_handlers))
+
+    def _amqp_consumer(
+        self, client_id: str, amqp_urls: Sequence[str] | None
+    ) -> broker.Consumer | None:
+        """On RabbitMQ the drones' messages come from a shared AMQP queue; else None."""
+        if amqp_urls is None and not broker.uses_amqp():
+            return None
+        return broker.competing_consumer(
+            SHARE_GROUP,
+            self.channels,
+            self._on_consumed,
+            client_id=client_id,
+            amqp_urls=list(amqp_urls) if amqp_urls is not None else broker.amqp_urls(),
+            prefetch=AMQP_PREFETCH,
+            counters=self.counters,
+        )
+
+    def _mqtt_client(self, client_id: str, persistent: bool) -> mqtt.Client:
         # A persistent session (with a stable client id) makes the broker queue the
         # drones' QoS 1 messages (mission progress, alarms, replies) while this gateway
         # restarts, instead of dropping them. Mosquitto expires abandoned sessions
         # (`persistent_client_expiration`), so a retired instance does not keep its share.
-        if persistent and not client_id:
-            raise ValueError("a persistent gateway session needs a stable client_id")
-        self.client = mqtt.Client(
-            mqtt.CallbackAPIVersion.VERSION2,
-            client_id=client_id or f"gateway-{socket.gethostname()}-{os.getpid()}",
-            clean_session=not persistent,
+        client = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=not persistent
         )
         # Not the 1 s paho default: a lost node should cost a fraction of a second.
-        self.client.reconnect_delay_set(min_delay=0.2, max_delay=10)  # type: ignore[arg-type]
-        self.client.max_queued_messages_set(10_000)
-        self.client.on_connect = self._on_connect
-        self.client.on_disconnect = self._on_disconnect
-        self.client.on_message = self._on_message
-        self.failover = broker.attach_failover(self.client, self.urls)
-        # Mosquitto's client counts expire from $SYS a minute after they last changed: keep
-        # watching them for the operations page (workers.broker.mosquitto_sys).
-        self.sys_view: SysView | None = None
+        client.reconnect_delay_set(min_delay=0.2, max_delay=10)  # type: ignore[arg-type]
+        client.max_queued_messages_set(10_000)
+        client.on_connect = self._on_connect
+        client.on_disconnect = self._on_disconnect
+        client.on_connect_fail = self._on_connect_fail
+        client.on_message = self._on_message
+        return client
+
+    def _broker_watch(self) -> tuple[SysView | None, RabbitMQPoller | None]:
+        """What this gateway writes for the operations page about the broker: on Mosquitto
+        its view of `$SYS` and of its link (workers.broker.mosquitto_sys); on RabbitMQ the
+        management API's figures, polled on a thread of their own (workers.broker.figures)."""
         if self.consumer is None and not broker.uses_amqp():
-            self.sys_view = SysView(outbox.sync_redis(), self.counters.instance)
-        self._outbox_thread = threading.Thread(
-            target=self._publish_outbox, name="gateway-outbox", daemon=True
-        )
+            return SysView(outbox.sync_redis(), self.counters.instance), None
+        api_urls = broker.rabbitmq_api_urls()
+        if self.consumer is not None and api_urls:
+            return None, RabbitMQPoller(outbox.sync_redis(), api_urls)
+        return None, None
 
     @property
     def host(self) -> str:
@@ -164,6 +188,10 @@ class Gateway:
     def port(self) -> int:
         return self.failover.current.port
 
+    @property
+    def address(self) -> str:
+        return f"{self.host}:{self.port}"
+
     # -- lifecycle ------------------------------------------------------------------------
 
     def start(self) -> None:
@@ -172,6 +200,8 @@ class Gateway:
         self.client.loop_start()
         if self.consumer is not None:
             self.consumer.start()
+        if self.rabbitmq_poller is not None:
+            self.rabbitmq_poller.start()
         self._outbox_thread.start()
         self._batch_thread.start()
 
@@ -181,6 +211,8 @@ class Gateway:
         self._outbox_thread.join(timeout)
         if self.consumer is not None:
             self.consumer.stop(timeout)  # acknowledges what was handed over
+        if self.rabbitmq_poller is not None:
+            self.rabbitmq_poller.stop(timeout)
         self.failover.stopping = True
         self.client.disconnect()
         self.client.loop_stop()
@@ -207,6 +239,7 @@ class Gateway:
         if reason_code.is_failure:
             self.counters.incr("connect_refused")
             log.error("broker refused the connection: %s", reason_code)
+            self._link_down(f"refused: {reason_code}")
             return
         sock = client.socket()
         if sock is not None:
@@ -215,7 +248,7 @@ class Gateway:
         if self.consumer is None:
             filters = [(subscription(ch), protocol.QOS[ch]) for ch in self.channels]
             if self.sys_view is not None:
-                self.sys_view.reset()
+                self.sys_view.link_up(self.address)
                 filters.append((SYS_FILTER, 0))
             client.subscribe(filters)
         self.counters.incr("connects")
@@ -227,6 +260,14 @@ class Gateway:
         if not self.stopping.is_set():
             self.counters.incr("disconnects")
             log.warning("disconnected (%s); reconnecting", reason_code)
+            self._link_down(f"disconnected: {reason_code}")
+
+    def _on_connect_fail(self, client, userdata) -> None:  # type: ignore[no-untyped-def]
+        self._link_down("cannot connect")
+
+    def _link_down(self, error: str) -> None:
+        if self.sys_view is not None:
+            self.sys_view.link_down(self.address, error)
 
     def _on_message(self, client, userdata, message: mqtt.MQTTMessage) -> None:  # type: ignore[no-untyped-def]
         if message.topic.startswith("$SYS/"):
@@ -294,20 +335,32 @@ class Gateway:
         are transactions that decide by compare-and-set, so a retry decides nothing twice.
         """
         deadline = time.monotonic() + self.db_retry_s
-        delay = 0.05
-        while True:
+
+        def attempt() -> Any:
             try:
                 return fn(*args)
-            except (OperationalError, InterfaceError) as exc:
+            except (OperationalError, InterfaceError):
                 # The connection is unusable now: Django opens a fresh one on next use.
                 connection.close()
-                if self.stopping.is_set() or time.monotonic() + delay > deadline:
-                    self.counters.incr("db_unavailable")
-                    raise
-                self.counters.incr("db_retries")
-                log.warning("database unavailable (%s); retrying in %.2f s", exc, delay)
-                time.sleep(delay)
-                delay = min(delay * 2, 1.0)
+                raise
+
+        def give_up(exc: BaseException, delay: float) -> bool:
+            if self.stopping.is_set() or time.monotonic() + delay > deadline:
+                self.counters.incr("db_unavailable")
+                return True
+            return False
+
+        def on_retry(exc: BaseException, delay: float) -> None:
+            self.counters.incr("db_retries")
+            log.warning("database unavailable (%s); retrying in %.2f s", exc, delay)
+
+        return retry_call(
+            attempt,
+            errors=(OperationalError, InterfaceError),
+            backoff=Backoff(0.05, 1.0),
+            give_up=give_up,
+            on_retry=on_retry,
+        )
 
     def _run_batches(self) -> None:
         """Hand queued messages to their batch handlers, as many at once as are waiting."""
@@ -346,6 +399,9 @@ class Gateway:
         self.counters.flush()
         next_reclaim = 0.0
         while not self.stopping.is_set():
+            if self.sys_view is not None:
+                # While disconnected too: the page learns from it that the link is down.
+                self.sys_view.flush()
             # Only take work while connected, so another gateway can take it meanwhile.
             if not self.connected.wait(0.5):
                 continue
@@ -361,8 +417,6 @@ class Gateway:
                 log.warning("outbox unavailable: %s", exc)
                 self.stopping.wait(1.0)
                 continue
-            if self.sys_view is not None:
-                self.sys_view.flush()
             self.counters.maybe_flush()
 
     def _reclaim(self) -> None:

@@ -2,42 +2,39 @@
 
 `gather()` reads each source once, in parallel, with short timeouts: the instance hashes
 and process totals in Redis (workers.counters), the Redis outbox and Celery queue, the
-Celery workers (a broadcast ping), and the broker (Mosquitto's `$SYS/broker/#` topics, or
-RabbitMQ's management API on every node). Every source answers with `at` (when it was
-read) and either its figures or `available: False` with the reason: an unreachable source
-is never shown as zero. `watch` then rates the figures that say the platform is falling
-behind (thresholds in docs/scaling.md).
+Celery workers (a broadcast ping), and the broker figures the gateways keep in Redis
+(workers.broker.figures: Mosquitto's `$SYS/broker/#` topics, or RabbitMQ's management API
+polled every few seconds); the page itself never connects to the broker. Every source
+answers with `at` (when it was read) and either its figures or `available: False` with the
+reason: an unreachable source is never shown as zero. `watch` then rates the figures that
+say the platform is falling behind (thresholds in docs/scaling.md).
 """
 
 from __future__ import annotations
 
-import base64
 import json
 import logging
-import threading
 import time
-import urllib.error
-import urllib.request
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
-from urllib.parse import unquote, urlsplit
 
-import paho.mqtt.client as mqtt
 import redis
+from celery import current_app
 from django.conf import settings
 
-from telemetry.status import ingest_status
+from onboard.mqtt import parse_broker_url
 from workers import counters
-from workers.broker import mosquitto_sys
-from workers.broker.mosquitto_sys import MOSQUITTO_SYS
+from workers.broker import figures as broker_figures
+from workers.broker.figures import unavailable
+from workers.ingest_status import ingest_status
 
 log = logging.getLogger(__name__)
 
 # The processes a deployment runs; each is listed even when nothing of it reports.
 PROCESSES = ("web", "gateway", "ingest", "pastview", "celery")
 
-LAG_LIMIT_S = 1.0  # sustained ingest must keep its lag under 1 s
+LAG_LIMIT_S = 1.0  # sustained ingest keeps its lag under a second (docs/scaling.md)
 QUEUE_DEPTH_LIMIT = 10_000  # messages waiting anywhere: more is "falling behind" at once
 TREND_WINDOW_S = 60.0  # "rising" and "growing" compare with the oldest sample this recent
 TREND_MIN_AGE_S = 3.0  # ...that is at least this old, so two quick reloads do not compare
@@ -48,27 +45,6 @@ CELERY_SEEN_KEY = "skyhive:operations:celery"
 OUTBOX_PATTERN = "skyhive:gateway:outbox:*"
 
 CELERY_PING_TIMEOUT_S = 0.5
-SYS_WAIT_S = 1.5
-SYS_GRACE_S = 0.3
-HTTP_TIMEOUT_S = 2.0
-
-
-def may_see(user: Any) -> bool:
-    """Operators and admins (of any of their organisations) and staff see the operations
-    figures; viewers do not: host names, pids and queue depths are the platform's, not
-    their organisation's."""
-    from fleet.models import Membership, Role
-
-    if not getattr(user, "is_authenticated", False):
-        return False
-    if user.is_staff:
-        return True
-    return Membership.objects.filter(user=user, role__in=[Role.OPERATOR, Role.ADMIN]).exists()
-
-
-def _unavailable(error: object) -> dict[str, Any]:
-    text = str(error).splitlines()[0] if str(error) else type(error).__name__
-    return {"available": False, "error": text, "at": time.time()}
 
 
 def _guarded(source: Callable[[], dict[str, Any]]) -> dict[str, Any]:
@@ -77,7 +53,7 @@ def _guarded(source: Callable[[], dict[str, Any]]) -> dict[str, Any]:
         return source()
     except Exception as exc:  # noqa: BLE001 - one broken source must not hide the others
         log.warning("operations source %s failed: %s", source.__name__, exc)
-        return _unavailable(exc)
+        return unavailable(exc)
 
 
 # -- Redis: instances, process totals, queues -----------------------------------------------
@@ -126,7 +102,7 @@ def gateway_figures() -> dict[str, Any]:
 def ingest_figures() -> dict[str, Any]:
     status = ingest_status()
     if not status.get("available"):
-        return _unavailable(status.get("error", "unavailable"))
+        return unavailable(status.get("error", "unavailable"))
     return {**status, "at": time.time()}
 
 
@@ -166,9 +142,8 @@ def queue_figures() -> dict[str, Any]:
 
 def celery_figures() -> dict[str, Any]:
     """Workers answering a broadcast ping now, and those seen within the last hour."""
-    from config.celery import app
-
-    replies = app.control.ping(timeout=CELERY_PING_TIMEOUT_S) or []
+    # The project's Celery app (config.celery), made current when config is imported.
+    replies = current_app.control.ping(timeout=CELERY_PING_TIMEOUT_S) or []
     now = time.time()
     alive = sorted(name for reply in replies for name in reply)
     client = counters._client()
@@ -201,207 +176,11 @@ def celery_figures() -> dict[str, Any]:
 # -- the broker ------------------------------------------------------------------------------
 
 
-def mosquitto_figures(url: str | None = None, wait: float = SYS_WAIT_S) -> dict[str, Any]:
-    """Subscribe briefly to `$SYS/broker/#` as the ground user; Mosquitto retains them."""
-    parts = urlsplit(url or settings.MQTT_URL)
-    got: dict[str, str] = {}
-    state: dict[str, Any] = {}
-    done = threading.Event()
-
-    def on_connect(client, userdata, flags, reason_code, properties) -> None:  # type: ignore[no-untyped-def]
-        state["rc"] = reason_code
-        if reason_code.is_failure:
-            done.set()
-            return
-        client.subscribe("$SYS/broker/#", qos=0)
-
-    def on_message(client, userdata, message) -> None:  # type: ignore[no-untyped-def]
-        name = mosquitto_sys.figure_name(message.topic)
-        if name:
-            got[name] = message.payload.decode(errors="replace")
-            if len(got) == len(MOSQUITTO_SYS):
-                done.set()
-
-    def on_subscribe(client, userdata, mid, reason_codes, properties) -> None:  # type: ignore[no-untyped-def]
-        state["subscribed"] = time.monotonic()
-
-    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="", clean_session=True)
-    client.on_subscribe = on_subscribe
-    if parts.username:
-        client.username_pw_set(unquote(parts.username), unquote(parts.password or ""))
-    client.on_connect = on_connect
-    client.on_message = on_message
-    host, port = parts.hostname or "127.0.0.1", parts.port or 1883
-    try:
-        client.connect(host, port, keepalive=5)
-    except OSError as exc:
-        return {
-            **_unavailable(exc),
-            "kind": "mosquitto",
-            "address": f"{host}:{port}",
-            "endpoints": [{"address": f"{host}:{port}", "up": False, "error": str(exc)}],
-            "nodes_up": 0,
-            "nodes_down": 1,
-        }
-    client.loop_start()
-    deadline = time.monotonic() + wait
-    try:
-        # Retained $SYS messages follow the SUBACK at once; a short grace after it is
-        # enough, and spares the full wait when the ACL hides $SYS.
-        while not done.wait(0.05) and time.monotonic() < deadline:
-            subscribed = state.get("subscribed")
-            if subscribed and time.monotonic() - subscribed > SYS_GRACE_S:
-                break
-    finally:
-        client.disconnect()
-        client.loop_stop()
-    base = {"kind": "mosquitto", "address": f"{host}:{port}", "at": time.time()}
-    rc = state.get("rc")
-    if rc is None:
-        return {**base, "available": False, "error": "no answer to CONNECT"}
-    if rc.is_failure:
-        return {**base, "available": False, "error": f"refused: {rc}"}
-    if not got:
-        return {
-            **base,
-            "nodes_up": 1,
-            "nodes_down": 0,
-            "available": False,
-            "error": "no $SYS figures: the ground user may not read $SYS/# (broker ACL)",
-        }
-    # Counts unchanged for a minute have expired from $SYS; the gateways saw them last.
-    try:
-        held = mosquitto_sys.remembered(counters._client())
-    except redis.RedisError:
-        held = {}
-    figures, from_gateways = mosquitto_sys.fill_in(got, held)
-    return {
-        **base,
-        "available": True,
-        "nodes_up": 1,
-        "nodes_down": 0,
-        "from_gateways": from_gateways,
-        **figures,
-    }
-
-
-def _http_json(api_url: str, path: str) -> Any:
-    """GET one management API path with the URL's own credentials; proxies bypassed."""
-    parts = urlsplit(api_url)
-    auth = base64.b64encode(
-        f"{unquote(parts.username or '')}:{unquote(parts.password or '')}".encode()
-    ).decode()
-    request = urllib.request.Request(
-        f"{parts.scheme}://{parts.hostname}:{parts.port}{parts.path.rstrip('/')}/{path}",
-        headers={"authorization": f"Basic {auth}", "accept": "application/json"},
-    )
-    opener = urllib.request.build_opener(urllib.request.ProxyHandler({}))
-    with opener.open(request, timeout=HTTP_TIMEOUT_S) as response:
-        return json.loads(response.read())
-
-
-def _address(api_url: str) -> str:
-    parts = urlsplit(api_url)
-    return f"{parts.hostname}:{parts.port}"
-
-
-def rabbitmq_figures(api_urls: list[str] | None = None) -> dict[str, Any]:
-    """Nodes up and down, our queues' depths, connections, from any node that answers.
-
-    A node is down when its own management API does not answer, or when a node that does
-    answer says it is not running: either way it is named.
-    """
-    urls = list(api_urls if api_urls is not None else settings.RABBITMQ_API_URLS)
-    now = time.time()
-    if not urls:
-        return {**_unavailable("RABBITMQ_API_URLS is empty"), "kind": "rabbitmq"}
-    endpoints = []
-    answering: str | None = None
-    for url in urls:
-        try:
-            overview = _http_json(url, "overview")
-        except urllib.error.HTTPError as exc:
-            # The node answers but refuses us (credentials, permissions): up, unreadable.
-            endpoints.append(
-                {"address": _address(url), "up": True, "error": f"HTTP {exc.code} {exc.reason}"}
-            )
-            continue
-        except (OSError, ValueError) as exc:
-            reason = getattr(exc, "reason", exc)
-            endpoints.append({"address": _address(url), "up": False, "error": str(reason)})
-            continue
-        endpoints.append({"address": _address(url), "up": True, "node": overview.get("node")})
-        answering = answering or url
-    if answering is None:
-        refused = [e["error"] for e in endpoints if e["up"]]
-        return {
-            "kind": "rabbitmq",
-            "available": False,
-            "error": (
-                f"the management API refuses us: {refused[0]}"
-                if refused
-                else "no node's management API answers"
-            ),
-            "at": now,
-            "endpoints": endpoints,
-            "nodes_up": len(refused),
-            "nodes_down": len(urls) - len(refused),
-        }
-    overview = _http_json(answering, "overview")
-    nodes = _http_json(answering, "nodes?columns=name,running,mem_used,fd_used,sockets_used")
-    queues = _http_json(
-        answering,
-        "queues?columns=name,messages_ready,messages_unacknowledged,consumers,node,state",
-    )
-    node_rows = [
-        {
-            "name": n["name"],
-            "running": bool(n.get("running")),
-            "mem_used": n.get("mem_used"),
-            "sockets_used": n.get("sockets_used"),
-        }
-        for n in nodes
-    ]
-    # An endpoint that does not answer while the cluster still lists its node as running
-    # (the node is alive, its API is not) still counts as down: the ground cannot see it.
-    down_names = {n["name"] for n in node_rows if not n["running"]}
-    unanswered = sum(1 for e in endpoints if not e["up"])
-    ours = [q for q in queues if q["name"].startswith("skyhive.")]
-    sessions = [q for q in queues if q["name"].startswith("mqtt-subscription-")]
-    totals = overview.get("object_totals", {})
-    return {
-        "kind": "rabbitmq",
-        "available": True,
-        "at": time.time(),
-        "cluster": overview.get("cluster_name"),
-        "version": overview.get("rabbitmq_version"),
-        "endpoints": endpoints,
-        "nodes": node_rows,
-        "nodes_up": sum(1 for n in node_rows if n["running"]),
-        "nodes_down": max(len(down_names), unanswered),
-        "connections": totals.get("connections"),
-        "queues": [
-            {
-                "name": q["name"],
-                "ready": q.get("messages_ready", 0),
-                "unacked": q.get("messages_unacknowledged", 0),
-                "consumers": q.get("consumers", 0),
-                "node": q.get("node"),
-            }
-            for q in sorted(ours, key=lambda q: q["name"])
-        ],
-        "mqtt_sessions": {
-            "queues": len(sessions),
-            "ready": sum(q.get("messages_ready", 0) for q in sessions),
-            "unacked": sum(q.get("messages_unacknowledged", 0) for q in sessions),
-        },
-    }
-
-
-def broker_figures() -> dict[str, Any]:
-    if settings.MQTT_BROKER == "rabbitmq":
-        return rabbitmq_figures()
-    return mosquitto_figures()
+def broker_figures_now() -> dict[str, Any]:
+    """What the gateways last wrote about the configured broker."""
+    node = parse_broker_url(settings.MQTT_URL)  # as the gateways name the node they are on
+    address = f"{node.host}:{node.port}"
+    return broker_figures.read_figures(counters._client(), settings.MQTT_BROKER, address)
 
 
 # -- what to watch ---------------------------------------------------------------------------
@@ -437,20 +216,24 @@ def _item(
     label: str,
     value: Any,
     state: str,
-    at: float | None,
+    source: dict[str, Any],
     rule: str,
     unit: str = "",
     detail: str = "",
+    readable: bool | None = None,
 ) -> dict[str, Any]:
+    """One watched figure, read from `source`. `readable` (default: the source was read)
+    tells "unreachable" from "read, without a value" on the page."""
     return {
         "key": key,
         "label": label,
         "value": value,
         "unit": unit,
         "state": state,
-        "at": at,
+        "at": source.get("at"),
         "rule": rule,
         "detail": detail,
+        "readable": bool(source.get("available")) if readable is None else readable,
     }
 
 
@@ -467,151 +250,135 @@ def watch(figures: dict[str, Any]) -> list[dict[str, Any]]:
     """The figures to watch with a state each: ok, warn, bad, or unknown (not readable)."""
     ingest, gateway = figures["ingest"], figures["gateway"]
     queues, broker, procs = figures["queues"], figures["broker"], figures["instances"]
-    sample = {
-        "at": figures["generated_at"],
-        "gateway_dropped": gateway.get("dropped_total") if gateway.get("available") else None,
-        "ingest_dropped": ingest.get("dropped_total") if ingest.get("available") else None,
-        "broker_depth": broker_queue_depth(broker),
-        "outbox": queues.get("outbox") if queues.get("available") else None,
-        "celery_queue": queues.get("celery_queue") if queues.get("available") else None,
-    }
+    sample = _sample(figures)
     try:
         old = _history(sample)
     except redis.RedisError:
         old = None
-    items = []
+    now = figures["generated_at"]
+    return [
+        _lag_item(ingest),
+        _drops_item("gateway_dropped", "Gateway drops", gateway, sample, old),
+        _drops_item("ingest_dropped", "Ingest drops", ingest, sample, old),
+        _depth_item("broker_depth", "Broker queue depth", broker, sample, old),
+        _depth_item("outbox", "Command outbox", queues, sample, old),
+        _depth_item("celery_queue", "Celery queue", queues, sample, old),
+        _nodes_down_item(broker),
+        _instances_item("gateway", procs, now),
+        _instances_item("ingest", procs, now),
+    ]
 
+
+def _sample(figures: dict[str, Any]) -> dict[str, Any]:
+    """The figures whose trend is watched, None where their source was not read."""
+    ingest, gateway, queues = figures["ingest"], figures["gateway"], figures["queues"]
+    return {
+        "at": figures["generated_at"],
+        "gateway_dropped": gateway.get("dropped_total") if gateway.get("available") else None,
+        "ingest_dropped": ingest.get("dropped_total") if ingest.get("available") else None,
+        "broker_depth": broker_queue_depth(figures["broker"]),
+        "outbox": queues.get("outbox") if queues.get("available") else None,
+        "celery_queue": queues.get("celery_queue") if queues.get("available") else None,
+    }
+
+
+def _lag_item(ingest: dict[str, Any]) -> dict[str, Any]:
+    """Ingest lag is bad above LAG_LIMIT_S."""
     lag = ingest.get("lag_s") if ingest.get("available") else None
     if lag is None:
         state = "unknown"
     else:
         state = "bad" if lag > LAG_LIMIT_S else "ok"
     no_ingest = ingest.get("available") and not ingest.get("instances_alive")
-    items.append(
-        _item(
-            "ingest_lag",
-            "Ingest lag",
-            lag,
-            state,
-            ingest.get("at"),
-            f"bad above {LAG_LIMIT_S:g} s",
-            unit="s",
-            detail="no ingest instance alive" if no_ingest else "",
-        )
+    return _item(
+        "ingest_lag",
+        "Ingest lag",
+        lag,
+        state,
+        ingest,
+        f"bad above {LAG_LIMIT_S:g} s",
+        unit="s",
+        detail="no ingest instance alive" if no_ingest else "",
     )
 
-    for key, label, source in (
-        ("gateway_dropped", "Gateway drops", gateway),
-        ("ingest_dropped", "Ingest drops", ingest),
-    ):
-        value = sample[key]
-        if value is None:
-            state = "unknown"
-        else:
-            state = "warn" if _rising(key, value, old) else "ok"
-        detail = f"+{value - old[key]} in the last minute" if state == "warn" and old else ""
-        items.append(
-            _item(key, label, value, state, source.get("at"), "warn while rising", detail=detail)
-        )
 
-    for key, label, source in (
-        ("broker_depth", "Broker queue depth", broker),
-        ("outbox", "Command outbox", queues),
-        ("celery_queue", "Celery queue", queues),
-    ):
-        value = sample[key]
-        if value is None:
-            state = "unknown"
-        elif value > QUEUE_DEPTH_LIMIT:
-            state = "bad"
-        else:
-            state = "warn" if _rising(key, value, old) else "ok"
-        items.append(
-            _item(
-                key,
-                label,
-                value,
-                state,
-                source.get("at"),
-                f"warn while growing, bad above {QUEUE_DEPTH_LIMIT}",
-            )
-        )
-
-    if "nodes_down" in broker:
-        down = broker["nodes_down"]
-        state = "bad" if down else "ok"
-        names = [e["address"] for e in broker.get("endpoints", []) if not e["up"]]
-        names += [n["name"] for n in broker.get("nodes", []) if not n["running"]]
-        items.append(
-            _item(
-                "broker_nodes_down",
-                "Broker nodes down",
-                down,
-                state,
-                broker.get("at"),
-                "bad when any node is down",
-                detail=", ".join(dict.fromkeys(names)),
-            )
-        )
+def _drops_item(
+    key: str, label: str, source: dict[str, Any], sample: dict[str, Any], old: dict | None
+) -> dict[str, Any]:
+    """Drops are counted since Redis started: a warning while they rise, not for having any."""
+    value = sample[key]
+    if value is None:
+        state = "unknown"
     else:
-        items.append(
-            _item(
-                "broker_nodes_down",
-                "Broker nodes down",
-                None,
-                "unknown",
-                broker.get("at"),
-                "bad when any node is down",
-                detail=broker.get("error", ""),
-            )
-        )
+        state = "warn" if _rising(key, value, old) else "ok"
+    detail = f"+{value - old[key]} in the last minute" if state == "warn" and old else ""
+    return _item(key, label, value, state, source, "warn while rising", detail=detail)
 
-    for process in ("gateway", "ingest"):
-        group = procs.get("processes", {}).get(process) if procs.get("available") else None
-        if group is None:
-            items.append(
-                _item(
-                    f"{process}_instances",
-                    f"{process.title()} instances alive",
-                    None,
-                    "unknown",
-                    procs.get("at"),
-                    "bad when none is alive",
-                )
-            )
-            continue
-        alive = group["alive"]
-        recent = figures["generated_at"] - GONE_WARN_S
-        gone = sum(1 for i in group["instances"] if not i["alive"] and i["last_report"] > recent)
-        state = "bad" if alive == 0 else ("warn" if gone else "ok")
-        items.append(
-            _item(
-                f"{process}_instances",
-                f"{process.title()} instances alive",
-                alive,
-                state,
-                procs.get("at"),
-                f"bad when none is alive, warn when one went in the last {GONE_WARN_S // 60} min",
-                detail=f"{gone} gone lately" if gone else "",
-            )
+
+def _depth_item(
+    key: str, label: str, source: dict[str, Any], sample: dict[str, Any], old: dict | None
+) -> dict[str, Any]:
+    """A queue is bad above QUEUE_DEPTH_LIMIT, and worth a look while it grows."""
+    value = sample[key]
+    if value is None:
+        state = "unknown"
+    elif value > QUEUE_DEPTH_LIMIT:
+        state = "bad"
+    else:
+        state = "warn" if _rising(key, value, old) else "ok"
+    rule = f"warn while growing, bad above {QUEUE_DEPTH_LIMIT}"
+    return _item(key, label, value, state, source, rule)
+
+
+def _nodes_down_item(broker: dict[str, Any]) -> dict[str, Any]:
+    """Any broker node down is bad, named in the detail; unknown when nobody could tell."""
+    rule = "bad when any node is down"
+    if "nodes_down" not in broker:
+        detail = broker.get("error", "")
+        return _item(
+            "broker_nodes_down",
+            "Broker nodes down",
+            None,
+            "unknown",
+            broker,
+            rule,
+            detail=detail,
+            readable=False,
         )
-    sources = {
-        "ingest_lag": ingest,
-        "gateway_dropped": gateway,
-        "ingest_dropped": ingest,
-        "broker_depth": broker,
-        "outbox": queues,
-        "celery_queue": queues,
-        "gateway_instances": procs,
-        "ingest_instances": procs,
-    }
-    for item in items:
-        source = sources.get(item["key"])
-        # Unreadable (the page says "unreachable") versus read but without a value.
-        item["readable"] = (
-            "nodes_down" in broker if source is None else bool(source.get("available"))
-        )
-    return items
+    down = broker["nodes_down"]
+    names = [e["address"] for e in broker.get("endpoints", []) if not e["up"]]
+    names += [n["name"] for n in broker.get("nodes", []) if not n["running"]]
+    return _item(
+        "broker_nodes_down",
+        "Broker nodes down",
+        down,
+        "bad" if down else "ok",
+        broker,
+        rule,
+        detail=", ".join(dict.fromkeys(names)),
+        readable=True,
+    )
+
+
+def _instances_item(process: str, procs: dict[str, Any], now: float) -> dict[str, Any]:
+    """Bad when no instance of `process` is alive; a warning when one went lately."""
+    key, label = f"{process}_instances", f"{process.title()} instances alive"
+    group = procs.get("processes", {}).get(process) if procs.get("available") else None
+    if group is None:
+        return _item(key, label, None, "unknown", procs, "bad when none is alive")
+    alive = group["alive"]
+    recent = now - GONE_WARN_S
+    gone = sum(1 for i in group["instances"] if not i["alive"] and i["last_report"] > recent)
+    state = "bad" if alive == 0 else ("warn" if gone else "ok")
+    return _item(
+        key,
+        label,
+        alive,
+        state,
+        procs,
+        f"bad when none is alive, warn when one went in the last {GONE_WARN_S // 60} min",
+        detail=f"{gone} gone lately" if gone else "",
+    )
 
 
 def gather() -> dict[str, Any]:
@@ -622,7 +389,7 @@ def gather() -> dict[str, Any]:
         "gateway": gateway_figures,
         "ingest": ingest_figures,
         "queues": queue_figures,
-        "broker": broker_figures,
+        "broker": broker_figures_now,
     }
     with ThreadPoolExecutor(max_workers=len(sources), thread_name_prefix="operations") as pool:
         futures = {name: pool.submit(_guarded, source) for name, source in sources.items()}

@@ -22,6 +22,10 @@ from firmware.sim.vehicle import Vehicle, VehicleConfig
 from onboard.uavtalk import ObjectRegistry
 
 
+class UnknownParameter(ValueError):
+    """A `--param` the MAVLink autopilot does not have."""
+
+
 def _home(text: str) -> tuple[float, float, float]:
     try:
         lat, lon, alt = (float(part) for part in text.split(","))
@@ -93,41 +97,13 @@ def main(argv: list[str] | None = None) -> int:
         stream=sys.stderr,
         format="sim %(levelname)s %(message)s",
     )
-    frames = load_frames()
-    config = VehicleConfig(
-        home=args.home,
-        max_horizontal=args.max_horizontal_speed,
-        max_climb=args.max_climb_rate,
-        max_descent=args.max_climb_rate,
-        battery_capacity_mah=args.battery_capacity_mah,
-        hover_drain_mah_s=args.drain,
-        cells=args.cells,
-    )
-    receiver = ReceiverArming(frames, arming_time_s=args.arming_time)
-    session: BoardSession | MavlinkSession
-    if args.fc == "mavlink":
-        session = MavlinkSession(
-            vehicle=Vehicle(config=config, receiver=receiver),
-            time_scale=args.time_scale,
-            autopilot=args.autopilot,
-            link_timeout_s=args.link_timeout,
-        )
-        for name, value in args.param:
-            if name not in session.params:
-                print(f"unknown MAVLink parameter {name}", file=sys.stderr)
-                return 2
-            session.params[name] = value
-        if args.tcp is None and not args.serial:
-            args.tcp = 5760
-    else:
-        session = BoardSession(
-            vehicle=Vehicle(config=config, receiver=receiver),
-            registry=ObjectRegistry.load(args.objects_dir),
-            frames=frames,
-            time_scale=args.time_scale,
-            arming_line=args.arming_line,
-            link_timeout_s=args.link_timeout,
-        )
+    try:
+        session = _session(args)
+    except UnknownParameter as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    if args.fc == "mavlink" and args.tcp is None and not args.serial:
+        args.tcp = 5760
     if args.tcp is not None:
         transport: PtyTransport | TcpTransport = TcpTransport(args.tcp_host, args.tcp)
     else:
@@ -147,6 +123,43 @@ def main(argv: list[str] | None = None) -> int:
         transport.close()
         logging.info("stopped: %s; decoder %s", session.stats, session.decoder.stats.as_dict())
     return 0
+
+
+def _session(args: argparse.Namespace) -> BoardSession | MavlinkSession:
+    """The flight controller the arguments ask for, on a fresh vehicle model."""
+    frames = load_frames()
+    config = VehicleConfig(
+        home=args.home,
+        max_horizontal=args.max_horizontal_speed,
+        max_climb=args.max_climb_rate,
+        max_descent=args.max_climb_rate,
+        battery_capacity_mah=args.battery_capacity_mah,
+        hover_drain_mah_s=args.drain,
+        cells=args.cells,
+    )
+    vehicle = Vehicle(
+        config=config, receiver=ReceiverArming(frames, arming_time_s=args.arming_time)
+    )
+    if args.fc != "mavlink":
+        return BoardSession(
+            vehicle=vehicle,
+            registry=ObjectRegistry.load(args.objects_dir),
+            frames=frames,
+            time_scale=args.time_scale,
+            arming_line=args.arming_line,
+            link_timeout_s=args.link_timeout,
+        )
+    session = MavlinkSession(
+        vehicle=vehicle,
+        time_scale=args.time_scale,
+        autopilot=args.autopilot,
+        link_timeout_s=args.link_timeout,
+    )
+    for name, value in args.param:
+        if name not in session.params:
+            raise UnknownParameter(f"unknown MAVLink parameter {name}")
+        session.params[name] = value
+    return session
 
 
 if __name__ == "__main__":

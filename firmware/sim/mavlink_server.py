@@ -833,121 +833,145 @@ class MavlinkSession:
         self.stats.junk_sent += 2
 
     def _emit(self, name: str) -> None:
+        """Send one streamed message (`_emit_<name>`); names without one are ignored."""
+        emit = getattr(self, f"_emit_{name.lower()}", None)
+        if emit is not None:
+            emit()
+
+    def _emit_sys_status(self) -> None:
+        v = self.vehicle
+        sensors = 0x0020_FC2F
+        self._send(
+            "sys_status",
+            sensors,
+            sensors,
+            sensors,
+            200,
+            round(v.voltage * 1000),
+            round(v.current_a * 100),
+            round(v.remaining * 100),
+            0,
+            self.codec.stats.bad_crc + self.codec.stats.bad_data,
+            0,
+            0,
+            0,
+            0,
+        )
+
+    def _emit_battery_status(self) -> None:
+        v = self.vehicle
+        cell_mv = round(v.voltage / v.config.cells * 1000)
+        cells = [cell_mv] * v.config.cells + [0xFFFF] * (10 - v.config.cells)
+        self._send(
+            "battery_status",
+            0,
+            mavlink.MAV_BATTERY_FUNCTION_ALL,
+            mavlink.MAV_BATTERY_TYPE_LIPO,
+            0x7FFF,
+            cells,
+            round(v.current_a * 100),
+            round(v.consumed_mah),
+            -1,
+            round(v.remaining * 100),
+            round(v.estimated_flight_time()),
+        )
+
+    def _emit_global_position_int(self) -> None:
         v = self.vehicle
         boot_ms = int(v.time * 1000) & 0xFFFFFFFF
         lat, lon, alt_msl = v.lla()
+        self._send(
+            "global_position_int",
+            boot_ms,
+            round(lat * 1e7),
+            round(lon * 1e7),
+            round(alt_msl * 1000),
+            round(-v.ned[2] * 1000),
+            round(v.velocity[0] * 100),
+            round(v.velocity[1] * 100),
+            round(v.velocity[2] * 100),
+            round(v.yaw * 100) % 36000,
+        )
+
+    def _emit_local_position_ned(self) -> None:
+        v = self.vehicle
+        boot_ms = int(v.time * 1000) & 0xFFFFFFFF
+        self._send("local_position_ned", boot_ms, *v.ned, *v.velocity)
+
+    def _emit_attitude(self) -> None:
+        v = self.vehicle
+        boot_ms = int(v.time * 1000) & 0xFFFFFFFF
         roll, pitch, yaw = v.attitude()
-        if name == "SYS_STATUS":
-            sensors = 0x0020_FC2F
-            self._send(
-                "sys_status",
-                sensors,
-                sensors,
-                sensors,
-                200,
-                round(v.voltage * 1000),
-                round(v.current_a * 100),
-                round(v.remaining * 100),
-                0,
-                self.codec.stats.bad_crc + self.codec.stats.bad_data,
-                0,
-                0,
-                0,
-                0,
-            )
-        elif name == "BATTERY_STATUS":
-            cell_mv = round(v.voltage / v.config.cells * 1000)
-            cells = [cell_mv] * v.config.cells + [0xFFFF] * (10 - v.config.cells)
-            self._send(
-                "battery_status",
-                0,
-                mavlink.MAV_BATTERY_FUNCTION_ALL,
-                mavlink.MAV_BATTERY_TYPE_LIPO,
-                0x7FFF,
-                cells,
-                round(v.current_a * 100),
-                round(v.consumed_mah),
-                -1,
-                round(v.remaining * 100),
-                round(v.estimated_flight_time()),
-            )
-        elif name == "GLOBAL_POSITION_INT":
-            self._send(
-                "global_position_int",
-                boot_ms,
-                round(lat * 1e7),
-                round(lon * 1e7),
-                round(alt_msl * 1000),
-                round(-v.ned[2] * 1000),
-                round(v.velocity[0] * 100),
-                round(v.velocity[1] * 100),
-                round(v.velocity[2] * 100),
-                round(v.yaw * 100) % 36000,
-            )
-        elif name == "LOCAL_POSITION_NED":
-            self._send("local_position_ned", boot_ms, *v.ned, *v.velocity)
-        elif name == "ATTITUDE":
-            self._send(
-                "attitude",
-                boot_ms,
-                math.radians(roll),
-                math.radians(pitch),
-                math.radians(((yaw + 180) % 360) - 180),
-                0.0,
-                0.0,
-                0.0,
-            )
-        elif name == "HIGHRES_IMU":
-            pressure = 1013.25 * (1 - 2.25577e-5 * alt_msl) ** 5.25588
-            self._send(
-                "highres_imu",
-                int(v.time * 1e6),
-                0.0,
-                0.0,
-                -9.81,
-                0.0,
-                0.0,
-                0.0,
-                0.21,
-                0.0,
-                0.42,
-                pressure,
-                0.0,
-                alt_msl,
-                35.0,
-                0x1FFF,
-            )
-        elif name == "GPS_RAW_INT":
-            self._send(
-                "gps_raw_int",
-                int(v.time * 1e6),
-                3,
-                round(lat * 1e7),
-                round(lon * 1e7),
-                round(alt_msl * 1000),
-                90,
-                110,
-                round(math.hypot(*v.velocity[:2]) * 100),
-                round(v.yaw * 100) % 36000,
-                v.config.satellites,
-            )
-        elif name == "HOME_POSITION":
-            h = v.home
-            self._send(
-                "home_position",
-                round(h[0] * 1e7),
-                round(h[1] * 1e7),
-                round(h[2] * 1000),
-                0.0,
-                0.0,
-                0.0,
-                [1.0, 0.0, 0.0, 0.0],
-                0.0,
-                0.0,
-                0.0,
-            )
-        elif name == "MISSION_CURRENT":
-            self._send("mission_current", self.current, len(self.mission))
+        self._send(
+            "attitude",
+            boot_ms,
+            math.radians(roll),
+            math.radians(pitch),
+            math.radians(((yaw + 180) % 360) - 180),
+            0.0,
+            0.0,
+            0.0,
+        )
+
+    def _emit_highres_imu(self) -> None:
+        v = self.vehicle
+        alt_msl = v.lla()[2]
+        pressure = 1013.25 * (1 - 2.25577e-5 * alt_msl) ** 5.25588
+        self._send(
+            "highres_imu",
+            int(v.time * 1e6),
+            0.0,
+            0.0,
+            -9.81,
+            0.0,
+            0.0,
+            0.0,
+            0.21,
+            0.0,
+            0.42,
+            pressure,
+            0.0,
+            alt_msl,
+            35.0,
+            0x1FFF,
+        )
+
+    def _emit_gps_raw_int(self) -> None:
+        v = self.vehicle
+        lat, lon, alt_msl = v.lla()
+        self._send(
+            "gps_raw_int",
+            int(v.time * 1e6),
+            3,
+            round(lat * 1e7),
+            round(lon * 1e7),
+            round(alt_msl * 1000),
+            90,
+            110,
+            round(math.hypot(*v.velocity[:2]) * 100),
+            round(v.yaw * 100) % 36000,
+            v.config.satellites,
+        )
+
+    def _emit_home_position(self) -> None:
+        v = self.vehicle
+        h = v.home
+        self._send(
+            "home_position",
+            round(h[0] * 1e7),
+            round(h[1] * 1e7),
+            round(h[2] * 1000),
+            0.0,
+            0.0,
+            0.0,
+            [1.0, 0.0, 0.0, 0.0],
+            0.0,
+            0.0,
+            0.0,
+        )
+
+    def _emit_mission_current(self) -> None:
+        self._send("mission_current", self.current, len(self.mission))
 
 
 def _text(value: Any) -> str:

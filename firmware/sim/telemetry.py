@@ -376,8 +376,13 @@ class BoardSession:
 
     def _refresh(self, name: str) -> None:
         """Bring an object's values up to date from the vehicle model."""
-        v = self.vehicle
         values = self.values[(name, 0)]
+        self._refresh_navigation(name, values)
+        self._refresh_system(name, values)
+
+    def _refresh_navigation(self, name: str, values: dict) -> None:
+        """Where the vehicle is, how it is turned and moving, and where it is going."""
+        v = self.vehicle
         if name == "AttitudeActual":
             roll, pitch, yaw = v.attitude()
             q = euler_to_quaternion(roll, pitch, yaw)
@@ -402,7 +407,18 @@ class BoardSession:
                 Status="Fix3D",
                 Satellites=v.config.satellites,
             )
-        elif name == "FlightStatus":
+        elif name == "PathDesired":
+            values.update(
+                End=list(v.target.end),
+                Mode=v.target.mode
+                if v.target.mode in self.registry["PathDesired"].field("Mode").options
+                else "HoldPosition",
+            )
+
+    def _refresh_system(self, name: str, values: dict) -> None:
+        """Flight status, battery, sensors and board statistics."""
+        v = self.vehicle
+        if name == "FlightStatus":
             values.update(Armed=v.status(), FlightMode=v.flight_mode, ControlSource="Transmitter")
         elif name == "FlightBatteryState":
             values.update(
@@ -436,10 +452,3 @@ class BoardSession:
             )
         elif name == "FlightTelemetryStats":
             values.update(Status=self.link_status)
-        elif name == "PathDesired":
-            values.update(
-                End=list(v.target.end),
-                Mode=v.target.mode
-                if v.target.mode in self.registry["PathDesired"].field("Mode").options
-                else "HoldPosition",
-            )

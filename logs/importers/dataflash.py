@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import mmap
 from array import array
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -222,30 +223,13 @@ class DataFlashImporter:
             records = np.ascontiguousarray(windows[starts]).view(fmt.dtype).reshape(-1)
             decoded[t] = (starts, records)
             progress(0.6 + 0.3 * (number + 1) / len(offsets))
-        # Records without a time field take the time of the last timed record before them.
-        timed_offs, timed_ns = [], []
-        for starts, records in decoded.values():
-            ns = _times_ns(records)
-            if ns is not None:
-                timed_offs.append(starts)
-                timed_ns.append(ns)
-        if timed_offs:
-            all_offs = np.concatenate(timed_offs)
-            order = np.argsort(all_offs, kind="stable")
-            all_offs, all_ns = all_offs[order], np.concatenate(timed_ns)[order]
-        else:
-            all_offs = all_ns = np.zeros(0, dtype=np.int64)
+        inherited = _inherited_times(decoded)
         units, instances = _units_and_instances(formats, decoded)
         for t, (starts, records) in decoded.items():
             fmt = formats[t]
             times = _times_ns(records)
             if times is None:
-                if len(all_ns) == 0:
-                    times = np.zeros(len(starts), dtype=np.int64)
-                else:
-                    times = all_ns[
-                        np.maximum(np.searchsorted(all_offs, starts, side="right") - 1, 0)
-                    ]
+                times = inherited(starts)
             column_units = units.get(fmt.name, {})
             instance = instances.get(fmt.name)
             values_seen = np.unique(records[instance]) if instance else []
@@ -354,3 +338,22 @@ def _times_ns(records: np.ndarray) -> np.ndarray | None:
     if "TimeMS" in names:
         return records["TimeMS"].astype(np.int64) * 1_000_000
     return None
+
+
+def _inherited_times(
+    decoded: dict[int, tuple[np.ndarray, np.ndarray]],
+) -> Callable[[np.ndarray], np.ndarray]:
+    """Records without a time field take the time of the last timed record before them
+    (by file offset); with no timed record at all, zero."""
+    timed_offs, timed_ns = [], []
+    for starts, records in decoded.values():
+        ns = _times_ns(records)
+        if ns is not None:
+            timed_offs.append(starts)
+            timed_ns.append(ns)
+    if not timed_offs or not sum(len(offs) for offs in timed_offs):
+        return lambda starts: np.zeros(len(starts), dtype=np.int64)
+    all_offs = np.concatenate(timed_offs)
+    order = np.argsort(all_offs, kind="stable")
+    all_offs, all_ns = all_offs[order], np.concatenate(timed_ns)[order]
+    return lambda starts: all_ns[np.maximum(np.searchsorted(all_offs, starts, side="right") - 1, 0)]

@@ -317,29 +317,45 @@ class DfiImporter:
             ) from exc
         # On-board stamps are the more precise: they become the layer's clock.
         main = next((c for c in direct_times if c.attrs["source"] == "board"), direct_times[0])
-        source = main.attrs["source"]
         for i, col in enumerate(columns):
             if col.tag == "time":
                 parsed[i] = parsed[i] * TIME_UNITS_NS[col.attrs["unit"]]
-        times = parsed[columns.index(main)]
-        used: set[str] = set()
-        for col, arr in zip(columns, parsed, strict=True):
-            if col is main:
-                continue
-            path = join(layer, *col.path)
-            base, n = path, 2
-            while path in used:
-                path, n = f"{base}_{n}", n + 1
-            used.add(path)
-            kind = {
-                "intQuantity": "int",
-                "doubleQuantity": "double",
-                "intEnumeration": "enum",
-                "time": "time",
-            }[col.tag]
-            unit = "ns" if col.tag == "time" else col.attrs.get("unit", "")
-            log.add(
-                Series(
-                    path, arr, times, unit=unit, time_source=source, kind=kind, labels=col.labels
-                )  # type: ignore[arg-type]
-            )
+        _add_series(log, layer, columns, parsed, main)
+
+
+_KINDS = {
+    "intQuantity": "int",
+    "doubleQuantity": "double",
+    "intEnumeration": "enum",
+    "time": "time",
+}
+
+
+def _add_series(
+    log: LogData, layer: str, columns: list[Column], parsed: list, main: Column
+) -> None:
+    """Every column but the clock as a series on the clock's times; a repeated path gets a
+    numbered suffix so no column hides another."""
+    times = parsed[columns.index(main)]
+    source = main.attrs["source"]
+    used: set[str] = set()
+    for col, arr in zip(columns, parsed, strict=True):
+        if col is main:
+            continue
+        path = join(layer, *col.path)
+        base, n = path, 2
+        while path in used:
+            path, n = f"{base}_{n}", n + 1
+        used.add(path)
+        unit = "ns" if col.tag == "time" else col.attrs.get("unit", "")
+        log.add(
+            Series(
+                path,
+                arr,
+                times,
+                unit=unit,
+                time_source=source,
+                kind=_KINDS[col.tag],
+                labels=col.labels,
+            )  # type: ignore[arg-type]
+        )

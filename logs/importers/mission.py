@@ -40,18 +40,7 @@ class MissionLogImporter:
         return text.startswith(b"{") and b'"events"' in head
 
     def read(self, path: Path, *, limits: Limits, progress: Progress) -> LogData:
-        if path.stat().st_size > limits.max_json_bytes:
-            raise LogFormatError(
-                f"The mission log is over the limit of {limits.max_json_bytes} bytes."
-            )
-        try:
-            doc = json.loads(path.read_bytes())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise LogFormatError(
-                f"The mission log is not valid JSON (truncated?): {describe(exc)}."
-            ) from exc
-        if not isinstance(doc, dict) or not isinstance(doc.get("events"), list):
-            raise LogFormatError('The mission log has no "events" list.')
+        doc = _load(path, limits)
         progress(0.5)
         names = {}
         for drone in doc.get("drones") or []:
@@ -59,7 +48,6 @@ class MissionLogImporter:
                 names[str(drone["id"])] = str(
                     drone.get("name") or drone.get("serial") or drone["id"]
                 )
-        cols = ColumnCollector()
         events = [e for e in doc["events"] if isinstance(e, dict)]
         dropped = len(doc["events"]) - len(events)
         statuses = sorted({str(e["status"]) for e in events if e.get("status") is not None})
@@ -72,26 +60,10 @@ class MissionLogImporter:
                 continue
             rows.append((t, event))
         rows.sort(key=lambda r: r[0])
+        cols = ColumnCollector()
         for t, event in rows:
             drone = str(event["drone_id"])
-            layer = f"drone {names.get(drone, drone)}"
-            fields: dict[str, object] = {}
-            position = event.get("position")
-            if isinstance(position, dict):
-                for key in ("lat", "lon", "alt"):
-                    number = _number(position.get(key))
-                    if number is not None:
-                        fields[key] = number
-            if isinstance(event.get("index"), int):
-                fields["step index"] = event["index"]
-            if event.get("status") is not None:
-                fields["status"] = statuses.index(str(event["status"]))
-            if event.get("type") is not None:
-                fields["event"] = types.index(str(event["type"]))
-            number = _number(event.get("duration_s"))
-            if number is not None:
-                fields["duration"] = number
-            cols.add(layer, t, fields)
+            cols.add(f"drone {names.get(drone, drone)}", t, _fields(event, statuses, types))
         for layer in cols.layers:
             cols.units.update(
                 {
@@ -109,3 +81,39 @@ class MissionLogImporter:
             log.warnings.append(f"Skipped {dropped} events without a drone or a readable time.")
         cols.build(log, "recorder")
         return log
+
+
+def _load(path: Path, limits: Limits) -> dict:
+    """The log's JSON document, refused when too large, unreadable or without events."""
+    if path.stat().st_size > limits.max_json_bytes:
+        raise LogFormatError(f"The mission log is over the limit of {limits.max_json_bytes} bytes.")
+    try:
+        doc = json.loads(path.read_bytes())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise LogFormatError(
+            f"The mission log is not valid JSON (truncated?): {describe(exc)}."
+        ) from exc
+    if not isinstance(doc, dict) or not isinstance(doc.get("events"), list):
+        raise LogFormatError('The mission log has no "events" list.')
+    return doc
+
+
+def _fields(event: dict, statuses: list[str], types: list[str]) -> dict[str, object]:
+    """An event's numeric columns; status and type become indexes into their label lists."""
+    fields: dict[str, object] = {}
+    position = event.get("position")
+    if isinstance(position, dict):
+        for key in ("lat", "lon", "alt"):
+            number = _number(position.get(key))
+            if number is not None:
+                fields[key] = number
+    if isinstance(event.get("index"), int):
+        fields["step index"] = event["index"]
+    if event.get("status") is not None:
+        fields["status"] = statuses.index(str(event["status"]))
+    if event.get("type") is not None:
+        fields["event"] = types.index(str(event["type"]))
+    number = _number(event.get("duration_s"))
+    if number is not None:
+        fields["duration"] = number
+    return fields

@@ -541,113 +541,9 @@ class MavlinkFlightController(LinkDriver):
         self._holder.update(**changes)
 
     def _platform_objects(self, kind: str, m: Any) -> list[tuple[str, dict]]:
-        if kind == "HEARTBEAT":
-            armed = bool(m.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-            return [
-                (
-                    "FlightStatus",
-                    {
-                        "Armed": "Armed" if armed else "Disarmed",
-                        "FlightMode": mavutil.mode_string_v10(m),
-                    },
-                )
-            ]
-        if kind == "ATTITUDE":
-            roll, pitch, yaw = (math.degrees(v) for v in (m.roll, m.pitch, m.yaw))
-            w, x, y, z = euler_to_quaternion(roll, pitch, yaw)
-            return [
-                (
-                    "AttitudeActual",
-                    {"Roll": roll, "Pitch": pitch, "Yaw": yaw, "q1": w, "q2": x, "q3": y, "q4": z},
-                )
-            ]
-        if kind == "LOCAL_POSITION_NED":
-            return [
-                ("PositionActual", {"North": m.x, "East": m.y, "Down": m.z}),
-                ("VelocityActual", {"North": m.vx, "East": m.vy, "Down": m.vz}),
-            ]
-        if kind == "GLOBAL_POSITION_INT":
-            return [
-                (
-                    "GPSPosition",
-                    {
-                        "Latitude": m.lat,
-                        "Longitude": m.lon,
-                        "Altitude": m.alt / 1000.0,
-                        "Heading": m.hdg / 100.0 if m.hdg != 0xFFFF else None,
-                        "Groundspeed": math.hypot(m.vx, m.vy) / 100.0,
-                    },
-                )
-            ]
-        if kind == "GPS_RAW_INT":
-            status = {0: "NoGPS", 1: "NoFix", 2: "Fix2D"}.get(m.fix_type, "Fix3D")
-            return [
-                (
-                    "GPSPosition",
-                    {
-                        "Status": status,
-                        "Satellites": m.satellites_visible,
-                        "HDOP": m.eph / 100.0 if m.eph != 0xFFFF else None,
-                        "VDOP": m.epv / 100.0 if m.epv != 0xFFFF else None,
-                    },
-                )
-            ]
-        if kind == "SYS_STATUS":
-            battery: dict[str, Any] = {}
-            if m.voltage_battery not in (0, 0xFFFF):
-                battery["Voltage"] = m.voltage_battery / 1000.0
-            if m.current_battery >= 0:
-                battery["Current"] = m.current_battery / 100.0
-            if m.battery_remaining >= 0:
-                battery["Remaining"] = m.battery_remaining / 100.0
-            return [
-                ("FlightBatteryState", battery),
-                ("SystemStats", {"CPULoad": m.load / 10.0, "RxErrors": m.errors_comm}),
-            ]
-        if kind == "BATTERY_STATUS":
-            cells = [v for v in m.voltages if v not in (0xFFFF, 0)]
-            values: dict[str, Any] = {"ConsumedEnergy": float(m.current_consumed)}
-            if cells:
-                values["Voltage"] = sum(cells) / 1000.0
-                values["DetectedCellCount"] = len(cells)
-            if m.current_battery >= 0:
-                values["Current"] = m.current_battery / 100.0
-            return [("FlightBatteryState", values)]
-        if kind == "HIGHRES_IMU":
-            return [
-                ("Accels", {"x": m.xacc, "y": m.yacc, "z": m.zacc, "temperature": m.temperature}),
-                (
-                    "Gyros",
-                    {
-                        "x": math.degrees(m.xgyro),
-                        "y": math.degrees(m.ygyro),
-                        "z": math.degrees(m.zgyro),
-                        "temperature": m.temperature,
-                    },
-                ),
-                ("Magnetometer", {"x": m.xmag * 1000, "y": m.ymag * 1000, "z": m.zmag * 1000}),
-                (
-                    "BaroAltitude",
-                    {
-                        "Altitude": m.pressure_alt,
-                        "Pressure": m.abs_pressure / 10.0,
-                        "Temperature": m.temperature,
-                    },
-                ),
-            ]
-        if kind == "HOME_POSITION":
-            return [
-                (
-                    "HomeLocation",
-                    {
-                        "Latitude": m.latitude,
-                        "Longitude": m.longitude,
-                        "Altitude": m.altitude / 1000.0,
-                        "Set": "TRUE",
-                    },
-                )
-            ]
-        return []
+        """The platform objects (UAVObject names and fields) a MAVLink message updates."""
+        convert = _PLATFORM_OBJECTS.get(kind)
+        return convert(m) if convert is not None else []
 
     # --- commands ---------------------------------------------------------------------
     def _require_connected(self) -> None:
@@ -998,3 +894,141 @@ def _param_id(msg: Any) -> str:
     if isinstance(value, bytes | bytearray):
         value = bytes(value).decode(errors="replace")
     return str(value).rstrip("\0")
+
+
+def _flight_status(m: Any) -> list[tuple[str, dict]]:
+    armed = bool(m.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+    return [
+        (
+            "FlightStatus",
+            {
+                "Armed": "Armed" if armed else "Disarmed",
+                "FlightMode": mavutil.mode_string_v10(m),
+            },
+        )
+    ]
+
+
+def _attitude(m: Any) -> list[tuple[str, dict]]:
+    roll, pitch, yaw = (math.degrees(v) for v in (m.roll, m.pitch, m.yaw))
+    w, x, y, z = euler_to_quaternion(roll, pitch, yaw)
+    return [
+        (
+            "AttitudeActual",
+            {"Roll": roll, "Pitch": pitch, "Yaw": yaw, "q1": w, "q2": x, "q3": y, "q4": z},
+        )
+    ]
+
+
+def _local_position(m: Any) -> list[tuple[str, dict]]:
+    return [
+        ("PositionActual", {"North": m.x, "East": m.y, "Down": m.z}),
+        ("VelocityActual", {"North": m.vx, "East": m.vy, "Down": m.vz}),
+    ]
+
+
+def _global_position(m: Any) -> list[tuple[str, dict]]:
+    return [
+        (
+            "GPSPosition",
+            {
+                "Latitude": m.lat,
+                "Longitude": m.lon,
+                "Altitude": m.alt / 1000.0,
+                "Heading": m.hdg / 100.0 if m.hdg != 0xFFFF else None,
+                "Groundspeed": math.hypot(m.vx, m.vy) / 100.0,
+            },
+        )
+    ]
+
+
+def _gps_fix(m: Any) -> list[tuple[str, dict]]:
+    status = {0: "NoGPS", 1: "NoFix", 2: "Fix2D"}.get(m.fix_type, "Fix3D")
+    return [
+        (
+            "GPSPosition",
+            {
+                "Status": status,
+                "Satellites": m.satellites_visible,
+                "HDOP": m.eph / 100.0 if m.eph != 0xFFFF else None,
+                "VDOP": m.epv / 100.0 if m.epv != 0xFFFF else None,
+            },
+        )
+    ]
+
+
+def _system_status(m: Any) -> list[tuple[str, dict]]:
+    battery: dict[str, Any] = {}
+    if m.voltage_battery not in (0, 0xFFFF):
+        battery["Voltage"] = m.voltage_battery / 1000.0
+    if m.current_battery >= 0:
+        battery["Current"] = m.current_battery / 100.0
+    if m.battery_remaining >= 0:
+        battery["Remaining"] = m.battery_remaining / 100.0
+    return [
+        ("FlightBatteryState", battery),
+        ("SystemStats", {"CPULoad": m.load / 10.0, "RxErrors": m.errors_comm}),
+    ]
+
+
+def _battery_status(m: Any) -> list[tuple[str, dict]]:
+    cells = [v for v in m.voltages if v not in (0xFFFF, 0)]
+    values: dict[str, Any] = {"ConsumedEnergy": float(m.current_consumed)}
+    if cells:
+        values["Voltage"] = sum(cells) / 1000.0
+        values["DetectedCellCount"] = len(cells)
+    if m.current_battery >= 0:
+        values["Current"] = m.current_battery / 100.0
+    return [("FlightBatteryState", values)]
+
+
+def _sensors(m: Any) -> list[tuple[str, dict]]:
+    return [
+        ("Accels", {"x": m.xacc, "y": m.yacc, "z": m.zacc, "temperature": m.temperature}),
+        (
+            "Gyros",
+            {
+                "x": math.degrees(m.xgyro),
+                "y": math.degrees(m.ygyro),
+                "z": math.degrees(m.zgyro),
+                "temperature": m.temperature,
+            },
+        ),
+        ("Magnetometer", {"x": m.xmag * 1000, "y": m.ymag * 1000, "z": m.zmag * 1000}),
+        (
+            "BaroAltitude",
+            {
+                "Altitude": m.pressure_alt,
+                "Pressure": m.abs_pressure / 10.0,
+                "Temperature": m.temperature,
+            },
+        ),
+    ]
+
+
+def _home_location(m: Any) -> list[tuple[str, dict]]:
+    return [
+        (
+            "HomeLocation",
+            {
+                "Latitude": m.latitude,
+                "Longitude": m.longitude,
+                "Altitude": m.altitude / 1000.0,
+                "Set": "TRUE",
+            },
+        )
+    ]
+
+
+# MAVLink message -> the platform objects it updates.
+_PLATFORM_OBJECTS: dict[str, Callable[[Any], list[tuple[str, dict]]]] = {
+    "HEARTBEAT": _flight_status,
+    "ATTITUDE": _attitude,
+    "LOCAL_POSITION_NED": _local_position,
+    "GLOBAL_POSITION_INT": _global_position,
+    "GPS_RAW_INT": _gps_fix,
+    "SYS_STATUS": _system_status,
+    "BATTERY_STATUS": _battery_status,
+    "HIGHRES_IMU": _sensors,
+    "HOME_POSITION": _home_location,
+}

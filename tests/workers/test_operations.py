@@ -1,9 +1,10 @@
 """The operations figures: process instances alive and gone, the broker's own figures from
-a real Mosquitto and a real RabbitMQ cluster, sources that cannot be read, who may look,
-and the page in a browser."""
+a real Mosquitto and a real RabbitMQ cluster as the gateways write them, sources that
+cannot be read, who may look, and the page in a browser."""
 
 from __future__ import annotations
 
+import contextlib
 import subprocess
 import time
 import urllib.parse
@@ -14,13 +15,14 @@ import pytest
 from django.test import Client, override_settings
 from rest_framework.test import APIClient
 
-from fleet.credentials import render_acl
 from onboard import processes
 from onboard.processes import free_port, stop_process
 from tests.conftest import login
 from tests.support.celery_worker import start_worker, worker_env
-from workers import operations
+from workers import operations, outbox
+from workers.broker import figures as broker_figures
 from workers.broker import mosquitto_sys
+from workers.broker.credentials import render_acl
 from workers.counters import Counters, instances, start_heartbeat
 from workers.gateway import Gateway
 from workers.mosquitto import start_broker
@@ -53,6 +55,25 @@ def sys_broker(tmp_path):
     broker = start_broker(tmp_path / "sys", {"ground": "g", "ACME_1": "a"}, acl=acl)
     yield broker
     broker.stop()
+
+
+@contextlib.contextmanager
+def gateway_on(url: str):  # type: ignore[no-untyped-def]
+    """A running gateway on Mosquitto at `url`: what writes the broker's figures."""
+    gateway = Gateway(
+        url,
+        counters=Counters("gateway", instance=f"ops-gw-{uuid.uuid4().hex[:8]}", flush_every=1e9),
+    )
+    gateway.start()
+    try:
+        yield gateway
+    finally:
+        gateway.stop()
+
+
+def broker_now(url: str) -> dict:
+    with override_settings(MQTT_URL=url, MQTT_BROKER="mosquitto"):
+        return operations.broker_figures_now()
 
 
 # -- instances --------------------------------------------------------------------------------
@@ -205,9 +226,11 @@ def test_mosquitto_figures_come_from_its_sys_topics(world, sys_broker):
     drone.username_pw_set("ACME_1", "a")
     drone.connect("127.0.0.1", sys_broker.port)
     drone.loop_start()
+    url = sys_broker.url_for("ground")
     try:
-        with override_settings(MQTT_URL=sys_broker.url_for("ground"), MQTT_BROKER="mosquitto"):
+        with gateway_on(url), override_settings(MQTT_URL=url, MQTT_BROKER="mosquitto"):
             # $SYS is refreshed every 10 s; the first figures may predate the drone.
+            wait_for(lambda: broker_now(url).get("available"), timeout=5)
             figures = api_as(world.owner).get("/api/v1/operations/").json()
         broker = figures["broker"]
         assert broker["available"] and broker["kind"] == "mosquitto"
@@ -269,18 +292,14 @@ def test_a_gateway_keeps_watching_mosquittos_client_count(db, fast_sys_broker, s
     assert not outbox.sync_redis().exists(gateway.sys_view.key), "a stopped gateway's view goes"
 
 
-def test_figures_expired_from_sys_are_filled_in_from_the_gateways_and_fresh_ones_win():
-    read = {"version": "mosquitto version 2.0.11", "uptime": "88 seconds", "store_messages": "4"}
-    held = {"clients_connected": 12, "subscriptions": 30, "store_messages": 9}
-    figures, from_gateways = mosquitto_sys.fill_in(read, held)
-    assert figures == {
+def test_the_most_recently_written_gateway_view_wins():
+    older = {"at": "100.0", "clients_connected": "12", "version": "mosquitto version 2.0.11"}
+    newer = {"at": "200.0", "clients_connected": "13", "_link": "up", "subscriptions": "30"}
+    assert mosquitto_sys.merged([older, newer]) == {
+        "clients_connected": 13,
         "version": "mosquitto version 2.0.11",
-        "uptime": "88 seconds",
-        "store_messages": 4,
-        "clients_connected": 12,
         "subscriptions": 30,
     }
-    assert from_gateways == ["clients_connected", "subscriptions"]
 
 
 def test_the_page_shows_the_gateways_client_count(world_tx, fast_sys_broker, settings):
@@ -303,7 +322,6 @@ def test_the_page_shows_the_gateways_client_count(world_tx, fast_sys_broker, set
             timeout=5,
         )
         assert broker["available"] and broker["clients_connected"] >= 1
-        assert isinstance(broker["from_gateways"], list)
     finally:
         gateway.stop()
 
@@ -313,8 +331,11 @@ def test_a_broker_that_hides_sys_is_shown_unreadable_not_zero(tmp_path):
     broker = start_broker(
         tmp_path / "nosys", {"ground": "g"}, acl="user ground\ntopic readwrite #\n"
     )
+    url = broker.url_for("ground")
     try:
-        figures = operations.mosquitto_figures(broker.url_for("ground"))
+        with gateway_on(url) as gateway:
+            assert gateway.wait_connected(10)
+            figures = wait_for(lambda: (b := broker_now(url)) and b.get("nodes_up") and b, 5)
     finally:
         broker.stop()
     assert figures["available"] is False and "$SYS" in figures["error"]
@@ -322,10 +343,12 @@ def test_a_broker_that_hides_sys_is_shown_unreadable_not_zero(tmp_path):
 
 
 def test_a_stopped_mosquitto_is_a_node_down(db):
-    figures = operations.mosquitto_figures(f"mqtt://ground:g@127.0.0.1:{free_port()}")
-    assert figures["available"] is False and figures["nodes_down"] == 1
-    with override_settings(MQTT_URL=f"mqtt://ground:g@127.0.0.1:{free_port()}"):
-        watch = {w["key"]: w for w in operations.gather()["watch"]}
+    url = f"mqtt://ground:g@127.0.0.1:{free_port()}"
+    with gateway_on(url):
+        figures = wait_for(lambda: (b := broker_now(url)) and "nodes_down" in b and b, 5)
+        assert figures["available"] is False and figures["nodes_down"] == 1
+        with override_settings(MQTT_URL=url, MQTT_BROKER="mosquitto"):
+            watch = {w["key"]: w for w in operations.gather()["watch"]}
     assert watch["broker_nodes_down"]["state"] == "bad"
     assert watch["broker_depth"]["state"] == "unknown" and watch["broker_depth"]["value"] is None
 
@@ -349,10 +372,11 @@ def test_rabbitmq_figures_show_both_nodes_and_the_depth_of_a_filled_queue(world,
                     "payload_encoding": "string",
                 },
             )
-        env = rabbit_cluster.settings_env()
-        with override_settings(
-            MQTT_BROKER="rabbitmq", RABBITMQ_API_URLS=env["RABBITMQ_API_URLS"].split(",")
-        ):
+        api_urls = rabbit_cluster.settings_env()["RABBITMQ_API_URLS"].split(",")
+        # What every gateway on RabbitMQ runs.
+        poller = broker_figures.RabbitMQPoller(outbox.sync_redis(), api_urls)
+        poller.start()
+        with override_settings(MQTT_BROKER="rabbitmq", RABBITMQ_API_URLS=api_urls):
 
             def filled() -> dict | None:
                 figures = api_as(world.owner).get("/api/v1/operations/").json()
@@ -363,6 +387,7 @@ def test_rabbitmq_figures_show_both_nodes_and_the_depth_of_a_filled_queue(world,
 
             # The management API refreshes queue figures every few seconds.
             figures = wait_for(filled, timeout=15, every=1.0)
+        poller.stop()
         broker = figures["broker"]
         assert broker["kind"] == "rabbitmq" and broker["available"]
         assert broker["nodes_up"] == 2 and broker["nodes_down"] == 0
@@ -380,7 +405,7 @@ def test_an_unreachable_rabbitmq_node_is_reported_down(rabbit_cluster):
     # and restarting a real node costs a minute here; the fault tests do that).
     missing = f"127.0.0.1:{free_port()}"
     urls = [rabbit_cluster.api_urls[0], f"http://u:p@{missing}/api"]
-    figures = operations.rabbitmq_figures(urls)
+    figures = broker_figures.rabbitmq_figures(urls)
     assert figures["available"], "node 1 still answers for the cluster"
     assert [e["address"] for e in figures["endpoints"] if not e["up"]] == [missing]
     assert figures["nodes_down"] == 1
@@ -404,7 +429,7 @@ def test_an_unreachable_rabbitmq_node_is_reported_down(rabbit_cluster):
 
 def test_a_node_that_refuses_our_credentials_is_up_but_unreadable(rabbit_cluster):
     parts = urllib.parse.urlsplit(rabbit_cluster.api_urls[0])
-    figures = operations.rabbitmq_figures(
+    figures = broker_figures.rabbitmq_figures(
         [f"http://nobody:wrong@{parts.hostname}:{parts.port}/api"]
     )
     assert figures["available"] is False and "401" in figures["error"]
@@ -413,7 +438,7 @@ def test_a_node_that_refuses_our_credentials_is_up_but_unreadable(rabbit_cluster
 
 def test_no_answering_rabbitmq_node_means_unreachable_not_zero():
     urls = [f"http://u:p@127.0.0.1:{free_port()}/api", f"http://u:p@127.0.0.1:{free_port()}/api"]
-    figures = operations.rabbitmq_figures(urls)
+    figures = broker_figures.rabbitmq_figures(urls)
     assert figures["available"] is False
     assert figures["nodes_down"] == 2 and "queues" not in figures
 

@@ -1,5 +1,10 @@
 """The ground's view of the broker: which nodes, failover, and competing consumers.
 
+The package is the one place that knows which broker runs (settings.MQTT_BROKER): here the
+nodes and the consumers; `credentials` its users and ACLs (Mosquitto's files, or RabbitMQ
+users through `rabbitmq_admin`); `figures` and `mosquitto_sys` what the operations page
+shows of it; `amqp` and `mqtt_reader` the two kinds of consumer.
+
 Two brokers are supported (settings.MQTT_BROKER). Mosquitto is one node and shares the
 drones' messages among several ground processes with MQTT shared subscriptions
 (`$share/<group>/+/<channel>/out`). RabbitMQ 3.10's MQTT plugin grants such subscriptions
@@ -35,6 +40,7 @@ __all__ = [
     "cluster_urls",
     "competing_consumer",
     "mqtt_urls",
+    "rabbitmq_api_urls",
     "routing_key",
     "same_node",
     "share_filter",
@@ -65,6 +71,11 @@ def mqtt_urls() -> list[str]:
 
 def amqp_urls() -> list[str]:
     return list(settings.AMQP_URLS)
+
+
+def rabbitmq_api_urls() -> list[str]:
+    """Every RabbitMQ node's management API (empty on Mosquitto)."""
+    return list(settings.RABBITMQ_API_URLS) if uses_amqp() else []
 
 
 def same_node(a: str, b: str) -> bool:

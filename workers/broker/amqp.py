@@ -17,6 +17,8 @@ from urllib.parse import unquote, urlsplit
 
 import amqp
 
+from onboard.retry import Backoff, keep_connected
+
 log = logging.getLogger(__name__)
 
 EXCHANGE = "amq.topic"
@@ -110,30 +112,30 @@ class AmqpConsumer:
             self.counters.incr(name)  # type: ignore[attr-defined]
 
     def _run(self) -> None:
-        backoff = 0.1
-        while not self._stop.is_set():
-            try:
-                self._session()
-                backoff = 0.1
-            except Exception as exc:  # noqa: BLE001 - a consumer outlives any broker fault
-                if self._stop.is_set():
-                    break
-                self._count("amqp.disconnects")
-                log.warning(
-                    "%s: AMQP link to %s lost (%s: %s); trying the next node in %.1f s",
-                    self.name,
-                    _safe(self.url),
-                    type(exc).__name__,
-                    exc,
-                    backoff,
-                )
-                self.index = (self.index + 1) % len(self.urls)
-            finally:
-                self.subscribed.clear()
-                self._close()
-            if self._stop.wait(backoff):
-                break
-            backoff = min(backoff * 2, 2.0)
+        keep_connected(
+            self._session,
+            stop=self._stop,
+            backoff=Backoff(0.1, 2.0),
+            errors=(Exception,),  # a consumer outlives any broker fault
+            on_lost=self._lost,
+            cleanup=self._end_session,
+        )
+
+    def _lost(self, exc: BaseException, wait: float) -> None:
+        self._count("amqp.disconnects")
+        log.warning(
+            "%s: AMQP link to %s lost (%s: %s); trying the next node in %.1f s",
+            self.name,
+            _safe(self.url),
+            type(exc).__name__,
+            exc,
+            wait,
+        )
+        self.index = (self.index + 1) % len(self.urls)
+
+    def _end_session(self) -> None:
+        self.subscribed.clear()
+        self._close()
 
     def _connect(self) -> amqp.Connection:
         parts = urlsplit(self.url)

@@ -7,6 +7,8 @@ with a 60 s message expiry: a look at `$SYS` a minute after the last change find
 (`skyhive:mosquitto-sys:<instance>`), emptied when it (re)connects, renewed while it runs
 and gone soon after it stops. A gateway that has a figure has seen its latest value: it was
 subscribed when the value last changed, or it got the retained message on connecting.
+The hash also says which node the gateway is linked to and whether the link is up (else
+why not), so the operations page can tell a node that is down without connecting itself.
 """
 
 from __future__ import annotations
@@ -31,6 +33,8 @@ MOSQUITTO_SYS = {
     "uptime": "uptime",
     "version": "version",
 }
+# The hash's own fields, besides the figures and `at` (when it was written).
+ADDRESS, LINK, ERROR = "_address", "_link", "_error"
 SYS_FILTER = "$SYS/broker/#"
 KEY_PREFIX = "skyhive:mosquitto-sys:"
 VIEW_TTL_S = 30.0  # a stopped gateway's view is dropped this soon
@@ -53,15 +57,17 @@ def parse(text: str) -> int | float | str:
 
 
 class SysView:
-    """One gateway's view. `remember` and `reset` only touch memory (they run on the MQTT
-    network thread); `flush`, called from the gateway's outbox loop, writes to Redis and
-    swallows its errors: the figures are a nicety, the gateway's work comes first."""
+    """One gateway's view. `remember`, `reset`, `link_up` and `link_down` only touch
+    memory (they run on the MQTT network thread); `flush`, called from the gateway's outbox
+    loop, writes to Redis and swallows its errors: the figures are a nicety, the gateway's
+    work comes first."""
 
     def __init__(self, client: redis.Redis, instance: str) -> None:
         self.client = client
         self.key = KEY_PREFIX + instance
         self._lock = threading.Lock()
         self._seen: dict[str, str] = {}
+        self._link: dict[str, str] = {}
         self._dirty = False
         self._clear = False
         self._renewed = 0.0
@@ -70,7 +76,22 @@ class SysView:
         """A new connection (or a stop): what was seen may have changed unseen meanwhile."""
         with self._lock:
             self._seen.clear()
+            self._link = {}
             self._dirty, self._clear = False, True
+
+    def link_up(self, address: str) -> None:
+        """Connected to the node at `address` (`host:port`); forgets what was seen."""
+        self.reset()
+        with self._lock:
+            self._link = {ADDRESS: address, LINK: "up", ERROR: ""}
+            self._dirty = True
+
+    def link_down(self, address: str, error: str) -> None:
+        """Not connected to `address`, because of `error`."""
+        self.reset()
+        with self._lock:
+            self._link = {ADDRESS: address, LINK: "down", ERROR: error}
+            self._dirty = True
 
     def remember(self, topic: str, payload: bytes) -> bool:
         name = figure_name(topic)
@@ -86,7 +107,7 @@ class SysView:
         now = time.monotonic() if now is None else now
         with self._lock:
             clear, dirty = self._clear, self._dirty
-            seen = dict(self._seen) if dirty else {}
+            seen = {**self._seen, **self._link} if dirty else {}
             self._clear = self._dirty = False
         if not (clear or dirty) and now - self._renewed < RENEW_EVERY_S:
             return
@@ -106,29 +127,30 @@ class SysView:
                 self._dirty |= dirty
 
 
-def remembered(client: redis.Redis) -> dict[str, int | float | str]:
-    """The figures the running gateways hold, the most recently updated view first."""
-    views = []
+def views(client: redis.Redis) -> list[dict[str, str]]:
+    """Every running gateway's view as it stored it, the least recently written first."""
+    found = []
     for key in client.scan_iter(KEY_PREFIX + "*", count=100):
         values = {_text(k): _text(v) for k, v in client.hgetall(key).items()}
         if values:
-            views.append(values)
-    views.sort(key=lambda v: float(v.get("at", 0)))
-    merged: dict[str, int | float | str] = {}
-    for view in views:  # later (more recent) views win
+            found.append(values)
+    found.sort(key=lambda v: float(v.get("at", 0)))
+    return found
+
+
+def merged(held: list[dict[str, str]]) -> dict[str, int | float | str]:
+    """The figures of several views (least recent first), the more recent ones winning."""
+    figures: dict[str, int | float | str] = {}
+    for view in held:
         for name, text in view.items():
-            if name != "at":
-                merged[name] = parse(text)
-    return merged
+            if name != "at" and not name.startswith("_"):
+                figures[name] = parse(text)
+    return figures
 
 
-def fill_in(read: dict[str, str], held: dict[str, int | float | str]) -> tuple[dict, list[str]]:
-    """The figures of one $SYS read, completed with the gateways' `held` ones where the
-    read has none (expired); also which names came from the gateways."""
-    figures: dict[str, int | float | str] = {name: parse(text) for name, text in read.items()}
-    from_gateways = sorted(set(held) - set(figures))
-    figures.update({name: held[name] for name in from_gateways})
-    return figures, from_gateways
+def remembered(client: redis.Redis) -> dict[str, int | float | str]:
+    """The figures the running gateways hold, the most recently seen winning."""
+    return merged(views(client))
 
 
 def _text(value: bytes | str) -> str:

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from urllib.parse import urlsplit
 
 from onboard.mqttwire import MqttError, connect_packet, packet_at, subscribe_packet
+from onboard.retry import Backoff, keep_connected
 
 log = logging.getLogger(__name__)
 
@@ -76,22 +77,22 @@ class Subscriber:
             self._thread.join(5)
 
     def _run(self) -> None:
-        backoff = 0.2
-        while not self._stop.is_set():
-            try:
-                self._session()
-                backoff = 0.2
-            except (OSError, ProtocolViolation) as exc:
-                if self._stop.is_set():
-                    break
-                log.warning("telemetry MQTT link lost (%s); reconnecting in %.1f s", exc, backoff)
-            finally:
-                self.subscribed.clear()
-                if self._sock is not None:
-                    self._sock.close()
-                    self._sock = None
-            self._stop.wait(backoff)
-            backoff = min(backoff * 2, 5.0)
+        keep_connected(
+            self._session,
+            stop=self._stop,
+            backoff=Backoff(0.2, 5.0),
+            errors=(OSError, ProtocolViolation),
+            on_lost=lambda exc, wait: log.warning(
+                "telemetry MQTT link lost (%s); reconnecting in %.1f s", exc, wait
+            ),
+            cleanup=self._close,
+        )
+
+    def _close(self) -> None:
+        self.subscribed.clear()
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
 
     def _session(self) -> None:
         sock = socket.create_connection((self.host, self.port), timeout=10)

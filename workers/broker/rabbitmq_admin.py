@@ -25,6 +25,8 @@ from urllib.parse import quote, unquote, urlsplit
 
 log = logging.getLogger(__name__)
 
+_DIRECT = urllib.request.build_opener(urllib.request.ProxyHandler({}))
+
 # RabbitMQ's default hashing (rabbit_password_hashing_sha256): base64(salt ++ sha256(salt
 # ++ password)) with a 4-byte salt. We compute it ourselves so the database can hold it
 # and a replaced cluster can be rebuilt without knowing any password.
@@ -57,12 +59,19 @@ def check_rabbit_password(password: str, hashed: str) -> bool:
 
 
 @dataclass(frozen=True)
-class _Node:
+class Node:
+    """One node's management API: where, and the credentials its URL carried."""
+
     base: str  # http://host:port/api, without credentials
     authorization: str
 
+    @property
+    def address(self) -> str:
+        """`host:port`, as the operations page names a node."""
+        return urlsplit(self.base).netloc
+
     @classmethod
-    def parse(cls, url: str) -> _Node:
+    def parse(cls, url: str) -> Node:
         parts = urlsplit(url)
         if parts.scheme not in ("http", "https") or not parts.hostname:
             raise ValueError(f"not a management API URL: {url!r}")
@@ -78,7 +87,7 @@ class RabbitMQAdmin:
     def __init__(self, api_urls: Sequence[str], *, timeout: float = 10.0) -> None:
         if not api_urls:
             raise ValueError("no RabbitMQ management API URL (settings.RABBITMQ_API_URLS)")
-        self.nodes = [_Node.parse(url) for url in api_urls]
+        self.nodes = [Node.parse(url) for url in api_urls]
         self.timeout = timeout
         self._preferred = 0
 
@@ -97,15 +106,8 @@ class RabbitMQAdmin:
         order = list(range(self._preferred, len(self.nodes))) + list(range(self._preferred))
         for index in order:
             node = self.nodes[index]
-            request = urllib.request.Request(
-                f"{node.base}/{path.lstrip('/')}",
-                method=method,
-                data=data,
-                headers={"content-type": "application/json", "authorization": node.authorization},
-            )
             try:
-                with urllib.request.urlopen(request, timeout=self.timeout) as response:
-                    raw = response.read()
+                answer = self.send(node, method, path, data)
             except urllib.error.HTTPError as exc:
                 detail = _error_detail(exc)
                 if exc.code >= 500:
@@ -118,10 +120,27 @@ class RabbitMQAdmin:
                 failures.append(f"{node.base}: {getattr(exc, 'reason', exc)}")
                 continue
             self._preferred = index
-            return json.loads(raw) if raw else None
+            return answer
         raise RabbitMQAdminError(
             f"no RabbitMQ node answered {method} {path}: {'; '.join(failures)}"
         )
+
+    def send(self, node: Node, method: str, path: str, data: bytes | None = None) -> Any:
+        """One request to one node; raises what urllib raises (HTTPError, OSError).
+        Proxies are bypassed: the management API is the cluster's own, never behind one."""
+        request = urllib.request.Request(
+            f"{node.base}/{path.lstrip('/')}",
+            method=method,
+            data=data,
+            headers={
+                "content-type": "application/json",
+                "accept": "application/json",
+                "authorization": node.authorization,
+            },
+        )
+        with _DIRECT.open(request, timeout=self.timeout) as response:
+            raw = response.read()
+        return json.loads(raw) if raw else None
 
     def delete(self, path: str) -> bool:
         """DELETE `path`; False if there was nothing to delete (the API answers 404)."""

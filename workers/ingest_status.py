@@ -1,4 +1,8 @@
-"""The ingest process's counters as the status page and API show them."""
+"""The ingest process's counters as the status page and API show them.
+
+Here with the other readers of what long-running processes write (workers.counters): the
+ingest process writes these counters, and pages of any app read them.
+"""
 
 from __future__ import annotations
 

@@ -1,0 +1,143 @@
+"""The apps import each other in one direction only.
+
+onboard (installed alone on drones, no Django) <- workers (broker, counters, outbox,
+gateway, operations figures) <- fleet <- missions; telemetry, logs and pastview import
+fleet, workers and onboard. Every import statement counts, including ones inside
+functions; a handler named by a dotted path string (workers/dispatch.py) is not an import.
+Migrations and tests are left out. No Django needed: the sources are parsed, not imported.
+
+SKYHIVE_LAYERS_ROOT=<checkout> checks another checkout than this one.
+"""
+
+from __future__ import annotations
+
+import ast
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+ROOT = Path(os.environ.get("SKYHIVE_LAYERS_ROOT") or Path(__file__).resolve().parents[1])
+
+DJANGO_APPS = ("fleet", "missions", "telemetry", "logs", "pastview", "workers")
+PLAIN_PACKAGES = ("onboard", "firmware")
+PACKAGES = DJANGO_APPS + PLAIN_PACKAGES
+DOMAIN_APPS = ("fleet", "missions", "telemetry", "logs", "pastview")
+# Our own top-level packages that onboard must not import: it runs on drones without them.
+NOT_FOR_ONBOARD = (*DOMAIN_APPS, "workers", "config", "firmware", "tests")
+
+# Imports that break the layering today and are tolerated until they are moved, each with
+# its reason. onboard's simulator hooks (launcher, simulated camera, arming frames) import
+# firmware lazily, inside functions and guarded by ImportError where optional, while
+# firmware's simulator imports onboard's protocol code.
+ALLOWED = {
+    ("onboard", "firmware"): "simulator hooks imported lazily when firmware is present",
+}
+
+Site = tuple[str, int]  # file (relative to ROOT) and line of one import statement
+
+
+def python_files(package: str) -> Iterator[Path]:
+    for path in sorted((ROOT / package).rglob("*.py")):
+        parts = path.relative_to(ROOT).parts
+        if "migrations" in parts or "tests" in parts:
+            continue
+        yield path
+
+
+def imported_modules(path: Path) -> Iterator[tuple[str, int]]:
+    """(absolute module name, line) of every import statement in the file."""
+    # The package a relative import starts from: a/b/c.py and a/b/__init__.py are in a.b.
+    package = list(path.relative_to(ROOT).with_suffix("").parts)[:-1]
+    tree = ast.parse(path.read_text(), filename=str(path))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield alias.name, node.lineno
+        elif isinstance(node, ast.ImportFrom):
+            if node.level == 0:
+                yield node.module or "", node.lineno
+                continue
+            base = package[: len(package) - (node.level - 1)]
+            yield ".".join([*base, *(node.module or "").split(".")]).strip("."), node.lineno
+
+
+def import_graph() -> dict[str, dict[str, list[Site]]]:
+    """package -> the other packages of PACKAGES it imports -> where."""
+    graph: dict[str, dict[str, list[Site]]] = {package: {} for package in PACKAGES}
+    for package in PACKAGES:
+        for path in python_files(package):
+            for module, line in imported_modules(path):
+                top = module.split(".", 1)[0]
+                if top in PACKAGES and top != package:
+                    site = (str(path.relative_to(ROOT)), line)
+                    graph[package].setdefault(top, []).append(site)
+    return graph
+
+
+def find_cycle(edges: dict[str, set[str]]) -> list[str] | None:
+    """One cycle as [a, b, ..., a], or None when the graph is acyclic."""
+    done: set[str] = set()
+    path: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        if node in path:
+            return [*path[path.index(node) :], node]
+        if node in done:
+            return None
+        path.append(node)
+        for target in sorted(edges.get(node, ())):
+            cycle = visit(target)
+            if cycle:
+                return cycle
+        path.pop()
+        done.add(node)
+        return None
+
+    for start in sorted(edges):
+        cycle = visit(start)
+        if cycle:
+            return cycle
+    return None
+
+
+def _shown(graph: dict[str, dict[str, list[Site]]], a: str, b: str) -> str:
+    sites = ", ".join(f"{file}:{line}" for file, line in graph[a][b][:3])
+    more = len(graph[a][b]) - 3
+    return f"  {a} -> {b}: {sites}" + (f" (+{more} more)" if more > 0 else "")
+
+
+def test_the_apps_import_each_other_without_a_cycle() -> None:
+    graph = import_graph()
+    edges = {
+        package: {target for target in targets if (package, target) not in ALLOWED}
+        for package, targets in graph.items()
+    }
+    cycle = find_cycle(edges)
+    if cycle:
+        steps = "\n".join(_shown(graph, a, b) for a, b in zip(cycle, cycle[1:], strict=False))
+        raise AssertionError(f"import cycle {' -> '.join(cycle)}:\n{steps}")
+
+
+def test_workers_imports_no_domain_app() -> None:
+    graph = import_graph()
+    upward = [target for target in DOMAIN_APPS if target in graph["workers"]]
+    assert not upward, "workers imports a domain app:\n" + "\n".join(
+        _shown(graph, "workers", target) for target in upward
+    )
+
+
+def test_onboard_imports_only_itself_the_standard_library_and_third_party() -> None:
+    found = []
+    for path in python_files("onboard"):
+        for module, line in imported_modules(path):
+            top = module.split(".", 1)[0]
+            if top in NOT_FOR_ONBOARD and ("onboard", top) not in ALLOWED:
+                found.append(f"  {path.relative_to(ROOT)}:{line} imports {module}")
+    assert not found, "onboard imports ground or repository code:\n" + "\n".join(found)
+
+
+def test_every_allowed_exception_is_still_needed() -> None:
+    """Once an allowed import is gone, its exception goes too, so it cannot come back."""
+    graph = import_graph()
+    stale = [f"{a} -> {b}" for a, b in ALLOWED if b not in graph[a]]
+    assert not stale, f"no longer imported, remove from ALLOWED: {', '.join(stale)}"
