@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
-from onboard.processes import Supervised, free_port, python_env
+from onboard.processes import Supervised, free_port, python_env, wait_for
 from workers.ground import gateway_argv, web_argv
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -461,14 +461,16 @@ def _wait_online(responders: list[Responder], timeout: float = 30) -> None:
     from fleet.models import Drone
 
     names = [r.name for r in responders]
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
+
+    def online() -> bool:
         if Drone.objects.filter(drone_id__in=names, online=True).count() == len(names):
-            return
+            return True
         for responder in responders:
             responder.heartbeat()
-        time.sleep(0.5)
-    raise RuntimeError("drones did not come online (is the gateway running?)")
+        return False
+
+    if not wait_for(online, timeout, interval=0.5):
+        raise RuntimeError("drones did not come online (is the gateway running?)")
 
 
 def _gateway_heartbeat_rate(port: int, password: str, names: list[str]) -> float:
