@@ -57,7 +57,7 @@ class Command(BaseCommand):
         argv = [
             sys.executable,
             "-m",
-            "onboard.launcher",
+            "firmware.sim.fleet",
             "--count",
             str(count),
             "--home",
