@@ -18,6 +18,7 @@ import pytest
 
 from firmware.sim import start_simulator
 from onboard import protocol
+from onboard.__main__ import parse_args
 from onboard.processes import REPO_ROOT, Supervised
 from workers.mosquitto import start_broker
 
@@ -265,3 +266,57 @@ def _fly(ground: Ground) -> None:
     assert seen == {(s["index"], st) for s in MISSION for st in ("started", "completed")}
     reached = next(m for m in steps if m["index"] == 4 and m["status"] == "completed")
     assert reached["position"]["lat"] == pytest.approx(HOME[0] + 0.0003, abs=2e-5)
+
+
+# -- the configuration file ---------------------------------------------------------------
+
+
+def _config(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "agent.toml"
+    path.write_text(text)
+    return path
+
+
+def test_a_config_file_gives_the_options_and_flags_override_them(tmp_path: Path) -> None:
+    path = _config(
+        tmp_path,
+        'drone_id = "PI_1"\nlink = "serial:/dev/ttyAMA0?baud=57600"\n'
+        'broker = "mqtt://PI_1:pw@ground:1883"\ntime-scale = 2\nnative-missions = true\n'
+        'plume = ["40.6,-8.6,30,900", "40.7,-8.6,30,900"]\nbounds = ["CO2::1000"]\n',
+    )
+    args = parse_args(["--config", str(path), "--time-scale", "5", "--plume", "1,2,3,4"])
+    assert (args.drone_id, args.link) == ("PI_1", "serial:/dev/ttyAMA0?baud=57600")
+    assert args.broker == "mqtt://PI_1:pw@ground:1883" and args.native_missions is True
+    assert args.time_scale == 5.0  # the flag wins
+    assert [p.lat for p in args.plume] == [1.0]  # a repeatable flag replaces the file's list
+    assert args.bounds == [("CO2", (None, 1000.0))]
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ('link = "x"\nbroker = "mqtt://h"\nspeed = 3\n', "unknown setting 'speed'"),
+        ('link = "x"\nbroker = "mqtt://h"\nconfig = "other.toml"\n', "unknown setting 'config'"),
+        ('link = "x"\nbroker = "mqtt://h"\nnative-missions = "yes"\n', "must be true or false"),
+        ('link = ["a", "b"]\nbroker = "mqtt://h"\n', "link takes one value, not a list"),
+        ('link = "x"\nbroker = "mqtt://h"\ntime-scale = -1\n', "must be positive"),
+        ('link = "x"\nbroker = "mqtt://h"\nfc = "dji"\n', "invalid choice: 'dji'"),
+        ('link = "x"\nbroker = { host = "h" }\n', "broker must be a string or a number"),
+        ('link = "x\nbroker = "mqtt://h"\n', "agent.toml"),
+        ('broker = "mqtt://h"\n', "--link"),
+    ],
+)
+def test_a_bad_config_file_is_refused_with_the_reason(
+    tmp_path: Path, capsys: pytest.CaptureFixture, text: str, message: str
+) -> None:
+    path = _config(tmp_path, text)
+    with pytest.raises(SystemExit) as exit_info:
+        parse_args(["--config", str(path)])
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_a_missing_config_file_is_refused(tmp_path: Path, capsys) -> None:
+    with pytest.raises(SystemExit):
+        parse_args(["--config", str(tmp_path / "absent.toml")])
+    assert "absent.toml" in capsys.readouterr().err
