@@ -83,8 +83,7 @@ class GpiodLine:
             import gpiod  # type: ignore[import-not-found]
         except ImportError:
             raise ArmingError(
-                "The gpiod Python package is not installed; install it (pip install gpiod) "
-                "to drive the arming switch over GPIO."
+                "The arming switch over GPIO needs gpiod: pip install 'skyhive-onboard[gpio]'"
             ) from None
         if request_line == mode_line:
             raise ArmingError("The request and mode lines must be different GPIO lines.")

@@ -62,7 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tcp", type=int, metavar="PORT", help="serve on TCP instead of a pty (0: any)")
     p.add_argument("--tcp-host", default="127.0.0.1")
     p.add_argument("--pty-link", type=Path, help="keep a symlink to the pty at this path")
-    p.add_argument("--objects-dir", type=Path, help="UAVObject XML folder")
+    p.add_argument(
+        "--objects-dir", type=Path, help="UAVObject XML folder (default: the onboard package's)"
+    )
     p.add_argument("--link-timeout", type=float, default=8.0, help="wall-clock seconds")
     p.add_argument(
         "--fc",

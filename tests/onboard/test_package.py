@@ -181,12 +181,26 @@ def test_the_installed_agent_runs_from_the_venv_with_its_package_data(venv: Path
 
 
 @pytest.mark.slow
-def test_an_extra_that_is_not_installed_is_named_and_then_installed(venv: Path) -> None:
+@pytest.mark.parametrize(
+    ("flags", "extra"),
+    [
+        (["--fc", "mavlink"], "mavlink"),
+        (["--video-rate", "2"], "camera"),
+        (["--arming", "gpiod:gpiochip0:17:27"], "gpio"),
+    ],
+)
+def test_a_feature_whose_extra_is_not_installed_names_it(
+    venv: Path, flags: list[str], extra: str
+) -> None:
     agent = str(venv / "venv" / "bin" / "skyhive-agent")
-    argv = [agent, "--fc", "mavlink", "--link", "tcp://127.0.0.1:9", "--broker", "mqtt://x:1"]
+    argv = [agent, "--link", "tcp://127.0.0.1:9", "--broker", "mqtt://x:1", *flags]
     refused = _run(argv, venv)
     assert refused.returncode == 2
-    assert "pip install 'skyhive-onboard[mavlink]'" in refused.stderr, refused.stderr
+    assert f"pip install 'skyhive-onboard[{extra}]'" in refused.stderr, refused.stderr
+
+
+@pytest.mark.slow
+def test_the_mavlink_extra_installs_from_the_wheel(venv: Path) -> None:
     wheel = (venv / "wheel").read_text()
     _pip(venv / "venv" / "bin" / "python", "install", f"{wheel}[mavlink]", cwd=venv)
     check = _run([str(venv / "venv" / "bin" / "python"), "-c", "import onboard.fc.mavlink"], venv)
