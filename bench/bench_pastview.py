@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 from bench.common import best_of, record
-from firmware.sim.camera import orientation_from_euler, render_view
+from onboard.synthetic_camera import orientation_from_euler, render_view
 from pastview.buffer import FrameBuffer, Outcome
 from pastview.evaluation import Spirit, spirit_scores_loop
 from pastview.geometry import Pose

@@ -1,4 +1,7 @@
-"""`python -m onboard`: run the onboard agent for one drone until SIGTERM/SIGINT."""
+"""`skyhive-agent` (or `python -m onboard`): run the onboard agent for one drone until
+SIGTERM/SIGINT. `--config FILE` reads the options from a TOML file (keys are the long
+option names, e.g. `link = "serial:/dev/ttyAMA0?baud=57600"`); flags given on the command
+line override the file's values."""
 
 from __future__ import annotations
 
@@ -7,6 +10,8 @@ import logging
 import signal
 import sys
 import threading
+import tomllib
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +23,7 @@ from .protocol import is_drone_id
 from .sensors import SensorConfigError, SensorField, load_field, parse_plume_option
 
 log = logging.getLogger("onboard")
+MAVLINK_EXTRA = "--fc mavlink needs pymavlink: pip install 'skyhive-onboard[mavlink]'"
 
 
 def _positive(text: str) -> float:
@@ -55,10 +61,72 @@ def _plume(text: str) -> Any:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m onboard", description=__doc__)
+    p = argparse.ArgumentParser(prog="skyhive-agent", description=__doc__)
+    p.add_argument("--config", type=Path, help="TOML file of options (flags override it)")
     _add_connections(p)
     _add_behaviour(p)
     return p
+
+
+class ConfigFileError(ValueError):
+    """A configuration file that cannot be read, or a setting no option takes."""
+
+
+def config_file_args(
+    parser: argparse.ArgumentParser, path: Path, given: set[str] = frozenset()
+) -> list[str]:
+    """The TOML file's settings as command-line tokens, to be parsed before the real flags.
+
+    A repeatable option (`plume`, `bounds`) that is also among the `given` flags is left
+    out: the command line's list replaces the file's.
+    """
+    try:
+        settings = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ConfigFileError(f"{path}: {exc}") from None
+    tokens: list[str] = []
+    for key, value in settings.items():
+        option = "--" + key.replace("_", "-")
+        action = parser._option_string_actions.get(option)  # noqa: SLF001 - argparse's index
+        if action is None or option in ("--config", "--help"):
+            raise ConfigFileError(f"{path}: unknown setting {key!r}")
+        repeatable = isinstance(action, argparse._AppendAction)  # noqa: SLF001
+        setting = _setting_tokens(path, key, option, action.nargs == 0, repeatable, value)
+        if not (repeatable and option in given):
+            tokens += setting
+    return tokens
+
+
+def _setting_tokens(
+    path: Path, key: str, option: str, switch: bool, repeatable: bool, value: object
+) -> list[str]:
+    if switch:  # such as --native-missions
+        if not isinstance(value, bool):
+            raise ConfigFileError(f"{path}: {key} must be true or false")
+        return [option] if value else []
+    if isinstance(value, list) and not repeatable:
+        raise ConfigFileError(f"{path}: {key} takes one value, not a list")
+    items = value if isinstance(value, list) else [value]
+    if any(isinstance(item, (bool, dict, list)) for item in items):
+        raise ConfigFileError(f"{path}: {key} must be a string or a number")
+    return [token for item in items for token in (option, str(item))]
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """Flags, with a --config file's settings underneath them."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--config", type=Path)
+    known, _ = pre.parse_known_args(argv)
+    if known.config is None:
+        return parser.parse_args(argv)
+    given = {arg.split("=", 1)[0] for arg in argv if arg.startswith("--")}
+    try:
+        from_file = config_file_args(parser, known.config, given)
+    except ConfigFileError as exc:
+        parser.error(str(exc))
+    return parser.parse_args(from_file + argv)
 
 
 def _add_connections(p: argparse.ArgumentParser) -> None:
@@ -157,7 +225,10 @@ def build_flight_controller(kind: str, link: str, arming: Any, time_scale: float
             arming.attach(fc)
         return fc
     if kind == "mavlink":
-        from .fc.mavlink import MavlinkFlightController
+        try:
+            from .fc.mavlink import MavlinkFlightController
+        except ImportError:
+            raise ValueError(MAVLINK_EXTRA) from None
 
         if arming is not None:
             raise ValueError("--arming is for UAVTalk boards; MAVLink arms by COMMAND_LONG")
@@ -166,6 +237,11 @@ def build_flight_controller(kind: str, link: str, arming: Any, time_scale: float
 
 
 def config_from_args(args: argparse.Namespace) -> AgentConfig:
+    if args.video_rate > 0 or args.pose_rate > 0:
+        try:
+            from . import video  # noqa: F401 - the `camera` extra, checked before flight
+        except ImportError as exc:
+            raise ValueError(str(exc)) from None
     sensor_field = None
     if args.sensor_field is not None:
         sensor_field = load_field(args.sensor_field)
@@ -196,7 +272,7 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = parse_args(argv)
     logging.basicConfig(
         level=args.log_level.upper(),
         stream=sys.stderr,
@@ -208,7 +284,10 @@ def main(argv: list[str] | None = None) -> int:
         fc = build_flight_controller(args.fc, args.link, arming, args.time_scale)
         agent = Agent(config, fc)
         if args.native_missions:
-            from .mavlink_mission import install_native_missions
+            try:
+                from .mavlink_mission import install_native_missions
+            except ImportError:
+                raise ValueError(MAVLINK_EXTRA) from None
 
             install_native_missions(agent)
     except (ArmingError, SensorConfigError, ValueError, OSError) as exc:

@@ -240,7 +240,7 @@ class Agent:
                 log.exception("telemetry publish failed")
 
     def _video_streamer(self) -> Any:
-        from .video import VideoConfig, VideoStreamer  # numpy: only when streaming
+        from .video import VideoConfig, VideoStreamer  # the `camera` extra: only when streaming
 
         config = VideoConfig(
             rate_hz=self.config.video_rate,

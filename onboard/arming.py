@@ -9,7 +9,7 @@ Backends:
 - `GpiodLine(chip, request_line, mode_line)`: the Arduino arming-switch emulator's request
   and mode pins on a Linux GPIO character device (the `gpiod` package).
 - `UAVTalkReceiverSwitch(fc)`: for boards whose receiver group is UAVTalk, the arming
-  stick positions written as `UAVTalkReceiver` channel values at 10 Hz.
+  stick positions written as `UAVTalkReceiver` channel values at 25 Hz.
 """
 
 from __future__ import annotations
@@ -18,9 +18,10 @@ import logging
 import os
 import threading
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
+
+from .arming_frames import load_frames
 
 log = logging.getLogger(__name__)
 
@@ -82,8 +83,7 @@ class GpiodLine:
             import gpiod  # type: ignore[import-not-found]
         except ImportError:
             raise ArmingError(
-                "The gpiod Python package is not installed; install it (pip install gpiod) "
-                "to drive the arming switch over GPIO."
+                "The arming switch over GPIO needs gpiod: pip install 'skyhive-onboard[gpio]'"
             ) from None
         if request_line == mode_line:
             raise ArmingError("The request and mode lines must be different GPIO lines.")
@@ -133,35 +133,11 @@ class GpiodLine:
         self._set(0, 0)
 
 
-@dataclass(frozen=True)
-class StickFrames:
-    """The arm/disarm/safe stick pulses, when firmware/arming_switch is not installed.
-
-    Same values as firmware/arming_switch/frames.json: pulse HIGH
-    times in microseconds, channel order pitch, roll, throttle, yaw, switch3, switch2.
-    """
-
-    arm_frame_us: tuple[int, ...] = (1000, 1000, 500, 1500, 1000, 1000)
-    disarm_frame_us: tuple[int, ...] = (1000, 1000, 500, 500, 1000, 1000)
-    safe_frame_us: tuple[int, ...] = (1000, 1000, 500, 1000, 1000, 1000)
-    separator_us: int = 500
-    pulse_neutral_us: int = 1000
-
-    def to_channel_period_us(self, pulse_us: int) -> int:
-        return pulse_us + self.separator_us
-
-
-def default_frames() -> Any:
-    """frames.json through H1's loader when the repository is there, else StickFrames."""
-    try:
-        from firmware.arming_switch.frames import load_frames
-    except ImportError:  # the onboard package installed on its own
-        return StickFrames()
-    return load_frames()
-
-
 class UAVTalkReceiverSwitch:
-    """Sends the arming stick positions as UAVTalkReceiver channels at 10 Hz until released.
+    """Sends the arming stick positions as UAVTalkReceiver channels at 25 Hz until released.
+
+    A real board reads a receiver group that goes quiet as lost (it wants 20-50 Hz,
+    docs/uavtalk.md "Arming"); the writes are not acknowledged, as the definition says.
 
     When the board refuses (an alarm keeps it disarmed, FlightStatus drops back from
     Arming), the sticks go back to neutral for a moment and the request starts again, as a
@@ -169,10 +145,12 @@ class UAVTalkReceiverSwitch:
     """
 
     CHANNELS = 8
+    # The channels come over the telemetry link itself, not a radio: full signal strength.
+    RSSI = 65535
 
-    def __init__(self, fc: Any = None, *, rate_hz: float = 10.0, frames: Any = None) -> None:
+    def __init__(self, fc: Any = None, *, rate_hz: float = 25.0, frames: Any = None) -> None:
         if frames is None:
-            frames = default_frames()
+            frames = load_frames()
         self.fc = fc
         self.frames = frames
         self.period = 1.0 / rate_hz
@@ -228,7 +206,11 @@ class UAVTalkReceiverSwitch:
         if self.fc is None:
             return False
         try:
-            self.fc.write_object("UAVTalkReceiver", {"Channel": self.channels(frame)})
+            self.fc.write_object(
+                "UAVTalkReceiver",
+                {"Channel": self.channels(frame), "RSSI": self.RSSI},
+                acked=False,
+            )
             return True
         except Exception as exc:  # a refused write is retried on the next tick
             log.debug("UAVTalkReceiver write failed: %s", exc)

@@ -198,11 +198,9 @@ class GearManager:
         if self.camera != "sim":
             raise GearError("Only the simulated camera is supported on this drone.")
         try:
-            from firmware.sim.camera import render_nadir
-        except ImportError:
-            raise GearError(
-                "The simulated camera renderer (firmware.sim.camera) is not installed."
-            ) from None
+            from .synthetic_camera import render_nadir
+        except ImportError as exc:
+            raise GearError(str(exc)) from None
         if state.lat is None or state.lon is None or state.home is None:
             raise GearError("The drone has no GPS fix or home yet, so the picture has no place.")
         return render_nadir(

@@ -1,6 +1,6 @@
 """Waiting, free ports and supervised subprocesses, for whatever starts real processes.
 
-The simulated-fleet launcher (onboard.launcher), the replicated ground (workers.ground),
+The simulated-fleet launcher (firmware.sim.fleet), the replicated ground (workers.ground),
 the benchmarks, `make run`, `make loadtest` and the tests all start processes and wait on
 them the same way; this module is the one place that does it. It lives in the lowest
 layer (standard library only) so every other layer may import it.

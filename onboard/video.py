@@ -29,7 +29,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
+try:
+    import numpy as np
+except ImportError as exc:  # the package's optional `camera` extra
+    raise ImportError(
+        "Video and pose streaming need numpy: pip install 'skyhive-onboard[camera]'"
+    ) from exc
 
 from . import protocol
 from .fc.base import VehicleState
@@ -161,7 +166,7 @@ class PoseSource:
 
 
 def _sim_renderer(config: VideoConfig) -> Renderer:
-    from firmware.sim.camera import render_view
+    from .synthetic_camera import render_view
 
     def render(
         position: tuple[float, float, float], orientation: tuple[float, float, float, float]

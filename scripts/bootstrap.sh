@@ -52,3 +52,18 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   .venv/bin/python -m pip install -q -r requirements.lock
   echo "$want" >"$stamp"
 fi
+
+# The onboard agent's wheelhouse: tests/onboard/test_package.py installs the agent into a
+# fresh virtualenv from these files alone (--no-index), as on a drone without the repository.
+wheels=.data/wheels/onboard
+wstamp=$wheels/.sha
+wwant=$(cat requirements.lock onboard/pyproject.toml | sha256sum | cut -d' ' -f1)
+if [ "$PROFILE" = test ] && [ "$(cat "$wstamp" 2>/dev/null)" != "$wwant" ]; then
+  log "downloading the onboard agent's wheels into $wheels"
+  mkdir -p "$wheels"
+  # The build backend (onboard/pyproject.toml [build-system]) and the agent's dependencies.
+  .venv/bin/python -m pip download -q --only-binary=:all: -c requirements.lock -d "$wheels" \
+    "setuptools>=77" "./onboard[mavlink]"
+  rm -rf onboard/*.egg-info onboard/build
+  echo "$wwant" >"$wstamp"
+fi

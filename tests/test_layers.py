@@ -25,13 +25,10 @@ DOMAIN_APPS = ("fleet", "missions", "telemetry", "logs", "pastview")
 # Our own top-level packages that onboard must not import: it runs on drones without them.
 NOT_FOR_ONBOARD = (*DOMAIN_APPS, "workers", "config", "firmware", "tests")
 
-# Imports that break the layering today and are tolerated until they are moved, each with
-# its reason. onboard's simulator hooks (launcher, simulated camera, arming frames) import
-# firmware lazily, inside functions and guarded by ImportError where optional, while
-# firmware's simulator imports onboard's protocol code.
-ALLOWED = {
-    ("onboard", "firmware"): "simulator hooks imported lazily when firmware is present",
-}
+# Imports that break the layering and are tolerated until they are moved, each with its
+# reason, as {(importer, imported): reason}. None today: firmware imports onboard, never
+# the other way round.
+ALLOWED: dict[tuple[str, str], str] = {}
 
 Site = tuple[str, int]  # file (relative to ROOT) and line of one import statement
 

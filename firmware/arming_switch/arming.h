@@ -1,7 +1,7 @@
 // The arming-switch state machine and the glue the sketch's interrupts call.
 // Plain C++ like ppm.h, so the host tests drive exactly what runs on the Nano.
 //
-// Pins (frames.json "pins"): REQUEST (D3) high = send a command frame instead of the
+// Pins (onboard/arming_frames.json "pins"): REQUEST (D3) high = send a command frame instead of the
 // receiver's; MODE (D4) low = arm, high = disarm, latched when REQUEST rises so a noisy
 // MODE line cannot flip an arm into a disarm mid-request.
 //

@@ -13,7 +13,7 @@
 //   D13 (LED)   on while a command frame is sent, blinking while the safe frame is sent.
 //   USB serial  115200 baud, one status line a second: mode and received frames by verdict,
 //               so dropped frames are counted and visible, never silent.
-// Run `make -C firmware/arming_switch header` first: generated_frames.h comes from frames.json.
+// Run `make -C firmware/arming_switch header` first: generated_frames.h comes from onboard/arming_frames.json.
 
 #include "arming.h"
 #include "generated_frames.h"

@@ -1,4 +1,5 @@
-"""Generate generated_frames.h from frames.json, so the firmware and the simulator share one source.
+"""Generate generated_frames.h from onboard/arming_frames.json, so the firmware, the onboard
+agent and the simulator share one definition of the frames.
 
 Usage: python gen_frames_header.py OUTPUT_HEADER [FRAMES_JSON]
 """
@@ -8,10 +9,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-# Run as a script from the Makefile: import the loader that sits beside this file.
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+# Run as a script from the Makefile: import the loader from the repository's onboard package.
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from frames import FRAMES_PATH, Frames, load_frames  # noqa: E402
+from onboard.arming_frames import FRAMES_PATH, Frames, load_frames  # noqa: E402
 
 
 def _array(name: str, values: list[int]) -> str:
@@ -27,7 +28,7 @@ def render_header(f: Frames) -> str:
     )
     names = ", ".join(f'"{name}"' for name in f.channel_order)
     lines = [
-        "// Generated from frames.json by gen_frames_header.py. Do not edit; run make.",
+        "// Generated from onboard/arming_frames.json by gen_frames_header.py. Do not edit; run make.",
         "// Channel values are pulse HIGH times in us (500..1500) after a 500 us LOW separator.",
         "#pragma once",
         "#include <stdint.h>",

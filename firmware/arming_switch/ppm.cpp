@@ -168,7 +168,7 @@ void buildPulseTrain(const Frame& frame, PulseTrain& out) {
   }
   out.seg[n++] = Segment{false, frames::kSeparatorUs};
   used += frames::kSeparatorUs;
-  // frames.py checks that the longest frame plus sync_min_us fits in frame_us.
+  // onboard/arming_frames.py checks that the longest frame plus sync_min_us fits in frame_us.
   out.seg[n] = Segment{true, static_cast<uint16_t>(frames::kFrameUs - used)};
 }
 

@@ -13,7 +13,7 @@ namespace ppm {
 
 using frames::kChannelCount;
 
-// One frame of channel values: pulse HIGH times in us, in frames.json channel order.
+// One frame of channel values: pulse HIGH times in us, in onboard/arming_frames.json channel order.
 struct Frame {
   uint16_t pulse_us[kChannelCount];
 };
@@ -50,7 +50,7 @@ constexpr uint8_t kVerdictCount = 6;
 
 const char* verdictName(Verdict v);
 
-// Check a captured frame against frames.json (channel count, pulse range, separator and
+// Check a captured frame against onboard/arming_frames.json (channel count, pulse range, separator and
 // period jitter). On Ok, `out` holds the pulses clamped to [kPulseMinUs, kPulseMaxUs].
 Verdict validate(const RawFrame& raw, Frame& out);
 

@@ -13,12 +13,12 @@ import signal
 import sys
 from pathlib import Path
 
-from firmware.arming_switch.frames import load_frames
 from firmware.sim.mavlink_server import MavlinkSession
 from firmware.sim.receiver import ReceiverArming
 from firmware.sim.server import PtyTransport, TcpTransport, serve
 from firmware.sim.telemetry import BoardSession
 from firmware.sim.vehicle import Vehicle, VehicleConfig
+from onboard.arming_frames import load_frames
 from onboard.uavtalk import ObjectRegistry
 
 
@@ -56,11 +56,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-horizontal-speed", type=float, default=10.0, help="m/s")
     p.add_argument("--max-climb-rate", type=float, default=2.0, help="m/s, climb and descent")
     p.add_argument("--arming-line", type=Path, help="two-character file: request pin, mode pin")
-    p.add_argument("--arming-time", type=float, help="seconds (simulated); default frames.json")
+    p.add_argument(
+        "--arming-time", type=float, help="seconds (simulated); default arming_frames.json"
+    )
     p.add_argument("--tcp", type=int, metavar="PORT", help="serve on TCP instead of a pty (0: any)")
     p.add_argument("--tcp-host", default="127.0.0.1")
     p.add_argument("--pty-link", type=Path, help="keep a symlink to the pty at this path")
-    p.add_argument("--objects-dir", type=Path, help="UAVObject XML folder")
+    p.add_argument(
+        "--objects-dir", type=Path, help="UAVObject XML folder (default: the onboard package's)"
+    )
     p.add_argument("--link-timeout", type=float, default=8.0, help="wall-clock seconds")
     p.add_argument(
         "--fc",

@@ -2,20 +2,20 @@
 
 dRonin arms only from stick positions: throttle low with yaw right held for the arming
 time arms, throttle low with yaw left held for the disarming time disarms. Thresholds and
-times come from firmware/arming_switch/frames.json, the one definition of the frames.
+times come from onboard/arming_frames.json, the one definition of the frames.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
-from firmware.arming_switch.frames import Frames, load_frames
+from onboard.arming_frames import Frames, load_frames
 
 DISARMED, ARMING, ARMED = "Disarmed", "Arming", "Armed"
 
 
 class ReceiverArming:
-    """Feed it receiver frames (pulse HIGH times, µs, in frames.json channel order).
+    """Feed it receiver frames (pulse HIGH times, µs, in arming_frames.json channel order).
 
     `now` is the flight controller's clock in seconds (simulated time in the simulator),
     so the arming time scales with the simulation. Set `airborne` to refuse disarming in

@@ -15,8 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from firmware.arming_switch.frames import Frames
 from firmware.sim.vehicle import Vehicle, euler_to_quaternion
+from onboard.arming_frames import Frames
 from onboard.uavtalk import (
     ALL_INSTANCES,
     Codec,

@@ -234,6 +234,10 @@ class FrameDecoder:
                 raw_inst = struct.unpack_from("<H", rest)[0] if len(rest) >= 2 else None
                 return Frame(msg_type, object_id, raw_inst)
             self.stats.unknown_object += 1
+            if msg_type == MessageType.OBJ_ACK:
+                # An acked write of an unknown object is NACKed (the firmware does so);
+                # its payload size is unknown, so no instance id is read.
+                return Frame(msg_type, object_id, None)
             return None
         size = METADATA_STRUCT.size if is_meta else obj.size
         has_payload = msg_type in (MessageType.OBJ, MessageType.OBJ_ACK)

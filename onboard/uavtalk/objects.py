@@ -11,6 +11,7 @@ import struct
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from importlib.resources import files
 from pathlib import Path
 
 # Type index (hashed) -> (xml name, struct code, size in bytes), as the firmware numbers them.
@@ -416,11 +417,11 @@ def build_objects(raw_objects: Iterable[_RawObject]) -> list[ObjectDef]:
 
 
 def default_objects_dir() -> Path:
-    """Where the XML definitions live: $SKYHIVE_UAVOBJECTS, else the repository's firmware/."""
+    """Where the XML definitions live: $SKYHIVE_UAVOBJECTS, else the package's definitions/."""
     env = os.environ.get("SKYHIVE_UAVOBJECTS")
     if env:
         return Path(env)
-    return Path(__file__).resolve().parents[2] / "firmware" / "uavobjects"
+    return Path(str(files(__package__).joinpath("definitions")))
 
 
 class ObjectRegistry:

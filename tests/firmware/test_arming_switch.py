@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from firmware.arming_switch.frames import FRAMES_PATH, FramesError, load_frames
+from onboard.arming_frames import FRAMES_PATH, FramesError, load_frames
 
 from .firmware_tool import FIRMWARE_DIR, emitted_frame, make, pulses_from_segments
 

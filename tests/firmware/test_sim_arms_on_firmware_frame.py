@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from firmware.arming_switch.frames import load_frames
 from firmware.sim.receiver import ReceiverArming
+from onboard.arming_frames import load_frames
 
 from .firmware_tool import emitted_frame, pulses_from_segments
 

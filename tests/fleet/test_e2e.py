@@ -24,7 +24,7 @@ IDS = ("ACME_SIM1", "ACME_SIM2")
 
 def start_fleet(tmp_path, broker_port: int, ids=IDS):  # type: ignore[no-untyped-def]
     """Provision the drones into the broker and start simulator + agent for each."""
-    from onboard.launcher import parse_credentials, plan_fleet
+    from firmware.sim.fleet import parse_credentials, plan_fleet
 
     issued = [credentials.provision(drone_id, "acme").to_dict() for drone_id in ids]
     fleet = plan_fleet(

@@ -1,5 +1,5 @@
 """End-to-end harness: a private Mosquitto, the real gateway, a real Celery worker and
-simulated drones (onboard.launcher: firmware.sim and the onboard agent per drone,
+simulated drones (firmware.sim.fleet: firmware.sim and the onboard agent per drone,
 speaking UAVTalk or MAVLink), on the test database.
 
 Other suites may run against the same Redis at the same time, so the gateway
@@ -17,7 +17,7 @@ from typing import Any
 
 from django.conf import settings
 
-from onboard.launcher import Drone, start_drone
+from firmware.sim.fleet import Drone, start_drone
 from onboard.processes import stop_process, wait_for
 from tests.support.celery_worker import start_worker, worker_env
 from workers.mosquitto import Broker, start_broker

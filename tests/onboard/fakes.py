@@ -74,7 +74,9 @@ class FakeFlightController:
             raise FlightControllerError(f"The flight controller has no object {name}")
         return {"Armed": "Armed" if self.state.armed else "Disarmed"}
 
-    def write_object(self, name: str, fields: dict, timeout: float = 2.0) -> None:
+    def write_object(
+        self, name: str, fields: dict, timeout: float = 2.0, *, acked: bool = True
+    ) -> None:
         self.calls.append(("write", name, fields))
 
     def rebuild_link(self) -> None:

@@ -11,8 +11,8 @@ from pathlib import Path
 import paho.mqtt.client as paho
 from paho.mqtt.enums import CallbackAPIVersion
 
+from firmware.sim.fleet import agent_process, copy_gear
 from onboard import protocol
-from onboard.launcher import agent_process, copy_gear
 from onboard.processes import Supervised
 
 

@@ -376,7 +376,7 @@ def test_the_launcher_starts_a_fleet_with_provisioned_credentials(tmp_path: Path
         [
             sys.executable,
             "-m",
-            "onboard.launcher",
+            "firmware.sim.fleet",
             "--count",
             "2",
             "--home",

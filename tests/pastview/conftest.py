@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from firmware.sim.camera import render_view
+from onboard.synthetic_camera import render_view
 
 
 @pytest.fixture(scope="session")

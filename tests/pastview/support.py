@@ -15,7 +15,7 @@ from typing import Any
 import paho.mqtt.client as paho
 from paho.mqtt.enums import CallbackAPIVersion
 
-from firmware.sim.camera import orientation_from_euler, render_view
+from onboard.synthetic_camera import orientation_from_euler, render_view
 
 
 def level(yaw_deg: float) -> list[float]:

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from firmware.sim.camera import orientation_from_euler, render_nadir, render_view
+from onboard.synthetic_camera import orientation_from_euler, render_nadir, render_view
 
 LEVEL_NORTH = orientation_from_euler(0.0, 0.0, 0.0)
 

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from firmware.sim.camera import orientation_from_euler
+from onboard.synthetic_camera import orientation_from_euler
 from pastview.geometry import (
     InvalidPose,
     Pose,

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from firmware.sim.camera import render_view
+from onboard.synthetic_camera import render_view
 from pastview.evaluation import ConstantTimeDelay, Spirit
 from pastview.geometry import from_yaw
 from pastview.selection import PastView, PastViewSettings

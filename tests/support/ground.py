@@ -1,5 +1,5 @@
 """Replicated ground processes for tests (workers.ground on the test database), simulated
-drones (onboard.launcher), a private Redis, and what a user does against them.
+drones (firmware.sim.fleet), a private Redis, and what a user does against them.
 
 Every process reads the database pytest-django created (TEST_WORKER_DB_NAME, see
 config/settings/test.py) and gets the same environment: the broker settings (a private
@@ -16,7 +16,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from onboard.launcher import Drone, start_drone
+from firmware.sim.fleet import Drone, start_drone
 from onboard.processes import Supervised, free_port, python_env
 from onboard.processes import wait_for as poll
 from workers import ground as replicas

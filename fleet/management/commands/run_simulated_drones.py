@@ -1,8 +1,9 @@
 """`manage.py run_simulated_drones N`: provision N simulated drones and fly them (make run DRONES=N).
 
 Each drone gets its own broker credentials in the demo organisation (or --org), then the
-onboard launcher starts a software flight controller and the real agent per drone. On a
-broker cluster every agent is given every node (MQTT_URLS) and fails over between them.
+simulated-fleet launcher (firmware.sim.fleet) starts a software flight controller and the
+real agent per drone. On a broker cluster every agent is given every node (MQTT_URLS) and
+fails over between them.
 """
 
 from __future__ import annotations
@@ -57,7 +58,7 @@ class Command(BaseCommand):
         argv = [
             sys.executable,
             "-m",
-            "onboard.launcher",
+            "firmware.sim.fleet",
             "--count",
             str(count),
             "--home",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 import time
 
 import pytest
@@ -103,10 +104,30 @@ def test_acked_writes_are_acked_and_unacked_board_objects_are_resent_three_times
     homes = [f for f in ground.frames if f.name == "HomeLocation"]
     assert len(homes) == 4  # the first send plus three retries, 250 ms apart
     assert all(f.type == MessageType.OBJ_ACK for f in homes)
-    receiver = CODEC.encode_object("UAVTalkReceiver", {"Channel": [1500] * 8}, acked=True)
+    receiver = CODEC.encode_object(
+        "UAVTalkReceiver", {"Channel": [1500] * 8, "RSSI": 65535}, acked=True
+    )
     ground.send(receiver)
     ack = ground.pump(2, lambda f: f.type == MessageType.ACK)
     assert ack is not None and ack.object_id == REGISTRY["UAVTalkReceiver"].id
+    ground.close()
+
+
+def test_receiver_frames_of_the_old_definition_are_refused_like_a_real_board(board):
+    """Channel-only UAVTalkReceiver (no RSSI) has another id: NACKed; right id, 16 bytes: dropped."""
+    old_id = 0xE9DAD5F4
+    channels = struct.pack("<8H", *([1500] * 8))
+    ground = RawGround(board.pty_path)
+    ground.connect()
+    ground.send(encode_frame(MessageType.OBJ_ACK, old_id, channels))
+    nack = ground.pump(2, lambda f: f.type in (MessageType.NACK, MessageType.ACK))
+    assert nack is not None and nack.type == MessageType.NACK and nack.object_id == old_id
+    receiver_id = REGISTRY["UAVTalkReceiver"].id
+    ground.send(encode_frame(MessageType.OBJ_ACK, receiver_id, channels))
+    assert ground.pump(1, lambda f: f.type in (MessageType.NACK, MessageType.ACK)) is None
+    ground.send(encode_frame(MessageType.OBJ_ACK, receiver_id, channels + b"\xff\xff"))
+    ack = ground.pump(2, lambda f: f.type in (MessageType.NACK, MessageType.ACK))
+    assert ack is not None and ack.type == MessageType.ACK and ack.object_id == receiver_id
     ground.close()
 
 

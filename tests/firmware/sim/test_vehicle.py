@@ -6,9 +6,9 @@ import math
 
 import pytest
 
-from firmware.arming_switch.frames import load_frames
 from firmware.sim.receiver import ReceiverArming
 from firmware.sim.vehicle import Vehicle, VehicleConfig, lla_to_ned, ned_to_lla
+from onboard.arming_frames import load_frames
 
 FRAMES = load_frames()
 DT = 0.02

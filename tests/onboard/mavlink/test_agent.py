@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from firmware.sim import start_simulator
+from firmware.sim.fleet import agent_process, copy_gear
 from onboard import protocol
-from onboard.launcher import agent_process, copy_gear
 from onboard.processes import Supervised
 from tests.onboard.ground import Ground
 from workers.mosquitto import start_broker

@@ -26,7 +26,7 @@ def test_the_launcher_mixes_uavtalk_and_mavlink_drones_that_fly_alike(tmp_path: 
     (tmp_path / "creds.json").write_text(json.dumps(creds))
     launcher = subprocess.Popen(
         [
-            sys.executable, "-m", "onboard.launcher",
+            sys.executable, "-m", "firmware.sim.fleet",
             "--count", "3",
             "--home", f"{HOME[0]},{HOME[1]}",
             "--credentials-file", str(tmp_path / "creds.json"),

@@ -48,6 +48,18 @@ def test_crc8_matches_the_standard_check_value():
         ("FlightStatus", 0x4D924972),
         ("GPSPosition", 0x5C1D189E),
         ("AttitudeActual", 0x33DAD5E6),
+        ("PositionActual", 0xFA9E2D42),
+        ("VelocityActual", 0x5A08F61A),
+        ("FlightBatteryState", 0xCAC62F5E),
+        ("Waypoint", 0xE02C8266),
+        ("PathDesired", 0x3AF5274A),
+        ("HomeLocation", 0xCA32B032),
+        ("SystemStats", 0xE1DF2D70),
+        ("Accels", 0xDD9D5FC0),
+        ("Gyros", 0x04228AF6),
+        ("BaroAltitude", 0x99622E6A),
+        ("FirmwareIAPObj", 0x5E6E8FDC),
+        ("UAVTalkReceiver", 0x0D2720A4),
     ],
 )
 def test_object_ids_match_the_firmware(name, expected):
@@ -163,7 +175,7 @@ def test_unknown_option_or_missing_field_is_a_clear_error():
     with pytest.raises(EncodeError, match="missing"):
         REGISTRY["FlightStatus"].pack({"Armed": "Armed"})
     with pytest.raises(EncodeError):
-        REGISTRY["UAVTalkReceiver"].pack({"Channel": [70000] * 8})
+        REGISTRY["UAVTalkReceiver"].pack({"Channel": [70000] * 8, "RSSI": 0})
 
 
 def test_a_definition_without_fields_is_rejected():
@@ -258,6 +270,16 @@ def test_unknown_object_request_is_passed_on_so_it_can_be_nacked():
     wire = encode_frame(MessageType.OBJ_REQ, 0x12345678)
     [frame] = FrameDecoder(REGISTRY).feed(wire)
     assert frame.obj is None and frame.object_id == 0x12345678
+    nack = CODEC.encode_reply(MessageType.NACK, frame)
+    assert nack[:8] == b"\x3c\x24\x08\x00\x78\x56\x34\x12"
+
+
+def test_an_acked_write_of_an_unknown_object_is_passed_on_so_it_can_be_nacked():
+    wire = encode_frame(MessageType.OBJ_ACK, 0x12345678, b"\x01\x02\x03\x04")
+    decoder = FrameDecoder(REGISTRY)
+    [frame] = decoder.feed(wire)
+    assert frame.obj is None and frame.instance_id is None
+    assert decoder.stats.unknown_object == 1
     nack = CODEC.encode_reply(MessageType.NACK, frame)
     assert nack[:8] == b"\x3c\x24\x08\x00\x78\x56\x34\x12"
 

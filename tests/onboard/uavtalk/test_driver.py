@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from firmware.arming_switch.frames import load_frames
 from firmware.sim import start_simulator
+from onboard.arming_frames import load_frames
 from onboard.fc.base import CommandTimeout, FlightControllerError, NotConnected
 from onboard.fc.uavtalk import UAVTalkFlightController
 from onboard.links import LinkError, parse_link_url
@@ -155,7 +155,7 @@ def test_arming_through_uavtalk_receiver_channels(fc):
 
     def sticks() -> None:
         while not stop.is_set():
-            fc.write_object("UAVTalkReceiver", {"Channel": arm})
+            fc.write_object("UAVTalkReceiver", {"Channel": arm, "RSSI": 65535})
             stop.wait(0.1)
 
     thread = threading.Thread(target=sticks, daemon=True)

@@ -1,7 +1,7 @@
-"""Loader for frames.json, the one definition of the arming-switch PPM frames.
+"""Loader for arming_frames.json, the one definition of the arming-switch PPM frames.
 
-Stdlib only, so the simulator, the onboard agent and the firmware header generator can all
-import it. Channel values are pulse HIGH times in microseconds (500..1500); add
+The JSON ships as package data: the agent reads it at run time, the simulator and the
+firmware header generator (firmware/arming_switch) read the same file. Channel values are pulse HIGH times in microseconds (500..1500); add
 ``separator_us`` to get the usual 1000..2000 us channel period (see ``to_channel_period_us``).
 """
 
@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
+from importlib.resources import files
 from pathlib import Path
 
-FRAMES_PATH = Path(__file__).with_name("frames.json")
+FRAMES_PATH = Path(str(files(__package__).joinpath("arming_frames.json")))
 
 
 class FramesError(ValueError):
-    """frames.json is missing a field or describes frames that cannot be sent."""
+    """arming_frames.json is missing a field or describes frames that cannot be sent."""
 
 
 @dataclass(frozen=True)
@@ -66,7 +67,7 @@ def _channels(raw: dict, name: str, order: list[str], lo: int, hi: int) -> list[
 
 
 def load_frames(path: Path | str = FRAMES_PATH) -> Frames:
-    """Read and check frames.json; raise FramesError with the offending field."""
+    """Read and check arming_frames.json; raise FramesError with the offending field."""
     raw = json.loads(Path(path).read_text())
     try:
         order = list(raw["channel_order"])

@@ -4,7 +4,7 @@ This is the one simulated-fleet launcher: `make run` runs it (through `manage.py
 run_simulated_drones`), and the end-to-end tests and benchmarks start their drones with
 `start_drone()` (or an agent for a simulator of their own with `agent_process()`).
 
-    python -m onboard.launcher --count 3 --home 40.6303,-8.6575 \\
+    python -m firmware.sim.fleet --count 3 --home 40.6303,-8.6575 \\
         --broker-url mqtt://127.0.0.1:1883 --credentials-file creds.json
 
 Drones are spread around the home point on a spiral, each with its own folder (gear
@@ -51,14 +51,15 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from . import protocol
-from .mqtt import parse_broker_urls
-from .navigation import ned_to_lla
-from .processes import Supervised, python_env
+import onboard
+from firmware.sim import SimulatorProcess, start_simulator
+from onboard import protocol
+from onboard.mqtt import parse_broker_urls
+from onboard.navigation import ned_to_lla
+from onboard.processes import Supervised, python_env
 
-PACKAGE_DIR = Path(__file__).resolve().parent
-REPO_ROOT = PACKAGE_DIR.parent
-GEAR_EXAMPLE = PACKAGE_DIR / "gear_example"
+REPO_ROOT = Path(__file__).resolve().parents[2]
+GEAR_EXAMPLE = Path(onboard.__file__).resolve().parent / "gear_example"
 FC_PROTOCOLS = ("uavtalk", "mavlink")
 
 
@@ -226,7 +227,7 @@ class Drone:
     folder: Path
     home: tuple[float, float, float]
     broker_url: str
-    sim: Any = None  # firmware.sim.SimulatorProcess
+    sim: SimulatorProcess | None = None
     agent: Supervised | None = None
     restarts: int = 0
     fc: str = "uavtalk"
@@ -248,8 +249,6 @@ class Drone:
         return self
 
     def start_sim(self, time_scale: float) -> None:
-        from firmware.sim import start_simulator
-
         self.sim = start_simulator(
             home=self.home,
             time_scale=time_scale,
@@ -417,7 +416,7 @@ def _home(text: str) -> tuple[float, float, float]:
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="python -m onboard.launcher",
+        prog="python -m firmware.sim.fleet",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -491,13 +490,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         fleet = _fleet_from(args)
     except (LaunchError, OSError, ValueError) as exc:
-        print(f"onboard.launcher: {exc}", file=sys.stderr)
+        print(f"firmware.sim.fleet: {exc}", file=sys.stderr)
         return 2
     stop = _stop_on_signals()
     try:
         fleet.start()
     except Exception as exc:
-        print(f"onboard.launcher: {exc}", file=sys.stderr)
+        print(f"firmware.sim.fleet: {exc}", file=sys.stderr)
         fleet.stop()
         return 1
     _run_until(fleet, stop)

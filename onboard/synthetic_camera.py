@@ -1,4 +1,4 @@
-"""Synthetic camera for the simulator: JPEG views of a textured ground plane.
+"""Synthetic camera for simulated gear: JPEG views of a textured ground plane.
 
 The ground is the NED plane d = 0 painted with a deterministic texture in world
 coordinates (checkerboard, coloured grid lines, smooth colour blobs), so two pictures
@@ -15,8 +15,13 @@ import io
 import math
 from functools import lru_cache
 
-import numpy as np
-from PIL import Image
+try:
+    import numpy as np
+    from PIL import Image
+except ImportError as exc:  # the package's optional `camera` extra
+    raise ImportError(
+        "The synthetic camera needs numpy and Pillow: pip install 'skyhive-onboard[camera]'"
+    ) from exc
 
 EARTH_RADIUS_M = 6_378_137.0
 
