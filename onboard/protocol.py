@@ -1154,17 +1154,11 @@ def encode(message: Any) -> bytes:
     return json.dumps(data, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
 
 
-def refuse_constant(name: str) -> Any:
-    """json.loads' `parse_constant`: NaN and Infinity are not JSON, and PostgreSQL refuses
-    them, though Python's json would accept them."""
-    raise ProtocolError("message", f"{name} is not a JSON number", "not_finite")
-
-
 def decode_json(payload: bytes | str) -> Any:
     """UTF-8 JSON bytes → Python value, or ProtocolError("message", ...)."""
     try:
         text = payload.decode("utf-8") if isinstance(payload, bytes | bytearray) else payload
-        return json.loads(text, parse_constant=refuse_constant)
+        return json.loads(text)
     except UnicodeDecodeError:
         raise ProtocolError("message", "is not UTF-8") from None
     except json.JSONDecodeError as exc:
