@@ -342,6 +342,7 @@ class Ingestor:
         self._threads: list[threading.Thread] = []
         self._stored_window: deque[tuple[float, int]] = deque()
         self._landed: list[Chunk] = []
+        self._refusal = ""  # the database's last word on a refused message, for the log
         self.stored = 0
         self.subscriber = self._make_subscriber()
 
@@ -467,7 +468,8 @@ class Ingestor:
             if self._conn is not None and self._conn.broken:
                 raise psycopg.OperationalError(str(exc)) from exc
             if len(pending) == 1:
-                log.error("telemetry from %s refused by the database: %s", pending[0].drone, exc)
+                log.debug("telemetry from %s refused by the database: %s", pending[0].drone, exc)
+                self._refusal = str(exc)
                 return pending
             half = len(pending) // 2
             return self._flush_once(pending[:half], retrying) + self._flush_once(
@@ -480,6 +482,14 @@ class Ingestor:
         for chunk in refused:
             self.counters.incr("dropped.db_rejected", chunk.rows)
             self.counters.refused(chunk.drone, "telemetry.db_rejected", chunk.rows)
+        if refused:
+            drones = ", ".join(sorted({c.drone for c in refused}))
+            log.error(
+                "%d telemetry messages refused by the database (from %s): %s",
+                len(refused),
+                drones,
+                self._refusal,
+            )
 
     def _writer(self) -> None:
         pending: list[Chunk] = []
