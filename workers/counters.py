@@ -51,7 +51,8 @@ REFUSAL_DRONES_KEY = "skyhive:refusals:drones"
 REFUSAL_DRONES = 1000
 OTHER_DRONES = "*"
 # Adds per-drone refusals, keeping at most ARGV[1] distinct drone ids; ARGV then holds
-# (drone, reason, amount) triples and last the name of the overflow bucket. One script, so two processes cannot both pass the cap.
+# (drone, reason, amount) triples and last the name of the overflow bucket. One script,
+# so two processes cannot both pass the cap.
 _ADD_REFUSALS = """
 local cap = tonumber(ARGV[1])
 for i = 2, #ARGV - 1, 3 do

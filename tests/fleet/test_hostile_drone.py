@@ -8,6 +8,7 @@ import json
 import time
 import uuid
 from collections import Counter
+from typing import Any
 
 import psycopg
 import pytest
@@ -141,7 +142,7 @@ def _started_mission(drone: Drone) -> tuple[str, str]:
     return str(mission.pk), str(assignment.pk)
 
 
-def _report_steps(client, drone_id: str, mission_id: str, assignment_id: str) -> None:  # type: ignore[no-untyped-def]
+def _report_steps(client: Any, drone_id: str, mission_id: str, assignment_id: str) -> None:
     for index, step in enumerate(STEPS):
         for status in ("started", "completed"):
             report = {"type": "step", "mission_id": mission_id, "assignment_id": assignment_id}
