@@ -14,7 +14,6 @@ import psycopg
 import pytest
 from django.utils import timezone
 
-from fleet import credentials
 from fleet.models import Drone
 from missions.models import Mission, MissionStatus, StepStatus
 from missions.services import create_mission, start_mission
@@ -24,6 +23,7 @@ from telemetry.queries import conninfo_from_settings
 from workers import outbox
 from workers.counters import REFUSAL_DRONES_KEY, REFUSALS_KEY, Counters, refusals
 from workers.gateway import Gateway
+from workers.mosquitto import start_broker
 
 from ..telemetry.support import drone_messages
 from .conftest import heartbeat, mqtt_client
@@ -32,6 +32,7 @@ pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
 # A Redis database of our own: the per-drone refusals of other suites stay out of it.
 REDIS_DB = 12
+DRONES = ("ACME_1", "GLOBEX_1")
 HUGE = "x" * 200_000
 STEPS = [
     {"command": "arm"},
@@ -41,10 +42,21 @@ STEPS = [
 
 
 @pytest.fixture
+def broker(tmp_path):  # type: ignore[no-untyped-def]
+    """A broker of our own: no session a stopped gateway left on the shared one takes a
+    share of the messages."""
+    users = {"ground": "ground-pw", **{drone_id: f"{drone_id}-pw" for drone_id in DRONES}}
+    b = start_broker(tmp_path, users)
+    yield b
+    b.stop()
+
+
+@pytest.fixture
 def own_redis(settings, broker):  # type: ignore[no-untyped-def]
     from tests.missions.conftest import redis_url_with_db
 
     settings.REDIS_URL = redis_url_with_db(settings.REDIS_URL, REDIS_DB)
+    settings.MQTT_URL = broker.url_for("ground")  # the mission start goes to our gateway
     outbox._sync_client = None
     client = outbox.sync_redis()
     client.delete(REFUSALS_KEY, REFUSAL_DRONES_KEY, outbox.outbox_key(broker.url))
@@ -78,8 +90,7 @@ def ground(broker, own_redis):  # type: ignore[no-untyped-def]
 
 
 def _drone_client(broker, drone_id: str):  # type: ignore[no-untyped-def]
-    password = credentials.provision(drone_id).password
-    return mqtt_client(f"mqtt://{drone_id}:{password}@127.0.0.1:{broker.port}")
+    return mqtt_client(broker.url_for(drone_id))
 
 
 def _telemetry(now: float, fields: dict, ts: float | None = None) -> bytes:
