@@ -80,9 +80,10 @@ def _check_value(value: object, where: Callable[[], str]) -> None:
     if kind is str:
         if len(value) > MAX_STRING:  # type: ignore[arg-type]
             raise Rejected("bad_value", f"{where()}: string longer than {MAX_STRING}")
-        problem = text_problem(value)  # type: ignore[arg-type]
-        if problem is not None:
-            raise Rejected("bad_text", f"{where()}: {problem}")
+        if "\x00" in value or not value.isascii():  # type: ignore[operator,union-attr]
+            problem = text_problem(value)  # type: ignore[arg-type]
+            if problem is not None:
+                raise Rejected("bad_text", f"{where()}: {problem}")
         return
     if kind is list and len(value) <= MAX_ARRAY:  # type: ignore[arg-type]
         for i, item in enumerate(value):  # type: ignore[arg-type]
