@@ -148,7 +148,7 @@ def _store_splitting(heartbeats: list[Heartbeat], seen: datetime) -> tuple[list,
         return _store(heartbeats, seen), set()
     except (OperationalError, InterfaceError):
         raise  # the database is away: the gateway retries the whole batch
-    except (DatabaseError, ValueError) as exc:
+    except (DatabaseError, UnicodeEncodeError) as exc:
         if len(heartbeats) == 1:
             log.error("heartbeat of %s refused by the database: %s", heartbeats[0].drone_id, exc)
             return [], {heartbeats[0].drone_id}
@@ -215,7 +215,7 @@ def handle_gear(drone_id: str, message: GearAnnouncement | GearReply) -> str | N
             )
         except (OperationalError, InterfaceError):
             raise  # the database is away: the gateway retries
-        except (DatabaseError, ValueError) as exc:
+        except (DatabaseError, UnicodeEncodeError) as exc:
             log.error("gear of %s refused by the database: %s", drone_id, exc)
             return "db_rejected"
         if not updated:

@@ -35,7 +35,7 @@ def _apply(drone_id: str, apply: Callable[[Drone, Any], str | None], message: An
         return apply(drone, message)
     except (OperationalError, InterfaceError):
         raise  # the database is away: the gateway retries
-    except (DatabaseError, ValueError) as exc:
+    except (DatabaseError, UnicodeEncodeError) as exc:
         log.error("%s from %s refused by the database: %s", type(message).__name__, drone_id, exc)
         return "db_rejected"
 

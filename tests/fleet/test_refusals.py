@@ -83,12 +83,13 @@ def test_ordinary_text_and_times_still_pass():
 
 
 @pytest.mark.django_db(transaction=True)
-def test_a_heartbeat_the_database_refuses_costs_only_its_own_drone(world_tx):
+@pytest.mark.parametrize("text", ["A\x00", "\udc00"])
+def test_a_heartbeat_the_database_refuses_costs_only_its_own_drone(world_tx, text):
     """A heartbeat that validation would have refused, handed straight to the batch: the
     UPDATE is split until it alone is left out."""
     good, bad = world_tx.drone, world_tx.other_drone
     ok = protocol.parse_heartbeat(heartbeat(good.drone_id, flight_mode="LOITER"))
-    poisoned = protocol.Heartbeat(**{**vars(ok), "drone_id": bad.drone_id, "flight_mode": "A\x00"})
+    poisoned = protocol.Heartbeat(**{**vars(ok), "drone_id": bad.drone_id, "flight_mode": text})
     reasons = handle_heartbeats([(bad.drone_id, poisoned), (good.drone_id, ok)])
     assert reasons == ["db_rejected", None]
     stored = Drone.objects.get(pk=good.pk)
@@ -97,10 +98,11 @@ def test_a_heartbeat_the_database_refuses_costs_only_its_own_drone(world_tx):
 
 
 @pytest.mark.django_db(transaction=True)
-def test_gear_the_database_refuses_is_dropped_with_a_reason(world_tx):
-    gear = protocol.GearAnnouncement(specs={"TYPE": "A\x00"}, sensors={})
+@pytest.mark.parametrize("text", ["A\x00", "\ud800"])
+def test_gear_the_database_refuses_is_dropped_with_a_reason(world_tx, text):
+    gear = protocol.GearAnnouncement(specs={"TYPE": "HEXA"}, sensors={"GAS": {"CO2": text}})
     assert handle_gear(world_tx.drone.drone_id, gear) == "db_rejected"
-    assert Drone.objects.get(pk=world_tx.drone.pk).specs == {}
+    assert Drone.objects.get(pk=world_tx.drone.pk).sensors == {}
 
 
 @pytest.fixture
