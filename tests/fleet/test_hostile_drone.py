@@ -14,6 +14,7 @@ import psycopg
 import pytest
 from django.utils import timezone
 
+from fleet.heartbeats import sweep_offline
 from fleet.models import Drone
 from missions.models import Mission, MissionStatus, StepStatus
 from missions.services import create_mission, start_mission
@@ -190,6 +191,7 @@ def test_a_hostile_drone_costs_the_good_drone_nothing(world_tx, broker, ground):
     assert wait_for(lambda: Mission.objects.get(pk=mission.pk).status == MissionStatus.COMPLETED)
     assert _stored(good.pk) == expected and _stored(hostile.pk) == 0
     assert Drone.objects.get(pk=good.pk).online
+    assert good.drone_id not in sweep_offline()  # its heartbeats kept it fresh
 
     # Nothing of the hostile drone's changed its row; every refusal counts against it alone.
     after = Drone.objects.get(pk=hostile.pk)
