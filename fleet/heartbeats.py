@@ -15,7 +15,7 @@ from concurrent import futures
 from datetime import datetime, timedelta
 
 from django.conf import settings
-from django.db import connection, transaction
+from django.db import DatabaseError, InterfaceError, OperationalError, connection, transaction
 from django.utils import timezone
 
 from onboard.protocol import GearAnnouncement, GearReply, Heartbeat
@@ -130,13 +130,43 @@ def handle_heartbeats(batch: list[tuple[str, Heartbeat]]) -> list[str | None]:
             latest[drone_id] = heartbeat
     if not latest:
         return reasons
+    rows, refused = _store_splitting(list(latest.values()), seen)
+    stored = {drone_id for drone_id, *_ in rows}
+    for i, (drone_id, _heartbeat) in enumerate(batch):
+        if reasons[i] is None and drone_id in refused:
+            reasons[i] = "db_rejected"
+        elif reasons[i] is None and drone_id not in stored:
+            reasons[i] = "unknown_drone"
+    _announce(rows, latest, seen)
+    return reasons
+
+
+def _store_splitting(heartbeats: list[Heartbeat], seen: datetime) -> tuple[list, set[str]]:
+    """`_store`, halving the batch while the database refuses it, so a heartbeat it cannot
+    take costs only its own drone's update: (rows updated, drone ids refused)."""
+    try:
+        return _store(heartbeats, seen), set()
+    except (OperationalError, InterfaceError):
+        raise  # the database is away: the gateway retries the whole batch
+    except (DatabaseError, UnicodeEncodeError) as exc:
+        if len(heartbeats) == 1:
+            log.error("heartbeat of %s refused by the database: %s", heartbeats[0].drone_id, exc)
+            return [], {heartbeats[0].drone_id}
+    half = len(heartbeats) // 2
+    first_rows, first_refused = _store_splitting(heartbeats[:half], seen)
+    rows, refused = _store_splitting(heartbeats[half:], seen)
+    return first_rows + rows, first_refused | refused
+
+
+def _store(heartbeats: list[Heartbeat], seen: datetime) -> list:
+    """One UPDATE for the batch and the `online` events, in one transaction: a drone is
+    never seen online without its event, and a batch the gateway retries after a lost
+    connection is written whole or not at all."""
     params: list = []
-    for heartbeat in latest.values():
+    for heartbeat in heartbeats:
         params += _row(heartbeat, seen)
-    params.append(list(latest))
-    sql = _HEARTBEATS_SQL.format(rows=", ".join([_ROW] * len(latest)))
-    # One transaction: a drone is never seen online without its `online` event, and a
-    # batch the gateway retries after a lost connection is written whole or not at all.
+    params.append([heartbeat.drone_id for heartbeat in heartbeats])
+    sql = _HEARTBEATS_SQL.format(rows=", ".join([_ROW] * len(heartbeats)))
     with transaction.atomic():
         with connection.cursor() as cursor:
             cursor.execute(sql, params)
@@ -150,22 +180,23 @@ def handle_heartbeats(batch: list[tuple[str, Heartbeat]]) -> list[str | None]:
         ]
         if came_online:
             ConnectionEvent.objects.bulk_create(came_online)
-    stored = {drone_id for drone_id, *_ in rows}
-    for i, (drone_id, _heartbeat) in enumerate(batch):
-        if reasons[i] is None and drone_id not in stored:
-            reasons[i] = "unknown_drone"
-    if came_online:
+    return rows
+
+
+def _announce(rows: list, latest: dict[str, Heartbeat], seen: datetime) -> None:
+    """Tell who listens: drones that came online, and the live fleet state (throttled)."""
+    back = [(drone_id, org) for drone_id, _pk, org, was_online in rows if not was_online]
+    if back:
         drones_came_online.send(
             sender=ConnectionEvent,
-            organisation_ids={org for _d, _pk, org, was in rows if not was},
-            drone_ids=[drone_id for drone_id, _pk, _org, was in rows if not was],
+            organisation_ids={org for _drone_id, org in back},
+            drone_ids=[drone_id for drone_id, _org in back],
         )
     for drone_id, _pk, organisation_id, was_online in rows:
         if _throttle.allow(drone_id, force=not was_online):
             events.publish_nowait(
                 organisation_id, {"type": "drone", "drone": live_state(latest[drone_id], seen)}
             )
-    return reasons
 
 
 def handle_gear(drone_id: str, message: GearAnnouncement | GearReply) -> str | None:
@@ -178,9 +209,15 @@ def handle_gear(drone_id: str, message: GearAnnouncement | GearReply) -> str | N
     # The database first: a retried message (database away) must still find its reply
     # waiting, and a reply is handed over only once.
     if fields:
-        updated = Drone.objects.filter(drone_id=drone_id, credentials_revoked=False).update(
-            **fields
-        )
+        try:
+            updated = Drone.objects.filter(drone_id=drone_id, credentials_revoked=False).update(
+                **fields
+            )
+        except (OperationalError, InterfaceError):
+            raise  # the database is away: the gateway retries
+        except (DatabaseError, UnicodeEncodeError) as exc:
+            log.error("gear of %s refused by the database: %s", drone_id, exc)
+            return "db_rejected"
         if not updated:
             return "unknown_drone"
     if isinstance(message, GearReply):

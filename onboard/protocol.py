@@ -22,6 +22,13 @@ DRONE_ID_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 REQUEST_ID_RE = re.compile(r"^[0-9a-f]{32}$")
 OBJECT_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,63}$")
 MAX_ID_LENGTH = 128
+# Text and numbers the ground stores must be storable by PostgreSQL: no NUL, no unpaired
+# surrogate, no NaN or infinity, and timestamps between 1970 and 2100 (a clock that far
+# off is broken, and a datetime beyond year 9999 cannot even be built).
+MAX_TEXT = 10_000
+MAX_KEY = 256
+MAX_TS = 4_102_444_800.0  # 2100-01-01T00:00:00Z
+MAX_DEPTH = 16
 
 # Control commands (docs/protocol.md "Control") and the extra commands a mission step may use.
 CONTROL_COMMANDS = (
@@ -78,12 +85,15 @@ QOS = {
 
 
 class ProtocolError(ValueError):
-    """A message that breaks docs/protocol.md; `field` names the offending field (dotted path)."""
+    """A message that breaks docs/protocol.md; `field` names the offending field (dotted path)
+    and `reason` the kind of fault it is counted under: `malformed`, or one of the faults
+    that would poison storage, `bad_text`, `not_finite`, `bad_timestamp`, `too_long`."""
 
-    def __init__(self, field: str, message: str) -> None:
+    def __init__(self, field: str, message: str, reason: str = "malformed") -> None:
         super().__init__(f"{field}: {message}")
         self.field = field
         self.message = message
+        self.reason = reason
 
 
 def new_request_id() -> str:
@@ -158,11 +168,11 @@ def number(value: Any, name: str, *, lo: float | None = None, hi: float | None =
         try:
             result = float(value)
         except OverflowError:  # a JSON integer beyond float range
-            raise ProtocolError(name, "must be a finite number") from None
+            raise ProtocolError(name, "must be a finite number", "not_finite") from None
     else:
         raise ProtocolError(name, f"must be a number, got {_type_name(value)}")
     if not math.isfinite(result):
-        raise ProtocolError(name, "must be a finite number")
+        raise ProtocolError(name, "must be a finite number", "not_finite")
     if lo is not None and result < lo:
         raise ProtocolError(name, f"must be at least {lo:g}, got {result:g}")
     if hi is not None and result > hi:
@@ -182,14 +192,53 @@ def _integer(value: Any, name: str, *, lo: int | None = None) -> int:
     return value
 
 
-def _string(value: Any, name: str, *, empty: bool = False, max_length: int = 10_000) -> str:
+def text_problem(value: str) -> str | None:
+    """Why PostgreSQL could not store this text (a NUL, an unpaired surrogate), or None."""
+    if "\x00" in value:
+        return "must not contain a NUL character"
+    if not value.isascii():
+        try:
+            value.encode("utf-8")
+        except UnicodeEncodeError:
+            return "must not contain an unpaired surrogate"
+    return None
+
+
+def _string(value: Any, name: str, *, empty: bool = False, max_length: int = MAX_TEXT) -> str:
     if not isinstance(value, str):
         raise ProtocolError(name, f"must be a string, got {_type_name(value)}")
     if not empty and not value:
         raise ProtocolError(name, "must not be empty")
     if len(value) > max_length:
-        raise ProtocolError(name, f"must be at most {max_length} characters")
+        raise ProtocolError(name, f"must be at most {max_length} characters", "too_long")
+    if "\x00" in value or not value.isascii():  # the common case costs no call
+        problem = text_problem(value)
+        if problem is not None:
+            raise ProtocolError(name, problem, "bad_text")
     return value
+
+
+def json_tree(value: Any, name: str, depth: int = 0) -> Any:
+    """A free-form JSON value (specs, a step's result, ...) checked whole for what storage
+    refuses: bad text in keys or strings, non-finite numbers, nesting deeper than MAX_DEPTH."""
+    if isinstance(value, str):
+        return _string(value, name, empty=True)
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ProtocolError(name, "must be a finite number", "not_finite")
+    if isinstance(value, dict | list) and depth >= MAX_DEPTH:
+        raise ProtocolError(name, f"nests deeper than {MAX_DEPTH} levels")
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _string(key, f"{name} key", empty=True, max_length=MAX_KEY)
+            json_tree(item, f"{name}.{key}", depth + 1)
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            json_tree(item, f"{name}[{i}]", depth + 1)
+    return value
+
+
+def _json_object(value: Any, name: str) -> dict:
+    return json_tree(_object(value, name), name)
 
 
 def _optional_string(value: Any, name: str) -> str | None:
@@ -229,8 +278,19 @@ def _identifier(value: Any, name: str) -> str:
     return _string(value, name, max_length=MAX_ID_LENGTH)
 
 
+def timestamp(value: Any, name: str = "ts") -> float:
+    """Seconds since the epoch, between 1970 and 2100 (MAX_TS)."""
+    # Telemetry has one per object: a plain float takes the short way.
+    result = value if type(value) is float else number(value, name)
+    if not 0 <= result < MAX_TS:  # NaN fails this too
+        raise ProtocolError(
+            name, f"{result:g} is not a time between 1970 and 2100", "bad_timestamp"
+        )
+    return result
+
+
 def _ts(obj: Mapping[str, Any], prefix: str = "") -> float:
-    return number(_require(obj, "ts", prefix), prefix + "ts", lo=0)
+    return timestamp(_require(obj, "ts", prefix), prefix + "ts")
 
 
 def _drop_none(data: dict) -> dict:
@@ -439,7 +499,7 @@ def parse_control_response(obj: Any) -> ControlResponse:
         raise ProtocolError("ok", "must be true or false")
     result = obj.get("result")
     if result is not None:
-        _object(result, "result")
+        _json_object(result, "result")
     error = _optional_string(obj.get("error"), "error")
     if not ok and not error:
         raise ProtocolError("error", "a failed response must say why")
@@ -743,7 +803,7 @@ def parse_mission_progress(obj: Any) -> MissionProgress | StepProgress:
         status=_choice(_require(obj, "status"), "status", STEP_STATUSES),
         position=_optional_position(obj.get("position")),
         duration_s=_optional_number(obj.get("duration_s"), "duration_s", lo=0),
-        result={} if result is None else _object(result, "result"),
+        result={} if result is None else _json_object(result, "result"),
         error=_optional_string(obj.get("error"), "error"),
         ts=ts,
     )
@@ -931,8 +991,8 @@ def parse_gear_message(obj: Any) -> GearReply | GearAnnouncement:
     if obj.get("request_id") is None:
         _choice(_require(obj, "type"), "type", ("gear",))
         return GearAnnouncement(
-            specs=_object(_require(obj, "specs"), "specs"),
-            sensors=_object(_require(obj, "sensors"), "sensors"),
+            specs=_json_object(_require(obj, "specs"), "specs"),
+            sensors=_json_object(_require(obj, "sensors"), "sensors"),
             ts=_ts(obj),
         )
     ok = _require(obj, "ok")
@@ -941,7 +1001,7 @@ def parse_gear_message(obj: Any) -> GearReply | GearAnnouncement:
     parts = {}
     for name in ("specs", "sensors", "reading"):
         value = obj.get(name)
-        parts[name] = None if value is None else _object(value, name)
+        parts[name] = None if value is None else _json_object(value, name)
     return GearReply(
         request_id=_request_id(obj["request_id"]),
         ok=ok,

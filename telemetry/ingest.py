@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 import psycopg
 
-from onboard.protocol import OBJECT_NAME_RE, ProtocolError, parse_telemetry
+from onboard.protocol import OBJECT_NAME_RE, ProtocolError, parse_telemetry, text_problem
 from onboard.retry import Backoff
 
 from . import storage
@@ -80,6 +80,10 @@ def _check_value(value: object, where: Callable[[], str]) -> None:
     if kind is str:
         if len(value) > MAX_STRING:  # type: ignore[arg-type]
             raise Rejected("bad_value", f"{where()}: string longer than {MAX_STRING}")
+        if "\x00" in value or not value.isascii():  # type: ignore[operator,union-attr]
+            problem = text_problem(value)  # type: ignore[arg-type]
+            if problem is not None:
+                raise Rejected("bad_text", f"{where()}: {problem}")
         return
     if kind is list and len(value) <= MAX_ARRAY:  # type: ignore[arg-type]
         for i, item in enumerate(value):  # type: ignore[arg-type]
@@ -89,6 +93,14 @@ def _check_value(value: object, where: Callable[[], str]) -> None:
         return
     raise Rejected("bad_value", f"{where()}: {kind.__name__} is not a field value")
 
+
+# The protocol's storage faults under this process's long-standing counter names.
+_PROTOCOL_REASONS = {
+    "bad_text": "bad_text",
+    "not_finite": "bad_value",
+    "too_long": "bad_value",
+    "bad_timestamp": "ts_window",
+}
 
 _VALID_NAMES: set[str] = set()
 
@@ -120,7 +132,7 @@ def parse_message(payload: bytes, *, now: float, limits: Limits) -> list[tuple[s
     try:
         message = parse_telemetry(data)
     except ProtocolError as exc:
-        raise Rejected("bad_schema", str(exc)) from None
+        raise Rejected(_PROTOCOL_REASONS.get(exc.reason, "bad_schema"), str(exc)) from None
     lo, hi = now - limits.max_past_s, now + limits.max_future_s
     objects = []
     for i, obj in enumerate(message.objects):
@@ -149,6 +161,7 @@ class Chunk:
     rows: int
     text: str
     days: frozenset[int]  # UTC days since the epoch, for the partitions they need
+    drone: str = ""  # who sent it, to count a refusal against
 
 
 class SampleBuffer:
@@ -262,6 +275,7 @@ class CounterSink:
     def __init__(self) -> None:
         self.counts: dict[str, int] = {}
         self.gauges: dict[str, float] = {}
+        self.refusals: dict[tuple[str, str], int] = {}
         self._lock = threading.Lock()
 
     def incr(self, name: str, amount: int = 1) -> None:
@@ -270,6 +284,11 @@ class CounterSink:
 
     def gauge(self, name: str, value: float) -> None:
         self.gauges[name] = value
+
+    def refused(self, drone_id: str, reason: str, amount: int = 1) -> None:
+        with self._lock:
+            key = (drone_id, reason)
+            self.refusals[key] = self.refusals.get(key, 0) + amount
 
     def maybe_flush(self) -> None:
         return
@@ -323,6 +342,8 @@ class Ingestor:
         self._latest_lock = threading.Lock()
         self._threads: list[threading.Thread] = []
         self._stored_window: deque[tuple[float, int]] = deque()
+        self._landed: list[Chunk] = []
+        self._refusal = ""  # the database's last word on a refused message, for the log
         self.stored = 0
         self.subscriber = self._make_subscriber()
 
@@ -358,6 +379,7 @@ class Ingestor:
             objects = parse_message(payload, now=time.time(), limits=self.config.limits)
         except Rejected as exc:
             counters.incr(f"dropped.{exc.reason}")
+            counters.refused(parts[0], f"telemetry.{exc.reason}")
             log.debug("dropped telemetry from %s: %s", parts[0], exc)
             return False
         if not objects:
@@ -367,6 +389,7 @@ class Ingestor:
             rows=len(objects),
             text="".join(storage.copy_line(ts, drone_pk, name, f) for name, ts, f in objects),
             days=frozenset(int(ts // 86400) for _, ts, _ in objects),
+            drone=parts[0],
         )
         if not self.buffer.put(chunk, self.config.put_wait):
             counters.incr("overflow")
@@ -431,12 +454,43 @@ class Ingestor:
                     "ON CONFLICT (drone_id, object, ts) DO NOTHING"
                 )
 
-    def _flush_once(self, pending: list[Chunk], retrying: bool) -> None:
+    def _flush_once(self, pending: list[Chunk], retrying: bool) -> list[Chunk]:
+        """Store what the database takes; the chunks it refuses, for the caller to count."""
         try:
             self.write(pending, idempotent=retrying)
         except psycopg.errors.UniqueViolation:
             # A sample already stored (a QoS 1 redelivery): keep the rest, skip the copies.
-            self.write(pending, idempotent=True)
+            return self._flush_once(pending, True)
+        except (psycopg.OperationalError, psycopg.InterfaceError):
+            raise
+        except (psycopg.Error, UnicodeError) as exc:
+            # A row validation missed: halve the batch until only the messages the database
+            # refuses are left, so no other drone's rows go with them.
+            if self._conn is not None and self._conn.broken:
+                raise psycopg.OperationalError(str(exc)) from exc
+            if len(pending) == 1:
+                log.debug("telemetry from %s refused by the database: %s", pending[0].drone, exc)
+                self._refusal = str(exc)
+                return pending
+            half = len(pending) // 2
+            return self._flush_once(pending[:half], retrying) + self._flush_once(
+                pending[half:], retrying
+            )
+        self._record_stored(pending)
+        return []
+
+    def _count_refused(self, refused: list[Chunk]) -> None:
+        for chunk in refused:
+            self.counters.incr("dropped.db_rejected", chunk.rows)
+            self.counters.refused(chunk.drone, "telemetry.db_rejected", chunk.rows)
+        if refused:
+            drones = ", ".join(sorted({c.drone for c in refused}))
+            log.error(
+                "%d telemetry messages refused by the database (from %s): %s",
+                len(refused),
+                drones,
+                self._refusal,
+            )
 
     def _writer(self) -> None:
         pending: list[Chunk] = []
@@ -453,11 +507,14 @@ class Ingestor:
                 )
             self.drones.maybe_refresh()
             if pending:
+                self._landed = []
                 try:
-                    self._flush_once(pending, retrying)
+                    self._count_refused(self._flush_once(pending, retrying))
                 except (psycopg.OperationalError, psycopg.InterfaceError) as exc:
                     # The database is away: keep the batch, retry it idempotently, since a
                     # connection lost around COMMIT leaves us not knowing if it landed.
+                    # Halves already committed while splitting it are done with.
+                    pending = self._without_landed(pending)
                     self.counters.incr("db_errors")
                     wait = backoff.failed()
                     log.warning("telemetry write failed, retrying in %.1f s: %s", wait, exc)
@@ -469,20 +526,19 @@ class Ingestor:
                         log.error("stopped with %d rows never written", rows)
                         return
                     continue
-                except psycopg.Error as exc:
-                    rows = sum(c.rows for c in pending)
-                    self.counters.incr("dropped.db_rejected", rows)
-                    log.error("telemetry batch of %d rows refused by the database: %s", rows, exc)
-                    self._drop_connection()
-                else:
-                    self._record_stored(pending)
                 self.buffer.release(sum(c.rows for c in pending))
                 pending = []
                 retrying = False
                 backoff.reset()
             self._report()
 
+    def _without_landed(self, pending: list[Chunk]) -> list[Chunk]:
+        landed = {id(c) for c in self._landed}
+        self.buffer.release(sum(c.rows for c in self._landed))
+        return [c for c in pending if id(c) not in landed]
+
     def _record_stored(self, chunks: list[Chunk]) -> None:
+        self._landed.extend(chunks)
         rows = sum(c.rows for c in chunks)
         now = time.monotonic()
         self.stored += rows

@@ -18,6 +18,7 @@ from rest_framework.response import Response
 
 from fleet.models import Drone, Membership, Role
 from workers import operations
+from workers.ingest_status import drone_refusals
 from workers.ingest_status import ingest_status as read_ingest_status
 
 from . import queries
@@ -64,11 +65,20 @@ def dashboard(request: HttpRequest, drone_id: str) -> HttpResponse:
 
 @login_required
 def ingest_status(request: HttpRequest) -> HttpResponse:
-    """The ingest counters, and for operators the figures to watch (read by the page)."""
+    """The ingest counters, the messages refused per drone (the user's drones; staff see
+    every drone), and for operators the figures to watch (read by the page)."""
+    user = request.user
+    visible = None
+    if not user.is_staff:
+        visible = set(Drone.objects.for_user(user).values_list("drone_id", flat=True))
     return render(
         request,
         "telemetry/status.html",
-        {"status": read_ingest_status(), "show_watch": may_see(request.user)},
+        {
+            "status": read_ingest_status(),
+            "refusals": drone_refusals(visible),
+            "show_watch": may_see(user),
+        },
     )
 
 

@@ -13,6 +13,11 @@ waits on Redis. Each flush adds to two places:
 
 Every flush renews the heartbeat, even with nothing counted, so an idle but running
 process stays alive; processes that count nothing can run `Heartbeat` instead.
+
+Messages refused from a drone are also counted per drone and reason
+(`skyhive:refusals`, read by `refusals`), so an operator can see which drone misbehaves.
+The drone ids kept are capped (REFUSAL_DRONES): past the cap, a new id is counted under
+`OTHER_DRONES`, so a flood of made-up ids cannot grow Redis without bound.
 """
 
 from __future__ import annotations
@@ -40,6 +45,28 @@ GONE_RETAIN_S = 3600
 
 # Fields of an instance hash that describe it rather than count something.
 IDENTITY_FIELDS = ("process", "instance", "host", "pid", "started", "last_report", "ttl")
+
+REFUSALS_KEY = "skyhive:refusals"
+REFUSAL_DRONES_KEY = "skyhive:refusals:drones"
+REFUSAL_DRONES = 1000
+OTHER_DRONES = "*"
+# Adds per-drone refusals, keeping at most ARGV[1] distinct drone ids; ARGV then holds
+# (drone, reason, amount) triples and last the name of the overflow bucket. One script,
+# so two processes cannot both pass the cap.
+_ADD_REFUSALS = """
+local cap = tonumber(ARGV[1])
+for i = 2, #ARGV - 1, 3 do
+  local drone = ARGV[i]
+  if redis.call('SISMEMBER', KEYS[2], drone) == 0 then
+    if redis.call('SCARD', KEYS[2]) < cap then
+      redis.call('SADD', KEYS[2], drone)
+    else
+      drone = ARGV[#ARGV]
+    end
+  end
+  redis.call('HINCRBY', KEYS[1], drone .. '|' .. ARGV[i + 1], ARGV[i + 2])
+end
+"""
 
 log = logging.getLogger(__name__)
 
@@ -74,6 +101,7 @@ class Counters:
         self.started = time.time()
         self._counts: Counter[str] = Counter()
         self._gauges: dict[str, float] = {}
+        self._refusals: Counter[tuple[str, str]] = Counter()
         self._lock = threading.Lock()
         self._last_flush = 0.0
 
@@ -102,6 +130,14 @@ class Counters:
         with self._lock:
             return self._counts[name]
 
+    def refused(self, drone_id: str, reason: str, amount: int = 1) -> None:
+        """Count a refused message against its drone (`reason` like `heartbeats.bad_text`)."""
+        with self._lock:
+            refusals = self._refusals
+            if (drone_id, reason) not in refusals and len(refusals) >= REFUSAL_DRONES:
+                drone_id = OTHER_DRONES  # held in memory until the next flush: bounded too
+            refusals[(drone_id, reason)] += amount
+
     def maybe_flush(self) -> None:
         if time.monotonic() - self._last_flush >= self.flush_every:
             self.flush()
@@ -111,6 +147,8 @@ class Counters:
             counts = dict(self._counts)
             self._counts.clear()
             gauges = dict(self._gauges)
+            refusals = dict(self._refusals)
+            self._refusals.clear()
         self._last_flush = time.monotonic()
         now = time.time()
         try:
@@ -123,11 +161,13 @@ class Counters:
                     pipe.hset(key, name, value)
                 pipe.hset(key, "updated_at", now)
             self._write_instance(pipe, counts, gauges, now)
+            _add_refusals(pipe, refusals)
             pipe.execute()
         except redis.RedisError:
             # Keep the counts for the next flush rather than losing them.
             with self._lock:
                 self._counts.update(counts)
+                self._refusals.update(refusals)
 
     def _write_instance(
         self,
@@ -158,6 +198,36 @@ class Counters:
             _client().delete(self.alive_key)
         except redis.RedisError as exc:
             log.warning("could not retire %s: %s", self.instance_key, exc)
+
+
+def _add_refusals(pipe: redis.client.Pipeline, refusals: dict[tuple[str, str], int]) -> None:
+    if not refusals:
+        return
+    args: list[str | int] = [getattr(settings, "REFUSAL_DRONES", REFUSAL_DRONES)]
+    for (drone_id, reason), amount in refusals.items():
+        args += [drone_id, reason, amount]
+    args.append(OTHER_DRONES)
+    pipe.eval(_ADD_REFUSALS, 2, REFUSALS_KEY, REFUSAL_DRONES_KEY, *args)
+
+
+def refusals(client: redis.Redis | None = None) -> list[dict]:
+    """Refused messages per drone, the most refused first: `{"drone_id", "total",
+    "reasons": {reason: count}}`; `OTHER_DRONES` gathers the ids past the cap."""
+    client = client or _client()
+    by_drone: dict[str, dict[str, int]] = {}
+    for field_name, value in client.hgetall(REFUSALS_KEY).items():
+        drone_id, _, reason = field_name.partition("|")
+        by_drone.setdefault(drone_id, {})[reason] = int(value)
+    rows = [
+        {
+            "drone_id": drone_id,
+            "total": sum(reasons.values()),
+            "reasons": dict(sorted(reasons.items())),
+        }
+        for drone_id, reasons in by_drone.items()
+    ]
+    rows.sort(key=lambda row: (-row["total"], row["drone_id"]))
+    return rows
 
 
 class Heartbeat:

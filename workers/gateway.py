@@ -281,6 +281,7 @@ class Gateway:
             self.handle(topic_name, payload)
         except Exception:  # noqa: BLE001 - the gateway must outlive any bug in a handler
             self.counters.incr("dropped.handler_error")
+            self._count_against_drone(topic_name, "handler_error")
             log.exception("handler failed on %s", topic_name)
         self.counters.maybe_flush()
 
@@ -292,6 +293,7 @@ class Gateway:
         reason = self._handle(topic_name, payload)
         if reason != QUEUED:
             self._count(reason)
+            self._count_against_drone(topic_name, reason)
         return reason
 
     def _count(self, reason: str | None) -> None:
@@ -302,6 +304,15 @@ class Gateway:
         else:
             self.counters.incr("dropped")
             self.counters.incr(f"dropped.{reason}")
+
+    def _count_against_drone(self, topic_name: str, reason: str | None) -> None:
+        """A dropped message also counts against the drone of its topic, as
+        `<channel>.<reason>`; a topic outside the contract names nobody."""
+        if reason is None or reason == "bad_topic" or reason.startswith("unhandled."):
+            return
+        parts = topic_name.split("/")
+        if len(parts) == 3 and parts[1] in protocol.OUT_CHANNELS and protocol.is_drone_id(parts[0]):
+            self.counters.refused(parts[0], f"{parts[1]}.{reason}")
 
     def _handle(self, topic_name: str, payload: bytes) -> str | None:
         try:
@@ -318,8 +329,8 @@ class Gateway:
         try:
             message = protocol.PARSERS[(channel, "out")](protocol.decode_json(payload))
         except protocol.ProtocolError as exc:
-            log.debug("malformed %s: %s", topic_name, exc)
-            return "malformed"
+            log.debug("refused %s: %s", topic_name, exc)
+            return exc.reason
         if channel in self.batch_handlers:
             try:
                 self._queue.put_nowait((channel, drone_id, message))
@@ -389,8 +400,10 @@ class Gateway:
             log.exception("batch handler for %s failed", channel)
             reasons = ["handler_error"] * len(batch)
             connection.close()
-        for reason in reasons:
+        for (drone_id, _message), reason in zip(batch, reasons, strict=True):
             self._count(reason)
+            if reason is not None:
+                self.counters.refused(drone_id, f"{channel}.{reason}")
 
     # -- outbound ---------------------------------------------------------------------------
 

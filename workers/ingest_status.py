@@ -10,7 +10,7 @@ import time
 
 import redis
 
-from workers.counters import instances, snapshot
+from workers.counters import OTHER_DRONES, instances, refusals, snapshot
 
 # The ingest writer reports at least every flush interval; silent longer means stopped.
 ALIVE_WITHIN_S = 5.0
@@ -57,3 +57,18 @@ def ingest_status() -> dict:
         "buffer_rows": int(sum(i.counters.get("buffer_rows", 0) for i in live)),
         "updated_at": counters.get("updated_at"),
     }
+
+
+def drone_refusals(visible: set[str] | None = None, limit: int = 50) -> list[dict] | None:
+    """Refused messages per drone and reason, every process's (gateway and ingest), the
+    most refused drone first; only the `visible` drone ids unless None (every drone, and
+    the ids past the cap as OTHER_DRONES). None when Redis cannot be read."""
+    try:
+        rows = refusals()
+    except redis.RedisError:
+        return None
+    if visible is not None:
+        rows = [row for row in rows if row["drone_id"] in visible]
+    for row in rows:
+        row["other"] = row["drone_id"] == OTHER_DRONES
+    return rows[:limit]
