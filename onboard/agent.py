@@ -19,7 +19,7 @@ from typing import Any
 
 from . import protocol
 from .controller import Controller
-from .failsafe import FailSafe
+from .failsafe import FailSafe, Limits
 from .fc.base import FlightController
 from .gear import GearManager
 from .heartbeat import Heartbeater, build_heartbeat
@@ -36,6 +36,8 @@ TELEMETRY_BATCH_MAX = 200
 ACT_ON = ("control", "mission")
 # How many request ids the agent remembers: far more than arrive within any redelivery.
 RECENT_REQUESTS = 4096
+# Control commands that only read: they are not the operator taking the drone over.
+READ_ONLY_COMMANDS = ("objrequest",)
 
 
 @dataclass
@@ -52,8 +54,14 @@ class AgentConfig:
     telemetry_interval: float = 0.1
     battery_critical: float = 0.25
     bounds: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)
+    # Fail-safe limits (onboard.failsafe.Limits); durations in flight seconds.
+    battery_reserve: float = 0.30
+    alarm_repeat: float = 10.0
+    critical_takeover: float = 30.0
     link_loss_timeout: float = 30.0
-    link_loss_action: str = "continue"
+    link_loss_action: str = "return"
+    return_speed: float = 5.0
+    auto_disarm_delay: float = 2.0
     sensor_field: SensorField | None = None
     gear_reread_interval: float = 5.0
     arm_timeout: float = 20.0
@@ -110,11 +118,11 @@ class Agent:
             self.raise_alarm,
             navigation=self.navigation,
             stop_mission=self.worker.stop_current,
-            battery_critical=config.battery_critical,
             bounds=config.bounds,
-            link_loss_timeout=config.link_loss_timeout,
-            link_loss_action=config.link_loss_action,
+            limits=failsafe_limits(config),
+            time_scale=config.time_scale,
         )
+        self.worker.on_end = self.failsafe.mission_ended
         self.mqtt = self._mqtt_link(config)
         self.heartbeater = Heartbeater(config.heartbeat_interval, self._beat)
         self.video: Any = None
@@ -297,7 +305,12 @@ class Agent:
             # QoS 1 and the ground's outbox both deliver at least once: act once.
             self._drop("repeated_request", topic, request_id)
             return
-        handler = {"control": self._control, "mission": self._mission, "gear": self._gear_query}
+        handler = {
+            "control": self._control,
+            "mission": self._mission,
+            "gear": self._gear_query,
+            "alarms": self._alarm_ack,
+        }
         handler[channel](topic, obj)
 
     def _control(self, topic: str, obj: Any) -> None:
@@ -317,6 +330,8 @@ class Agent:
                 ),
             )
             return
+        if request.command not in READ_ONLY_COMMANDS:
+            self.failsafe.ground_took_over()
         self._control_pool.submit(self._run_control, request)
 
     def _run_control(self, request: protocol.ControlRequest) -> None:
@@ -352,7 +367,16 @@ class Agent:
                 ),
             )
             return
+        self.failsafe.ground_took_over()
         self.worker.submit(request)
+
+    def _alarm_ack(self, topic: str, obj: Any) -> None:
+        try:
+            ack = protocol.parse_alarm_ack(obj)
+        except protocol.ProtocolError as exc:
+            self._drop("alarms", topic, exc)
+            return
+        self.failsafe.acknowledge(ack.level)
 
     def _gear_query(self, topic: str, obj: Any) -> None:
         try:
@@ -365,6 +389,19 @@ class Agent:
             self.send("gear", protocol.GearReply(request_id, False, error=_sentence(exc)))
             return
         self.send("gear", self.gear.handle_query(query, self.fc.state))
+
+
+def failsafe_limits(config: AgentConfig) -> Limits:
+    return Limits(
+        battery_critical=config.battery_critical,
+        battery_reserve=config.battery_reserve,
+        alarm_repeat=config.alarm_repeat,
+        critical_takeover=config.critical_takeover,
+        link_loss_timeout=config.link_loss_timeout,
+        link_loss_action=config.link_loss_action,
+        return_speed=config.return_speed,
+        auto_disarm_delay=config.auto_disarm_delay,
+    )
 
 
 class RecentIds:

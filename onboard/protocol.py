@@ -1136,3 +1136,29 @@ def parse_message(topic_name: str, payload: bytes | str) -> tuple[str, str, Any]
     """Raw MQTT topic + payload → (drone id, channel, parsed message), or ProtocolError."""
     drone_id, channel, direction = split_topic(topic_name)
     return drone_id, channel, PARSERS[(channel, direction)](decode_json(payload))
+
+
+# ---------------------------------------------------------------------------------------
+# Optional additions (docs/protocol.md marks each *(optional)*).
+
+# The ground acknowledges an alarm on `<id>/alarms/in`; a drone repeats its CRITICAL alarm
+# until it is acknowledged. A drone that does not know the channel simply never gets one.
+IN_CHANNELS = (*IN_CHANNELS, "alarms")
+
+
+@dataclass(frozen=True)
+class AlarmAck:
+    level: str
+    ts: float = field(default_factory=now)
+    type: str = "alarm_ack"
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def parse_alarm_ack(obj: Any) -> AlarmAck:
+    obj = _object(obj, "message")
+    return AlarmAck(_choice(_require(obj, "level"), "level", ALARM_LEVELS), _ts(obj))
+
+
+PARSERS[("alarms", "in")] = parse_alarm_ack
