@@ -277,8 +277,9 @@ class FailSafe:
     def return_home(self, reason: str) -> str:
         """Home at the current altitude, then land; land here when the energy would not do."""
         state = self.fc.state
-        if not self.enough_energy_to_get_home(state):
-            return self.land_here(f"{reason}; not enough energy left to get home")
+        short = self.energy_shortfall(state)
+        if short is not None:
+            return self.land_here(f"{reason}; not enough energy left to get home ({short})")
         here = current_ned(state) or (0.0, 0.0, 0.0)
         self._take_over("return", reason, lambda: self._goto((0.0, 0.0, here[2])))
         return "return"
@@ -292,13 +293,16 @@ class FailSafe:
         self._take_over("hold", reason, lambda: self._goto(here))
         return "hold"
 
-    def enough_energy_to_get_home(self, state: VehicleState) -> bool:
-        """False only when the measured drain says the battery would run out on the way."""
+    def energy_shortfall(self, state: VehicleState) -> str | None:
+        """Why the measured drain says the battery would run out on the way home, or None
+        (also when the drain is not known yet: then the drone tries)."""
         rate, remaining = self.drain.rate, state.battery_remaining
         if rate is None or remaining is None:
-            return True
+            return None
         need = energy_to_get_home(state, rate, self.limits.return_speed)
-        return need is None or need <= remaining
+        if need is None or need <= remaining:
+            return None
+        return f"needs {need * 100:.0f} %, has {remaining * 100:.0f} %"
 
     def _take_over(self, mode: str, reason: str, fly: Callable[[], None]) -> None:
         # Set before stopping the mission: the stopped mission must not re-plan the drone.
@@ -348,12 +352,17 @@ class FailSafe:
         state = self.fc.state
         if self.recovery is not None or not state.armed:
             return
-        if status == "completed" and state.airborne:
+        if status == "completed" and state.airborne and not self._landing():
             self.return_home("the mission is complete")
-        elif status == "completed":
+        elif status == "completed" and not state.airborne:
             self._disarm("the mission is complete")
         elif status == "stopped" and state.airborne:
             self.hold_here("the mission was stopped; waiting for the operator")
+
+    def _landing(self) -> bool:
+        """The last target asked for is a landing (auto-disarm finishes the job)."""
+        target = self.navigation.last_target if self.navigation is not None else None
+        return target is not None and target.kind == "land"
 
     def check_landed(self) -> bool:
         """Disarm a drone that has sat landed and armed for the auto-disarm delay."""
