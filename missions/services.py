@@ -215,9 +215,18 @@ def send_assignment(assignment: Assignment) -> None:
     )
 
 
-def send_stop(drone_id: str, mission_id: str) -> None:
-    message = protocol.MissionStop(protocol.new_request_id(), str(mission_id))
-    outbox.send_to_drone(drone_id, "mission", message.to_dict())
+def send_stop(drone_id: str, mission_id: str, then: str | None = None) -> None:
+    """Stop the drone's mission; `then` (protocol.STOP_FOLLOW_UPS) is what it does next,
+    holding where it is when not given."""
+    message = protocol.MissionStop(protocol.new_request_id(), str(mission_id)).to_dict()
+    if then is not None:
+        message["then"] = then
+    outbox.send_to_drone(drone_id, "mission", message)
+
+
+def send_alarm_ack(drone_id: str, level: str) -> None:
+    """Tell the drone its alarm arrived, so it stops repeating it."""
+    outbox.send_to_drone(drone_id, "alarms", protocol.AlarmAck(level).to_dict())
 
 
 def send_control(drone_id: str, command: str, params: dict | None = None) -> None:

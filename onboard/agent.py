@@ -347,6 +347,7 @@ class Agent:
     def _mission(self, topic: str, obj: Any) -> None:
         try:
             request = protocol.parse_mission_request(obj)
+            follow_up = protocol.stop_follow_up(obj)
         except protocol.ProtocolError as exc:
             request_id = protocol.request_id_of(obj)
             if request_id is None:
@@ -368,6 +369,8 @@ class Agent:
             )
             return
         self.failsafe.ground_took_over()
+        if isinstance(request, protocol.MissionStop):
+            self.failsafe.after_stop = follow_up
         self.worker.submit(request)
 
     def _alarm_ack(self, topic: str, obj: Any) -> None:

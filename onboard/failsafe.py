@@ -143,6 +143,8 @@ class FailSafe:
         # What the fail-safe is doing with the drone: "return", "land", "hold" or None.
         self.recovery: str | None = None
         self.drain = DrainMeter()
+        # What a mission stopped by the ground leaves the drone doing (the stop's `then`).
+        self.after_stop = "hold"
         self._lock = threading.Lock()
         self._critical: CriticalAlarm | None = None
         self._out_of_bounds: set[str] = set()
@@ -215,6 +217,7 @@ class FailSafe:
             if self._critical is not None:
                 self._critical.taken_over = True
             self.recovery = None
+            self.after_stop = "hold"
 
     # -- sensor bounds --------------------------------------------------------------------
 
@@ -357,6 +360,15 @@ class FailSafe:
         elif status == "completed" and not state.airborne:
             self._disarm("the mission is complete")
         elif status == "stopped" and state.airborne:
+            self._after_stop()
+
+    def _after_stop(self) -> None:
+        follow_up, self.after_stop = self.after_stop, "hold"
+        if follow_up == "return":
+            self.return_home("the mission was stopped with a return")
+        elif follow_up == "land":
+            self.land_here("the mission was stopped with a landing")
+        else:
             self.hold_here("the mission was stopped; waiting for the operator")
 
     def _landing(self) -> bool:

@@ -1162,3 +1162,14 @@ def parse_alarm_ack(obj: Any) -> AlarmAck:
 
 
 PARSERS[("alarms", "in")] = parse_alarm_ack
+
+
+# A stop request's optional `then`: what the drone does once the mission has stopped.
+# `hold` (the default) hovers where it is until the operator decides; `return` flies home,
+# lands and disarms (a released panic call); `land` lands where it is.
+STOP_FOLLOW_UPS = ("hold", "return", "land")
+
+
+def stop_follow_up(obj: Any) -> str:
+    value = obj.get("then") if isinstance(obj, dict) else None
+    return "hold" if value is None else _choice(value, "then", STOP_FOLLOW_UPS)

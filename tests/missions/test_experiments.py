@@ -54,8 +54,7 @@ def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx,
         "/api/v1/missions/panic/", {"lat": caller[0], "lon": caller[1]}, format="json"
     )
     assert response.status_code == 201, response.json()
-    mission = wait_status(response.json()["id"], {"completed", "failed", "stopped"}, 60)
-    assert mission.status == MissionStatus.COMPLETED
+    mission_id = response.json()["id"]
 
     def hovering_over_caller() -> bool:
         drone = drone_row(drone_id)
@@ -65,7 +64,20 @@ def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx,
             and abs(drone.alt - 10.0) < 1.0
         )
 
-    assert wait_for(hovering_over_caller, 10), sky.describe()
+    # On station: the call is not completed until it is released.
+    assert wait_for(hovering_over_caller, 60), sky.describe()
+    time.sleep(1.0)  # 20 flight seconds on station
+    assert Mission.objects.get(pk=mission_id).status == MissionStatus.RUNNING
+    assert hovering_over_caller()
+    released = api(world_tx.operator).post(f"/api/v1/missions/{mission_id}/release/")
+    assert released.json()["status"] == "completed", released.json()
+    mission = Mission.objects.get(pk=mission_id)
+
+    def home_disarmed() -> bool:
+        drone = drone_row(drone_id)
+        return not drone.armed and metres((drone.lat, drone.lon), point_at(100, 0)) < 2.5
+
+    assert wait_for(home_disarmed, 30), sky.describe()
     log = api(world_tx.operator).get(f"/api/v1/missions/{mission.pk}/log/").json()
     stages = {s["stage"]: s["duration_s"] for s in log["stages"]}
     assert set(stages) >= {"arm", "takeoff", "navigate"}

@@ -214,3 +214,25 @@ def test_a_landed_drone_disarms_after_the_delay_but_not_before_take_off() -> Non
 def test_an_unknown_link_loss_action_is_refused() -> None:
     with pytest.raises(ValueError, match="link loss action"):
         Limits(link_loss_action="panic")
+
+
+@pytest.mark.parametrize(
+    ("then", "recovery", "last_call"),
+    [("hold", "hold", ("goto", 20.0, 0.0, -10.0)), ("return", "return", ("goto", 0.0, 0.0, -10.0))],
+)
+def test_a_stop_request_says_what_the_drone_does_next(then, recovery, last_call) -> None:
+    fc = airborne(north=20, altitude=10)
+    failsafe, _, _ = failsafe_for(fc)
+    failsafe.after_stop = then
+    failsafe.mission_ended("stopped")
+    assert failsafe.recovery == recovery and fc.calls[-1] == last_call
+    assert failsafe.after_stop == "hold"  # once only
+
+
+def test_a_stop_follow_up_is_checked() -> None:
+    from onboard import protocol
+
+    assert protocol.stop_follow_up({"action": "stop"}) == "hold"
+    assert protocol.stop_follow_up({"then": "return"}) == "return"
+    with pytest.raises(protocol.ProtocolError, match="then"):
+        protocol.stop_follow_up({"then": "dance"})
