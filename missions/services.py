@@ -207,10 +207,11 @@ def send_assignment(assignment: Assignment) -> None:
     }
     steps = step_dicts(by_index[i] for i in indexes)
     message = protocol.mission_start(str(assignment.mission_id), str(assignment.id), steps)
+    # Its issue time: a drone refuses a start queued too long while it was away.
     outbox.send_to_drone(
         assignment.drone.drone_id,
         "mission",
-        message.to_dict(),
+        {**message.to_dict(), "ts": protocol.now()},
         ttl=settings.MISSIONS_START_TTL_S,
     )
 

@@ -103,6 +103,8 @@ def _add_failsafe(p: argparse.ArgumentParser) -> None:
     p.add_argument("--link-loss-action", choices=LINK_LOSS_ACTIONS, default="return")
     p.add_argument("--return-speed", type=_positive, default=5.0, help="m/s, energy estimate")
     p.add_argument("--auto-disarm-delay", type=_positive, default=2.0, help="after landing, s")
+    p.add_argument("--max-control-age", type=_positive, default=10.0, help="wall s; older refused")
+    p.add_argument("--max-mission-age", type=_positive, default=60.0, help="wall s; older refused")
 
 
 def _add_behaviour(p: argparse.ArgumentParser) -> None:
@@ -201,6 +203,8 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
         link_loss_action=args.link_loss_action,
         return_speed=args.return_speed,
         auto_disarm_delay=args.auto_disarm_delay,
+        max_control_age=args.max_control_age,
+        max_mission_age=args.max_mission_age,
         ground_link_topic=args.ground_link_topic,
         sensor_field=sensor_field,
         gear_reread_interval=args.gear_reread_interval,

@@ -19,7 +19,7 @@ from typing import Any
 
 from . import protocol
 from .controller import Controller
-from .failsafe import FailSafe, Limits
+from .failsafe import FailSafe, GroundClock, Limits
 from .fc.base import FlightController
 from .gear import GearManager
 from .heartbeat import Heartbeater, build_heartbeat
@@ -62,6 +62,10 @@ class AgentConfig:
     link_loss_action: str = "return"
     return_speed: float = 5.0
     auto_disarm_delay: float = 2.0
+    # Requests older than this (wall seconds since the ground issued them) are refused, so
+    # nothing queued while the drone was away flies later.
+    max_control_age: float = 10.0
+    max_mission_age: float = 60.0
     sensor_field: SensorField | None = None
     gear_reread_interval: float = 5.0
     arm_timeout: float = 20.0
@@ -123,6 +127,7 @@ class Agent:
             time_scale=config.time_scale,
         )
         self.worker.on_end = self.failsafe.mission_ended
+        self.ground_clock = GroundClock()
         self.mqtt = self._mqtt_link(config)
         self.heartbeater = Heartbeater(config.heartbeat_interval, self._beat)
         self.video: Any = None
@@ -316,6 +321,7 @@ class Agent:
     def _control(self, topic: str, obj: Any) -> None:
         try:
             request = protocol.parse_control_request(obj)
+            stale = self._stale(obj, self.config.max_control_age)
         except protocol.ProtocolError as exc:
             request_id = protocol.request_id_of(obj)
             if request_id is None:
@@ -328,6 +334,13 @@ class Agent:
                 protocol.ControlResponse(
                     request_id, command or "unknown", False, None, _sentence(exc)
                 ),
+            )
+            return
+        if stale is not None:
+            self.dropped["control_stale"] += 1
+            self.send(
+                "control",
+                protocol.ControlResponse(request.request_id, request.command, False, None, stale),
             )
             return
         if request.command not in READ_ONLY_COMMANDS:
@@ -348,6 +361,12 @@ class Agent:
         try:
             request = protocol.parse_mission_request(obj)
             follow_up = protocol.stop_follow_up(obj)
+            # A stop is never too old: stopping is always safe.
+            stale = (
+                self._stale(obj, self.config.max_mission_age)
+                if isinstance(request, protocol.MissionStart)
+                else None
+            )
         except protocol.ProtocolError as exc:
             request_id = protocol.request_id_of(obj)
             if request_id is None:
@@ -368,10 +387,28 @@ class Agent:
                 ),
             )
             return
+        if stale is not None:
+            self.dropped["mission_stale"] += 1
+            self.send("mission", protocol.mission_reply(request, "rejected", error=stale))
+            return
         self.failsafe.ground_took_over()
         if isinstance(request, protocol.MissionStop):
             self.failsafe.after_stop = follow_up
         self.worker.submit(request)
+
+    def _stale(self, obj: Any, limit: float) -> str | None:
+        """Why a request is too old to act on (its `ts` against the learnt clock offset)."""
+        issued = protocol.issued_at(obj)
+        if issued is None:
+            return None
+        age = self.ground_clock.age(issued)
+        if age <= limit:
+            return None
+        log.warning("refused a request issued %.1f s ago (limit %g s)", age, limit)
+        return (
+            f"The request was issued {age:.0f} s ago, over the {limit:g} s limit: "
+            "it was not acted on, so nothing queued while the drone was away flies late."
+        )
 
     def _alarm_ack(self, topic: str, obj: Any) -> None:
         try:

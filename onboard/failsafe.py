@@ -411,6 +411,48 @@ class FailSafe:
         self.check_landed()
 
 
+class GroundClock:
+    """How far this drone's clock runs ahead of the ground's, learnt from the ground's own
+    timestamps, and so how old a request really is.
+
+    Every request carries its issue time on the ground's clock; arrival − issue time is the
+    clock offset plus the time on the way. The smallest such sample over the last
+    `window` seconds is the offset plus the quickest delivery (NTP's minimum filter): a
+    request queued while the drone was away arrives late, so it only makes its own sample
+    larger, never the estimate. Until a first request arrives the offset is unknown and
+    that first request is its own reference (age 0): an unknown clock never refuses.
+    """
+
+    def __init__(
+        self,
+        window: float = 3600.0,
+        clock: Callable[[], float] = time.time,
+        monotonic: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.window = window
+        self.clock = clock
+        self.monotonic = monotonic
+        self._samples: deque[tuple[float, float]] = deque()
+        self._lock = threading.Lock()
+
+    def age(self, issued: float) -> float:
+        """Seconds since the ground issued a request (this request also teaches the offset)."""
+        sample = self.clock() - issued
+        now = self.monotonic()
+        with self._lock:
+            self._samples.append((now, sample))
+            while now - self._samples[0][0] > self.window:
+                self._samples.popleft()
+            offset = min(s for _, s in self._samples)
+        return sample - offset
+
+    @property
+    def offset(self) -> float | None:
+        """This clock minus the ground's (plus the quickest delivery), None before a request."""
+        with self._lock:
+            return min((s for _, s in self._samples), default=None)
+
+
 def _fmt(value: float | None, unbounded: str) -> str:
     return unbounded if value is None else f"{value:g}"
 

@@ -1173,3 +1173,9 @@ STOP_FOLLOW_UPS = ("hold", "return", "land")
 def stop_follow_up(obj: Any) -> str:
     value = obj.get("then") if isinstance(obj, dict) else None
     return "hold" if value is None else _choice(value, "then", STOP_FOLLOW_UPS)
+
+
+def issued_at(obj: Any) -> float | None:
+    """A request's optional `ts` (when the ground issued it, the ground's clock), or None."""
+    value = obj.get("ts") if isinstance(obj, dict) else None
+    return None if value is None else number(value, "ts", lo=0)

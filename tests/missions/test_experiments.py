@@ -48,7 +48,7 @@ def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx,
     drone_id = f"ACME_{tag}P1"
     sky.add_drone(drone_id, north=100, fc=fc)
     sky.wait_online()
-    assert drone_row(drone_id).fc == {"protocol": fc, "connected": True}
+    assert drone_row(drone_id).fc["protocol"] == fc and drone_row(drone_id).fc["connected"]
     caller = point_at(0, 0)
     response = api(world_tx.operator).post(
         "/api/v1/missions/panic/", {"lat": caller[0], "lon": caller[1]}, format="json"

@@ -33,3 +33,18 @@ def test_a_critical_alarm_is_acknowledged_to_the_drone_at_once(
     assert [protocol.parse_alarm_ack(i["payload"]).level for i in acks] == (
         ["CRITICAL"] if acked else []
     )
+
+
+@pytest.mark.parametrize(("ahead", "trusted"), [(0.3, True), (3600.0, False)])
+@pytest.mark.django_db(False)
+def test_a_drone_clock_far_from_the_grounds_is_shown_untrusted(ahead: float, trusted: bool) -> None:
+    from datetime import UTC, datetime
+
+    from fleet.heartbeats import fc_state
+
+    seen = datetime(2026, 1, 1, tzinfo=UTC)
+    beat = protocol.Heartbeat(
+        "ACME_A", seen.timestamp() + ahead, None, None, None, False, False, "", None, "fake", True
+    )
+    state = fc_state(beat, seen)
+    assert state["clock_offset_s"] == pytest.approx(ahead) and state["clock_trusted"] is trusted

@@ -236,3 +236,31 @@ def test_a_stop_follow_up_is_checked() -> None:
     assert protocol.stop_follow_up({"then": "return"}) == "return"
     with pytest.raises(protocol.ProtocolError, match="then"):
         protocol.stop_follow_up({"then": "dance"})
+
+
+class TwoClocks:
+    """The drone's wall clock and monotonic clock, moved together by the test."""
+
+    def __init__(self, wall: float) -> None:
+        self.wall, self.mono = wall, 0.0
+
+    def advance(self, seconds: float) -> None:
+        self.wall += seconds
+        self.mono += seconds
+
+
+def test_request_age_holds_up_to_a_drone_clock_an_hour_ahead() -> None:
+    from onboard.failsafe import GroundClock
+
+    ground_now = 1_767_225_600.0
+    drone = TwoClocks(ground_now + 3600)  # the drone's clock is an hour ahead
+    clock = GroundClock(window=600, clock=lambda: drone.wall, monotonic=lambda: drone.mono)
+    assert clock.offset is None
+    assert clock.age(ground_now - 0.2) == 0.0  # the first request is its own reference
+    drone.advance(5)
+    assert clock.age(ground_now + 5) == pytest.approx(0.0, abs=0.3)  # fresh, not an hour old
+    drone.advance(60)
+    assert clock.age(ground_now + 65 - 42) == pytest.approx(42, abs=0.3)  # queued 42 s
+    assert clock.offset == pytest.approx(3600.0)  # the quickest delivery seen
+    drone.advance(601)  # old samples leave the window; a fresh one is the reference
+    assert clock.age(ground_now + 666) == pytest.approx(0.0, abs=0.3)

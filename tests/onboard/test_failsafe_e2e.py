@@ -169,3 +169,25 @@ def test_a_critical_battery_repeats_its_alarm_then_the_drone_lands(
     assert late == []  # acknowledged: no more repeats
     stopped = ground.wait_for("mission", lambda m: m.get("status") == "stopped")
     assert "battery critical" in stopped["error"]
+
+
+def test_requests_older_than_their_limit_are_refused_and_nothing_flies(fly, tmp_path) -> None:
+    """Rule: a control request older than 10 s, or a mission start older than 60 s (by its
+    issue time, against the clock offset the agent learnt), is refused with the reason."""
+    ground = fly("uavtalk")
+    assert ground.command("objrequest", value="FlightStatus")["ok"]  # fresh: the reference
+    request_id = protocol.new_request_id()
+    queued = {"request_id": request_id, "command": "arm", "params": {}, "ts": time.time() - 30}
+    ground.send("control", queued)
+    refused = ground.wait_for("control", lambda m: m["request_id"] == request_id)
+    assert refused["ok"] is False and "issued 30 s ago, over the 10 s limit" in refused["error"]
+    start = {
+        **protocol.mission_start("old", "a-old", _fly_north(10)).to_dict(),
+        "ts": time.time() - 120,
+    }
+    ground.send("mission", start)
+    rejected = ground.wait_for("mission", lambda m: m.get("request_id") == start["request_id"])
+    assert rejected["status"] == "rejected" and "over the 60 s limit" in rejected["error"]
+    time.sleep(0.5)
+    assert not ground.on("heartbeats")[-1]["armed"]  # neither was acted on
+    assert ground.command("arm")["ok"]  # a fresh one is
