@@ -23,7 +23,7 @@ from workers import outbox
 
 from . import events
 from .models import ConnectionEvent, Drone
-from .signals import drones_came_online
+from .signals import drones_came_online, drones_went_offline
 
 log = logging.getLogger(__name__)
 
@@ -239,4 +239,5 @@ def sweep_offline(now: datetime | None = None) -> list[str]:
     futures.wait([f for f in sent if f is not None], timeout=2)
     if marked:
         log.info("marked offline: %s", ", ".join(marked))
+        drones_went_offline.send(sender=ConnectionEvent, drone_ids=marked)
     return marked

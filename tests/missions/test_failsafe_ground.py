@@ -48,3 +48,63 @@ def test_a_drone_clock_far_from_the_grounds_is_shown_untrusted(ahead: float, tru
     )
     state = fc_state(beat, seen)
     assert state["clock_offset_s"] == pytest.approx(ahead) and state["clock_trusted"] is trusted
+
+
+def _survey(world, drone) -> tuple:  # type: ignore[no-untyped-def]
+    from missions.planning import mission_steps
+
+    from .conftest import point_at
+
+    points = [point_at(10.0 * i, 0.0) for i in range(3)]
+    mission = create_mission(
+        organisation=world.org, name="s", steps=mission_steps(points, altitude=10)
+    )
+    return mission, start_mission(mission, drone=drone).assignment
+
+
+def _went_offline(drone) -> list[str]:  # type: ignore[no-untyped-def]
+    from datetime import timedelta
+
+    from django.utils import timezone
+
+    from fleet.heartbeats import sweep_offline
+
+    type(drone).objects.filter(pk=drone.pk).update(
+        last_seen=timezone.now() - timedelta(seconds=120)
+    )
+    return sweep_offline()
+
+
+@pytest.mark.parametrize("comes_back", [False, True], ids=["still-offline", "back-in-time"])
+def test_a_drone_offline_mid_mission_shows_at_once_and_is_replaced_after_the_grace(
+    world, outbox, comes_back: bool
+) -> None:
+    from missions.models import Assignment, Event
+    from missions.offline import replace_if_still_offline
+
+    flying = online_drone(world.org, "ACME_A", north=15)
+    online_drone(world.org, "ACME_B", north=40)
+    mission, assignment = _survey(world, flying)
+    assert _went_offline(flying) == ["ACME_A"]
+    shown = mission.events.get(kind=Event.Kind.DECISION, data__decision="offline")
+    assert "ACME_A went offline mid-mission" in shown.message
+    assert shown.data["position"]["lat"] == pytest.approx(flying.lat)
+    if comes_back:
+        type(flying).objects.filter(pk=flying.pk).update(online=True)
+    replace_if_still_offline(str(mission.pk), str(assignment.pk), shown.pk)
+    replaced = mission.assignments.filter(reason=Assignment.Reason.REPLACEMENT)
+    if comes_back:
+        assert not replaced.exists()
+        assert mission.events.filter(data__decision="offline_back").exists()
+    else:
+        assert replaced.get().drone.drone_id == "ACME_B"
+        assignment.refresh_from_db()
+        assert assignment.status == Assignment.Status.STOPPED
+
+
+def test_a_drone_offline_outside_a_mission_changes_no_mission(world, outbox) -> None:
+    from missions.models import Event
+
+    idle = online_drone(world.org, "ACME_A")
+    assert _went_offline(idle) == ["ACME_A"]
+    assert not Event.objects.filter(data__decision="offline").exists()
