@@ -222,7 +222,8 @@ def test_a_uavtalk_drone_running_out_of_battery_is_replaced_by_a_mavlink_drone(w
     }
     assert sorted(waypoints["ACME_UR1"] + waypoints["ACME_MR2"]) == waits  # none skipped
     assert len(waypoints["ACME_UR1"]) >= 1 and len(waypoints["ACME_MR2"]) >= 1
-    assert wait_for(lambda: not drone_row("ACME_UR1").airborne, 20)
+    # Told to land by the replacement, it lands and disarms itself on the ground.
+    assert wait_for(lambda: not drone_row("ACME_UR1").armed and drone_row("ACME_UR1").alt < 0.3, 20)
     # The ground knows which language each drone of the mixed fleet speaks.
     assert drone_row("ACME_UR1").fc["protocol"] == "uavtalk"
     assert drone_row("ACME_MR2").fc["protocol"] == "mavlink"
@@ -352,3 +353,41 @@ def test_a_gateway_restart_mid_mission_loses_no_progress(world_tx, sky):
     # Every step's own report arrived (queued by the broker for the gateway's persistent
     # session), not just the final "mission completed" that implies them.
     assert not mission.steps.filter(duration_s__isnull=True).exists()
+
+
+def test_a_drone_killed_mid_mission_is_replaced_after_the_grace_period(world_tx, sky, settings):
+    """Rule: a drone offline mid-mission shows on the mission at once; still offline after
+    MISSIONS_OFFLINE_GRACE_S, it is replaced as for a CRITICAL alarm."""
+    from fleet.heartbeats import sweep_offline
+    from missions.planning import coverage, mission_steps
+
+    settings.HEARTBEAT_INTERVAL_S = 0.3  # the drones' own interval here
+    settings.MISSIONS_OFFLINE_GRACE_S = 3.0
+    first = sky.add_drone("ACME_K1", north=-10)
+    sky.add_drone("ACME_K2", north=-40, east=-20)
+    sky.wait_online()
+    steps = mission_steps(coverage(rectangle(60, 30), 10).waypoints, altitude=10)
+    client = api(world_tx.operator)
+    mission_id = client.post(
+        "/api/v1/missions/",
+        {"name": "k", "steps": [{"command": s["command"], "params": s["params"]} for s in steps]},
+        format="json",
+    ).json()["id"]
+    client.post(f"/api/v1/missions/{mission_id}/start/", {"drone": "ACME_K1"}, format="json")
+    mission = Mission.objects.get(pk=mission_id)
+    assert wait_for(lambda: len(completed_waypoints(mission).get("ACME_K1", [])) >= 2, 60)
+    first.agent.kill()  # a crash: nothing said goodbye
+
+    def shown() -> Event | None:
+        sweep_offline()  # stands in for Celery beat's offline sweep
+        return mission.events.filter(data__decision="offline").first()
+
+    offline = wait_for(shown, 10)
+    assert offline is not None and "ACME_K1 went offline mid-mission" in offline.message
+    assert not mission.assignments.filter(reason=Assignment.Reason.REPLACEMENT).exists()
+    done = wait_status(mission_id, {"completed", "failed", "stopped"}, 90)
+    assert done.status == MissionStatus.COMPLETED, sky.describe()
+    replacement = done.assignments.get(reason=Assignment.Reason.REPLACEMENT)
+    assert replacement.drone.drone_id == "ACME_K2"
+    decided = done.events.get(kind="decision", data__decision="replacement")
+    assert (decided.at - offline.at).total_seconds() >= 3.0  # not before the grace period
