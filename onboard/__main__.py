@@ -95,7 +95,8 @@ def _add_connections(p: argparse.ArgumentParser) -> None:
 
 
 def _add_failsafe(p: argparse.ArgumentParser) -> None:
-    """The fail-safe's limits (onboard.failsafe.Limits); durations in flight seconds."""
+    """The fail-safe's limits (onboard.failsafe.Limits): waits on the ground in wall
+    seconds, the auto-disarm delay in flight seconds."""
     p.add_argument("--battery-reserve", type=_fraction, default=0.30, help="hold → return")
     p.add_argument("--alarm-repeat", type=_positive, default=10.0, help="CRITICAL resend, s")
     p.add_argument("--critical-takeover", type=_positive, default=30.0, help="then return, s")

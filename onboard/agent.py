@@ -54,7 +54,8 @@ class AgentConfig:
     telemetry_interval: float = 0.1
     battery_critical: float = 0.25
     bounds: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)
-    # Fail-safe limits (onboard.failsafe.Limits); durations in flight seconds.
+    # Fail-safe limits (onboard.failsafe.Limits): waits on the ground in wall seconds,
+    # the auto-disarm delay in flight seconds.
     battery_reserve: float = 0.30
     alarm_repeat: float = 10.0
     critical_takeover: float = 30.0

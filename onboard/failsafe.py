@@ -17,7 +17,9 @@ drone does on its own once a mission ends or the ground is gone.
 - Landed and still armed for `auto_disarm_delay` seconds → disarm, as PX4 does
   (COM_DISARM_LAND, 2 s by default).
 
-Every duration here is in flight seconds: wall seconds × the agent's time scale.
+Waits on the ground (link-loss timeout, alarm repeat, takeover) are wall seconds: the
+ground runs in real time. What the flight decides (the auto-disarm delay, the measured
+drain) is in flight seconds: wall seconds × the agent's time scale in simulation.
 """
 
 from __future__ import annotations
@@ -50,7 +52,8 @@ RaiseAlarm = Callable[..., None]
 
 @dataclass(frozen=True)
 class Limits:
-    """The fail-safe's thresholds and delays (durations in flight seconds)."""
+    """The fail-safe's thresholds and delays: the ground's waits in wall seconds, the
+    auto-disarm delay in flight seconds."""
 
     battery_critical: float = 0.25
     # A holding drone returns once the battery is down to this.
@@ -136,8 +139,9 @@ class FailSafe:
         self.stop_mission = stop_mission or (lambda reason: False)
         self.bounds = dict(bounds or {})
         self.limits = limits or Limits()
-        # Flight seconds: the simulator's time runs time_scale times faster than the wall's.
-        self.clock = clock or (lambda: time.monotonic() * time_scale)
+        self.clock = clock or time.monotonic  # wall seconds
+        # The simulator's time runs time_scale times faster than the wall's.
+        self.time_scale = time_scale
         self.alarms_raised = 0
         self.actions_taken: list[str] = []
         # What the fail-safe is doing with the drone: "return", "land", "hold" or None.
@@ -163,7 +167,7 @@ class FailSafe:
             return False
         now = self.clock()
         if state.airborne:
-            self.drain.add(now, remaining)
+            self.drain.add(now * self.time_scale, remaining)
         critical = self.limits.battery_critical
         with self._lock:
             alarm = self._critical
@@ -388,7 +392,7 @@ class FailSafe:
         now = self.clock()
         if self._landed_at is None:
             self._landed_at = now
-        if now - self._landed_at < self.limits.auto_disarm_delay:
+        if (now - self._landed_at) * self.time_scale < self.limits.auto_disarm_delay:
             return False
         self._was_airborne = False
         self._landed_at = None

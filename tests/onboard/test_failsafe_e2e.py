@@ -127,11 +127,11 @@ def test_a_broker_stopped_mid_flight_sends_the_drone_home_to_land(
 ) -> None:
     """Rule: the ground link lost for the timeout → the mission stops, the drone returns
     home, lands and disarms (the default action, `return`)."""
-    ground = fly("uavtalk", ("--link-loss-timeout", "2"))
+    ground = fly("uavtalk", ("--link-loss-timeout", "1"))
     steps = [*_fly_north(60), {"index": 5, "command": "sleep", "params": {"value": 600}}]
     ground.send("mission", protocol.mission_start("far", "a-far", steps).to_dict())
     ground.wait_for("mission", lambda m: m.get("index") == 5 and m["status"] == "started")
-    broker.restart(down_for=3.0)  # 60 flight seconds without the ground
+    broker.restart(down_for=3.0)
     home = _on_the_ground_disarmed(ground, time.time())
     assert _north(home) == pytest.approx(0, abs=2.5)
     stopped = ground.wait_for("mission", lambda m: m.get("status") == "stopped")
@@ -141,7 +141,7 @@ def test_a_broker_stopped_mid_flight_sends_the_drone_home_to_land(
 
 @pytest.mark.parametrize(
     ("capacity_mah", "north", "lands_at"),
-    [(600, 30, 0.0), (200, 100, 100.0)],
+    [(600, 30, 0.0), (300, 100, 100.0)],
     ids=["enough-energy-returns-home", "too-little-energy-lands-in-place"],
 )
 def test_a_critical_battery_repeats_its_alarm_then_the_drone_lands(
@@ -151,7 +151,7 @@ def test_a_critical_battery_repeats_its_alarm_then_the_drone_lands(
     returns and lands, or lands where it is when the energy would not get it home."""
     ground = fly(
         "uavtalk",
-        ("--alarm-repeat", "2", "--critical-takeover", "8"),
+        ("--alarm-repeat", "0.3", "--critical-takeover", "0.5"),  # wall seconds
         battery_capacity_mah=capacity_mah,
     )
     steps = [*_fly_north(north), {"index": 5, "command": "sleep", "params": {"value": 600}}]
