@@ -36,8 +36,8 @@ TELEMETRY_BATCH_MAX = 200
 ACT_ON = ("control", "mission")
 # How many request ids the agent remembers: far more than arrive within any redelivery.
 RECENT_REQUESTS = 4096
-# Control commands that only read: they are not the operator taking the drone over.
-READ_ONLY_COMMANDS = ("objrequest",)
+# Control commands that do not move the drone: they are not the operator taking it over.
+READ_ONLY_COMMANDS = ("objrequest", "takepic", "rebuildtelemetry")
 
 
 @dataclass
@@ -392,8 +392,11 @@ class Agent:
             self.dropped["mission_stale"] += 1
             self.send("mission", protocol.mission_reply(request, "rejected", error=stale))
             return
-        self.failsafe.ground_took_over()
-        if isinstance(request, protocol.MissionStop):
+        if isinstance(request, protocol.MissionStart):
+            self.failsafe.ground_took_over()
+        else:
+            # Not a takeover: a late stop for a mission the fail-safe already ended must
+            # not leave a returning drone hovering.
             self.failsafe.after_stop = follow_up
         self.worker.submit(request)
 
