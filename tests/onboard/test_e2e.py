@@ -491,9 +491,13 @@ def test_a_bridged_drone_lands_when_the_ground_link_is_lost(
             assert ground.command("takeoff", altitude=10)["ok"]
             ground.wait_for("heartbeats", lambda m: _pos(m, "alt") > 9.5)
             ground.close()
+            gone = time.time()
             broker.stop()  # the ground goes away; the drone is on its own
+            # Landed, it disarms itself after the auto-disarm delay.
             down = onboard.wait_for(
-                "heartbeats", lambda m: m["armed"] and _pos(m, "alt", 99) < 0.2, timeout=20
+                "heartbeats",
+                lambda m: m["ts"] > gone and not m["armed"] and _pos(m, "alt", 99) < 0.2,
+                timeout=20,
             )
             assert down["position"]["lat"] == pytest.approx(HOME[0], abs=1e-5)
             assert "ground link (bridge) down" in (tmp_path / "agent.log").read_text()
