@@ -108,3 +108,20 @@ def test_a_drone_offline_outside_a_mission_changes_no_mission(world, outbox) -> 
     idle = online_drone(world.org, "ACME_A")
     assert _went_offline(idle) == ["ACME_A"]
     assert not Event.objects.filter(data__decision="offline").exists()
+
+
+@pytest.mark.parametrize(("offset", "shown"), [(0.2, False), (-3600.0, True)])
+def test_the_drone_page_shows_a_clock_it_cannot_trust(world, offset: float, shown: bool) -> None:
+    from django.test import Client
+
+    from fleet.models import Drone
+
+    Drone.objects.filter(drone_id="ACME_1").update(
+        fc={"protocol": "uavtalk", "connected": True, "clock_offset_s": offset,
+            "clock_trusted": abs(offset) <= 5}
+    )  # fmt: skip
+    client = Client()
+    client.force_login(world.viewer)
+    html = client.get("/drones/ACME_1/").content.decode()
+    assert f"{offset} s from the ground" in html.replace("&#x27;", "'")
+    assert ("not trusted" in html) is shown
