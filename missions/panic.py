@@ -1,11 +1,12 @@
 """The panic button: the nearest available drone arms, climbs to 10 m ([Paula 2018], §5.1),
 flies to the caller and stays there "on station": the call runs until the caller or an
 operator releases it (the drone returns home, lands and disarms; the call is completed).
-A drone whose battery goes critical on station raises CRITICAL like any other, and the
-replacement sends another drone to the caller."""
+A drone whose battery is down to the reserve on station is relieved: the replacement sends
+another drone to the caller and this one lands, as for a CRITICAL alarm."""
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 from django.conf import settings
@@ -17,6 +18,7 @@ from missions.services import (
     MissionError,
     Started,
     create_mission,
+    lock_mission,
     move_mission,
     record,
     send_stop,
@@ -89,3 +91,52 @@ def release(mission: Mission, *, user: Any = None) -> Mission:
         for drone_id in drones:
             transaction.on_commit(lambda d=drone_id: send_stop(d, str(mission.pk), then="return"))
     return mission
+
+
+def relieve_stations() -> list[str]:
+    """Panic calls whose drone is down to the battery reserve on station: each handed to
+    another drone (missions.replacement) once. The relieved drones' ids."""
+    from missions import replacement
+
+    low = Assignment.objects.filter(
+        status__in=Assignment.ACTIVE,
+        mission__status=MissionStatus.RUNNING,
+        mission__name__startswith=NAME,
+        drone__battery_remaining__lte=settings.MISSIONS_BATTERY_RESERVE,
+    ).select_related("mission", "drone")
+    relieved = []
+    for assignment in low:
+        with transaction.atomic():
+            lock_mission(assignment.mission)
+            event = _record_reserve(assignment)
+        if event is not None:
+            replacement.replace_drone(
+                mission_id=str(assignment.mission_id),
+                assignment_id=str(assignment.pk),
+                alarm_event_id=event.pk,
+            )
+            relieved.append(assignment.drone.drone_id)
+    return relieved
+
+
+def _record_reserve(assignment: Assignment) -> Event | None:
+    """The decision to relieve the drone, or None when it was already taken."""
+    mission, drone = assignment.mission, assignment.drone
+    if mission.events.filter(
+        data__decision="station_reserve", data__assignment=str(assignment.pk)
+    ).exists():
+        return None
+    position = None if drone.lat is None else {"lat": drone.lat, "lon": drone.lon, "alt": drone.alt}
+    return record(
+        mission,
+        Event.Kind.DECISION,
+        f"{drone.drone_id} is down to the battery reserve on station; another drone takes over",
+        drone=drone,
+        data={
+            "decision": "station_reserve",
+            "assignment": str(assignment.pk),
+            "battery": drone.battery_remaining,
+            "position": position,
+            "received_at": time.time(),
+        },
+    )

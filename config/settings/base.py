@@ -271,6 +271,12 @@ CELERY_BEAT_SCHEDULE["missions.resume_paused"] = {
     "schedule": MISSIONS_RESUME_INTERVAL_S,
     "options": {"expires": MISSIONS_RESUME_INTERVAL_S},
 }
+# A panic call's drone down to MISSIONS_BATTERY_RESERVE on station is relieved this often.
+CELERY_BEAT_SCHEDULE["missions.relieve_panic_stations"] = {
+    "task": "missions.relieve_panic_stations",
+    "schedule": MISSIONS_RESUME_INTERVAL_S,
+    "options": {"expires": MISSIONS_RESUME_INTERVAL_S},
+}
 # `/control`'s startchain / stopchain start and stop a tracked mission; the fleet app
 # names them here because it must not import the missions app that builds on it.
 MISSION_START_STOP_HANDLERS = {

@@ -125,3 +125,24 @@ def test_the_drone_page_shows_a_clock_it_cannot_trust(world, offset: float, show
     html = client.get("/drones/ACME_1/").content.decode()
     assert f"{offset} s from the ground" in html.replace("&#x27;", "'")
     assert ("not trusted" in html) is shown
+
+
+def test_a_panic_drone_down_to_the_reserve_on_station_is_relieved_once(world, outbox) -> None:
+    from fleet.models import Drone
+    from missions import panic
+    from missions.models import Assignment
+
+    from .conftest import point_at
+
+    online_drone(world.org, "ACME_A", north=10)
+    online_drone(world.org, "ACME_B", north=200)
+    lat, lon = point_at(0, 0)
+    call = panic.call_drone(organisation=world.org, lat=lat, lon=lon).mission
+    assert panic.relieve_stations() == []  # a full battery stays on station
+    Drone.objects.filter(drone_id="ACME_A").update(battery_remaining=0.2)
+    assert panic.relieve_stations() == ["ACME_A"]
+    relief = call.assignments.get(reason=Assignment.Reason.REPLACEMENT)
+    assert relief.drone.drone_id == "ACME_B"
+    station = [call.steps.get(index=i).command for i in relief.step_indexes]
+    assert station[-1] == "sleep"  # the station itself is handed over
+    assert panic.relieve_stations() == []  # once
