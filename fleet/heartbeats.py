@@ -23,9 +23,12 @@ from workers import outbox
 
 from . import events
 from .models import ConnectionEvent, Drone
-from .signals import drones_came_online
+from .signals import drones_came_online, drones_went_offline
 
 log = logging.getLogger(__name__)
+
+# A drone clock further than this from the ground's is shown as not trusted.
+CLOCK_TOLERANCE_S = 5.0
 
 # One statement for a whole batch: update each drone's state and learn whether it was
 # offline before (the sub-select reads the old rows under lock), so reconnections are
@@ -67,8 +70,22 @@ def _row(heartbeat: Heartbeat, seen: datetime) -> list:
         heartbeat.airborne,
         heartbeat.flight_mode[:40],
         None if mission is None else json.dumps(mission.to_dict()),
-        json.dumps({"protocol": heartbeat.fc_protocol, "connected": heartbeat.fc_connected}),
+        json.dumps(fc_state(heartbeat, seen)),
     ]
+
+
+def fc_state(heartbeat: Heartbeat, seen: datetime) -> dict:
+    """The flight controller's link, and how far the drone's clock is from the ground's
+    (its heartbeat's time against arrival; heartbeats are never queued, QoS 0). A clock
+    off by more than CLOCK_TOLERANCE_S is shown as not trusted: the drone judges the age of
+    requests through the offset it learns, so it still acts on them."""
+    offset = round(heartbeat.ts - seen.timestamp(), 1)
+    return {
+        "protocol": heartbeat.fc_protocol,
+        "connected": heartbeat.fc_connected,
+        "clock_offset_s": offset,
+        "clock_trusted": abs(offset) <= CLOCK_TOLERANCE_S,
+    }
 
 
 class _Throttle:
@@ -105,7 +122,7 @@ def live_state(heartbeat: Heartbeat, seen: datetime) -> dict:
         "airborne": heartbeat.airborne,
         "flight_mode": heartbeat.flight_mode,
         "mission": None if heartbeat.mission is None else heartbeat.mission.to_dict(),
-        "fc": {"protocol": heartbeat.fc_protocol, "connected": heartbeat.fc_connected},
+        "fc": fc_state(heartbeat, seen),
     }
 
 
@@ -259,4 +276,5 @@ def sweep_offline(now: datetime | None = None) -> list[str]:
     futures.wait([f for f in sent if f is not None], timeout=2)
     if marked:
         log.info("marked offline: %s", ", ".join(marked))
+        drones_went_offline.send(sender=ConnectionEvent, drone_ids=marked)
     return marked

@@ -5,3 +5,6 @@ from django.dispatch import Signal
 # Sent by the Drone Identifier after drones that were offline sent a heartbeat.
 # Arguments: organisation_ids (set[int]), drone_ids (list[str]).
 drones_came_online = Signal()
+
+# Sent by the offline sweep after it marked drones offline. Arguments: drone_ids (list[str]).
+drones_went_offline = Signal()

@@ -15,6 +15,7 @@ from missions.services import (
     lock_mission,
     position_dict,
     record,
+    send_alarm_ack,
 )
 from onboard import protocol
 
@@ -35,6 +36,10 @@ def _active_assignment(drone: Drone) -> Assignment | None:
 def apply_alarm(drone: Drone, alarm: protocol.Alarm) -> str | None:
     """Record the alarm on its mission and enqueue what it asks for; None when taken."""
     received_at = time.time()
+    if alarm.level == "CRITICAL":
+        # Acknowledged as soon as it is here, whatever it leads to: the drone repeats it
+        # until then (onboard.failsafe).
+        send_alarm_ack(drone.drone_id, alarm.level)
     if alarm.mission_id is not None:
         mission = find_mission(drone, alarm.mission_id)
         if mission is None:

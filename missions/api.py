@@ -306,6 +306,18 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         mission.refresh_from_db()
         return Response(MissionDetailSerializer(mission).data)
 
+    @extend_schema(request=None, responses=MissionDetailSerializer)
+    @action(detail=True, methods=["post"])
+    def release(self, request: Request, pk: str | None = None) -> Response:
+        """Release a panic call: its drone returns home and lands; the call is completed."""
+        mission = self._writable(pk)
+        try:
+            panic.release(mission, user=request.user)
+        except MissionError as exc:
+            raise refuse(exc) from None
+        mission.refresh_from_db()
+        return Response(MissionDetailSerializer(mission).data)
+
     @extend_schema(responses=StepSerializer(many=True))
     @action(detail=True, methods=["get"])
     def steps(self, request: Request, pk: str | None = None) -> Response:

@@ -7,8 +7,9 @@ class MissionsConfig(AppConfig):
     default_auto_field = "django.db.models.BigAutoField"
 
     def ready(self) -> None:
-        from fleet.signals import drones_came_online
+        from fleet.signals import drones_came_online, drones_went_offline
 
-        from .signals import resume_when_drones_come_online
+        from .signals import replace_when_drones_go_offline, resume_when_drones_come_online
 
         drones_came_online.connect(resume_when_drones_come_online, dispatch_uid="missions-resume")
+        drones_went_offline.connect(replace_when_drones_go_offline, dispatch_uid="missions-offline")

@@ -1,15 +1,34 @@
 """The panic button: the nearest available drone arms, climbs to 10 m ([Paula 2018], §5.1),
-flies to the caller and hovers there (no land: it stays until an operator decides)."""
+flies to the caller and stays there "on station": the call runs until the caller or an
+operator releases it (the drone returns home, lands and disarms; the call is completed).
+A drone whose battery is down to the reserve on station is relieved: the replacement sends
+another drone to the caller and this one lands, as for a CRITICAL alarm."""
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 from django.conf import settings
+from django.db import transaction
 
 from fleet.models import Organisation
-from missions.services import MissionError, Started, create_mission, start_mission
+from missions.models import Assignment, Event, Mission, MissionStatus
+from missions.services import (
+    MissionError,
+    Started,
+    create_mission,
+    lock_mission,
+    move_mission,
+    record,
+    send_stop,
+    start_mission,
+)
 from onboard import protocol
+
+NAME = "Panic call at"
+# On station: the longest sleep a step may ask for (docs/protocol.md); a release ends it.
+STATION_S = 86400.0
 
 
 def panic_steps(lat: float, lon: float, altitude: float) -> list[dict]:
@@ -20,6 +39,7 @@ def panic_steps(lat: float, lon: float, altitude: float) -> list[dict]:
         {"command": "wait_for_flight", "params": {}},
         {"command": "navigate", "params": {"lat": lat, "lon": lon}},
         {"command": "wait_for_flight", "params": {}},
+        {"command": "sleep", "params": {"value": STATION_S}},
     ]
 
 
@@ -33,7 +53,7 @@ def call_drone(*, organisation: Organisation, lat: Any, lon: Any, user: Any = No
     altitude = settings.MISSIONS_PANIC_ALTITUDE
     mission = create_mission(
         organisation=organisation,
-        name=f"Panic call at {lat:.5f}, {lon:.5f}",
+        name=f"{NAME} {lat:.5f}, {lon:.5f}",
         steps=panic_steps(lat, lon, altitude),
         altitude=altitude,
         user=user,
@@ -43,3 +63,80 @@ def call_drone(*, organisation: Organisation, lat: Any, lon: Any, user: Any = No
     except MissionError:
         mission.delete()
         raise
+
+
+def release(mission: Mission, *, user: Any = None) -> Mission:
+    """End a panic call: its drone leaves the station, returns home and lands; the call is
+    completed."""
+    if not mission.name.startswith(NAME):
+        raise MissionError("mission", "only a panic call is released; stop other missions", 409)
+    with transaction.atomic():
+        mission = Mission.objects.select_for_update().get(pk=mission.pk)
+        if mission.status != MissionStatus.RUNNING:
+            raise MissionError("status", f"the call is already {mission.status}", 409)
+        active = list(
+            mission.assignments.filter(status__in=Assignment.ACTIVE).select_related("drone")
+        )
+        mission.assignments.filter(pk__in=[a.pk for a in active]).update(
+            status=Assignment.Status.COMPLETED
+        )
+        move_mission(mission, MissionStatus.COMPLETED)
+        drones = [a.drone.drone_id for a in active if a.status != Assignment.Status.QUEUED]
+        record(
+            mission,
+            Event.Kind.OPERATOR,
+            "panic call released: the drone returns home and lands",
+            data={"user": getattr(user, "username", None), "drones": drones},
+        )
+        for drone_id in drones:
+            transaction.on_commit(lambda d=drone_id: send_stop(d, str(mission.pk), then="return"))
+    return mission
+
+
+def relieve_stations() -> list[str]:
+    """Panic calls whose drone is down to the battery reserve on station: each handed to
+    another drone (missions.replacement) once. The relieved drones' ids."""
+    from missions import replacement
+
+    low = Assignment.objects.filter(
+        status__in=Assignment.ACTIVE,
+        mission__status=MissionStatus.RUNNING,
+        mission__name__startswith=NAME,
+        drone__battery_remaining__lte=settings.MISSIONS_BATTERY_RESERVE,
+    ).select_related("mission", "drone")
+    relieved = []
+    for assignment in low:
+        with transaction.atomic():
+            lock_mission(assignment.mission)
+            event = _record_reserve(assignment)
+        if event is not None:
+            replacement.replace_drone(
+                mission_id=str(assignment.mission_id),
+                assignment_id=str(assignment.pk),
+                alarm_event_id=event.pk,
+            )
+            relieved.append(assignment.drone.drone_id)
+    return relieved
+
+
+def _record_reserve(assignment: Assignment) -> Event | None:
+    """The decision to relieve the drone, or None when it was already taken."""
+    mission, drone = assignment.mission, assignment.drone
+    if mission.events.filter(
+        data__decision="station_reserve", data__assignment=str(assignment.pk)
+    ).exists():
+        return None
+    position = None if drone.lat is None else {"lat": drone.lat, "lon": drone.lon, "alt": drone.alt}
+    return record(
+        mission,
+        Event.Kind.DECISION,
+        f"{drone.drone_id} is down to the battery reserve on station; another drone takes over",
+        drone=drone,
+        data={
+            "decision": "station_reserve",
+            "assignment": str(assignment.pk),
+            "battery": drone.battery_remaining,
+            "position": position,
+            "received_at": time.time(),
+        },
+    )

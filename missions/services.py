@@ -207,17 +207,27 @@ def send_assignment(assignment: Assignment) -> None:
     }
     steps = step_dicts(by_index[i] for i in indexes)
     message = protocol.mission_start(str(assignment.mission_id), str(assignment.id), steps)
+    # Its issue time: a drone refuses a start queued too long while it was away.
     outbox.send_to_drone(
         assignment.drone.drone_id,
         "mission",
-        message.to_dict(),
+        {**message.to_dict(), "ts": protocol.now()},
         ttl=settings.MISSIONS_START_TTL_S,
     )
 
 
-def send_stop(drone_id: str, mission_id: str) -> None:
-    message = protocol.MissionStop(protocol.new_request_id(), str(mission_id))
-    outbox.send_to_drone(drone_id, "mission", message.to_dict())
+def send_stop(drone_id: str, mission_id: str, then: str | None = None) -> None:
+    """Stop the drone's mission; `then` (protocol.STOP_FOLLOW_UPS) is what it does next,
+    holding where it is when not given."""
+    message = protocol.MissionStop(protocol.new_request_id(), str(mission_id)).to_dict()
+    if then is not None:
+        message["then"] = then
+    outbox.send_to_drone(drone_id, "mission", message)
+
+
+def send_alarm_ack(drone_id: str, level: str) -> None:
+    """Tell the drone its alarm arrived, so it stops repeating it."""
+    outbox.send_to_drone(drone_id, "alarms", protocol.AlarmAck(level).to_dict())
 
 
 def send_control(drone_id: str, command: str, params: dict | None = None) -> None:

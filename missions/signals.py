@@ -1,4 +1,5 @@
-"""React at once when a drone comes online: a paused mission may take it (no beat wait)."""
+"""React at once when a drone comes online (a paused mission may take it, no beat wait) or
+goes offline mid-mission (the mission shows it; a replacement follows the grace period)."""
 
 from __future__ import annotations
 
@@ -14,3 +15,9 @@ def resume_when_drones_come_online(sender, organisation_ids, **kwargs) -> None: 
         from .tasks import resume_paused
 
         transaction.on_commit(resume_paused.delay)
+
+
+def replace_when_drones_go_offline(sender, drone_ids, **kwargs) -> None:  # type: ignore[no-untyped-def]
+    from .offline import note_offline
+
+    note_offline(drone_ids)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from celery import Task, shared_task
 from django.db import OperationalError
 
-from missions import collaboration, replacement
+from missions import collaboration, offline, panic, replacement
 from missions.models import Event
 
 # A lost database connection or a deadlock victim: run again (the task is idempotent)
@@ -54,3 +54,15 @@ def collaborate(
 def resume_paused() -> list[str]:
     """Celery beat: give paused missions a drone as soon as one is available."""
     return replacement.resume_paused()
+
+
+@shared_task(name="missions.replace_offline", acks_late=True, ignore_result=True, **RETRY)
+def replace_offline(mission_id: str, assignment_id: str, event_id: int) -> None:
+    """After the grace period: replace a drone still offline, as for a CRITICAL alarm."""
+    offline.replace_if_still_offline(mission_id, assignment_id, event_id)
+
+
+@shared_task(name="missions.relieve_panic_stations", ignore_result=True)
+def relieve_panic_stations() -> list[str]:
+    """Celery beat: a panic call's drone down to the battery reserve is relieved."""
+    return panic.relieve_stations()

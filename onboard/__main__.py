@@ -162,6 +162,20 @@ def _add_connections(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_failsafe(p: argparse.ArgumentParser) -> None:
+    """The fail-safe's limits (onboard.failsafe.Limits): waits on the ground in wall
+    seconds, the auto-disarm delay in flight seconds."""
+    p.add_argument("--battery-reserve", type=_fraction, default=0.30, help="hold → return")
+    p.add_argument("--alarm-repeat", type=_positive, default=10.0, help="CRITICAL resend, s")
+    p.add_argument("--critical-takeover", type=_positive, default=30.0, help="then return, s")
+    p.add_argument("--link-loss-timeout", type=_positive, default=30.0, help="seconds")
+    p.add_argument("--link-loss-action", choices=LINK_LOSS_ACTIONS, default="return")
+    p.add_argument("--return-speed", type=_positive, default=5.0, help="m/s, energy estimate")
+    p.add_argument("--auto-disarm-delay", type=_positive, default=2.0, help="after landing, s")
+    p.add_argument("--max-control-age", type=_positive, default=10.0, help="wall s; older refused")
+    p.add_argument("--max-mission-age", type=_positive, default=60.0, help="wall s; older refused")
+
+
 def _add_behaviour(p: argparse.ArgumentParser) -> None:
     """Files, rates, safety thresholds and the simulated sensors."""
     p.add_argument("--gear-dir", type=Path, help="folder with specs.json and sensors.json")
@@ -178,8 +192,7 @@ def _add_behaviour(p: argparse.ArgumentParser) -> None:
         default=[],
         help="SENSOR:LO:HI reading bounds for OUT_MEASURE (repeatable)",
     )
-    p.add_argument("--link-loss-timeout", type=_positive, default=30.0, help="seconds")
-    p.add_argument("--link-loss-action", choices=LINK_LOSS_ACTIONS, default="continue")
+    _add_failsafe(p)
     p.add_argument(
         "--ground-link-topic",
         help="bridge state topic when behind an internal broker (python -m onboard.bridge "
@@ -260,8 +273,15 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
         telemetry_interval=args.telemetry_interval,
         battery_critical=args.battery_critical,
         bounds=dict(args.bounds),
+        battery_reserve=args.battery_reserve,
+        alarm_repeat=args.alarm_repeat,
+        critical_takeover=args.critical_takeover,
         link_loss_timeout=args.link_loss_timeout,
         link_loss_action=args.link_loss_action,
+        return_speed=args.return_speed,
+        auto_disarm_delay=args.auto_disarm_delay,
+        max_control_age=args.max_control_age,
+        max_mission_age=args.max_mission_age,
         ground_link_topic=args.ground_link_topic,
         sensor_field=sensor_field,
         gear_reread_interval=args.gear_reread_interval,

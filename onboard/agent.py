@@ -19,7 +19,7 @@ from typing import Any
 
 from . import protocol
 from .controller import Controller
-from .failsafe import FailSafe
+from .failsafe import FailSafe, GroundClock, Limits
 from .fc.base import FlightController
 from .gear import GearManager
 from .heartbeat import Heartbeater, build_heartbeat
@@ -36,6 +36,8 @@ TELEMETRY_BATCH_MAX = 200
 ACT_ON = ("control", "mission")
 # How many request ids the agent remembers: far more than arrive within any redelivery.
 RECENT_REQUESTS = 4096
+# Control commands that do not move the drone: they are not the operator taking it over.
+READ_ONLY_COMMANDS = ("objrequest", "takepic", "rebuildtelemetry")
 
 
 @dataclass
@@ -52,8 +54,19 @@ class AgentConfig:
     telemetry_interval: float = 0.1
     battery_critical: float = 0.25
     bounds: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)
+    # Fail-safe limits (onboard.failsafe.Limits): waits on the ground in wall seconds,
+    # the auto-disarm delay in flight seconds.
+    battery_reserve: float = 0.30
+    alarm_repeat: float = 10.0
+    critical_takeover: float = 30.0
     link_loss_timeout: float = 30.0
-    link_loss_action: str = "continue"
+    link_loss_action: str = "return"
+    return_speed: float = 5.0
+    auto_disarm_delay: float = 2.0
+    # Requests older than this (wall seconds since the ground issued them) are refused, so
+    # nothing queued while the drone was away flies later.
+    max_control_age: float = 10.0
+    max_mission_age: float = 60.0
     sensor_field: SensorField | None = None
     gear_reread_interval: float = 5.0
     arm_timeout: float = 20.0
@@ -110,11 +123,12 @@ class Agent:
             self.raise_alarm,
             navigation=self.navigation,
             stop_mission=self.worker.stop_current,
-            battery_critical=config.battery_critical,
             bounds=config.bounds,
-            link_loss_timeout=config.link_loss_timeout,
-            link_loss_action=config.link_loss_action,
+            limits=failsafe_limits(config),
+            time_scale=config.time_scale,
         )
+        self.worker.on_end = self.failsafe.mission_ended
+        self.ground_clock = GroundClock()
         self.mqtt = self._mqtt_link(config)
         self.heartbeater = Heartbeater(config.heartbeat_interval, self._beat)
         self.video: Any = None
@@ -297,12 +311,18 @@ class Agent:
             # QoS 1 and the ground's outbox both deliver at least once: act once.
             self._drop("repeated_request", topic, request_id)
             return
-        handler = {"control": self._control, "mission": self._mission, "gear": self._gear_query}
+        handler = {
+            "control": self._control,
+            "mission": self._mission,
+            "gear": self._gear_query,
+            "alarms": self._alarm_ack,
+        }
         handler[channel](topic, obj)
 
     def _control(self, topic: str, obj: Any) -> None:
         try:
             request = protocol.parse_control_request(obj)
+            stale = self._stale(obj, self.config.max_control_age)
         except protocol.ProtocolError as exc:
             request_id = protocol.request_id_of(obj)
             if request_id is None:
@@ -317,6 +337,15 @@ class Agent:
                 ),
             )
             return
+        if stale is not None:
+            self.dropped["control_stale"] += 1
+            self.send(
+                "control",
+                protocol.ControlResponse(request.request_id, request.command, False, None, stale),
+            )
+            return
+        if request.command not in READ_ONLY_COMMANDS:
+            self.failsafe.ground_took_over()
         self._control_pool.submit(self._run_control, request)
 
     def _run_control(self, request: protocol.ControlRequest) -> None:
@@ -332,6 +361,13 @@ class Agent:
     def _mission(self, topic: str, obj: Any) -> None:
         try:
             request = protocol.parse_mission_request(obj)
+            follow_up = protocol.stop_follow_up(obj)
+            # A stop is never too old: stopping is always safe.
+            stale = (
+                self._stale(obj, self.config.max_mission_age)
+                if isinstance(request, protocol.MissionStart)
+                else None
+            )
         except protocol.ProtocolError as exc:
             request_id = protocol.request_id_of(obj)
             if request_id is None:
@@ -352,7 +388,39 @@ class Agent:
                 ),
             )
             return
+        if stale is not None:
+            self.dropped["mission_stale"] += 1
+            self.send("mission", protocol.mission_reply(request, "rejected", error=stale))
+            return
+        if isinstance(request, protocol.MissionStart):
+            self.failsafe.ground_took_over()
+        else:
+            # Not a takeover: a late stop for a mission the fail-safe already ended must
+            # not leave a returning drone hovering.
+            self.failsafe.after_stop = follow_up
         self.worker.submit(request)
+
+    def _stale(self, obj: Any, limit: float) -> str | None:
+        """Why a request is too old to act on (its `ts` against the learnt clock offset)."""
+        issued = protocol.issued_at(obj)
+        if issued is None:
+            return None
+        age = self.ground_clock.age(issued)
+        if age <= limit:
+            return None
+        log.warning("refused a request issued %.1f s ago (limit %g s)", age, limit)
+        return (
+            f"The request was issued {age:.0f} s ago, over the {limit:g} s limit: "
+            "it was not acted on, so nothing queued while the drone was away flies late."
+        )
+
+    def _alarm_ack(self, topic: str, obj: Any) -> None:
+        try:
+            ack = protocol.parse_alarm_ack(obj)
+        except protocol.ProtocolError as exc:
+            self._drop("alarms", topic, exc)
+            return
+        self.failsafe.acknowledge(ack.level)
 
     def _gear_query(self, topic: str, obj: Any) -> None:
         try:
@@ -365,6 +433,19 @@ class Agent:
             self.send("gear", protocol.GearReply(request_id, False, error=_sentence(exc)))
             return
         self.send("gear", self.gear.handle_query(query, self.fc.state))
+
+
+def failsafe_limits(config: AgentConfig) -> Limits:
+    return Limits(
+        battery_critical=config.battery_critical,
+        battery_reserve=config.battery_reserve,
+        alarm_repeat=config.alarm_repeat,
+        critical_takeover=config.critical_takeover,
+        link_loss_timeout=config.link_loss_timeout,
+        link_loss_action=config.link_loss_action,
+        return_speed=config.return_speed,
+        auto_disarm_delay=config.auto_disarm_delay,
+    )
 
 
 class RecentIds:

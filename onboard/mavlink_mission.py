@@ -481,6 +481,7 @@ def install_native_missions(agent: Any) -> NativeMissionWorker:
         flight_timeout=old.flight_timeout,
         events=old.events,
     )
+    worker.on_end = old.on_end
     agent.worker = worker
     agent.failsafe.stop_mission = worker.stop_current
     return worker

@@ -109,6 +109,9 @@ class MissionWorker:
         # In flight seconds: a wait_for_flight that takes longer than this fails.
         self.flight_timeout = flight_timeout
         self.events = events or (lambda kind, details: None)
+        # Called with "completed" or "stopped" once a mission has ended (the fail-safe
+        # decides what the drone does next).
+        self.on_end: Callable[[str], None] = lambda status: None
         self._lock = threading.Lock()
         self._mission: RunningMission | None = None
         self._wake = threading.Event()
@@ -261,6 +264,10 @@ class MissionWorker:
                 request_id=mission.request_id if status == "stopped" else None,
             )
         )
+        try:
+            self.on_end(status)
+        except Exception:
+            log.exception("the end of mission %s was not handled", payload.mission_id)
 
     def _run_step(self, mission: RunningMission, step: protocol.Step) -> tuple[bool, str | None]:
         payload = mission.payload

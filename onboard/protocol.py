@@ -1196,3 +1196,46 @@ def parse_message(topic_name: str, payload: bytes | str) -> tuple[str, str, Any]
     """Raw MQTT topic + payload → (drone id, channel, parsed message), or ProtocolError."""
     drone_id, channel, direction = split_topic(topic_name)
     return drone_id, channel, PARSERS[(channel, direction)](decode_json(payload))
+
+
+# ---------------------------------------------------------------------------------------
+# Optional additions (docs/protocol.md marks each *(optional)*).
+
+# The ground acknowledges an alarm on `<id>/alarms/in`; a drone repeats its CRITICAL alarm
+# until it is acknowledged. A drone that does not know the channel simply never gets one.
+IN_CHANNELS = (*IN_CHANNELS, "alarms")
+
+
+@dataclass(frozen=True)
+class AlarmAck:
+    level: str
+    ts: float = field(default_factory=now)
+    type: str = "alarm_ack"
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def parse_alarm_ack(obj: Any) -> AlarmAck:
+    obj = _object(obj, "message")
+    return AlarmAck(_choice(_require(obj, "level"), "level", ALARM_LEVELS), _ts(obj))
+
+
+PARSERS[("alarms", "in")] = parse_alarm_ack
+
+
+# A stop request's optional `then`: what the drone does once the mission has stopped.
+# `hold` (the default) hovers where it is until the operator decides; `return` flies home,
+# lands and disarms (a released panic call); `land` lands where it is.
+STOP_FOLLOW_UPS = ("hold", "return", "land")
+
+
+def stop_follow_up(obj: Any) -> str:
+    value = obj.get("then") if isinstance(obj, dict) else None
+    return "hold" if value is None else _choice(value, "then", STOP_FOLLOW_UPS)
+
+
+def issued_at(obj: Any) -> float | None:
+    """A request's optional `ts` (when the ground issued it, the ground's clock), or None."""
+    value = obj.get("ts") if isinstance(obj, dict) else None
+    return None if value is None else number(value, "ts", lo=0)

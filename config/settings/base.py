@@ -264,8 +264,16 @@ MISSIONS_RESUME_INTERVAL_S = env.float("MISSIONS_RESUME_INTERVAL_S", 5.0)
 # The panic button's hover altitude: 10 m, as in the panic-button experiment of
 # [Paula 2018], §5.1.
 MISSIONS_PANIC_ALTITUDE = env.float("MISSIONS_PANIC_ALTITUDE", 10.0)
+# A drone that goes offline mid-mission is replaced when still offline this long after.
+MISSIONS_OFFLINE_GRACE_S = env.float("MISSIONS_OFFLINE_GRACE_S", 30.0)
 CELERY_BEAT_SCHEDULE["missions.resume_paused"] = {
     "task": "missions.resume_paused",
+    "schedule": MISSIONS_RESUME_INTERVAL_S,
+    "options": {"expires": MISSIONS_RESUME_INTERVAL_S},
+}
+# A panic call's drone down to MISSIONS_BATTERY_RESERVE on station is relieved this often.
+CELERY_BEAT_SCHEDULE["missions.relieve_panic_stations"] = {
+    "task": "missions.relieve_panic_stations",
     "schedule": MISSIONS_RESUME_INTERVAL_S,
     "options": {"expires": MISSIONS_RESUME_INTERVAL_S},
 }

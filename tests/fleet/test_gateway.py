@@ -36,7 +36,8 @@ def test_a_heartbeat_updates_the_drone_and_records_it_coming_online(world_tx, br
     assert drone is not None
     assert (drone.lat, drone.lon, drone.alt) == (40.6303, -8.6575, 12.0)
     assert drone.battery_remaining == 0.9 and drone.armed and drone.airborne
-    assert drone.fc == {"protocol": "uavtalk", "connected": True}
+    assert drone.fc["protocol"] == "uavtalk" and drone.fc["connected"] is True
+    assert drone.fc["clock_trusted"] is True  # the test's clock is the ground's
     client.publish(
         "ACME_1/heartbeats/out", json.dumps(heartbeat("ACME_1")), qos=1
     ).wait_for_publish()

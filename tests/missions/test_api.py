@@ -12,6 +12,7 @@ from rest_framework.test import APIClient
 from logs.importers.base import Limits
 from logs.importers.mission import MissionLogImporter
 from missions.models import Mission, MissionStatus
+from missions.services import create_mission
 
 from .conftest import online_drone, point_at, rectangle
 
@@ -294,8 +295,35 @@ def test_the_panic_button_sends_the_nearest_drone_to_the_caller_at_ten_metres(wo
         "wait_for_flight",
         "navigate",
         "wait_for_flight",
+        "sleep",  # on station until released
     ]
     assert data["steps"][1]["params"]["altitude"] == 10
+
+
+def test_a_released_panic_call_completes_and_sends_its_drone_home(
+    world, outbox, django_capture_on_commit_callbacks
+):
+    online_drone(world.org, "ACME_NEAR", north=100)
+    lat, lon = point_at(0, 0)
+    client = client_for(world.operator)
+    with django_capture_on_commit_callbacks(execute=True):
+        call = client.post("/api/v1/missions/panic/", {"lat": lat, "lon": lon}, format="json")
+    assert call.json()["status"] == "running"
+    outbox.clear()
+    with django_capture_on_commit_callbacks(execute=True):
+        released = client.post(f"/api/v1/missions/{call.json()['id']}/release/")
+    assert released.status_code == 200 and released.json()["status"] == "completed"
+    [item] = outbox.items()
+    assert item["topic"] == "ACME_NEAR/mission/in"
+    assert item["payload"]["action"] == "stop" and item["payload"]["then"] == "return"
+    again = client.post(f"/api/v1/missions/{call.json()['id']}/release/")
+    assert again.status_code == 409 and "already completed" in again.json()["error"]
+
+
+def test_only_a_panic_call_is_released(world, outbox):
+    mission = create_mission(organisation=world.org, name="survey", steps=[{"command": "arm"}])
+    response = client_for(world.operator).post(f"/api/v1/missions/{mission.pk}/release/")
+    assert response.status_code == 409 and "only a panic call" in response.json()["error"]
 
 
 def test_a_panic_call_without_a_position_is_refused(world):
@@ -325,6 +353,7 @@ def test_the_openapi_schema_lists_the_mission_endpoints(world):
         "/api/v1/missions/{id}/stop/",
         "/api/v1/missions/{id}/log/",
         "/api/v1/missions/panic/",
+        "/api/v1/missions/{id}/release/",
         "/api/v1/missions/import-plan/",
         "/api/v1/missions/{id}/plan/",
     ):

@@ -48,14 +48,13 @@ def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx,
     drone_id = f"ACME_{tag}P1"
     sky.add_drone(drone_id, north=100, fc=fc)
     sky.wait_online()
-    assert drone_row(drone_id).fc == {"protocol": fc, "connected": True}
+    assert drone_row(drone_id).fc["protocol"] == fc and drone_row(drone_id).fc["connected"]
     caller = point_at(0, 0)
     response = api(world_tx.operator).post(
         "/api/v1/missions/panic/", {"lat": caller[0], "lon": caller[1]}, format="json"
     )
     assert response.status_code == 201, response.json()
-    mission = wait_status(response.json()["id"], {"completed", "failed", "stopped"}, 60)
-    assert mission.status == MissionStatus.COMPLETED
+    mission_id = response.json()["id"]
 
     def hovering_over_caller() -> bool:
         drone = drone_row(drone_id)
@@ -65,7 +64,20 @@ def test_panic_button_brings_a_disarmed_drone_to_hover_over_the_caller(world_tx,
             and abs(drone.alt - 10.0) < 1.0
         )
 
-    assert wait_for(hovering_over_caller, 10), sky.describe()
+    # On station: the call is not completed until it is released.
+    assert wait_for(hovering_over_caller, 60), sky.describe()
+    time.sleep(1.0)  # 20 flight seconds on station
+    assert Mission.objects.get(pk=mission_id).status == MissionStatus.RUNNING
+    assert hovering_over_caller()
+    released = api(world_tx.operator).post(f"/api/v1/missions/{mission_id}/release/")
+    assert released.json()["status"] == "completed", released.json()
+    mission = Mission.objects.get(pk=mission_id)
+
+    def home_disarmed() -> bool:
+        drone = drone_row(drone_id)
+        return not drone.armed and metres((drone.lat, drone.lon), point_at(100, 0)) < 2.5
+
+    assert wait_for(home_disarmed, 30), sky.describe()
     log = api(world_tx.operator).get(f"/api/v1/missions/{mission.pk}/log/").json()
     stages = {s["stage"]: s["duration_s"] for s in log["stages"]}
     assert set(stages) >= {"arm", "takeoff", "navigate"}
@@ -210,7 +222,8 @@ def test_a_uavtalk_drone_running_out_of_battery_is_replaced_by_a_mavlink_drone(w
     }
     assert sorted(waypoints["ACME_UR1"] + waypoints["ACME_MR2"]) == waits  # none skipped
     assert len(waypoints["ACME_UR1"]) >= 1 and len(waypoints["ACME_MR2"]) >= 1
-    assert wait_for(lambda: not drone_row("ACME_UR1").airborne, 20)
+    # Told to land by the replacement, it lands and disarms itself on the ground.
+    assert wait_for(lambda: not drone_row("ACME_UR1").armed and drone_row("ACME_UR1").alt < 0.3, 20)
     # The ground knows which language each drone of the mixed fleet speaks.
     assert drone_row("ACME_UR1").fc["protocol"] == "uavtalk"
     assert drone_row("ACME_MR2").fc["protocol"] == "mavlink"
@@ -340,3 +353,41 @@ def test_a_gateway_restart_mid_mission_loses_no_progress(world_tx, sky):
     # Every step's own report arrived (queued by the broker for the gateway's persistent
     # session), not just the final "mission completed" that implies them.
     assert not mission.steps.filter(duration_s__isnull=True).exists()
+
+
+def test_a_drone_killed_mid_mission_is_replaced_after_the_grace_period(world_tx, sky, settings):
+    """Rule: a drone offline mid-mission shows on the mission at once; still offline after
+    MISSIONS_OFFLINE_GRACE_S, it is replaced as for a CRITICAL alarm."""
+    from fleet.heartbeats import sweep_offline
+    from missions.planning import coverage, mission_steps
+
+    settings.HEARTBEAT_INTERVAL_S = 0.3  # the drones' own interval here
+    settings.MISSIONS_OFFLINE_GRACE_S = 3.0
+    first = sky.add_drone("ACME_K1", north=-10)
+    sky.add_drone("ACME_K2", north=-40, east=-20)
+    sky.wait_online()
+    steps = mission_steps(coverage(rectangle(60, 30), 10).waypoints, altitude=10)
+    client = api(world_tx.operator)
+    mission_id = client.post(
+        "/api/v1/missions/",
+        {"name": "k", "steps": [{"command": s["command"], "params": s["params"]} for s in steps]},
+        format="json",
+    ).json()["id"]
+    client.post(f"/api/v1/missions/{mission_id}/start/", {"drone": "ACME_K1"}, format="json")
+    mission = Mission.objects.get(pk=mission_id)
+    assert wait_for(lambda: len(completed_waypoints(mission).get("ACME_K1", [])) >= 2, 60)
+    first.agent.kill()  # a crash: nothing said goodbye
+
+    def shown() -> Event | None:
+        sweep_offline()  # stands in for Celery beat's offline sweep
+        return mission.events.filter(data__decision="offline").first()
+
+    offline = wait_for(shown, 10)
+    assert offline is not None and "ACME_K1 went offline mid-mission" in offline.message
+    assert not mission.assignments.filter(reason=Assignment.Reason.REPLACEMENT).exists()
+    done = wait_status(mission_id, {"completed", "failed", "stopped"}, 90)
+    assert done.status == MissionStatus.COMPLETED, sky.describe()
+    replacement = done.assignments.get(reason=Assignment.Reason.REPLACEMENT)
+    assert replacement.drone.drone_id == "ACME_K2"
+    decided = done.events.get(kind="decision", data__decision="replacement")
+    assert (decided.at - offline.at).total_seconds() >= 3.0  # not before the grace period

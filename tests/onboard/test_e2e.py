@@ -101,8 +101,13 @@ def test_the_drone_arms_takes_off_flies_north_and_lands_on_command(
         assert ground.command("changeN", value=100)["ok"]
         north = ground.wait_for("heartbeats", lambda m: _pos(m, "lat") > HOME[0] + 0.00088)
         assert north["position"]["lat"] == pytest.approx(HOME[0] + 100 / 111_320, abs=2e-5)
+        landing = time.time()
         assert ground.command("land")["ok"]
-        ground.wait_for("heartbeats", lambda m: _pos(m, "alt", 99) < 0.2 and m["armed"])
+        # A landed drone disarms itself after the auto-disarm delay; disarm is then a no-op.
+        ground.wait_for(
+            "heartbeats",
+            lambda m: m["ts"] > landing and _pos(m, "alt", 99) < 0.2 and not m["armed"],
+        )
         assert ground.command("disarm")["result"] == {"armed": False}
         status = ground.command("objrequest", value="FlightStatus")
         assert status["result"]["Armed"] == "Disarmed"
@@ -306,6 +311,11 @@ def test_a_plume_and_a_draining_battery_raise_one_alarm_each(tmp_path: Path) -> 
             "CO2::1000",
             "--battery-critical",
             "0.25",
+            # What raises the alarms is under test here: no repeat, no fail-safe return.
+            "--alarm-repeat",
+            "1000",
+            "--critical-takeover",
+            "1000",
             "--video-rate",
             "5",
             "--pose-rate",
@@ -481,9 +491,13 @@ def test_a_bridged_drone_lands_when_the_ground_link_is_lost(
             assert ground.command("takeoff", altitude=10)["ok"]
             ground.wait_for("heartbeats", lambda m: _pos(m, "alt") > 9.5)
             ground.close()
+            gone = time.time()
             broker.stop()  # the ground goes away; the drone is on its own
+            # Landed, it disarms itself after the auto-disarm delay.
             down = onboard.wait_for(
-                "heartbeats", lambda m: m["armed"] and _pos(m, "alt", 99) < 0.2, timeout=20
+                "heartbeats",
+                lambda m: m["ts"] > gone and not m["armed"] and _pos(m, "alt", 99) < 0.2,
+                timeout=20,
             )
             assert down["position"]["lat"] == pytest.approx(HOME[0], abs=1e-5)
             assert "ground link (bridge) down" in (tmp_path / "agent.log").read_text()

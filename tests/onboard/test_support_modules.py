@@ -5,7 +5,6 @@ from __future__ import annotations
 import ast
 import json
 import os
-import time
 from pathlib import Path
 
 import pytest
@@ -14,7 +13,6 @@ from firmware.sim.fleet import broker_url_for, parse_credentials, spread
 from onboard import protocol
 from onboard.arming import SimulatedLine, UAVTalkReceiverSwitch
 from onboard.bridge import bridge_config, internal_broker_config
-from onboard.failsafe import FailSafe, parse_bounds
 from onboard.gear import GearError, GearManager
 from onboard.heartbeat import build_heartbeat, derive_drone_id
 from onboard.navigation import ned_to_lla
@@ -106,85 +104,6 @@ def test_no_camera_in_the_gear_list_means_no_picture(gear_dir: Path, tmp_path: P
     gear = GearManager(gear_dir, lambda *a: None, pictures_dir=tmp_path)
     with pytest.raises(GearError, match="no camera"):
         gear.take_picture(FakeFlightController().state)
-
-
-def test_low_battery_raises_exactly_one_critical_alarm() -> None:
-    fc = FakeFlightController()
-    alarms = []
-    failsafe = FailSafe(
-        fc, lambda level, message, **kw: alarms.append((level, message, kw)), battery_critical=0.25
-    )
-    for remaining in (0.9, 0.5, 0.26, 0.24, 0.2, 0.1, 0.3, 0.05):
-        fc.set_battery(remaining)
-        failsafe.check_battery()
-    assert [a[0] for a in alarms] == ["CRITICAL"]
-    assert "25 %" in alarms[0][1] and alarms[0][2]["value"] == 0.24
-    fc.set_battery(1.0)  # a new battery re-arms the alarm
-    failsafe.check_battery()
-    fc.set_battery(0.2)
-    failsafe.check_battery()
-    assert len(alarms) == 2
-
-
-def test_an_out_of_bounds_reading_raises_out_measure_once() -> None:
-    alarms = []
-    failsafe = FailSafe(
-        FakeFlightController(),
-        lambda level, message, **kw: alarms.append((level, kw)),
-        bounds=dict([parse_bounds("CO2::1000")]),
-    )
-    reading = {"value": 1500.0, "mission_id": "m", "assignment_id": "a", "index": 4}
-    assert failsafe.check_reading("CO2", reading)
-    assert not failsafe.check_reading("CO2", reading)
-    assert not failsafe.check_reading("CO2", {"value": 400.0})
-    assert failsafe.check_reading("CO2", {"value": 1001.0})
-    assert alarms[0] == (
-        "OUT_MEASURE",
-        {
-            "sensor": "CO2",
-            "value": 1500.0,
-            "context": {"mission_id": "m", "assignment_id": "a", "index": 4},
-        },
-    )
-    assert not failsafe.check_reading("temperature", {"value": 1e9})
-
-
-def test_link_loss_while_airborne_lands_after_the_timeout() -> None:
-    fc = FakeFlightController()
-    now = [0.0]
-    stopped = []
-    failsafe = FailSafe(
-        fc,
-        lambda *a, **k: None,
-        link_loss_timeout=10,
-        link_loss_action="land",
-        clock=lambda: now[0],
-        stop_mission=lambda reason: stopped.append(reason) or True,
-    )
-    failsafe.link_changed(False)
-    now[0] = 20.0
-    assert failsafe.check_link() is None  # on the ground: nothing to do
-    fc.arm()
-    fc.move_to(0, 0, -10)
-    failsafe.link_changed(True)
-    failsafe.link_changed(False)
-    now[0] = 25.0
-    assert failsafe.check_link() is None
-    now[0] = 31.0
-    assert failsafe.check_link() == "land"
-    assert failsafe.check_link() is None
-    assert ("land",) in fc.calls and stopped == ["ground link lost; fail-safe land"]
-
-
-def test_link_loss_return_flies_home_at_the_same_altitude() -> None:
-    fc = FakeFlightController()
-    fc.arm()
-    fc.move_to(50, 20, -12)
-    failsafe = FailSafe(fc, lambda *a, **k: None, link_loss_timeout=0.01, link_loss_action="return")
-    failsafe.link_changed(False)
-    time.sleep(0.02)
-    assert failsafe.check_link() == "return"
-    assert ("goto", 0.0, 0.0, -12) in fc.calls
 
 
 def test_heartbeats_follow_the_contract() -> None:
