@@ -7,10 +7,10 @@ import time
 from pathlib import Path
 
 import pytest
+from onboard.launcher import agent_process, copy_gear
 
 from firmware.sim import start_simulator
 from onboard import protocol
-from onboard.launcher import agent_process, copy_gear
 from workers.mosquitto import start_broker
 
 from .ground import Ground
