@@ -7,9 +7,9 @@ import time
 from pathlib import Path
 
 import pytest
-from onboard.launcher import agent_process, copy_gear
 
 from firmware.sim import start_simulator
+from firmware.sim.fleet import agent_process, copy_gear
 from onboard import protocol
 from workers.mosquitto import start_broker
 
