@@ -36,18 +36,23 @@ class Refused(exceptions.APIException):
     status_code = status.HTTP_400_BAD_REQUEST
     default_code = "invalid"
 
-    def __init__(self, field: str, message: str, status_code: int = 400) -> None:
+    def __init__(
+        self, field: str, message: str, status_code: int = 400, code: str | None = None
+    ) -> None:
         super().__init__({field: [message]})
         self.status_code = status_code
         if status_code != 400:
             self.default_code = {404: "not_found", 409: "conflict", 413: "too_large"}.get(
                 status_code, "refused"
             )
+        if code:
+            self.default_code = code
 
 
 def refuse(exc: MissionError | planning.PlanningError) -> Refused:
-    code = exc.status if isinstance(exc, MissionError) else 400
-    return Refused(exc.field, exc.message, code)
+    if isinstance(exc, MissionError):
+        return Refused(exc.field, exc.message, exc.status, exc.code)
+    return Refused(exc.field, exc.message, 400)
 
 
 def _body(request: Request) -> dict:
@@ -432,6 +437,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 steps=plan.steps,
                 altitude=_plan_altitude(plan.steps),
                 user=request.user,
+                home=plan.home,
             )
         except planning.PlanningError as exc:
             raise refuse(exc) from None

@@ -121,7 +121,7 @@ def _number(value: Any, name: str, lo: float, hi: float) -> float:
     return result
 
 
-def _latlon(value: Any, name: str) -> LatLon:
+def parse_latlon(value: Any, name: str) -> LatLon:
     if not isinstance(value, list | tuple) or len(value) < 2:
         raise EnvelopeError(name, "must be [latitude, longitude]")
     lat = _number(value[0], f"{name}[0]", -89.0, 89.0)
@@ -149,7 +149,7 @@ def _polygon(obj: Any, name: str) -> Polygon:
     if not isinstance(obj, dict):
         raise EnvelopeError(name, "must be an object")
     raw = _list(obj.get("polygon"), f"{name}.polygon", MAX_FENCE_VERTICES)
-    points = tuple(_latlon(p, f"{name}.polygon[{i}]") for i, p in enumerate(raw))
+    points = tuple(parse_latlon(p, f"{name}.polygon[{i}]") for i, p in enumerate(raw))
     if len(points) >= 2 and points[0] == points[-1]:
         points = points[:-1]  # a closed ring repeats its first vertex
     if len(points) < 3:
@@ -162,7 +162,7 @@ def _polygon(obj: Any, name: str) -> Polygon:
 def _circle(obj: Any, name: str) -> Circle:
     if not isinstance(obj, dict) or not isinstance(obj.get("circle"), dict):
         raise EnvelopeError(f"{name}.circle", "must be an object {center, radius}")
-    center = _latlon(obj["circle"].get("center"), f"{name}.circle.center")
+    center = parse_latlon(obj["circle"].get("center"), f"{name}.circle.center")
     radius = _number(obj["circle"].get("radius"), f"{name}.circle.radius", 0.1, 1e6)
     return Circle(_inclusion(obj, name), center, radius)
 
