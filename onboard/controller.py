@@ -18,6 +18,8 @@ log = logging.getLogger(__name__)
 
 # Called with (kind, details) for the logger: "command", "response", "arming".
 EventSink = Callable[[str, dict], None]
+# Called with (command, target kind, target NED, vehicle state): a refusal sentence or None.
+Guard = Callable[[str, str, tuple, Any], str | None]
 
 
 class CommandError(Exception):
@@ -33,8 +35,10 @@ class Controller:
         gear: Any = None,
         arm_timeout: float = 15.0,
         events: EventSink | None = None,
+        guard: Guard | None = None,
     ) -> None:
         self.fc = fc
+        self.guard = guard
         self.navigation = navigation
         self.gear = gear
         self.arm_timeout = arm_timeout
@@ -119,6 +123,11 @@ class Controller:
     def _navigate(self, command: str, params: dict) -> dict:
         if not self.fc.state.armed:
             raise CommandError(f"The drone is not armed; arm it before {command}.")
+        if self.guard is not None:  # the flight envelope, checked before the target is sent
+            planned = self.navigation.plan(command, params, self.fc.state)
+            refusal = self.guard(command, planned.kind, planned.ned, self.fc.state)
+            if refusal is not None:
+                raise CommandError(refusal)
         target = self.navigation.execute(command, params)
         north, east, down = target.ned
         return {"target": {"north": north, "east": east, "down": down}}

@@ -12,10 +12,17 @@ same local frame. Standard library only: the ground imports this module too.
 
 from __future__ import annotations
 
+import json
+import logging
 import math
+import os
+import threading
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
+
+log = logging.getLogger(__name__)
 
 EARTH_RADIUS = 6_378_137.0
 DEFAULT_MAX_HEIGHT = 120.0
@@ -427,5 +434,65 @@ def check_steps(
         if violation is not None:
             return StepViolation(index, violation)
         target = move.ned
-        airborne = move.kind != "land"
+        # Only a takeoff lifts a drone off and only a land puts it down; a move does not.
+        airborne = {"takeoff": True, "land": False}.get(move.kind, airborne)
     return None
+
+
+# -- the drone's own guard ------------------------------------------------------------------
+
+
+class EnvelopeGuard:
+    """The envelope a drone enforces: the last one received, kept in `path` across restarts.
+
+    Until one arrives the defaults apply, so a drone never flies unlimited. `state` is the
+    flight controller's VehicleState (home, position, battery 0..1, airborne).
+    """
+
+    def __init__(self, path: Path | None = None) -> None:
+        self.path = path
+        self._lock = threading.Lock()
+        self._envelope = Envelope()
+        self.outside: Violation | None = None
+        if path is not None and path.exists():
+            try:
+                self._envelope = parse_envelope(json.loads(path.read_text()))
+            except (OSError, ValueError) as exc:
+                log.warning("ignoring the stored envelope %s: %s", path, exc)
+
+    @property
+    def envelope(self) -> Envelope:
+        with self._lock:
+            return self._envelope
+
+    def update(self, data: Mapping[str, Any]) -> Envelope:
+        """Adopt a received envelope (already validated) and store it atomically."""
+        envelope = parse_envelope(dict(data))
+        with self._lock:
+            self._envelope = envelope
+        if self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            partial = self.path.with_suffix(".partial")
+            partial.write_text(json.dumps(envelope.to_dict()))
+            os.replace(partial, self.path)
+        return envelope
+
+    def refusal(self, command: str, kind: str, ned: NED, state: Any) -> str | None:
+        """Why the drone refuses to fly to `ned` for `command`, or None."""
+        home = None if state.home is None else state.home[:2]
+        move = Move(kind, ned, command in HORIZONTAL_COMMANDS)
+        violation = check(self.envelope, home, move, state.airborne, _percent(state))
+        return None if violation is None else f"Outside the flight envelope: {violation.message}"
+
+    def breach(self, ned: NED | None, state: Any) -> Violation | None:
+        """The limit an airborne drone at `ned` is beyond (wind, bad GPS), or None."""
+        if ned is None or not state.airborne:
+            return None
+        home = None if state.home is None else state.home[:2]
+        envelope = replace(self.envelope, battery_reserve=0.0, min_move_height=0.0)
+        return check(envelope, home, Move("goto", ned), True, None)
+
+
+def _percent(state: Any) -> float | None:
+    remaining = getattr(state, "battery_remaining", None)
+    return None if remaining is None else remaining * 100.0

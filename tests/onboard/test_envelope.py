@@ -129,3 +129,22 @@ def test_steps_resolve_relative_moves_from_the_current_target() -> None:
     found = env.check_steps(env.parse_envelope({}), HOME, steps, (0, 0, 0), False, 90.0)
     assert found is not None and found.index == 3 and found.violation.limit == "max_distance"
     assert env.check_steps(env.parse_envelope({}), HOME, steps[:3], (0, 0, 0), False, 90.0) is None
+
+
+class _State:
+    home = (*HOME, 12.0)
+    airborne = True
+    battery_remaining = 0.9
+
+
+def test_the_guard_keeps_the_last_envelope_across_restarts(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    path = tmp_path / "envelope.json"
+    assert env.EnvelopeGuard(path).envelope == env.Envelope()
+    env.EnvelopeGuard(path).update({"max_height": 40})
+    restarted = env.EnvelopeGuard(path)
+    assert restarted.envelope.max_height == 40
+    refusal = restarted.refusal("altitude", "goto", (0.0, 0.0, -50.0), _State())
+    assert refusal is not None and "maximum height of 40 m" in refusal
+    assert restarted.refusal("land", "land", (0.0, 0.0, 0.0), _State()) is None
+    path.write_text("{not json")
+    assert env.EnvelopeGuard(path).envelope == env.Envelope()  # the defaults, never none
