@@ -120,9 +120,11 @@ def send_to_drones(drones: Iterable[Drone]) -> None:
 def send_when_online(sender: object, drone_ids: Sequence[str] = (), **kwargs: object) -> None:
     """drones_came_online receiver: a drone back online gets its envelope again, and its
     last target is forgotten (it may have restarted)."""
-    drones = Drone.objects.filter(drone_id__in=list(drone_ids)).select_related("organisation")
+    drones = list(Drone.objects.filter(drone_id__in=list(drone_ids)).select_related("organisation"))
+    stale = [d.pk for d in drones if d.nav_target is not None]
     try:
-        drones.filter(nav_target__isnull=False).update(nav_target=None)
+        if stale:
+            Drone.objects.filter(pk__in=stale).update(nav_target=None)
         send_to_drones(drones)
     except Exception:  # the heartbeat path must not fail on the outbox
         log.exception("could not queue envelopes for %s", list(drone_ids))

@@ -243,3 +243,15 @@ def test_a_new_envelope_is_sent_to_the_drones(world_tx, broker, gateway):
         client.loop_stop()
     sent = received[0]["envelope"]
     assert (sent["max_height"], sent["max_distance"]) == (60.0, 300.0)
+
+
+def test_a_drone_back_online_gets_its_envelope_and_forgets_its_old_target(world_tx, fresh_redis):
+    from fleet.signals import drones_came_online
+    from workers import outbox
+
+    Drone.objects.filter(drone_id="ACME_1").update(nav_target=[5.0, 0.0, -10.0])
+    drones_came_online.send(sender=None, organisation_ids={world_tx.org.pk}, drone_ids=["ACME_1"])
+    items = [json.loads(raw) for raw in fresh_redis.lrange(outbox.outbox_key(), 0, -1)]
+    assert [item["topic"] for item in items] == ["ACME_1/envelope/in"]
+    assert items[0]["payload"]["envelope"]["max_height"] == 120.0
+    assert Drone.objects.get(drone_id="ACME_1").nav_target is None
