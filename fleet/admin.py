@@ -1,13 +1,16 @@
 import json
 
 import redis
+from django import forms
 from django.contrib import admin, messages
+from django.db import transaction
 from django.db.models import QuerySet
 from django.http import HttpRequest
 
+from onboard.envelope import EnvelopeError, parse_envelope, parse_latlon
 from workers.counters import snapshot
 
-from . import credentials
+from . import credentials, envelopes
 from .models import CommandLog, ConnectionEvent, Drone, Membership, Organisation
 
 
@@ -17,12 +20,37 @@ class MembershipInline(admin.TabularInline):
     autocomplete_fields = ["user"]
 
 
+class OrganisationForm(forms.ModelForm):
+    class Meta:
+        model = Organisation
+        fields = ["name", "slug", "envelope"]
+
+    def clean_envelope(self) -> dict:
+        """The flight envelope's own checks (onboard/envelope.py), naming the bad field."""
+        data = self.cleaned_data["envelope"] or {}
+        try:
+            if not isinstance(data, dict):
+                raise EnvelopeError("envelope", "must be a JSON object")
+            home = data.get("home")
+            parse_envelope(data, home=None if home is None else parse_latlon(home, "home"))
+        except EnvelopeError as exc:
+            raise forms.ValidationError(f"{exc.field}: {exc.message}") from None
+        return data
+
+
 @admin.register(Organisation)
 class OrganisationAdmin(admin.ModelAdmin):
+    form = OrganisationForm
     list_display = ["name", "slug", "created_at"]
     search_fields = ["name", "slug"]
     prepopulated_fields = {"slug": ["name"]}
     inlines = [MembershipInline]
+
+    def save_model(self, request, obj, form, change):  # type: ignore[no-untyped-def]
+        super().save_model(request, obj, form, change)
+        if "envelope" in form.changed_data:
+            drones = list(obj.drones.select_related("organisation"))
+            transaction.on_commit(lambda: envelopes.send_to_drones(drones))
 
 
 @admin.register(Membership)

@@ -255,3 +255,21 @@ def test_a_drone_back_online_gets_its_envelope_and_forgets_its_old_target(world_
     assert [item["topic"] for item in items] == ["ACME_1/envelope/in"]
     assert items[0]["payload"]["envelope"]["max_height"] == 120.0
     assert Drone.objects.get(drone_id="ACME_1").nav_target is None
+
+
+def test_the_admin_form_refuses_a_malformed_envelope(world_tx):
+    from fleet.admin import OrganisationForm
+
+    organisation = Organisation.objects.get(slug="acme")
+    fence = {"polygons": [{"polygon": [[40.6, -8.6], [40.7, -8.6]]}]}
+    form = OrganisationForm(
+        data={"name": "Acme", "slug": "acme", "envelope": json.dumps({"geoFence": fence})},
+        instance=organisation,
+    )
+    assert not form.is_valid()
+    assert "geoFence.polygons[0].polygon" in form.errors["envelope"][0]
+    form = OrganisationForm(
+        data={"name": "Acme", "slug": "acme", "envelope": json.dumps({"max_height": 90})},
+        instance=organisation,
+    )
+    assert form.is_valid(), form.errors
