@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import time
 
 import pytest
@@ -273,3 +274,18 @@ def test_the_admin_form_refuses_a_malformed_envelope(world_tx):
         instance=organisation,
     )
     assert form.is_valid(), form.errors
+
+
+@pytest.mark.parametrize(("who", "editable"), [("owner", True), ("viewer", False)])
+def test_the_envelope_page_draws_the_fence_and_lets_admins_edit(world_tx, who, editable):
+    from django.test import Client
+
+    client = Client()
+    client.force_login(getattr(world_tx, who))
+    html = client.get("/organisation/envelope/").content.decode()
+    assert 'id="envelope-map"' in html and "js/fleet_envelope.js" in html
+    config = json.loads(
+        re.search(r'<script id="envelope-config" type="application/json">(.*?)</script>', html)[1]
+    )
+    assert config["apiUrl"] == URL and config["editable"] is editable
+    assert "Flight envelope" in client.get("/").content.decode()
