@@ -176,19 +176,34 @@ def check_command(drone: Drone, command: str, params: Mapping[str, Any]) -> None
         raise OutsideEnvelope(violation)
 
 
+def step_violations(
+    organisation: Organisation,
+    steps: Sequence[Mapping[str, Any]],
+    drone: Drone | None = None,
+    home: Sequence | None = None,
+) -> list[env.StepViolation]:
+    """Every step of a mission that breaks the envelope: flown by `drone` from where it is,
+    or, before a drone is chosen, from the ground at `home` (else plan_home)."""
+    if drone is not None:
+        home = home_of(drone)
+        return env.step_violations(
+            drone_envelope(drone),
+            home,
+            steps,
+            current_target(drone, home),
+            drone.airborne,
+            _battery_percent(drone),
+        )
+    home = home if home is not None else plan_home(organisation, steps)
+    envelope = organisation_envelope(organisation)
+    return env.step_violations(envelope, home, steps, (0.0, 0.0, 0.0), False, None)
+
+
 def check_steps(drone: Drone, steps: Sequence[Mapping[str, Any]]) -> None:
     """Raise OutsideEnvelope naming the first mission step the drone may not fly."""
-    home = home_of(drone)
-    found = env.check_steps(
-        drone_envelope(drone),
-        home,
-        steps,
-        current_target(drone, home),
-        drone.airborne,
-        _battery_percent(drone),
-    )
-    if found is not None:
-        raise OutsideEnvelope(found.violation, found.index)
+    found = step_violations(drone.organisation, steps, drone)
+    if found:
+        raise OutsideEnvelope(found[0].violation, found[0].index)
 
 
 def plan_home(organisation: Organisation, steps: Sequence[Mapping[str, Any]]) -> list | None:
@@ -208,10 +223,9 @@ def check_plan(
 ) -> None:
     """Raise OutsideEnvelope for a mission whose steps break the organisation's envelope,
     flown from the ground at `home` (or plan_home)."""
-    home = home if home is not None else plan_home(organisation, steps)
-    found = env.check_steps(organisation_envelope(organisation), home, steps, None, False, None)
-    if found is not None:
-        raise OutsideEnvelope(found.violation, found.index)
+    found = step_violations(organisation, steps, home=home)
+    if found:
+        raise OutsideEnvelope(found[0].violation, found[0].index)
 
 
 def remember_target(drone: Drone, command: str, reply: Mapping[str, Any] | None) -> None:

@@ -17,6 +17,7 @@ from rest_framework.parsers import FormParser, JSONParser, MultiPartParser
 from rest_framework.request import Request
 from rest_framework.response import Response
 
+from fleet import envelopes
 from fleet.models import Drone, Membership, Organisation, Role
 from fleet.permissions import OrganisationRole, require_role
 from fleet.tenancy import current_membership
@@ -29,7 +30,7 @@ from .serializers import (
     PictureSerializer,
     StepSerializer,
 )
-from .services import MissionError, create_mission, start_mission, stop_mission
+from .services import MissionError, create_mission, start_mission, stop_mission, validate_steps
 
 
 class Refused(exceptions.APIException):
@@ -317,6 +318,35 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         mission = self.get_object()
         steps = mission.steps.select_related("drone").order_by("index")
         return Response(StepSerializer(steps, many=True).data)
+
+    @extend_schema(request=OpenApiTypes.OBJECT, responses={200: OpenApiTypes.OBJECT})
+    @action(detail=False, methods=["post"], url_path="check-envelope")
+    def check_envelope(self, request: Request) -> Response:
+        """Every step of `steps` the flight envelope refuses (flown by `drone` when given),
+        for the planner to mark before anything is sent; nothing is stored or sent."""
+        body = _body(request)
+        organisation = _organisation_for_write(request, body.get("organisation"))
+        try:
+            steps = validate_steps(body.get("steps"))
+        except MissionError as exc:
+            raise refuse(exc) from None
+        drone = None
+        if body.get("drone"):
+            drone = Drone.objects.filter(
+                drone_id=str(body["drone"]), organisation=organisation
+            ).first()
+            if drone is None:
+                raise Refused("drone", f"no drone {body['drone']!r} in this organisation", 404)
+        found = envelopes.step_violations(organisation, steps, drone)
+        return Response(
+            {
+                "violations": [
+                    {"index": v.index, "limit": v.violation.limit, "message": v.violation.message}
+                    for v in found
+                ],
+                "envelope": envelopes.envelope_body(organisation),
+            }
+        )
 
     @extend_schema(request=PanicRequest, responses={201: MissionDetailSerializer})
     @action(detail=False, methods=["post"])

@@ -416,6 +416,34 @@ class StepViolation:
     violation: Violation
 
 
+def step_violations(
+    envelope: Envelope,
+    home: Sequence[float] | None,
+    steps: Sequence[Mapping[str, Any]],
+    start: NED | None,
+    airborne: bool,
+    battery: float | None,
+) -> list[StepViolation]:
+    """Walk a mission's steps from `start`: every step whose move breaks the envelope.
+
+    The walk goes on past a refused step as if it had been flown, so a planner can mark
+    every offending step at once.
+    """
+    found = []
+    target = start
+    for index, step in enumerate(steps):
+        move = resolve(step["command"], step.get("params") or {}, target, target, home)
+        if move is None:
+            continue
+        violation = check(envelope, home, move, airborne, battery)
+        if violation is not None:
+            found.append(StepViolation(index, violation))
+        target = move.ned
+        # Only a takeoff lifts a drone off and only a land puts it down; a move does not.
+        airborne = {"takeoff": True, "land": False}.get(move.kind, airborne)
+    return found
+
+
 def check_steps(
     envelope: Envelope,
     home: Sequence[float] | None,
@@ -424,19 +452,9 @@ def check_steps(
     airborne: bool,
     battery: float | None,
 ) -> StepViolation | None:
-    """Walk a mission's steps from `start`, the first step whose move breaks the envelope."""
-    target = start
-    for index, step in enumerate(steps):
-        move = resolve(step["command"], step.get("params") or {}, target, target, home)
-        if move is None:
-            continue
-        violation = check(envelope, home, move, airborne, battery)
-        if violation is not None:
-            return StepViolation(index, violation)
-        target = move.ned
-        # Only a takeoff lifts a drone off and only a land puts it down; a move does not.
-        airborne = {"takeoff": True, "land": False}.get(move.kind, airborne)
-    return None
+    """The first mission step whose move breaks the envelope, or None."""
+    found = step_violations(envelope, home, steps, start, airborne, battery)
+    return found[0] if found else None
 
 
 # -- the drone's own guard ------------------------------------------------------------------

@@ -198,3 +198,19 @@ def test_a_collaboration_outside_the_envelope_is_declined(world, outbox, sent):
     decision = mission.events.get(kind=Event.Kind.DECISION, data__decision="collaboration_failed")
     assert "maximum distance of 20 m" in decision.message
     assert outbox.items() == []
+
+
+def test_the_planner_check_names_every_offending_step(world, outbox):
+    online_drone(world.org, "ACME_A", north=-600)
+    steps = body(600)["steps"] + [{"command": "altitude", "params": {"value": 500}}]
+    response = client_for(world.operator).post(
+        "/api/v1/missions/check-envelope/", {"steps": steps, "drone": "ACME_A"}, format="json"
+    )
+    assert response.status_code == 200, response.json()
+    found = [(v["index"], v["limit"]) for v in response.json()["violations"]]
+    assert found == [(3, "max_distance"), (5, "max_height")]
+    alone = client_for(world.operator).post(
+        "/api/v1/missions/check-envelope/", {"steps": steps}, format="json"
+    )
+    assert [v["index"] for v in alone.json()["violations"]] == [5]
+    assert not Mission.objects.exists() and outbox.items() == []
