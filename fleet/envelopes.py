@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 from django.db import transaction
@@ -181,9 +182,11 @@ def step_violations(
     steps: Sequence[Mapping[str, Any]],
     drone: Drone | None = None,
     home: Sequence | None = None,
+    fence: Mapping | None = None,
 ) -> list[env.StepViolation]:
     """Every step of a mission that breaks the envelope: flown by `drone` from where it is,
-    or, before a drone is chosen, from the ground at `home` (else plan_home)."""
+    or, before a drone is chosen, from the ground at `home` (else plan_home). `fence` (a
+    QGroundControl geoFence, e.g. an imported plan's own) applies on top."""
     if drone is not None:
         home = home_of(drone)
         return env.step_violations(
@@ -196,6 +199,10 @@ def step_violations(
         )
     home = home if home is not None else plan_home(organisation, steps)
     envelope = organisation_envelope(organisation)
+    polygons, circles = env.parse_geofence(fence)
+    envelope = replace(
+        envelope, polygons=envelope.polygons + polygons, circles=envelope.circles + circles
+    )
     return env.step_violations(envelope, home, steps, (0.0, 0.0, 0.0), False, None)
 
 
@@ -219,11 +226,14 @@ def plan_home(organisation: Organisation, steps: Sequence[Mapping[str, Any]]) ->
 
 
 def check_plan(
-    organisation: Organisation, steps: Sequence[Mapping[str, Any]], home: Sequence | None = None
+    organisation: Organisation,
+    steps: Sequence[Mapping[str, Any]],
+    home: Sequence | None = None,
+    fence: Mapping | None = None,
 ) -> None:
-    """Raise OutsideEnvelope for a mission whose steps break the organisation's envelope,
-    flown from the ground at `home` (or plan_home)."""
-    found = step_violations(organisation, steps, home=home)
+    """Raise OutsideEnvelope for a mission whose steps break the organisation's envelope
+    (and `fence`), flown from the ground at `home` (or plan_home)."""
+    found = step_violations(organisation, steps, home=home, fence=fence)
     if found:
         raise OutsideEnvelope(found[0].violation, found[0].index)
 

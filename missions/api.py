@@ -432,7 +432,10 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             for s in mission.steps.order_by("index")
         ]
         try:
-            document = qgc_plan.export_plan(steps, altitude=mission.altitude)
+            fence = envelopes.envelope_body(mission.organisation)["geoFence"]
+            document = qgc_plan.export_plan(
+                steps, altitude=mission.altitude, geofence=qgc_plan.read_geofence(fence)
+            )
         except planning.PlanningError as exc:
             raise refuse(exc) from None
         response = HttpResponse(qgc_plan.dumps(document), content_type="application/json")
@@ -468,6 +471,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 altitude=_plan_altitude(plan.steps),
                 user=request.user,
                 home=plan.home,
+                fence=qgc_plan.geofence_json(plan.geofence),
             )
         except planning.PlanningError as exc:
             raise refuse(exc) from None

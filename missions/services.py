@@ -101,15 +101,16 @@ def create_mission(
     extensibility: Mapping | None = None,
     user: Any = None,
     home: Sequence[float] | None = None,
+    fence: Mapping | None = None,
 ) -> Mission:
     """A draft mission with validated steps (nothing is sent until `start_mission`).
 
-    The steps must keep to the organisation's envelope flown from `home` (a plan's home;
-    else see fleet.envelopes.plan_home).
+    The steps must keep to the organisation's envelope, and to `fence` (an imported
+    plan's own geoFence), flown from `home` (a plan's home; else fleet.envelopes.plan_home).
     """
     clean = validate_steps(steps)
     try:
-        envelopes.check_plan(organisation, clean, home)
+        envelopes.check_plan(organisation, clean, home, fence)
     except envelopes.OutsideEnvelope as exc:
         raise outside_envelope(exc) from None
     name = (name or "").strip() or f"Mission {timezone.now():%Y-%m-%d %H:%M}"

@@ -495,11 +495,19 @@ class EnvelopeGuard:
             os.replace(partial, self.path)
         return envelope
 
-    def refusal(self, command: str, kind: str, ned: NED, state: Any) -> str | None:
-        """Why the drone refuses to fly to `ned` for `command`, or None."""
+    def refusal(
+        self, command: str, kind: str, ned: NED, state: Any, in_mission: bool = False
+    ) -> str | None:
+        """Why the drone refuses to fly to `ned` for `command`, or None.
+
+        The battery reserve is checked on control commands, not on the steps of a mission
+        already flying: there the fail-safe's battery alarm decides, and the ground hands
+        the rest of the mission to another drone.
+        """
         home = None if state.home is None else state.home[:2]
         move = Move(kind, ned, command in HORIZONTAL_COMMANDS)
-        violation = check(self.envelope, home, move, state.airborne, _percent(state))
+        battery = None if in_mission else _percent(state)
+        violation = check(self.envelope, home, move, state.airborne, battery)
         return None if violation is None else f"Outside the flight envelope: {violation.message}"
 
     def breach(self, ned: NED | None, state: Any) -> Violation | None:

@@ -6,6 +6,8 @@ queued for any drone (the outbox stays empty).
 
 from __future__ import annotations
 
+import json
+
 import pytest
 from rest_framework.test import APIClient
 
@@ -95,14 +97,13 @@ def test_a_drone_override_is_applied_at_start(world, outbox, sent):
     assert outbox.items() == []
 
 
-def test_an_imported_plan_is_checked_from_its_planned_home(world, outbox, sent):
-    home = point_at(-1200, 0)
-    far = point_at(0, 0)
-    plan = {
+def qgc_mission(home: tuple, waypoint: tuple, fence: dict | None = None) -> dict:
+    """A QGroundControl `.plan`: take off at home, fly to one waypoint."""
+    return {
         "fileType": "Plan",
         "version": 1,
         "groundStation": "QGroundControl",
-        "geoFence": {"circles": [], "polygons": [], "version": 2},
+        "geoFence": fence or {"circles": [], "polygons": [], "version": 2},
         "rallyPoints": {"points": [], "version": 2},
         "mission": {
             "version": 2,
@@ -124,18 +125,38 @@ def test_an_imported_plan_is_checked_from_its_planned_home(world, outbox, sent):
                     "type": "SimpleItem",
                     "command": 16,
                     "frame": 3,
-                    "params": [0, 0, 0, None, *far, 10],
+                    "params": [0, 0, 0, None, *waypoint, 10],
                     "autoContinue": True,
                     "doJumpId": 2,
                 },
             ],
         },
     }
+
+
+def test_an_imported_plan_is_checked_from_its_planned_home(world, outbox):
+    plan = qgc_mission(point_at(-1200, 0), point_at(0, 0))
     response = client_for(world.operator).post("/api/v1/missions/import-plan/", plan, format="json")
     assert response.status_code == 409, response.json()
     assert response.json()["code"] == "outside_envelope"
     assert "maximum distance" in response.json()["error"]
     assert not Mission.objects.exists() and outbox.items() == []
+
+
+def test_an_imported_plans_own_geofence_is_enforced_and_the_export_writes_the_fence(world):
+    exclusion = {"inclusion": False, "circle": {"center": list(point_at(100, 0)), "radius": 20}}
+    fence = {"version": 2, "polygons": [], "circles": [{**exclusion, "version": 1}]}
+    plan = qgc_mission(point_at(0, 0), point_at(100, 0), fence)
+    response = client_for(world.operator).post("/api/v1/missions/import-plan/", plan, format="json")
+    assert response.status_code == 409, response.json()
+    assert "exclusion circle 0" in response.json()["error"]
+
+    Organisation.objects.filter(pk=world.org.pk).update(envelope={"geoFence": fence})
+    plan = qgc_mission(point_at(0, 0), point_at(0, 100))
+    created = client_for(world.operator).post("/api/v1/missions/import-plan/", plan, format="json")
+    assert created.status_code == 201, created.json()
+    exported = client_for(world.operator).get(f"/api/v1/missions/{created.json()['id']}/plan/")
+    assert json.loads(exported.content)["geoFence"] == fence
 
 
 def test_a_panic_call_too_far_away_is_refused(world, outbox, sent):

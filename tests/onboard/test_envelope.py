@@ -146,5 +146,11 @@ def test_the_guard_keeps_the_last_envelope_across_restarts(tmp_path) -> None:  #
     refusal = restarted.refusal("altitude", "goto", (0.0, 0.0, -50.0), _State())
     assert refusal is not None and "maximum height of 40 m" in refusal
     assert restarted.refusal("land", "land", (0.0, 0.0, 0.0), _State()) is None
+    drained = _State()
+    drained.battery_remaining = 0.2
+    low = restarted.refusal("changeN", "goto", (50.0, 0.0, -10.0), drained)
+    assert low is not None and "reserve" in low
+    # A mission already flying is left to the fail-safe's battery alarm.
+    assert restarted.refusal("changeN", "goto", (50.0, 0.0, -10.0), drained, True) is None
     path.write_text("{not json")
     assert env.EnvelopeGuard(path).envelope == env.Envelope()  # the defaults, never none
