@@ -53,6 +53,11 @@ class OrganisationAdmin(admin.ModelAdmin):
             transaction.on_commit(lambda: envelopes.send_to_drones(drones))
 
 
+def _send_drone_envelope(drone: Drone, changed: list[str]) -> None:
+    if {"max_height", "max_distance"} & set(changed):
+        transaction.on_commit(lambda: envelopes.send_to_drones([drone]))
+
+
 @admin.register(Membership)
 class MembershipAdmin(admin.ModelAdmin):
     list_display = ["user", "organisation", "role", "created_at"]
@@ -70,8 +75,32 @@ class ConnectionEventInline(admin.TabularInline):
     ordering = ["-at"]
 
 
+class DroneForm(forms.ModelForm):
+    class Meta:
+        model = Drone
+        # The admin shows every field; these are the ones this form checks.
+        fields = ["organisation", "drone_id", "name", "max_height", "max_distance"]
+
+    def clean(self) -> dict:
+        """A drone's own height and distance limits may only lower its organisation's."""
+        data = super().clean()
+        organisation = data.get("organisation")
+        if organisation is None:
+            return data
+        limits = envelopes.organisation_envelope(organisation)
+        for name in ("max_height", "max_distance"):
+            value = data.get(name)
+            if value is not None and not 0 < value <= getattr(limits, name):
+                self.add_error(
+                    name,
+                    f"must be above 0 and at most the organisation's {getattr(limits, name):g} m",
+                )
+        return data
+
+
 @admin.register(Drone)
 class DroneAdmin(admin.ModelAdmin):
+    form = DroneForm
     list_display = [
         "drone_id",
         "organisation",
@@ -88,6 +117,10 @@ class DroneAdmin(admin.ModelAdmin):
     inlines = [ConnectionEventInline]
     actions = ["issue_credentials", "revoke_credentials"]
     change_list_template = "fleet/admin/drone_change_list.html"
+
+    def save_model(self, request, obj, form, change):  # type: ignore[no-untyped-def]
+        super().save_model(request, obj, form, change)
+        _send_drone_envelope(obj, form.changed_data)
 
     @admin.action(description="Issue new broker credentials (shown once)")
     def issue_credentials(self, request: HttpRequest, queryset: QuerySet[Drone]) -> None:

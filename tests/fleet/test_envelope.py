@@ -289,3 +289,32 @@ def test_the_envelope_page_draws_the_fence_and_lets_admins_edit(world_tx, who, e
     )
     assert config["apiUrl"] == URL and config["editable"] is editable
     assert "Flight envelope" in client.get("/").content.decode()
+
+
+def test_the_admin_lets_a_drone_lower_its_limits_only(world_tx):
+    from fleet.admin import DroneForm
+
+    drone = Drone.objects.get(drone_id="ACME_1")
+
+    def form(**limits: float) -> DroneForm:  # type: ignore[no-untyped-def]
+        data = {"organisation": world_tx.org.pk, "drone_id": "ACME_1", **limits}
+        return DroneForm(data=data, instance=drone)
+
+    assert form(max_height=50, max_distance=400).is_valid()
+    raised = form(max_height=500)
+    assert not raised.is_valid() and "120 m" in raised.errors["max_height"][0]
+    assert not form(max_distance=0).is_valid()
+
+
+def test_the_admin_pages_show_the_envelope_fields(world_tx):
+    from django.contrib.auth import get_user_model
+    from django.test import Client
+
+    admin = get_user_model().objects.create_superuser("root", password="pw-for-the-admin")
+    client = Client()
+    client.force_login(admin)
+    drone = Drone.objects.get(drone_id="ACME_1")
+    page = client.get(f"/admin/fleet/drone/{drone.pk}/change/").content.decode()
+    assert 'name="max_height"' in page and 'name="mqtt_password_hash"' not in page
+    page = client.get(f"/admin/fleet/organisation/{world_tx.org.pk}/change/").content.decode()
+    assert 'name="envelope"' in page
