@@ -24,6 +24,16 @@ api_v1 = [
         fleet_api.DroneCommandView.as_view(),
         name="drone-commands",
     ),
+    path(
+        "organisations/<slug:slug>/envelope/",
+        fleet_api.EnvelopeView.as_view(),
+        name="organisation-envelope",
+    ),
+    path(
+        "organisations/<slug:slug>/envelope/plan/",
+        fleet_api.envelope_plan,
+        name="organisation-envelope-plan",
+    ),
     path("telemetry/", include("telemetry.api_urls")),
     path("logs/", include(logs_urls.api_urlpatterns)),
     path("operations/", operations_views.operations_api, name="operations"),

@@ -1,13 +1,16 @@
 import json
 
 import redis
+from django import forms
 from django.contrib import admin, messages
+from django.db import transaction
 from django.db.models import QuerySet
 from django.http import HttpRequest
 
+from onboard.envelope import EnvelopeError, parse_envelope, parse_latlon
 from workers.counters import snapshot
 
-from . import credentials
+from . import credentials, envelopes
 from .models import CommandLog, ConnectionEvent, Drone, Membership, Organisation
 
 
@@ -17,12 +20,42 @@ class MembershipInline(admin.TabularInline):
     autocomplete_fields = ["user"]
 
 
+class OrganisationForm(forms.ModelForm):
+    class Meta:
+        model = Organisation
+        fields = ["name", "slug", "envelope"]
+
+    def clean_envelope(self) -> dict:
+        """The flight envelope's own checks (onboard/envelope.py), naming the bad field."""
+        data = self.cleaned_data["envelope"] or {}
+        try:
+            if not isinstance(data, dict):
+                raise EnvelopeError("envelope", "must be a JSON object")
+            home = data.get("home")
+            parse_envelope(data, home=None if home is None else parse_latlon(home, "home"))
+        except EnvelopeError as exc:
+            raise forms.ValidationError(f"{exc.field}: {exc.message}") from None
+        return data
+
+
 @admin.register(Organisation)
 class OrganisationAdmin(admin.ModelAdmin):
+    form = OrganisationForm
     list_display = ["name", "slug", "created_at"]
     search_fields = ["name", "slug"]
     prepopulated_fields = {"slug": ["name"]}
     inlines = [MembershipInline]
+
+    def save_model(self, request, obj, form, change):  # type: ignore[no-untyped-def]
+        super().save_model(request, obj, form, change)
+        if "envelope" in form.changed_data:
+            drones = list(obj.drones.select_related("organisation"))
+            transaction.on_commit(lambda: envelopes.send_to_drones(drones))
+
+
+def _send_drone_envelope(drone: Drone, changed: list[str]) -> None:
+    if {"max_height", "max_distance"} & set(changed):
+        transaction.on_commit(lambda: envelopes.send_to_drones([drone]))
 
 
 @admin.register(Membership)
@@ -42,8 +75,32 @@ class ConnectionEventInline(admin.TabularInline):
     ordering = ["-at"]
 
 
+class DroneForm(forms.ModelForm):
+    class Meta:
+        model = Drone
+        # The admin shows every field; these are the ones this form checks.
+        fields = ["organisation", "drone_id", "name", "max_height", "max_distance"]
+
+    def clean(self) -> dict:
+        """A drone's own height and distance limits may only lower its organisation's."""
+        data = super().clean()
+        organisation = data.get("organisation")
+        if organisation is None:
+            return data
+        limits = envelopes.organisation_envelope(organisation)
+        for name in ("max_height", "max_distance"):
+            value = data.get(name)
+            if value is not None and not 0 < value <= getattr(limits, name):
+                self.add_error(
+                    name,
+                    f"must be above 0 and at most the organisation's {getattr(limits, name):g} m",
+                )
+        return data
+
+
 @admin.register(Drone)
 class DroneAdmin(admin.ModelAdmin):
+    form = DroneForm
     list_display = [
         "drone_id",
         "organisation",
@@ -60,6 +117,10 @@ class DroneAdmin(admin.ModelAdmin):
     inlines = [ConnectionEventInline]
     actions = ["issue_credentials", "revoke_credentials"]
     change_list_template = "fleet/admin/drone_change_list.html"
+
+    def save_model(self, request, obj, form, change):  # type: ignore[no-untyped-def]
+        super().save_model(request, obj, form, change)
+        _send_drone_envelope(obj, form.changed_data)
 
     @admin.action(description="Issue new broker credentials (shown once)")
     def issue_credentials(self, request: HttpRequest, queryset: QuerySet[Drone]) -> None:

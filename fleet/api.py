@@ -5,6 +5,7 @@ from __future__ import annotations
 from asgiref.sync import sync_to_async
 from django.conf import settings
 from django.contrib.auth import authenticate
+from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiResponse, extend_schema, inline_serializer
 from rest_framework import exceptions, serializers, status, viewsets
 from rest_framework.authtoken.models import Token
@@ -17,13 +18,15 @@ from rest_framework.decorators import (
 from rest_framework.permissions import AllowAny
 from rest_framework.request import Request
 from rest_framework.response import Response
+from rest_framework.views import APIView
 
 from config.api import StrictSerializer
+from onboard.envelope import EnvelopeError
 
-from . import commands, credentials
+from . import commands, credentials, envelopes
 from .async_views import AsyncAPIView
 from .commands import CommandRefused
-from .models import Drone, Membership, Role
+from .models import Drone, Membership, Organisation, Role
 from .permissions import OrganisationRole, require_role
 from .serializers import (
     ConnectionEventSerializer,
@@ -139,7 +142,7 @@ def _api_error(refusal: CommandRefused) -> exceptions.APIException:
         return exceptions.PermissionDenied(refusal.message)
     if refusal.status == 404:
         return exceptions.NotFound(refusal.message)
-    return Conflict(refusal.message)
+    return Conflict(refusal.message, code=refusal.code)
 
 
 class DroneCommandView(AsyncAPIView):
@@ -246,3 +249,44 @@ def obtain_token(request: Request) -> Response:
         raise exceptions.AuthenticationFailed("Unable to log in with the provided credentials.")
     token, _ = Token.objects.get_or_create(user=user)
     return Response({"token": token.key})
+
+
+def _member_organisation(request: Request, slug: str) -> Organisation:
+    membership = Membership.objects.for_user(request.user).filter(organisation__slug=slug).first()
+    if membership is None:
+        raise exceptions.NotFound(f"Unknown organisation {slug!r}.")
+    return membership.organisation
+
+
+class EnvelopeView(APIView):
+    """`GET/PUT /api/v1/organisations/{slug}/envelope/`: the organisation's flight envelope.
+
+    PUT takes the envelope (limits and a QGroundControl `geoFence`) or a whole `.plan`
+    file (its geoFence, with its planned home as home); admins only. A malformed envelope
+    answers 400 naming the field and leaves the stored one in force.
+    """
+
+    @extend_schema(responses={200: OpenApiTypes.OBJECT})
+    def get(self, request: Request, slug: str) -> Response:
+        return Response(envelopes.envelope_body(_member_organisation(request, slug)))
+
+    @extend_schema(request=OpenApiTypes.OBJECT, responses={200: OpenApiTypes.OBJECT})
+    def put(self, request: Request, slug: str) -> Response:
+        organisation = _member_organisation(request, slug)
+        if not require_role(request.user, organisation, Role.ADMIN):
+            raise exceptions.PermissionDenied("Only admins change the flight envelope.")
+        try:
+            envelopes.set_envelope(organisation, request.data)
+        except EnvelopeError as exc:
+            raise exceptions.ValidationError({exc.field: [exc.message]}) from None
+        return Response(envelopes.envelope_body(organisation))
+
+
+@extend_schema(responses={(200, "application/json"): OpenApiTypes.OBJECT})
+@api_view(["GET"])
+def envelope_plan(request: Request, slug: str) -> Response:
+    """The organisation's geofence as a QGroundControl `.plan` file (no mission items)."""
+    organisation = _member_organisation(request, slug)
+    response = Response(envelopes.plan_document(organisation))
+    response["Content-Disposition"] = f'attachment; filename="{slug}-geofence.plan"'
+    return response

@@ -5,3 +5,9 @@ class FleetConfig(AppConfig):
     name = "fleet"
     verbose_name = "Fleet"
     default_auto_field = "django.db.models.BigAutoField"
+
+    def ready(self) -> None:
+        from .envelopes import send_when_online
+        from .signals import drones_came_online
+
+        drones_came_online.connect(send_when_online, dispatch_uid="fleet-envelope")

@@ -20,6 +20,7 @@ from django.utils.module_loading import import_string
 from onboard import protocol
 from workers import outbox
 
+from . import envelopes
 from .models import ROLE_RANK, CommandLog, Drone, Role
 
 log = logging.getLogger(__name__)
@@ -40,11 +41,14 @@ UNSAFE_IN_FLIGHT = ("disarm", "resetfc")
 class CommandRefused(Exception):
     """A command refused before sending; `status` is the HTTP status that says why."""
 
-    def __init__(self, status: int, message: str, field: str | None = None) -> None:
+    def __init__(
+        self, status: int, message: str, field: str | None = None, code: str | None = None
+    ) -> None:
         super().__init__(message)
         self.status = status
         self.message = message
         self.field = field
+        self.code = code
 
 
 @dataclass
@@ -113,7 +117,7 @@ def _refuse(entry_fields: dict, refusal: CommandRefused) -> CommandRefused:
 
 
 def prepare(user: Any, drone_id: str, command: str, params: dict | None) -> Prepared:
-    """Every check in order: drone (404), role (403), params (400), state (409).
+    """Every check in order: drone (404), role (403), params (400), state and envelope (409).
 
     Returns the pending log entry with a fresh request id; refusals are logged too.
     """
@@ -135,6 +139,12 @@ def prepare(user: Any, drone_id: str, command: str, params: dict | None) -> Prep
                 409, f"Refusing {command} while {drone.drone_id} is airborne; send force=true."
             ),
         )
+    try:
+        envelopes.check_command(drone, command, clean)
+    except envelopes.OutsideEnvelope as exc:
+        raise _refuse(
+            base, CommandRefused(409, exc.message, code=envelopes.OUTSIDE_ENVELOPE)
+        ) from None
     entry = CommandLog.objects.create(
         drone=drone,
         user=user,
@@ -164,6 +174,7 @@ async def execute(prepared: Prepared, *, timeout: float | None = None) -> Outcom
         prepared.drone.drone_id, "control", request.to_dict(), timeout=timeout
     )
     await sync_to_async(record)(prepared.entry, reply)
+    await sync_to_async(envelopes.remember_target)(prepared.drone, prepared.command, reply)
     return Outcome(request.request_id, prepared.command, reply)
 
 

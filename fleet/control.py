@@ -70,8 +70,12 @@ ERRORS = {
 }
 
 
-def _error(status: int, message: str, request_id: str | None = None) -> Response:
+def _error(
+    status: int, message: str, request_id: str | None = None, code: str | None = None
+) -> Response:
     body: dict[str, Any] = {"ok": False, "error": message}
+    if code:
+        body["code"] = code
     if request_id:
         body["request_id"] = request_id
     return Response(body, status=status)
@@ -136,7 +140,7 @@ class ControlView(AsyncAPIView):
             params = {name: data[name] for name in COMMAND_PARAMS if name in data}
             outcome = await commands.send(user, drone_id, command, params)
         except CommandRefused as refusal:
-            return _error(refusal.status, refusal.message)
+            return _error(refusal.status, refusal.message, code=refusal.code)
         if outcome.timed_out:
             return _error(
                 504,

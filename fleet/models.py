@@ -15,6 +15,8 @@ class Organisation(models.Model):
     name = models.CharField(max_length=120)
     slug = models.SlugField(unique=True)
     created_at = models.DateTimeField(auto_now_add=True)
+    # The flight envelope (onboard/envelope.py's JSON form); empty means the defaults.
+    envelope = models.JSONField(default=dict, blank=True)
 
     class Meta:
         ordering = ["name"]
@@ -99,6 +101,14 @@ class Drone(models.Model):
     fc = models.JSONField(null=True, blank=True)
     specs = models.JSONField(default=dict, blank=True)
     sensors = models.JSONField(default=dict, blank=True)
+
+    # The drone's own envelope limits; they can only lower the organisation's.
+    max_height = models.FloatField(null=True, blank=True)
+    max_distance = models.FloatField(null=True, blank=True)
+    # Where the ground last saw the drone at rest ([lat, lon]), and the last target the
+    # drone accepted from the ground (NED metres from that home): the envelope check's start.
+    home = models.JSONField(null=True, blank=True)
+    nav_target = models.JSONField(null=True, blank=True)
 
     # Broker credentials: the username is the drone id; only a hash is kept.
     mqtt_password_hash = models.CharField(max_length=255, blank=True)

@@ -7,5 +7,6 @@ app_name = "fleet"
 urlpatterns = [
     path("", views.index, name="index"),
     path("drones/<str:drone_id>/", views.drone_detail, name="drone"),
+    path("organisation/envelope/", views.envelope, name="envelope"),
     path("organisation/switch/", views.switch_organisation, name="switch_organisation"),
 ]

@@ -8,9 +8,9 @@ from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_POST
 
-from .models import Drone, Membership
+from .models import Drone, Membership, Role
 from .serializers import DroneDetailSerializer, DroneSerializer
-from .tenancy import SESSION_KEY
+from .tenancy import SESSION_KEY, role_in
 
 
 def _organisation_or_404(request: HttpRequest):  # type: ignore[no-untyped-def]
@@ -72,3 +72,17 @@ def switch_organisation(request: HttpRequest) -> HttpResponse:
         raise Http404("No such organisation.")
     request.session[SESSION_KEY] = slug
     return redirect("fleet:index")
+
+
+@login_required
+def envelope(request: HttpRequest) -> HttpResponse:
+    """The organisation's flight envelope: its fence on a map, editable by admins."""
+    organisation = _organisation_or_404(request)
+    membership = role_in(request.user, organisation)
+    config = {
+        "tileUrl": settings.MAP_TILE_URL,
+        "attribution": settings.MAP_TILE_ATTRIBUTION,
+        "apiUrl": f"/api/v1/organisations/{organisation.slug}/envelope/",
+        "editable": bool(membership and membership.allows(Role.ADMIN)),
+    }
+    return render(request, "fleet/envelope.html", {"envelope_config": config})

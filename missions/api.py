@@ -17,6 +17,7 @@ from rest_framework.parsers import FormParser, JSONParser, MultiPartParser
 from rest_framework.request import Request
 from rest_framework.response import Response
 
+from fleet import envelopes
 from fleet.models import Drone, Membership, Organisation, Role
 from fleet.permissions import OrganisationRole, require_role
 from fleet.tenancy import current_membership
@@ -29,25 +30,30 @@ from .serializers import (
     PictureSerializer,
     StepSerializer,
 )
-from .services import MissionError, create_mission, start_mission, stop_mission
+from .services import MissionError, create_mission, start_mission, stop_mission, validate_steps
 
 
 class Refused(exceptions.APIException):
     status_code = status.HTTP_400_BAD_REQUEST
     default_code = "invalid"
 
-    def __init__(self, field: str, message: str, status_code: int = 400) -> None:
+    def __init__(
+        self, field: str, message: str, status_code: int = 400, code: str | None = None
+    ) -> None:
         super().__init__({field: [message]})
         self.status_code = status_code
         if status_code != 400:
             self.default_code = {404: "not_found", 409: "conflict", 413: "too_large"}.get(
                 status_code, "refused"
             )
+        if code:
+            self.default_code = code
 
 
 def refuse(exc: MissionError | planning.PlanningError) -> Refused:
-    code = exc.status if isinstance(exc, MissionError) else 400
-    return Refused(exc.field, exc.message, code)
+    if isinstance(exc, MissionError):
+        return Refused(exc.field, exc.message, exc.status, exc.code)
+    return Refused(exc.field, exc.message, 400)
 
 
 def _body(request: Request) -> dict:
@@ -325,6 +331,35 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         steps = mission.steps.select_related("drone").order_by("index")
         return Response(StepSerializer(steps, many=True).data)
 
+    @extend_schema(request=OpenApiTypes.OBJECT, responses={200: OpenApiTypes.OBJECT})
+    @action(detail=False, methods=["post"], url_path="check-envelope")
+    def check_envelope(self, request: Request) -> Response:
+        """Every step of `steps` the flight envelope refuses (flown by `drone` when given),
+        for the planner to mark before anything is sent; nothing is stored or sent."""
+        body = _body(request)
+        organisation = _organisation_for_write(request, body.get("organisation"))
+        try:
+            steps = validate_steps(body.get("steps"))
+        except MissionError as exc:
+            raise refuse(exc) from None
+        drone = None
+        if body.get("drone"):
+            drone = Drone.objects.filter(
+                drone_id=str(body["drone"]), organisation=organisation
+            ).first()
+            if drone is None:
+                raise Refused("drone", f"no drone {body['drone']!r} in this organisation", 404)
+        found = envelopes.step_violations(organisation, steps, drone)
+        return Response(
+            {
+                "violations": [
+                    {"index": v.index, "limit": v.violation.limit, "message": v.violation.message}
+                    for v in found
+                ],
+                "envelope": envelopes.envelope_body(organisation),
+            }
+        )
+
     @extend_schema(request=PanicRequest, responses={201: MissionDetailSerializer})
     @action(detail=False, methods=["post"])
     def panic(self, request: Request) -> Response:
@@ -409,7 +444,10 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             for s in mission.steps.order_by("index")
         ]
         try:
-            document = qgc_plan.export_plan(steps, altitude=mission.altitude)
+            fence = envelopes.envelope_body(mission.organisation)["geoFence"]
+            document = qgc_plan.export_plan(
+                steps, altitude=mission.altitude, geofence=qgc_plan.read_geofence(fence)
+            )
         except planning.PlanningError as exc:
             raise refuse(exc) from None
         response = HttpResponse(qgc_plan.dumps(document), content_type="application/json")
@@ -444,6 +482,8 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 steps=plan.steps,
                 altitude=_plan_altitude(plan.steps),
                 user=request.user,
+                home=plan.home,
+                fence=qgc_plan.geofence_json(plan.geofence),
             )
         except planning.PlanningError as exc:
             raise refuse(exc) from None

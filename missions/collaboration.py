@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from django.conf import settings
 from django.db import transaction
 
+from fleet import envelopes
 from fleet.models import Drone
 from missions.handover import Handover, plan_collaboration
 from missions.models import STEP_DONE, Assignment, Event, Mission, MissionStatus, Step, StepStatus
@@ -71,6 +72,9 @@ def collaborate(
             extension, handover = _plan(mission, center, alarming, joining)
         except PlanningError as exc:
             return _decline(mission, f"extension impossible: {exc}", "collaboration_failed")
+        refusal = _outside_envelope(handover, [alarming.drone, *joining])
+        if refusal is not None:
+            return _decline(mission, f"extension refused: {refusal}", "collaboration_failed")
         plan_ms = (time.perf_counter() - plan_began) * 1000
         _supersede(mission, handover)
         stopped = _stop_flying(mission)
@@ -85,6 +89,17 @@ def collaborate(
         )
         _record_handovers(mission, alarming, center, created, handover)
     return created
+
+
+def _outside_envelope(handover: Handover, drones: list[Drone]) -> str | None:
+    """Why a part would take its drone out of its envelope, or None: nothing is sent then."""
+    by_id = {d.drone_id: d for d in drones}
+    for part in handover.assignments:
+        try:
+            envelopes.check_steps(by_id[part.drone_id], part.steps)
+        except envelopes.OutsideEnvelope as exc:
+            return f"{part.drone_id}: {exc.message}"
+    return None
 
 
 def _why_not_extensible(mission: Mission) -> str | None:

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from missions.planning import PlanningError
+from onboard.envelope import EnvelopeError, parse_geofence
 from onboard.protocol import ProtocolError, validate_command
 
 NAV_WAYPOINT = 16
@@ -324,34 +325,46 @@ class _Reader:
             self.add("sleep", {"value": p[0]})
 
 
-def _read_geofence(data: Any) -> dict:
-    if data is None:
-        return {"polygons": [], "circles": []}
-    fence = _obj(data, "geoFence")
-    polygons = []
-    for i, raw in enumerate(_list(fence.get("polygons", []), "geoFence.polygons")):
-        where = f"geoFence.polygons[{i}]"
-        raw = _obj(raw, where)
-        vertices = _list(raw.get("polygon"), f"{where}.polygon")
-        if len(vertices) < 3:
-            raise QgcPlanError(f"{where}.polygon", "needs at least three vertices")
-        points = [list(_pair(v, f"{where}.polygon[{j}]")) for j, v in enumerate(vertices)]
-        polygons.append({"inclusion": bool(raw.get("inclusion", True)), "polygon": points})
-    circles = []
-    for i, raw in enumerate(_list(fence.get("circles", []), "geoFence.circles")):
-        where = f"geoFence.circles[{i}]"
-        circle = _obj(_obj(raw, where).get("circle"), f"{where}.circle")
-        radius = _num(circle.get("radius"), f"{where}.circle.radius")
-        if radius <= 0:
-            raise QgcPlanError(f"{where}.circle.radius", "must be greater than 0")
-        circles.append(
+def read_geofence(data: Any) -> dict:
+    """The plan's geoFence, checked by the flight envelope's rules (at least three
+    vertices, no self-intersection, a positive radius)."""
+    try:
+        polygons, circles = parse_geofence(data)
+    except EnvelopeError as exc:
+        raise QgcPlanError(exc.field, exc.message) from None
+    return {
+        "polygons": [
+            {"inclusion": p.inclusion, "polygon": [list(v) for v in p.points]} for p in polygons
+        ],
+        "circles": [
+            {"inclusion": c.inclusion, "center": list(c.center), "radius": c.radius}
+            for c in circles
+        ],
+    }
+
+
+def geofence_json(fence: Mapping | None) -> dict:
+    """A geofence as `QgcPlan.geofence` holds it → QGroundControl's `geoFence` object."""
+    fence = fence or {}
+    return {
+        "circles": [
             {
-                "inclusion": bool(raw.get("inclusion", True)),
-                "center": list(_pair(circle.get("center"), f"{where}.circle.center")),
-                "radius": radius,
+                "circle": {"center": list(c["center"]), "radius": c["radius"]},
+                "inclusion": c.get("inclusion", True),
+                "version": 1,
             }
-        )
-    return {"polygons": polygons, "circles": circles}
+            for c in fence.get("circles", [])
+        ],
+        "polygons": [
+            {
+                "inclusion": p.get("inclusion", True),
+                "polygon": [list(v) for v in p["polygon"]],
+                "version": 1,
+            }
+            for p in fence.get("polygons", [])
+        ],
+        "version": 2,
+    }
 
 
 def _read_rally(data: Any) -> list[list[float]]:
@@ -411,7 +424,7 @@ def import_plan(source: str | bytes | Mapping) -> QgcPlan:
     return QgcPlan(
         steps=steps,
         home=home,
-        geofence=_read_geofence(plan.get("geoFence")),
+        geofence=read_geofence(plan.get("geoFence")),
         rally_points=_read_rally(plan.get("rallyPoints")),
         cruise_speed=_optional(mission.get("cruiseSpeed"), "mission.cruiseSpeed"),
         hover_speed=_optional(mission.get("hoverSpeed"), "mission.hoverSpeed"),
@@ -560,28 +573,9 @@ def export_plan(
     Steps with no QGroundControl item (sense, changeN, virtualalarm, …) raise QgcPlanError.
     """
     items = _Writer(steps, home, altitude).run()
-    fence = geofence or {}
     return {
         "fileType": "Plan",
-        "geoFence": {
-            "circles": [
-                {
-                    "circle": {"center": list(c["center"]), "radius": c["radius"]},
-                    "inclusion": c.get("inclusion", True),
-                    "version": 1,
-                }
-                for c in fence.get("circles", [])
-            ],
-            "polygons": [
-                {
-                    "inclusion": p.get("inclusion", True),
-                    "polygon": [list(v) for v in p["polygon"]],
-                    "version": 1,
-                }
-                for p in fence.get("polygons", [])
-            ],
-            "version": 2,
-        },
+        "geoFence": geofence_json(geofence),
         "groundStation": "Skyhive",
         "mission": {
             "cruiseSpeed": cruise_speed,

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 
 from django.db import transaction
 
+from fleet import envelopes
 from fleet.models import Drone
 from missions.handover import Assignment as PlannedAssignment
 from missions.handover import Handover, plan_replacement
@@ -196,9 +197,10 @@ def _plan_handover(
 ) -> Handover | None:
     """The replacement's plan, or None (recorded) when no plan can reach the remaining steps."""
     try:
-        return plan_replacement(
+        handover = plan_replacement(
             view, stop_position=stop_position, altitude=mission.altitude, drone_id=drone.drone_id
         )
+        envelopes.check_steps(drone, handover.assignments[0].steps)
     except PlanningError as exc:
         record(
             mission,
@@ -207,6 +209,15 @@ def _plan_handover(
             data={"decision": "replacement_failed", "error": str(exc)},
         )
         return None
+    except envelopes.OutsideEnvelope as exc:
+        record(
+            mission,
+            Event.Kind.DECISION,
+            f"replacement refused: {exc.message}",
+            data={"decision": "replacement_failed", "code": envelopes.OUTSIDE_ENVELOPE},
+        )
+        return None
+    return handover
 
 
 def _commit(mission: Mission, failing: Assignment, drone: Drone, handover: Handover) -> Assignment:

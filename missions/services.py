@@ -20,6 +20,7 @@ from django.conf import settings
 from django.db import transaction
 from django.utils import timezone
 
+from fleet import envelopes
 from fleet.models import Drone, Organisation
 from missions import live
 from missions.models import (
@@ -44,11 +45,19 @@ MAX_STEPS = 100_000
 class MissionError(ValueError):
     """A request the domain refuses; `field` names the input, `status` the HTTP answer."""
 
-    def __init__(self, field: str, message: str, status: int = 400) -> None:
+    def __init__(
+        self, field: str, message: str, status: int = 400, code: str | None = None
+    ) -> None:
         super().__init__(f"{field}: {message}")
         self.field = field
         self.message = message
         self.status = status
+        self.code = code
+
+
+def outside_envelope(exc: envelopes.OutsideEnvelope) -> MissionError:
+    """The 409 for a mission step the envelope refuses (nothing is sent)."""
+    return MissionError("steps", exc.message, 409, envelopes.OUTSIDE_ENVELOPE)
 
 
 # ---------------------------------------------------------------------------------------
@@ -91,9 +100,19 @@ def create_mission(
     altitude: float = 10.0,
     extensibility: Mapping | None = None,
     user: Any = None,
+    home: Sequence[float] | None = None,
+    fence: Mapping | None = None,
 ) -> Mission:
-    """A draft mission with validated steps (nothing is sent until `start_mission`)."""
+    """A draft mission with validated steps (nothing is sent until `start_mission`).
+
+    The steps must keep to the organisation's envelope, and to `fence` (an imported
+    plan's own geoFence), flown from `home` (a plan's home; else fleet.envelopes.plan_home).
+    """
     clean = validate_steps(steps)
+    try:
+        envelopes.check_plan(organisation, clean, home, fence)
+    except envelopes.OutsideEnvelope as exc:
+        raise outside_envelope(exc) from None
     name = (name or "").strip() or f"Mission {timezone.now():%Y-%m-%d %H:%M}"
     with transaction.atomic():
         mission = Mission.objects.create(
@@ -314,6 +333,11 @@ def start_mission(mission: Mission, *, drone: Drone | None = None, user: Any = N
                 raise MissionError("drone", "no drone is available (online, free, charged)", 409)
             drone = found[0]
             how = "nearest available"
+        try:
+            envelopes.check_steps(drone, plain)
+        except envelopes.OutsideEnvelope as exc:
+            raise outside_envelope(exc) from None
+        envelopes.forget_target(drone)
         assignment = Assignment.objects.create(
             mission=mission,
             drone=drone,

@@ -100,6 +100,8 @@ def planner(request: HttpRequest) -> HttpResponse:
                 organisation,
                 coverageUrl=reverse("api:mission-coverage"),
                 createUrl=reverse("api:mission-list"),
+                checkUrl=reverse("api:mission-check-envelope"),
+                envelopeUrl=reverse("api:organisation-envelope", args=[organisation.slug]),
                 startUrl=reverse("api:mission-start", args=[UUID_PLACEHOLDER]),
                 missionUrl=reverse("missions:detail", args=[UUID_PLACEHOLDER]),
                 placeholder=UUID_PLACEHOLDER,

@@ -180,6 +180,12 @@ def _add_behaviour(p: argparse.ArgumentParser) -> None:
     """Files, rates, safety thresholds and the simulated sensors."""
     p.add_argument("--gear-dir", type=Path, help="folder with specs.json and sensors.json")
     p.add_argument("--log-dir", type=Path, help="folder for DFI flight logs")
+    p.add_argument(
+        "--envelope-file",
+        type=Path,
+        help="where the last flight envelope is kept across restarts (default: "
+        "<log-dir>/envelope.json)",
+    )
     p.add_argument("--pictures-dir", type=Path, help="default: <log-dir>/pictures")
     p.add_argument("--time-scale", type=_positive, default=1.0, help="simulation speed-up")
     p.add_argument("--heartbeat-interval", type=_positive, default=5.0, help="seconds")
@@ -288,6 +294,8 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
         arm_timeout=args.arm_timeout,
         video_rate=args.video_rate,
         pose_rate=args.pose_rate,
+        envelope_file=args.envelope_file
+        or (args.log_dir / "envelope.json" if args.log_dir else None),
     )
 
 

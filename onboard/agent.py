@@ -19,6 +19,7 @@ from typing import Any
 
 from . import protocol
 from .controller import Controller
+from .envelope import EnvelopeGuard
 from .failsafe import FailSafe, GroundClock, Limits
 from .fc.base import FlightController
 from .gear import GearManager
@@ -26,7 +27,7 @@ from .heartbeat import Heartbeater, build_heartbeat
 from .logger import FlightLogger
 from .mission import MissionWorker, position_of
 from .mqtt import MqttLink
-from .navigation import NavigationProcessor
+from .navigation import NavigationProcessor, current_ned
 from .sensors import SensorField
 
 log = logging.getLogger(__name__)
@@ -80,6 +81,8 @@ class AgentConfig:
     # Behind an internal broker, the broker connection says nothing about the ground: the
     # bridge's state topic (onboard.bridge.state_topic) does.
     ground_link_topic: str | None = None
+    # Where the last flight envelope received on <id>/envelope/in is kept across restarts.
+    envelope_file: Path | None = None
 
 
 class Agent:
@@ -103,8 +106,14 @@ class Agent:
             camera=config.camera,
         )
         self.navigation = NavigationProcessor(fc)
+        self.envelope = EnvelopeGuard(config.envelope_file)
         self.controller = Controller(
-            fc, self.navigation, gear=self.gear, arm_timeout=config.arm_timeout, events=events
+            fc,
+            self.navigation,
+            gear=self.gear,
+            arm_timeout=config.arm_timeout,
+            events=events,
+            guard=self.envelope.refusal,
         )
         self.worker = MissionWorker(
             fc,
@@ -267,10 +276,28 @@ class Agent:
         while not self._stop.wait(0.2):
             try:
                 self.failsafe.tick()
+                self._keep_inside()
                 if self.logger is not None:
                     self.logger.on_state(self.fc.state.armed)
             except Exception:
                 log.exception("supervisor tick failed")
+
+    def _keep_inside(self) -> None:
+        """Found outside the envelope (wind, bad GPS): stop the mission, raise one CRITICAL
+        alarm and fly back over home, no higher than the envelope allows."""
+        state = self.fc.state
+        here = current_ned(state)
+        breach = self.envelope.breach(here, state)
+        if breach is None or here is None:
+            self.envelope.outside = breach
+            return
+        if self.envelope.outside is not None:
+            return
+        self.envelope.outside = breach
+        self.worker.stop_current("outside the flight envelope")
+        self.raise_alarm("CRITICAL", f"Outside the flight envelope: {breach.message}")
+        height = min(-here[2], self.envelope.envelope.max_height)
+        self.navigation.hold_at((0.0, 0.0, -height))
 
     def _on_reading(self, sensor: str, reading: dict) -> None:
         self.failsafe.check_reading(sensor, reading)
@@ -316,6 +343,7 @@ class Agent:
             "mission": self._mission,
             "gear": self._gear_query,
             "alarms": self._alarm_ack,
+            "envelope": self._envelope_update,
         }
         handler[channel](topic, obj)
 
@@ -433,6 +461,21 @@ class Agent:
             self.send("gear", protocol.GearReply(request_id, False, error=_sentence(exc)))
             return
         self.send("gear", self.gear.handle_query(query, self.fc.state))
+
+    def _envelope_update(self, topic: str, obj: Any) -> None:
+        """A new flight envelope from the ground; a malformed one leaves the old in force."""
+        try:
+            update = protocol.parse_envelope_update(obj)
+        except protocol.ProtocolError as exc:
+            self._drop("envelope", topic, exc)
+            return
+        envelope = self.envelope.update(update.envelope)
+        log.info(
+            "flight envelope: %g m high, %g m from home, %d fence(s)",
+            envelope.max_height,
+            envelope.max_distance,
+            len(envelope.polygons) + len(envelope.circles),
+        )
 
 
 def failsafe_limits(config: AgentConfig) -> Limits:

@@ -18,6 +18,9 @@ log = logging.getLogger(__name__)
 
 # Called with (kind, details) for the logger: "command", "response", "arming".
 EventSink = Callable[[str, dict], None]
+# Called with (command, target kind, target NED, vehicle state, is a mission step): a
+# refusal sentence or None.
+Guard = Callable[[str, str, tuple, Any, bool], str | None]
 
 
 class CommandError(Exception):
@@ -33,8 +36,10 @@ class Controller:
         gear: Any = None,
         arm_timeout: float = 15.0,
         events: EventSink | None = None,
+        guard: Guard | None = None,
     ) -> None:
         self.fc = fc
+        self.guard = guard
         self.navigation = navigation
         self.gear = gear
         self.arm_timeout = arm_timeout
@@ -116,30 +121,36 @@ class Controller:
 
     # -- navigation -----------------------------------------------------------------------
 
-    def _navigate(self, command: str, params: dict) -> dict:
+    def _navigate(self, command: str, params: dict, context: dict) -> dict:
         if not self.fc.state.armed:
             raise CommandError(f"The drone is not armed; arm it before {command}.")
+        if self.guard is not None:  # the flight envelope, checked before the target is sent
+            planned = self.navigation.plan(command, params, self.fc.state)
+            state = self.fc.state
+            refusal = self.guard(command, planned.kind, planned.ned, state, "mission_id" in context)
+            if refusal is not None:
+                raise CommandError(refusal)
         target = self.navigation.execute(command, params)
         north, east, down = target.ned
         return {"target": {"north": north, "east": east, "down": down}}
 
     def _do_takeoff(self, params: dict, context: dict) -> dict:
-        return self._navigate("takeoff", params)
+        return self._navigate("takeoff", params, context)
 
     def _do_land(self, params: dict, context: dict) -> dict:
-        return self._navigate("land", params)
+        return self._navigate("land", params, context)
 
     def _do_changeN(self, params: dict, context: dict) -> dict:  # noqa: N802 (command name)
-        return self._navigate("changeN", params)
+        return self._navigate("changeN", params, context)
 
     def _do_changeE(self, params: dict, context: dict) -> dict:  # noqa: N802 (command name)
-        return self._navigate("changeE", params)
+        return self._navigate("changeE", params, context)
 
     def _do_altitude(self, params: dict, context: dict) -> dict:
-        return self._navigate("altitude", params)
+        return self._navigate("altitude", params, context)
 
     def _do_navigate(self, params: dict, context: dict) -> dict:
-        return self._navigate("navigate", params)
+        return self._navigate("navigate", params, context)
 
     # -- gear and objects -----------------------------------------------------------------
 

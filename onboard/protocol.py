@@ -61,7 +61,7 @@ DEFAULT_TOLERANCE = 2.0
 MAX_ALTITUDE = 1000.0
 
 # Topic channels, each with the direction it flows (docs/protocol.md "Topics").
-IN_CHANNELS = ("control", "mission", "gear")
+IN_CHANNELS = ("control", "mission", "gear", "envelope")
 OUT_CHANNELS = (
     "control",
     "mission",
@@ -76,6 +76,7 @@ QOS = {
     "control": 1,
     "mission": 1,
     "gear": 1,
+    "envelope": 1,
     "alarms": 1,
     "pictures": 1,
     "telemetry": 0,
@@ -1239,3 +1240,32 @@ def issued_at(obj: Any) -> float | None:
     """A request's optional `ts` (when the ground issued it, the ground's clock), or None."""
     value = obj.get("ts") if isinstance(obj, dict) else None
     return None if value is None else number(value, "ts", lo=0)
+
+
+# Flight envelope (optional): `<id>/envelope/in`, the limits and geofence the drone enforces.
+
+
+@dataclass(frozen=True)
+class EnvelopeUpdate:
+    envelope: dict
+    ts: float = field(default_factory=now)
+    type: str = "envelope"
+
+    def to_dict(self) -> dict:
+        return {"type": "envelope", "ts": self.ts, "envelope": self.envelope}
+
+
+def parse_envelope_update(obj: Any) -> EnvelopeUpdate:
+    """An envelope message; the envelope itself is checked by onboard.envelope.parse_envelope."""
+    from .envelope import EnvelopeError, parse_envelope
+
+    obj = _object(obj, "message")
+    body = _object(_require(obj, "envelope"), "envelope")
+    try:
+        parsed = parse_envelope(body)
+    except EnvelopeError as exc:
+        raise ProtocolError(f"envelope.{exc.field}", exc.message) from None
+    return EnvelopeUpdate(parsed.to_dict(), _ts(obj))
+
+
+PARSERS[("envelope", "in")] = parse_envelope_update

@@ -26,6 +26,7 @@
   const map = M.makeMap("planner-map", config);
   map.setView(config.center, 18);
   const layer = L.layerGroup().addTo(map);
+  const fenceLayer = L.layerGroup().addTo(map);
   let vertices = [];
   let area = null;
   let steps = [];
@@ -179,10 +180,42 @@
     renderSteps();
   });
 
+  // The organisation's geofence: inclusion zones green, exclusion zones red.
+  function drawFence(fence) {
+    fenceLayer.clearLayers();
+    const style = (inclusion) => ({ color: inclusion ? "#2a7" : "#c33", weight: 2, fillOpacity: 0.08, interactive: false });
+    (fence.polygons || []).forEach((p) => L.polygon(p.polygon, style(p.inclusion !== false)).addTo(fenceLayer));
+    (fence.circles || []).forEach((c) => L.circle(c.circle.center, { radius: c.circle.radius, ...style(c.inclusion !== false) }).addTo(fenceLayer));
+  }
+  M.api("GET", config.envelopeUrl).then((envelope) => drawFence(envelope.geoFence)).catch(() => null);
+
+  // Ask the ground which steps the envelope refuses and mark them; true when none.
+  async function insideEnvelope(drone) {
+    const answer = await M.api("POST", config.checkUrl, { steps, drone });
+    drawFence(answer.envelope.geoFence);
+    const items = Array.from($("step-list").children);
+    items.forEach((item) => { item.classList.remove("outside-envelope"); item.removeAttribute("title"); });
+    answer.violations.forEach((v) => {
+      const item = items[v.index];
+      if (item) { item.classList.add("outside-envelope"); item.title = v.message; }
+    });
+    if (answer.violations.length) {
+      const first = answer.violations[0];
+      showError(`Outside the flight envelope (${answer.violations.length} step(s) marked). Step ${first.index}: ${first.message}`);
+    }
+    return answer.violations.length === 0;
+  }
+
   $("planner-form").addEventListener("submit", async (event) => {
     event.preventDefault();
     showError("");
     if (!steps.length) { showError("Click three corners or add steps first."); return; }
+    try {
+      if (!(await insideEnvelope($("drone-choice").value || null))) return;
+    } catch (error) {
+      showError(error.message);
+      return;
+    }
     const body = { name: $("mission-name").value, altitude: Number($("altitude").value), steps };
     if (area) {
       body.extensibility = { vertices, vectors: area.vectors, step_distance: area.step_distance,

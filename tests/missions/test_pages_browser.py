@@ -179,3 +179,24 @@ def test_the_panic_page_sends_the_phones_position_and_follows_the_drone(
         assert navigate.params["lon"] == pytest.approx(caller[1])
     finally:
         context.close()
+
+
+def test_the_planner_draws_the_geofence_and_marks_steps_outside_it(page, live_asgi, world_tx):
+    from fleet.models import Organisation
+
+    fence = [list(point_at(n, e)) for n, e in ((-30, -30), (-30, 30), (30, 30), (30, -30))]
+    Organisation.objects.filter(pk=world_tx.org.pk).update(
+        envelope={"geoFence": {"polygons": [{"inclusion": True, "polygon": fence}]}}
+    )
+    online_drone(world_tx.org, "ACME_1")
+    login(page, live_asgi, "operator")
+    page.goto(f"{live_asgi.url}/missions/plan/")
+    centre_map(page, *point_at(16, 32))
+    page.wait_for_selector("#planner-map path.leaflet-interactive, #planner-map path")
+    for lat, lon in rectangle(64.5, 32.5):  # reaches 64 m north, past the 30 m fence
+        click_at(page, lat, lon)
+    page.wait_for_function("document.getElementById('waypoint-count').textContent !== '0'")
+    page.click("#send-mission")
+    page.wait_for_selector("#step-list .step.outside-envelope")
+    assert "geofence" in page.locator("#planner-error").inner_text()
+    assert not Mission.objects.exists()

@@ -1,0 +1,258 @@
+"""The ground's side of the flight envelope: storing it, sending it, checking moves against it.
+
+The rules themselves live once in onboard/envelope.py, which the drones run too. Here a
+drone's moves are resolved from its *current target* (the last target it accepted from
+the ground, else its reported position) about its *home* (where the ground last saw it at
+rest), and refused before anything is sent.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import replace
+from typing import Any
+
+from django.db import transaction
+
+from onboard import envelope as env
+from onboard import protocol
+from workers import outbox
+
+from .models import Drone, Organisation
+
+log = logging.getLogger(__name__)
+
+OUTSIDE_ENVELOPE = "outside_envelope"
+# An envelope message lives in the outbox for a day: a drone that was away gets it on
+# its next heartbeat anyway (send_to_drones on drones_came_online).
+ENVELOPE_TTL_S = 86_400.0
+
+
+class OutsideEnvelope(Exception):
+    """A move the envelope refuses; `message` names the limit (and the step of a mission)."""
+
+    def __init__(self, violation: env.Violation, step: int | None = None) -> None:
+        prefix = "" if step is None else f"Step {step}: "
+        self.message = prefix + violation.message
+        self.limit = violation.limit
+        self.step = step
+        super().__init__(self.message)
+
+
+# -- storing ------------------------------------------------------------------------------
+
+
+def organisation_envelope(organisation: Organisation) -> env.Envelope:
+    """The organisation's envelope (the defaults when none was set)."""
+    return env.parse_envelope(organisation.envelope or {})
+
+
+def envelope_body(organisation: Organisation) -> dict:
+    """What the API shows: the limits, the QGroundControl geoFence and the reference home."""
+    return {
+        **organisation_envelope(organisation).to_dict(),
+        "home": (organisation.envelope or {}).get("home"),
+    }
+
+
+def plan_document(organisation: Organisation) -> dict:
+    """The geofence as a QGroundControl `.plan` file with no mission items."""
+    home = (organisation.envelope or {}).get("home")
+    return {
+        "fileType": "Plan",
+        "geoFence": env.geofence_dict(organisation_envelope(organisation)),
+        "groundStation": "Skyhive",
+        "mission": {
+            "cruiseSpeed": 15,
+            "firmwareType": 12,
+            "hoverSpeed": 5,
+            "items": [],
+            "plannedHomePosition": [*home, 0] if home else None,
+            "vehicleType": 2,
+            "version": 2,
+        },
+        "rallyPoints": {"points": [], "version": 2},
+        "version": 1,
+    }
+
+
+def drone_envelope(drone: Drone) -> env.Envelope:
+    return organisation_envelope(drone.organisation).restricted(
+        drone.max_height, drone.max_distance
+    )
+
+
+def _plan_body(body: Mapping[str, Any]) -> tuple[dict, list | None]:
+    """A QGroundControl `.plan` file becomes its geoFence with the default limits; its
+    planned home must lie inside the inclusion fence."""
+    if body.get("fileType") != "Plan":
+        return dict(body), body.get("home")
+    mission = body.get("mission") if isinstance(body.get("mission"), dict) else {}
+    return {"geoFence": body.get("geoFence")}, mission.get("plannedHomePosition")
+
+
+def set_envelope(organisation: Organisation, body: Any) -> env.Envelope:
+    """Validate and store a new envelope, then send it to the organisation's drones.
+
+    Raises EnvelopeError naming the field; the stored envelope is then left unchanged.
+    """
+    if not isinstance(body, Mapping):
+        raise env.EnvelopeError("envelope", "must be a JSON object")
+    limits, home = _plan_body(body)
+    if home is not None:
+        home = list(env.parse_latlon(home, "home"))
+    envelope = env.parse_envelope(limits, home=home)
+    stored = {**envelope.to_dict(), **({"home": home} if home else {})}
+    Organisation.objects.filter(pk=organisation.pk).update(envelope=stored)
+    organisation.envelope = stored
+    drones = Drone.objects.filter(organisation=organisation).select_related("organisation")
+    transaction.on_commit(lambda: send_to_drones(list(drones)))
+    return envelope
+
+
+def send_to_drones(drones: Iterable[Drone]) -> None:
+    """Queue each drone's own envelope on `<id>/envelope/in`."""
+    for drone in drones:
+        message = protocol.EnvelopeUpdate(drone_envelope(drone).to_dict())
+        outbox.send_to_drone(drone.drone_id, "envelope", message.to_dict(), ttl=ENVELOPE_TTL_S)
+
+
+def send_when_online(sender: object, drone_ids: Sequence[str] = (), **kwargs: object) -> None:
+    """drones_came_online receiver: a drone back online gets its envelope again, and its
+    last target is forgotten (it may have restarted)."""
+    drones = list(Drone.objects.filter(drone_id__in=list(drone_ids)).select_related("organisation"))
+    stale = [d.pk for d in drones if d.nav_target is not None]
+    try:
+        if stale:
+            Drone.objects.filter(pk__in=stale).update(nav_target=None)
+        send_to_drones(drones)
+    except Exception:  # the heartbeat path must not fail on the outbox
+        log.exception("could not queue envelopes for %s", list(drone_ids))
+
+
+# -- where a drone is and is going ----------------------------------------------------------
+
+
+def home_of(drone: Drone) -> tuple[float, float] | None:
+    """Where the drone took off from: its position while at rest, else the remembered one."""
+    if not drone.airborne and drone.lat is not None and drone.lon is not None:
+        return drone.lat, drone.lon
+    if drone.home:
+        return float(drone.home[0]), float(drone.home[1])
+    return None if drone.lat is None or drone.lon is None else (drone.lat, drone.lon)
+
+
+def position_ned(drone: Drone, home: Sequence[float] | None) -> env.NED | None:
+    if home is None or drone.lat is None or drone.lon is None:
+        return None
+    north, east = env.latlon_to_ne(drone.lat, drone.lon, home)
+    return north, east, -(drone.alt or 0.0)
+
+
+def current_target(drone: Drone, home: Sequence[float] | None) -> env.NED | None:
+    """The last target the drone accepted while airborne, else its reported position."""
+    if drone.airborne and drone.nav_target and len(drone.nav_target) == 3:
+        return tuple(float(v) for v in drone.nav_target)  # type: ignore[return-value]
+    return position_ned(drone, home)
+
+
+def _battery_percent(drone: Drone) -> float | None:
+    return None if drone.battery_remaining is None else drone.battery_remaining * 100.0
+
+
+def check_command(drone: Drone, command: str, params: Mapping[str, Any]) -> None:
+    """Raise OutsideEnvelope when the command's move breaks the drone's envelope."""
+    home = home_of(drone)
+    here = position_ned(drone, home)
+    move = env.resolve(command, params, current_target(drone, home), here, home)
+    if move is None:
+        return
+    horizontal = command in env.HORIZONTAL_COMMANDS
+    move = env.Move(move.kind, move.ned, horizontal)
+    violation = env.check(
+        drone_envelope(drone), home, move, drone.airborne, _battery_percent(drone)
+    )
+    if violation is not None:
+        raise OutsideEnvelope(violation)
+
+
+def step_violations(
+    organisation: Organisation,
+    steps: Sequence[Mapping[str, Any]],
+    drone: Drone | None = None,
+    home: Sequence | None = None,
+    fence: Mapping | None = None,
+) -> list[env.StepViolation]:
+    """Every step of a mission that breaks the envelope: flown by `drone` from where it is,
+    or, before a drone is chosen, from the ground at `home` (else plan_home). `fence` (a
+    QGroundControl geoFence, e.g. an imported plan's own) applies on top."""
+    if drone is not None:
+        home = home_of(drone)
+        return env.step_violations(
+            drone_envelope(drone),
+            home,
+            steps,
+            current_target(drone, home),
+            drone.airborne,
+            _battery_percent(drone),
+        )
+    home = home if home is not None else plan_home(organisation, steps)
+    envelope = organisation_envelope(organisation)
+    polygons, circles = env.parse_geofence(fence)
+    envelope = replace(
+        envelope, polygons=envelope.polygons + polygons, circles=envelope.circles + circles
+    )
+    return env.step_violations(envelope, home, steps, (0.0, 0.0, 0.0), False, None)
+
+
+def check_steps(drone: Drone, steps: Sequence[Mapping[str, Any]]) -> None:
+    """Raise OutsideEnvelope naming the first mission step the drone may not fly."""
+    found = step_violations(drone.organisation, steps, drone)
+    if found:
+        raise OutsideEnvelope(found[0].violation, found[0].index)
+
+
+def plan_home(organisation: Organisation, steps: Sequence[Mapping[str, Any]]) -> list | None:
+    """A mission's home before a drone is chosen: the envelope's home, else the first
+    navigate target (missions are flown from near their first waypoint)."""
+    stored = (organisation.envelope or {}).get("home")
+    if stored:
+        return list(stored)
+    for step in steps:
+        if step["command"] == "navigate":
+            return [step["params"]["lat"], step["params"]["lon"]]
+    return None
+
+
+def check_plan(
+    organisation: Organisation,
+    steps: Sequence[Mapping[str, Any]],
+    home: Sequence | None = None,
+    fence: Mapping | None = None,
+) -> None:
+    """Raise OutsideEnvelope for a mission whose steps break the organisation's envelope
+    (and `fence`), flown from the ground at `home` (or plan_home)."""
+    found = step_violations(organisation, steps, home=home, fence=fence)
+    if found:
+        raise OutsideEnvelope(found[0].violation, found[0].index)
+
+
+def remember_target(drone: Drone, command: str, reply: Mapping[str, Any] | None) -> None:
+    """After the drone accepted a navigation command: its new target, and its home."""
+    if not reply or not reply.get("ok") or command not in protocol.NAVIGATION_COMMANDS:
+        return
+    target = (reply.get("result") or {}).get("target")
+    if not isinstance(target, dict):
+        return
+    ned = [target.get("north"), target.get("east"), target.get("down")]
+    fields = {"nav_target": ned}
+    if command == "takeoff" and drone.lat is not None and not drone.airborne:
+        fields["home"] = [drone.lat, drone.lon]
+    Drone.objects.filter(pk=drone.pk).update(**fields)
+
+
+def forget_target(drone: Drone) -> None:
+    """A mission moves the drone without the ground knowing its targets: fall back to its
+    reported position."""
+    Drone.objects.filter(pk=drone.pk).update(nav_target=None)

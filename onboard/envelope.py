@@ -1,0 +1,524 @@
+"""The flight envelope: limits and a geofence, and the one check both the ground and the drone run.
+
+An envelope holds a maximum height and horizontal distance from home, a minimum height for
+horizontal moves once airborne, a battery reserve below which only landing and returning
+home are accepted, and a geofence in QGroundControl's `.plan` `geoFence` shape (inclusion and
+exclusion polygons and circles), so a QGroundControl fence imports and exports as is.
+
+Positions are North-East-Down metres from home, linearised about home as the Navigation
+Processor does (onboard/navigation.py); the fence is in WGS84 degrees and is tested in the
+same local frame. Standard library only: the ground imports this module too.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import threading
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+log = logging.getLogger(__name__)
+
+EARTH_RADIUS = 6_378_137.0
+DEFAULT_MAX_HEIGHT = 120.0
+DEFAULT_MAX_DISTANCE = 1000.0
+DEFAULT_MIN_MOVE_HEIGHT = 2.0
+DEFAULT_BATTERY_RESERVE = 30.0
+# A "return" under the battery reserve is a move ending this close to home (horizontally).
+RETURN_RADIUS = 5.0
+MAX_FENCE_VERTICES = 1000
+MAX_FENCES = 100
+QGC_FENCE_VERSION = 2
+QGC_SHAPE_VERSION = 1
+# Commands that move the drone sideways, so the minimum move height applies to them.
+HORIZONTAL_COMMANDS = ("changeN", "changeE", "navigate")
+NED = tuple[float, float, float]
+LatLon = tuple[float, float]
+
+
+class EnvelopeError(ValueError):
+    """A malformed envelope or fence; `field` names the offending field (dotted path)."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+        self.message = message
+
+
+@dataclass(frozen=True)
+class Polygon:
+    inclusion: bool
+    points: tuple[LatLon, ...]
+
+
+@dataclass(frozen=True)
+class Circle:
+    inclusion: bool
+    center: LatLon
+    radius: float
+
+
+@dataclass(frozen=True)
+class Envelope:
+    max_height: float = DEFAULT_MAX_HEIGHT
+    max_distance: float = DEFAULT_MAX_DISTANCE
+    min_move_height: float = DEFAULT_MIN_MOVE_HEIGHT
+    battery_reserve: float = DEFAULT_BATTERY_RESERVE
+    polygons: tuple[Polygon, ...] = field(default_factory=tuple)
+    circles: tuple[Circle, ...] = field(default_factory=tuple)
+
+    def restricted(
+        self, max_height: float | None = None, max_distance: float | None = None
+    ) -> Envelope:
+        """This envelope with a drone's own limits, which may only lower the organisation's."""
+        return replace(
+            self,
+            max_height=min(self.max_height, max_height if max_height is not None else math.inf),
+            max_distance=min(
+                self.max_distance, max_distance if max_distance is not None else math.inf
+            ),
+        )
+
+    @property
+    def has_inclusion(self) -> bool:
+        return any(p.inclusion for p in self.polygons) or any(c.inclusion for c in self.circles)
+
+    def to_dict(self) -> dict:
+        """The wire and storage form: the limits and a QGroundControl `geoFence` object."""
+        return {
+            "max_height": self.max_height,
+            "max_distance": self.max_distance,
+            "min_move_height": self.min_move_height,
+            "battery_reserve": self.battery_reserve,
+            "geoFence": geofence_dict(self),
+        }
+
+
+@dataclass(frozen=True)
+class Move:
+    """Where a command sends the drone: kind ("takeoff", "land", "goto") and NED from home."""
+
+    kind: str
+    ned: NED
+    horizontal: bool = False
+
+
+@dataclass(frozen=True)
+class Violation:
+    """A refused move: which limit (`max_height`, `geofence`, ...) and a sentence naming it."""
+
+    limit: str
+    message: str
+
+
+# -- parsing ------------------------------------------------------------------------------
+
+
+def _number(value: Any, name: str, lo: float, hi: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise EnvelopeError(name, f"must be a number, got {value!r}")
+    result = float(value)
+    if not math.isfinite(result) or not lo <= result <= hi:
+        raise EnvelopeError(name, f"must be between {lo:g} and {hi:g}, got {value!r}")
+    return result
+
+
+def parse_latlon(value: Any, name: str) -> LatLon:
+    if not isinstance(value, list | tuple) or len(value) < 2:
+        raise EnvelopeError(name, "must be [latitude, longitude]")
+    lat = _number(value[0], f"{name}[0]", -89.0, 89.0)
+    return lat, _number(value[1], f"{name}[1]", -180.0, 180.0)
+
+
+def _list(value: Any, name: str, limit: int) -> list:
+    if value is None:
+        return []
+    if not isinstance(value, list):
+        raise EnvelopeError(name, "must be a list")
+    if len(value) > limit:
+        raise EnvelopeError(name, f"must have at most {limit} entries")
+    return value
+
+
+def _inclusion(obj: Mapping, name: str) -> bool:
+    value = obj.get("inclusion", True)
+    if not isinstance(value, bool):
+        raise EnvelopeError(f"{name}.inclusion", "must be true or false")
+    return value
+
+
+def _polygon(obj: Any, name: str) -> Polygon:
+    if not isinstance(obj, dict):
+        raise EnvelopeError(name, "must be an object")
+    raw = _list(obj.get("polygon"), f"{name}.polygon", MAX_FENCE_VERTICES)
+    points = tuple(parse_latlon(p, f"{name}.polygon[{i}]") for i, p in enumerate(raw))
+    if len(points) >= 2 and points[0] == points[-1]:
+        points = points[:-1]  # a closed ring repeats its first vertex
+    if len(points) < 3:
+        raise EnvelopeError(f"{name}.polygon", "needs at least 3 distinct points")
+    if _self_intersects(_to_local(points, points[0])):
+        raise EnvelopeError(f"{name}.polygon", "must not intersect itself")
+    return Polygon(_inclusion(obj, name), points)
+
+
+def _circle(obj: Any, name: str) -> Circle:
+    if not isinstance(obj, dict) or not isinstance(obj.get("circle"), dict):
+        raise EnvelopeError(f"{name}.circle", "must be an object {center, radius}")
+    center = parse_latlon(obj["circle"].get("center"), f"{name}.circle.center")
+    radius = _number(obj["circle"].get("radius"), f"{name}.circle.radius", 0.1, 1e6)
+    return Circle(_inclusion(obj, name), center, radius)
+
+
+def parse_geofence(
+    obj: Any, name: str = "geoFence"
+) -> tuple[tuple[Polygon, ...], tuple[Circle, ...]]:
+    """QGroundControl's `geoFence` object → (polygons, circles), or EnvelopeError."""
+    if obj is None:
+        return (), ()
+    if not isinstance(obj, dict):
+        raise EnvelopeError(name, "must be an object")
+    polygons = _list(obj.get("polygons"), f"{name}.polygons", MAX_FENCES)
+    circles = _list(obj.get("circles"), f"{name}.circles", MAX_FENCES)
+    return (
+        tuple(_polygon(p, f"{name}.polygons[{i}]") for i, p in enumerate(polygons)),
+        tuple(_circle(c, f"{name}.circles[{i}]") for i, c in enumerate(circles)),
+    )
+
+
+def parse_envelope(obj: Any, home: Sequence[float] | None = None) -> Envelope:
+    """A JSON envelope (missing limits take the defaults) → Envelope, or EnvelopeError.
+
+    With `home` given, the inclusion fences must contain it: a fence that excludes the
+    launch point would refuse every move.
+    """
+    if not isinstance(obj, dict):
+        raise EnvelopeError("envelope", "must be a JSON object")
+    limits = {
+        "max_height": (DEFAULT_MAX_HEIGHT, 1.0, 10_000.0),
+        "max_distance": (DEFAULT_MAX_DISTANCE, 1.0, 1_000_000.0),
+        "min_move_height": (DEFAULT_MIN_MOVE_HEIGHT, 0.0, 10_000.0),
+        "battery_reserve": (DEFAULT_BATTERY_RESERVE, 0.0, 100.0),
+    }
+    values = {
+        key: default if obj.get(key) is None else _number(obj[key], key, lo, hi)
+        for key, (default, lo, hi) in limits.items()
+    }
+    if values["min_move_height"] > values["max_height"]:
+        raise EnvelopeError("min_move_height", "must not exceed max_height")
+    polygons, circles = parse_geofence(obj.get("geoFence"))
+    envelope = Envelope(**values, polygons=polygons, circles=circles)
+    if home is not None and envelope.has_inclusion and fence_breach(envelope, _ll(home)):
+        raise EnvelopeError("geoFence", "the inclusion fence must contain home")
+    return envelope
+
+
+def _ll(point: Sequence[float]) -> LatLon:
+    return float(point[0]), float(point[1])
+
+
+def geofence_dict(envelope: Envelope) -> dict:
+    """The fence as QGroundControl writes it in a `.plan` file."""
+    return {
+        "version": QGC_FENCE_VERSION,
+        "polygons": [
+            {
+                "inclusion": p.inclusion,
+                "polygon": [list(point) for point in p.points],
+                "version": QGC_SHAPE_VERSION,
+            }
+            for p in envelope.polygons
+        ],
+        "circles": [
+            {
+                "inclusion": c.inclusion,
+                "circle": {"center": list(c.center), "radius": c.radius},
+                "version": QGC_SHAPE_VERSION,
+            }
+            for c in envelope.circles
+        ],
+    }
+
+
+# -- geometry -----------------------------------------------------------------------------
+
+
+def ned_to_latlon(north: float, east: float, home: Sequence[float]) -> LatLon:
+    lat = home[0] + math.degrees(north / EARTH_RADIUS)
+    lon = home[1] + math.degrees(east / (EARTH_RADIUS * math.cos(math.radians(home[0]))))
+    return lat, lon
+
+
+def latlon_to_ne(lat: float, lon: float, origin: Sequence[float]) -> tuple[float, float]:
+    north = EARTH_RADIUS * math.radians(lat - origin[0])
+    dlon = (lon - origin[1] + 180.0) % 360.0 - 180.0
+    return north, EARTH_RADIUS * math.cos(math.radians(origin[0])) * math.radians(dlon)
+
+
+def _to_local(points: Iterable[LatLon], origin: Sequence[float]) -> list[tuple[float, float]]:
+    return [latlon_to_ne(lat, lon, origin) for lat, lon in points]
+
+
+def _cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
+def _segments_cross(p1, p2, q1, q2) -> bool:  # type: ignore[no-untyped-def]
+    d1, d2 = _cross(q1, q2, p1), _cross(q1, q2, p2)
+    d3, d4 = _cross(p1, p2, q1), _cross(p1, p2, q2)
+    return (d1 > 0) != (d2 > 0) and (d3 > 0) != (d4 > 0) and 0 not in (d1, d2, d3, d4)
+
+
+def _self_intersects(ring: list[tuple[float, float]]) -> bool:
+    """Any two non-adjacent edges crossing (touching at a shared vertex is not crossing)."""
+    edges = [(ring[i], ring[(i + 1) % len(ring)]) for i in range(len(ring))]
+    for i in range(len(edges)):
+        for j in range(i + 2, len(edges)):
+            if i == 0 and j == len(edges) - 1:
+                continue
+            if _segments_cross(*edges[i], *edges[j]):
+                return True
+    return False
+
+
+def _inside_polygon(point: LatLon, polygon: Polygon) -> bool:
+    """Ray casting in the local frame about the point itself."""
+    ring = _to_local(polygon.points, point)
+    inside = False
+    for (n1, e1), (n2, e2) in zip(ring, ring[1:] + ring[:1], strict=True):
+        if (e1 > 0) != (e2 > 0) and 0 < n1 + (n2 - n1) * (0 - e1) / (e2 - e1):
+            inside = not inside
+    return inside
+
+
+def _inside_circle(point: LatLon, circle: Circle) -> bool:
+    north, east = latlon_to_ne(*point, circle.center)
+    return math.hypot(north, east) <= circle.radius
+
+
+def fence_breach(envelope: Envelope, point: LatLon) -> str | None:
+    """Why `point` breaks the fence (outside every inclusion, or inside an exclusion), or None."""
+    inclusions = [p for p in envelope.polygons if p.inclusion]
+    inclusion_circles = [c for c in envelope.circles if c.inclusion]
+    if inclusions or inclusion_circles:
+        inside = any(_inside_polygon(point, p) for p in inclusions) or any(
+            _inside_circle(point, c) for c in inclusion_circles
+        )
+        if not inside:
+            return "outside the geofence's inclusion zones"
+    for index, polygon in enumerate(envelope.polygons):
+        if not polygon.inclusion and _inside_polygon(point, polygon):
+            return f"inside the geofence's exclusion polygon {index}"
+    for index, circle in enumerate(envelope.circles):
+        if not circle.inclusion and _inside_circle(point, circle):
+            return f"inside the geofence's exclusion circle {index}"
+    return None
+
+
+# -- the check ----------------------------------------------------------------------------
+
+
+def _is_return(move: Move) -> bool:
+    return move.kind == "goto" and math.hypot(move.ned[0], move.ned[1]) <= RETURN_RADIUS
+
+
+def check(
+    envelope: Envelope,
+    home: Sequence[float] | None,
+    target: Move,
+    airborne: bool,
+    battery: float | None,
+) -> Violation | None:
+    """The first limit `target` breaks, as a sentence naming it, or None.
+
+    `home` is (lat, lon) of the drone's home; `battery` the remaining charge in percent.
+    Landing is always allowed: refusing it could only keep the drone in the air.
+    """
+    if target.kind == "land":
+        return None
+    north, east, down = target.ned
+    height, distance = -down, math.hypot(north, east)
+    if battery is not None and battery < envelope.battery_reserve and not _is_return(target):
+        return Violation(
+            "battery_reserve",
+            f"The battery is at {battery:.0f} %, below the envelope's reserve of "
+            f"{envelope.battery_reserve:g} %: only land and return home are accepted.",
+        )
+    if height > envelope.max_height:
+        return Violation(
+            "max_height",
+            f"The target is {height:.1f} m above home, above the envelope's maximum height "
+            f"of {envelope.max_height:g} m.",
+        )
+    if distance > envelope.max_distance:
+        return Violation(
+            "max_distance",
+            f"The target is {distance:.0f} m from home, beyond the envelope's maximum "
+            f"distance of {envelope.max_distance:g} m.",
+        )
+    if airborne and target.horizontal and height < envelope.min_move_height:
+        return Violation(
+            "min_move_height",
+            f"Horizontal moves need at least the envelope's minimum height of "
+            f"{envelope.min_move_height:g} m above home; the target is at {height:.1f} m.",
+        )
+    if home is not None:
+        breach = fence_breach(envelope, ned_to_latlon(north, east, home))
+        if breach is not None:
+            return Violation("geofence", f"The target is {breach}.")
+    return None
+
+
+# -- resolving commands to moves ------------------------------------------------------------
+
+
+def resolve(
+    command: str,
+    params: Mapping[str, Any],
+    base: NED | None,
+    here: NED | None,
+    home: Sequence[float] | None,
+) -> Move | None:
+    """The move a validated navigation command asks for, as the Navigation Processor plans it.
+
+    Relative commands add to `base` (the drone's current target); takeoff and land start
+    from `here` (its position). None for commands that do not move the drone, or when the
+    position needed is unknown (the drone then decides, with its own check).
+    """
+    if command == "takeoff":
+        start = here or base or (0.0, 0.0, 0.0)
+        return Move("takeoff", (start[0], start[1], -float(params.get("altitude", 10.0))))
+    if command == "land":
+        origin = here or base
+        return None if origin is None else Move("land", (origin[0], origin[1], 0.0))
+    if base is None or command not in ("changeN", "changeE", "altitude", "navigate"):
+        return None
+    north, east, down = base
+    if command == "changeN":
+        return Move("goto", (north + params["value"], east, down), horizontal=True)
+    if command == "changeE":
+        return Move("goto", (north, east + params["value"], down), horizontal=True)
+    if command == "altitude":
+        return Move("goto", (north, east, down - params["value"]))
+    if home is None:
+        return None
+    target_n, target_e = latlon_to_ne(params["lat"], params["lon"], home)
+    return Move("goto", (target_n, target_e, down - params.get("altitude_delta", 0.0)), True)
+
+
+@dataclass(frozen=True)
+class StepViolation:
+    index: int
+    violation: Violation
+
+
+def step_violations(
+    envelope: Envelope,
+    home: Sequence[float] | None,
+    steps: Sequence[Mapping[str, Any]],
+    start: NED | None,
+    airborne: bool,
+    battery: float | None,
+) -> list[StepViolation]:
+    """Walk a mission's steps from `start`: every step whose move breaks the envelope.
+
+    The walk goes on past a refused step as if it had been flown, so a planner can mark
+    every offending step at once.
+    """
+    found = []
+    target = start
+    for index, step in enumerate(steps):
+        move = resolve(step["command"], step.get("params") or {}, target, target, home)
+        if move is None:
+            continue
+        violation = check(envelope, home, move, airborne, battery)
+        if violation is not None:
+            found.append(StepViolation(index, violation))
+        target = move.ned
+        # Only a takeoff lifts a drone off and only a land puts it down; a move does not.
+        airborne = {"takeoff": True, "land": False}.get(move.kind, airborne)
+    return found
+
+
+def check_steps(
+    envelope: Envelope,
+    home: Sequence[float] | None,
+    steps: Sequence[Mapping[str, Any]],
+    start: NED | None,
+    airborne: bool,
+    battery: float | None,
+) -> StepViolation | None:
+    """The first mission step whose move breaks the envelope, or None."""
+    found = step_violations(envelope, home, steps, start, airborne, battery)
+    return found[0] if found else None
+
+
+# -- the drone's own guard ------------------------------------------------------------------
+
+
+class EnvelopeGuard:
+    """The envelope a drone enforces: the last one received, kept in `path` across restarts.
+
+    Until one arrives the defaults apply, so a drone never flies unlimited. `state` is the
+    flight controller's VehicleState (home, position, battery 0..1, airborne).
+    """
+
+    def __init__(self, path: Path | None = None) -> None:
+        self.path = path
+        self._lock = threading.Lock()
+        self._envelope = Envelope()
+        self.outside: Violation | None = None
+        if path is not None and path.exists():
+            try:
+                self._envelope = parse_envelope(json.loads(path.read_text()))
+            except (OSError, ValueError) as exc:
+                log.warning("ignoring the stored envelope %s: %s", path, exc)
+
+    @property
+    def envelope(self) -> Envelope:
+        with self._lock:
+            return self._envelope
+
+    def update(self, data: Mapping[str, Any]) -> Envelope:
+        """Adopt a received envelope (already validated) and store it atomically."""
+        envelope = parse_envelope(dict(data))
+        with self._lock:
+            self._envelope = envelope
+        if self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            partial = self.path.with_suffix(".partial")
+            partial.write_text(json.dumps(envelope.to_dict()))
+            os.replace(partial, self.path)
+        return envelope
+
+    def refusal(
+        self, command: str, kind: str, ned: NED, state: Any, in_mission: bool = False
+    ) -> str | None:
+        """Why the drone refuses to fly to `ned` for `command`, or None.
+
+        The battery reserve is checked on control commands, not on the steps of a mission
+        already flying: there the fail-safe's battery alarm decides, and the ground hands
+        the rest of the mission to another drone.
+        """
+        home = None if state.home is None else state.home[:2]
+        move = Move(kind, ned, command in HORIZONTAL_COMMANDS)
+        battery = None if in_mission else _percent(state)
+        violation = check(self.envelope, home, move, state.airborne, battery)
+        return None if violation is None else f"Outside the flight envelope: {violation.message}"
+
+    def breach(self, ned: NED | None, state: Any) -> Violation | None:
+        """The limit an airborne drone at `ned` is beyond (wind, bad GPS), or None."""
+        if ned is None or not state.airborne:
+            return None
+        home = None if state.home is None else state.home[:2]
+        envelope = replace(self.envelope, battery_reserve=0.0, min_move_height=0.0)
+        return check(envelope, home, Move("goto", ned), True, None)
+
+
+def _percent(state: Any) -> float | None:
+    remaining = getattr(state, "battery_remaining", None)
+    return None if remaining is None else remaining * 100.0
