@@ -88,6 +88,9 @@ RABBITMQ_API_URLS = env.list("RABBITMQ_API_URLS", cast=str.strip, default=[])
 MOSQUITTO_DIR = env.str("MOSQUITTO_DIR", str(BASE_DIR / ".data" / "run" / "mosquitto"))
 DATA_DIR = env.str("DATA_DIR", str(BASE_DIR / ".data" / "run"))
 
+# /health runs its checks at most this often per web process (anyone may ask it).
+HEALTH_CACHE_S = env.float("HEALTH_CACHE_S", 3.0)
+
 CACHES = {
     "default": {
         "BACKEND": "django.core.cache.backends.redis.RedisCache",
