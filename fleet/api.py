@@ -13,12 +13,14 @@ from rest_framework.decorators import (
     api_view,
     authentication_classes,
     permission_classes,
+    throttle_classes,
 )
 from rest_framework.permissions import AllowAny
 from rest_framework.request import Request
 from rest_framework.response import Response
 
 from config.api import StrictSerializer
+from config.throttling import AuthRateThrottle
 
 from . import commands, credentials
 from .async_views import AsyncAPIView
@@ -233,6 +235,7 @@ class TokenRequestSerializer(StrictSerializer):
 @api_view(["POST"])
 @authentication_classes([])
 @permission_classes([AllowAny])
+@throttle_classes([AuthRateThrottle])
 def obtain_token(request: Request) -> Response:
     """Exchange a username and password for an API token (header `Authorization: Token …`)."""
     serializer = TokenRequestSerializer(data=request.data)

@@ -148,7 +148,14 @@ REST_FRAMEWORK = {
     "DEFAULT_PAGINATION_CLASS": "config.api.Pagination",
     "PAGE_SIZE": 100,
     "UNAUTHENTICATED_USER": "django.contrib.auth.models.AnonymousUser",
+    # Proxies in front of the web processes whose X-Forwarded-For hop is trusted for the
+    # client's address (throttling); 0 uses the connection's address.
+    "NUM_PROXIES": env.int("NUM_PROXIES", 0),
 }
+# Password guessing: token requests per client address, failed logins per address and
+# per username (config/throttling.py), like "10/min".
+AUTH_TOKEN_RATE = env.str("AUTH_TOKEN_RATE", "10/min")
+LOGIN_RATE = env.str("LOGIN_RATE", "10/min")
 
 SPECTACULAR_SETTINGS = {
     "TITLE": "Skyhive API",
