@@ -103,7 +103,10 @@ class DroneViewSet(viewsets.ReadOnlyModelViewSet):
         if request.method == "DELETE":
             credentials.revoke(drone)
             return Response(status=status.HTTP_204_NO_CONTENT)
-        issued = credentials.provision(drone.drone_id, drone.organisation.slug)
+        try:
+            issued = credentials.provision(drone.drone_id, drone.organisation.slug)
+        except credentials.ProvisioningError as exc:
+            raise exceptions.ValidationError({"drone_id": [str(exc)]}) from None
         return Response(issued.to_dict(), status=status.HTTP_201_CREATED)
 
 
