@@ -47,7 +47,7 @@ class LoginAttempts:
 
     def __init__(self, request: HttpRequest) -> None:
         self.limit, self.window_s = parse_rate(settings.LOGIN_RATE)
-        username = str(request.POST.get("username", "")).strip().lower()
+        username = str(request.POST.get("username", "")).strip().lower()[:150]
         self.keys = [f"login-failures:ip:{client_address(request)}"]
         if username:
             self.keys.append(f"login-failures:user:{username}")
