@@ -4,7 +4,8 @@ import os
 
 from django.core.asgi import get_asgi_application
 
-os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.local")
+# Production unless told otherwise: `make run` and the tests name their settings module.
+os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.production")
 # Build Django's app before importing anything that touches models (Channels docs).
 django_asgi_app = get_asgi_application()
 

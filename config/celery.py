@@ -5,7 +5,8 @@ import os
 
 from celery import Celery, bootsteps
 
-os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.local")
+# Production unless told otherwise: `make run` and the tests name their settings module.
+os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.production")
 
 log = logging.getLogger(__name__)
 

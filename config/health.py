@@ -1,13 +1,23 @@
 """/health: is every part up? 200 when the database, Redis and the broker answer, else 503.
 
-With a clustered broker each node is checked; the broker counts as up (status "degraded",
-still 200) while at least one node answers, since drones and ground processes fail over.
+Anyone may ask, so an anonymous caller gets only the status word; staff users also get
+each part's state, its error text, the broker nodes and the process counters. The checks
+run at most once per HEALTH_CACHE_S in each web process, however often /health is asked.
+
+On Mosquitto the broker is up when a running gateway reports its link to it as up (the
+view the gateways keep in Redis, workers/broker/mosquitto_sys.py): no request opens an MQTT
+connection of its own. A RabbitMQ cluster's MQTT listeners are each connected to, once per
+cache period, since the gateways' figures there come from the management API; the broker
+counts as up (status "degraded", still 200) while at least one node answers, as drones and
+ground processes fail over.
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 from urllib.parse import unquote, urlsplit
 
 import paho.mqtt.client as mqtt
@@ -15,6 +25,13 @@ import redis
 from django.conf import settings
 from django.db import connection
 from django.http import HttpRequest, JsonResponse
+
+from onboard.mqtt import parse_broker_url
+from workers.broker import mosquitto_sys
+from workers.broker.figures import mosquitto_figures
+
+_lock = threading.Lock()
+_cached: tuple[float, dict[str, Any]] | None = None
 
 
 def check_database() -> str | None:
@@ -26,9 +43,13 @@ def check_database() -> str | None:
         return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
+def _redis() -> redis.Redis:
+    return redis.Redis.from_url(settings.REDIS_URL, socket_timeout=1)
+
+
 def check_redis() -> str | None:
     try:
-        redis.Redis.from_url(settings.REDIS_URL, socket_timeout=1).ping()
+        _redis().ping()
         return None
     except redis.RedisError as exc:
         return str(exc)
@@ -40,6 +61,18 @@ def broker_node_urls() -> list[str]:
     if settings.MQTT_BROKER == "rabbitmq" and settings.MQTT_URLS:
         return list(settings.MQTT_URLS)
     return [settings.MQTT_URL]
+
+
+def check_mosquitto() -> dict[str, str | None]:
+    """The Mosquitto node's error (None when up) as the running gateways report it."""
+    node = parse_broker_url(settings.MQTT_URL)  # as the gateways name the node they are on
+    address = f"{node.host}:{node.port}"
+    try:
+        figures = mosquitto_figures(mosquitto_sys.views(_redis()), address)
+    except redis.RedisError as exc:
+        return {address: f"unknown: the gateways' reports are in Redis, which fails ({exc})"}
+    up = figures.get("nodes_up", 0) > 0
+    return {address: None if up else figures.get("error") or "down"}
 
 
 def check_broker_node(url: str, timeout: float = 2.0) -> str | None:
@@ -67,22 +100,14 @@ def check_broker_node(url: str, timeout: float = 2.0) -> str | None:
 
 
 def check_broker_nodes(timeout: float = 2.0) -> dict[str, str | None]:
-    """Each node's error (None when up), keyed `host:port`, checked in parallel so a dead
-    node costs one timeout, not one per node."""
+    """Each node's error (None when up), keyed `host:port`. RabbitMQ nodes are connected
+    to in parallel, so a dead node costs one timeout, not one per node."""
+    if settings.MQTT_BROKER != "rabbitmq":
+        return check_mosquitto()
     urls = broker_node_urls()
     with ThreadPoolExecutor(max_workers=len(urls)) as pool:
         errors = list(pool.map(lambda url: check_broker_node(url, timeout), urls))
     return {_address(url): error for url, error in zip(urls, errors, strict=True)}
-
-
-def check_broker(timeout: float = 2.0) -> str | None:
-    """None while at least one node answers; else every node's reason."""
-    nodes = check_broker_nodes(timeout)
-    if any(error is None for error in nodes.values()):
-        return None
-    if len(nodes) == 1:
-        return next(iter(nodes.values()))
-    return "; ".join(f"{address}: {error}" for address, error in nodes.items())
 
 
 def _address(url: str) -> str:
@@ -106,7 +131,8 @@ def _broker_summary(nodes: dict[str, str | None]) -> tuple[str | None, str]:
     return listed, listed
 
 
-def health(request: HttpRequest) -> JsonResponse:
+def run_checks() -> dict[str, Any]:
+    """Every part's state: the status word, each part's text, and the broker's nodes."""
     nodes = check_broker_nodes()
     broker_error, broker_shown = _broker_summary(nodes)
     checks = {"database": check_database(), "redis": check_redis(), "broker": broker_error}
@@ -114,16 +140,42 @@ def health(request: HttpRequest) -> JsonResponse:
     shown["broker"] = broker_shown
     degraded = broker_error is None and broker_shown != "ok"
     failed = any(error is not None for error in checks.values())
-    body: dict[str, object] = {
+    result: dict[str, Any] = {
         "status": "error" if failed else ("degraded" if degraded else "ok"),
         "checks": shown,
     }
     if len(nodes) > 1:
-        body["broker_nodes"] = {
+        result["broker_nodes"] = {
             address: "ok" if error is None else error for address, error in nodes.items()
         }
-    if checks["redis"] is None:
+    return result
+
+
+def cached_checks(now: float | None = None) -> dict[str, Any]:
+    """run_checks' result, reused for HEALTH_CACHE_S; one caller at a time refreshes it."""
+    global _cached
+    now = time.monotonic() if now is None else now
+    with _lock:
+        if _cached is None or now - _cached[0] >= settings.HEALTH_CACHE_S:
+            _cached = (now, run_checks())
+        return _cached[1]
+
+
+def forget() -> None:
+    """Drop the cached result: the next /health checks again."""
+    global _cached
+    with _lock:
+        _cached = None
+
+
+def health(request: HttpRequest) -> JsonResponse:
+    result = cached_checks()
+    code = 503 if result["status"] == "error" else 200
+    if not request.user.is_staff:
+        return JsonResponse({"status": result["status"]}, status=code)
+    body = dict(result)
+    if result["checks"]["redis"] == "ok":
         from workers.counters import snapshot
 
         body["processes"] = snapshot()
-    return JsonResponse(body, status=503 if failed else 200)
+    return JsonResponse(body, status=code)

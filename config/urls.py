@@ -11,6 +11,7 @@ from missions import api as missions_api
 from telemetry import views as operations_views
 
 from .health import health
+from .throttling import LoginView
 
 router = DefaultRouter()
 router.register("drones", fleet_api.DroneViewSet, basename="drone")
@@ -44,7 +45,7 @@ urlpatterns = [
     path("health", health, name="health"),
     path("control", ControlView.as_view(), name="control"),
     path("admin/", admin.site.urls),
-    path("accounts/login/", auth_views.LoginView.as_view(), name="login"),
+    path("accounts/login/", LoginView.as_view(), name="login"),
     path("accounts/logout/", auth_views.LogoutView.as_view(), name="logout"),
     path(
         "accounts/password/",

@@ -14,6 +14,7 @@ from rest_framework.decorators import (
     api_view,
     authentication_classes,
     permission_classes,
+    throttle_classes,
 )
 from rest_framework.permissions import AllowAny
 from rest_framework.request import Request
@@ -21,6 +22,7 @@ from rest_framework.response import Response
 from rest_framework.views import APIView
 
 from config.api import StrictSerializer
+from config.throttling import AuthRateThrottle
 from onboard.envelope import EnvelopeError
 
 from . import commands, credentials, envelopes
@@ -104,7 +106,10 @@ class DroneViewSet(viewsets.ReadOnlyModelViewSet):
         if request.method == "DELETE":
             credentials.revoke(drone)
             return Response(status=status.HTTP_204_NO_CONTENT)
-        issued = credentials.provision(drone.drone_id, drone.organisation.slug)
+        try:
+            issued = credentials.provision(drone.drone_id, drone.organisation.slug)
+        except credentials.ProvisioningError as exc:
+            raise exceptions.ValidationError({"drone_id": [str(exc)]}) from None
         return Response(issued.to_dict(), status=status.HTTP_201_CREATED)
 
 
@@ -236,6 +241,7 @@ class TokenRequestSerializer(StrictSerializer):
 @api_view(["POST"])
 @authentication_classes([])
 @permission_classes([AllowAny])
+@throttle_classes([AuthRateThrottle])
 def obtain_token(request: Request) -> Response:
     """Exchange a username and password for an API token (header `Authorization: Token …`)."""
     serializer = TokenRequestSerializer(data=request.data)

@@ -26,7 +26,7 @@ from workers.broker.credentials import (
     stored_hash,
 )
 
-from .models import DRONE_ID_RE, Drone, Organisation
+from .models import DRONE_ID_RE, Drone, Organisation, reserved_drone_ids
 
 # What callers of provisioning use besides the functions here: the errors to catch, the
 # report of a sync, and the stored hashes' check (callers verify a drone's password).
@@ -176,6 +176,12 @@ def _validate_ids(ids: list[str]) -> None:
         shown = ", ".join(repr(b) for b in bad[:5])
         raise ProvisioningError(
             f"Invalid drone id(s) {shown}: use 1 to 64 letters, digits, '_' or '-'."
+        )
+    reserved = [drone_id for drone_id in ids if drone_id.lower() in reserved_drone_ids()]
+    if reserved:
+        shown = ", ".join(repr(r) for r in reserved[:5])
+        raise ProvisioningError(
+            f"Reserved drone id(s) {shown}: broker account names are not drone ids."
         )
     if len(set(ids)) != len(ids):
         raise ProvisioningError("The same drone id appears twice.")

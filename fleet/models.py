@@ -5,10 +5,29 @@ from __future__ import annotations
 import re
 
 from django.conf import settings
+from django.core.exceptions import ValidationError
 from django.core.validators import RegexValidator
 from django.db import models
 
 DRONE_ID_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+# Broker accounts that are not drones: a drone's broker username is its id, so a drone
+# named like one would share (or take over) its account. RabbitMQ ships `admin`/`guest`.
+RESERVED_BROKER_USERS = ("ground", "admin", "guest")
+
+
+def reserved_drone_ids() -> set[str]:
+    """Names no drone may take, lower-cased: the broker's own accounts and the ground's
+    service users (MQTT_SERVICE_USERS)."""
+    return {name.lower() for name in (*RESERVED_BROKER_USERS, *settings.MQTT_SERVICE_USERS)}
+
+
+def validate_not_reserved(drone_id: str) -> None:
+    """Refuse a reserved broker account name as a drone id, whatever its case."""
+    if str(drone_id).lower() in reserved_drone_ids():
+        raise ValidationError(
+            f"{drone_id!r} is reserved for the broker's own accounts; choose another drone id.",
+            code="reserved",
+        )
 
 
 class Organisation(models.Model):
@@ -83,7 +102,9 @@ class Drone(models.Model):
     organisation = models.ForeignKey(Organisation, on_delete=models.CASCADE, related_name="drones")
     # Topic trees are global on the broker, so the id is unique across organisations.
     drone_id = models.CharField(
-        max_length=64, unique=True, validators=[RegexValidator(DRONE_ID_RE.pattern)]
+        max_length=64,
+        unique=True,
+        validators=[RegexValidator(DRONE_ID_RE.pattern), validate_not_reserved],
     )
     name = models.CharField(max_length=120, blank=True)
 

@@ -122,7 +122,9 @@ redis_start() {
   local dir="$DATA/redis"; mkdir -p "$dir"
   if port_open "$REDIS_PORT"; then log "Redis already up on $REDIS_PORT"; return 0; fi
   log "starting Redis on 127.0.0.1:$REDIS_PORT"
-  local persist=(--save "60 1000" --appendonly no)
+  # The append-only file keeps the outbox and the counters across a crash (at most a
+  # second lost); the test profile keeps nothing.
+  local persist=(--save "60 1000" --appendonly yes --appendfsync everysec)
   [ "$PROFILE" = test ] && persist=(--save "" --appendonly no)
   "$REDIS_SERVER" --bind 127.0.0.1 --port "$REDIS_PORT" --dir "$dir" --daemonize yes \
     --pidfile "$dir/redis.pid" --logfile "$dir/redis.log" --requirepass "$(secret redis_password)" \
@@ -163,6 +165,9 @@ log_type error
 log_type warning
 log_type notice
 max_queued_messages 100000
+# No payload the gateway would keep is larger (pictures, workers/dispatch.py): bigger
+# ones are not forwarded at all (workers/mosquitto.py MESSAGE_SIZE_LIMIT).
+message_size_limit 16777216
 # Sessions of clients gone for good (a retired gateway instance) stop queueing.
 persistent_client_expiration 1d
 $([ "$(id -u)" = 0 ] && echo "user root")

@@ -15,9 +15,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from onboard.processes import free_port, port_open, wait_for
+from workers.dispatch import MAX_PAYLOAD_BYTES
 
 MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
 MOSQUITTO_PASSWD = shutil.which("mosquitto_passwd") or "/usr/bin/mosquitto_passwd"
+# The broker forwards no payload larger than the gateway keeps (pictures); the shared
+# broker's config (scripts/services.sh) says the same.
+MESSAGE_SIZE_LIMIT = max(MAX_PAYLOAD_BYTES.values())
 
 
 @dataclass
@@ -59,6 +63,7 @@ class Broker:
             f"listener {self.port} 127.0.0.1",
             "allow_anonymous false",
             "set_tcp_nodelay true",
+            f"message_size_limit {MESSAGE_SIZE_LIMIT}",
             f"password_file {passwd}",
             f"acl_file {acl}",
             "persistence false",

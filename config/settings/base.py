@@ -88,6 +88,9 @@ RABBITMQ_API_URLS = env.list("RABBITMQ_API_URLS", cast=str.strip, default=[])
 MOSQUITTO_DIR = env.str("MOSQUITTO_DIR", str(BASE_DIR / ".data" / "run" / "mosquitto"))
 DATA_DIR = env.str("DATA_DIR", str(BASE_DIR / ".data" / "run"))
 
+# /health runs its checks at most this often per web process (anyone may ask it).
+HEALTH_CACHE_S = env.float("HEALTH_CACHE_S", 3.0)
+
 CACHES = {
     "default": {
         "BACKEND": "django.core.cache.backends.redis.RedisCache",
@@ -145,7 +148,14 @@ REST_FRAMEWORK = {
     "DEFAULT_PAGINATION_CLASS": "config.api.Pagination",
     "PAGE_SIZE": 100,
     "UNAUTHENTICATED_USER": "django.contrib.auth.models.AnonymousUser",
+    # Proxies in front of the web processes whose X-Forwarded-For hop is trusted for the
+    # client's address (throttling); 0 uses the connection's address.
+    "NUM_PROXIES": env.int("NUM_PROXIES", 0),
 }
+# Password guessing: token requests per client address, failed logins per address and
+# per username (config/throttling.py), like "10/min".
+AUTH_TOKEN_RATE = env.str("AUTH_TOKEN_RATE", "10/min")
+LOGIN_RATE = env.str("LOGIN_RATE", "10/min")
 
 SPECTACULAR_SETTINGS = {
     "TITLE": "Skyhive API",

@@ -1,4 +1,10 @@
-"""Production settings: everything secret or host-specific must come from the environment."""
+"""Production settings: everything secret or host-specific must come from the environment.
+
+The settings refuse to load while a secret is missing or still the development fallback,
+naming every variable to set in one line.
+"""
+
+from urllib.parse import urlsplit
 
 from django.core.exceptions import ImproperlyConfigured
 
@@ -6,12 +12,33 @@ from config.env import env
 
 from .base import *  # noqa: F403
 
-DEBUG = False
+# The broker account the development settings fall back to; never valid in production.
+FALLBACK_MQTT_ACCOUNT = ("ground", "ground")
+
+
+def missing_secrets() -> list[str]:
+    """What the environment lacks for production: SECRET_KEY, the ground's own broker
+    account in MQTT_URL, a Redis password in REDIS_URL."""
+    missing = []
+    # Empty also when unset or naming (with a leading `$`) a variable that is unset.
+    if not env.str("SECRET_KEY", ""):
+        missing.append("SECRET_KEY")
+    mqtt = urlsplit(env.str("MQTT_URL", ""))
+    if not (mqtt.username and mqtt.password) or (mqtt.username, mqtt.password) == (
+        FALLBACK_MQTT_ACCOUNT
+    ):
+        missing.append("MQTT_URL (with the ground's own user and password, not ground:ground)")
+    if not urlsplit(env.str("REDIS_URL", "")).password:
+        missing.append("REDIS_URL (with its password)")
+    return missing
+
+
+_missing = missing_secrets()
+if _missing:
+    raise ImproperlyConfigured("production settings need " + ", ".join(_missing))
+
 STATIC_ROOT = BASE_DIR / "staticfiles"  # noqa: F405 - `make collectstatic` fills it
 WHITENOISE_USE_FINDERS = False
-# Empty also when unset or naming (with a leading `$`) a variable that is unset.
-if not env.str("SECRET_KEY", ""):
-    raise ImproperlyConfigured("SECRET_KEY must be set in production")
 
 SECURE_PROXY_SSL_HEADER = ("HTTP_X_FORWARDED_PROTO", "https")
 SECURE_SSL_REDIRECT = True

@@ -1,4 +1,4 @@
-"""Health, Celery and settings, on the real services started for the suite."""
+"""Celery and settings, on the real services started for the suite."""
 
 import os
 import subprocess
@@ -8,34 +8,11 @@ import uuid
 from pathlib import Path
 
 import pytest
-from django.test import Client
 
 from onboard.processes import stop_process
 from tests.support.celery_worker import start_worker, worker_env
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def test_health_is_ok_when_every_service_answers(db):
-    response = Client().get("/health")
-    assert response.status_code == 200
-    assert response.json()["checks"] == {"database": "ok", "redis": "ok", "broker": "ok"}
-
-
-def test_health_is_503_and_names_the_broker_when_it_is_down(db, settings):
-    settings.MQTT_URL = "mqtt://ground:x@127.0.0.1:1"
-    response = Client().get("/health")
-    assert response.status_code == 503
-    checks = response.json()["checks"]
-    assert checks["database"] == "ok" and checks["redis"] == "ok"
-    assert checks["broker"] != "ok"
-
-
-def test_health_is_503_and_names_redis_when_it_is_down(db, settings):
-    settings.REDIS_URL = "redis://127.0.0.1:1/0"
-    response = Client().get("/health")
-    assert response.status_code == 503
-    assert response.json()["checks"]["redis"] != "ok"
 
 
 @pytest.mark.django_db(transaction=True)

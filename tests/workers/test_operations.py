@@ -154,7 +154,7 @@ def test_a_web_server_is_listed_with_the_requests_it_served_and_retires_when_sto
     server = LiveServer(connection.settings_dict["NAME"])
     try:
         for _ in range(3):
-            urllib.request.urlopen(f"{server.url}/health", timeout=10).read()
+            urllib.request.urlopen(f"{server.url}/accounts/login/", timeout=10).read()
 
         def mine() -> object:
             found = [i for i in instances() if i.process == "web" and i.pid == server.process.pid]

@@ -1,0 +1,82 @@
+"""Limits on password guessing: the API's token view and the portal's login page.
+
+Counts live in Django's cache (Redis), so every web process shares them. The client is
+its address as DRF tells it (the last NUM_PROXIES hops of X-Forwarded-For are trusted,
+none by default, so a forged header changes nothing).
+"""
+
+from __future__ import annotations
+
+from django.conf import settings
+from django.contrib.auth import views as auth_views
+from django.core.cache import cache
+from django.http import HttpRequest, HttpResponse
+from rest_framework.throttling import SimpleRateThrottle
+
+PERIODS_S = {"s": 1, "m": 60, "h": 3600, "d": 86400}
+
+
+def parse_rate(rate: str) -> tuple[int, int]:
+    """`10/min` → (10, 60): at most that many in that many seconds."""
+    count, _, period = rate.partition("/")
+    if not count.strip().isdigit() or period.strip()[:1] not in PERIODS_S:
+        raise ValueError(f"a rate is like 10/min, not {rate!r}")
+    return int(count), PERIODS_S[period.strip()[0]]
+
+
+class AuthRateThrottle(SimpleRateThrottle):
+    """`POST /api/v1/token/`: AUTH_TOKEN_RATE requests per client address."""
+
+    scope = "auth"
+
+    def get_rate(self) -> str:
+        return settings.AUTH_TOKEN_RATE
+
+    def get_cache_key(self, request, view) -> str:  # type: ignore[no-untyped-def]
+        return self.cache_format % {"scope": self.scope, "ident": self.get_ident(request)}
+
+
+def client_address(request: HttpRequest) -> str:
+    """The caller's address, as the token view's throttle sees it."""
+    return AuthRateThrottle().get_ident(request)
+
+
+class LoginAttempts:
+    """Failed logins in the current LOGIN_RATE window, per client address and per
+    username: either one over the limit refuses further tries until the window ends."""
+
+    def __init__(self, request: HttpRequest) -> None:
+        self.limit, self.window_s = parse_rate(settings.LOGIN_RATE)
+        username = str(request.POST.get("username", "")).strip().lower()[:150]
+        self.keys = [f"login-failures:ip:{client_address(request)}"]
+        if username:
+            self.keys.append(f"login-failures:user:{username}")
+
+    def exhausted(self) -> bool:
+        counts = cache.get_many(self.keys)
+        return any(int(count) >= self.limit for count in counts.values())
+
+    def failed(self) -> None:
+        for key in self.keys:
+            # add() starts the window only once; incr() is atomic in Redis.
+            cache.add(key, 0, timeout=self.window_s)
+            try:
+                cache.incr(key)
+            except ValueError:  # the window ended between the two calls
+                cache.add(key, 1, timeout=self.window_s)
+
+
+class LoginView(auth_views.LoginView):
+    """Django's login page, refusing with 429 while the caller's failures are over the
+    limit, so a password cannot be guessed faster than LOGIN_RATE."""
+
+    def post(self, request: HttpRequest, *args, **kwargs) -> HttpResponse:  # type: ignore[no-untyped-def]
+        attempts = LoginAttempts(request)
+        if attempts.exhausted():
+            message = "Too many failed logins; try again in a minute."
+            context = self.get_context_data(form=self.get_form(), throttled=message)
+            return self.render_to_response(context, status=429)
+        response = super().post(request, *args, **kwargs)
+        if not (request.user and request.user.is_authenticated):
+            attempts.failed()
+        return response
