@@ -422,7 +422,7 @@ class Agent:
             return
         if isinstance(request, protocol.MissionStart):
             self.failsafe.ground_took_over()
-        else:
+        elif isinstance(request, protocol.MissionStop):
             # Not a takeover: a late stop for a mission the fail-safe already ended must
             # not leave a returning drone hovering.
             self.failsafe.after_stop = follow_up
