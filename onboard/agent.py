@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from . import protocol
-from .controller import Controller
+from .controller import CommandError, Controller
 from .envelope import EnvelopeGuard
 from .failsafe import FailSafe, GroundClock, Limits
 from .fc.base import FlightController
@@ -137,6 +137,7 @@ class Agent:
             time_scale=config.time_scale,
         )
         self.worker.on_end = self.failsafe.mission_ended
+        self.controller.actions.update(hold=self._hold, **{"return": self._return})
         self.ground_clock = GroundClock()
         self.mqtt = self._mqtt_link(config)
         self.heartbeater = Heartbeater(config.heartbeat_interval, self._beat)
@@ -385,6 +386,22 @@ class Agent:
                 request.request_id, request.command, False, None, f"The agent failed: {exc}."
             )
         self.send("control", response)
+
+    def _hold(self, params: dict, context: dict) -> dict:
+        """Operator hold: a running mission is paused (resumable), else hover here."""
+        if not self.fc.state.airborne:
+            raise CommandError("The drone is on the ground; there is nothing to hold.")
+        paused = self.worker.pause_current()
+        if paused is not None:
+            return {"mode": "hold", "mission_paused": paused}
+        return {"mode": self.failsafe.hold_here("held by the operator")}
+
+    def _return(self, params: dict, context: dict) -> dict:
+        """Operator return: home at this altitude, land, disarm (lands here when the
+        energy left would not get it home)."""
+        if not self.fc.state.airborne:
+            raise CommandError("The drone is on the ground; it is home already.")
+        return {"mode": self.failsafe.return_home("return requested by the operator")}
 
     def _mission(self, topic: str, obj: Any) -> None:
         try:

@@ -237,6 +237,22 @@ class MissionWorker:
             return
         self.stop_current("stopped by the ground", request_id=stop.request_id)
 
+    def pause_current(self) -> str | None:
+        """Pause the running mission (an operator's hold); its id, or None if none runs."""
+        with self._lock:
+            mission = self._mission
+        if mission is None or mission.stop.is_set():
+            return None
+        payload = mission.payload
+        if not mission.paused.is_set():
+            mission.paused.set()
+            mission.wake.set()
+            self.events("mission", {"event": "paused", "mission_id": payload.mission_id})
+            self.publish(
+                protocol.MissionProgress(payload.mission_id, payload.assignment_id, "paused")
+            )
+        return payload.mission_id
+
     def stop_current(self, reason: str, *, request_id: str | None = None) -> bool:
         """Stop the running mission (from the ground or the fail-safe); False if none."""
         with self._lock:

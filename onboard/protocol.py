@@ -1311,3 +1311,12 @@ def parse_mission_request(obj: Any) -> MissionStart | MissionStop | MissionPause
 
 
 PARSERS[("mission", "in")] = parse_mission_request
+
+
+# Operator controls (optional): `hold` hovers where the drone is (pausing a running
+# mission, which `resume` carries on) and `return` flies home at the current altitude,
+# lands and disarms. Neither is a mission step.
+OPERATOR_COMMANDS = ("hold", "return")
+CONTROL_COMMANDS = (*CONTROL_COMMANDS, *OPERATOR_COMMANDS)
+_CONTROL_SET = frozenset(CONTROL_COMMANDS)
+_PARAMS.update({command: _no_params for command in OPERATOR_COMMANDS})

@@ -10,7 +10,7 @@ import pytest
 
 from onboard import protocol
 
-from .test_failsafe_e2e import _north, broker, fly  # noqa: F401  (fixtures)
+from .test_failsafe_e2e import _north, _on_the_ground_disarmed, broker, fly  # noqa: F401
 
 pytestmark = pytest.mark.e2e
 
@@ -61,3 +61,28 @@ def test_hold_and_resume_mid_mission_completes_every_step_once(fly, fc: str) -> 
     )
     assert reports == {(i, s): 1 for i in range(len(STEPS)) for s in ("started", "completed")}
     assert _north(_beat_after(ground, time.time())) == pytest.approx(400, abs=2.5)
+
+
+def test_operator_hold_pauses_the_mission_and_return_brings_the_drone_home(fly) -> None:  # noqa: F811
+    """Rule: the operator's hold pauses a running mission where the drone is; return flies
+    it home at its altitude, lands and disarms; on the ground both are refused."""
+    ground = fly("uavtalk")
+    refused = ground.command("hold")
+    assert refused["ok"] is False and "on the ground" in refused["error"]
+    ground.send("mission", protocol.mission_start("patrol", "a-patrol", STEPS).to_dict())
+    ground.wait_for("heartbeats", lambda m: 20 < _north(m) < 300, 60)
+
+    held = ground.command("hold")
+    assert held["ok"] is True and held["result"] == {"mode": "hold", "mission_paused": "patrol"}
+    ground.wait_for("mission", lambda m: m.get("status") == "paused", 10)
+    time.sleep(1.0)
+    first = _north(_beat_after(ground, time.time()))
+    time.sleep(1.0)
+    assert _north(_beat_after(ground, time.time())) == pytest.approx(first, abs=1.5)
+
+    returning = ground.command("return")
+    assert returning["ok"] is True and returning["result"] == {"mode": "return"}
+    stopped = ground.wait_for("mission", lambda m: m.get("status") == "stopped", 10)
+    assert stopped["mission_id"] == "patrol"
+    home = _on_the_ground_disarmed(ground, time.time(), 60)
+    assert _north(home) == pytest.approx(0, abs=2.5)
