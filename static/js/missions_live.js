@@ -125,6 +125,28 @@
       refresh();
     });
   }
+  /* Pause holds every drone of the mission where it is; Resume lets each carry on from its
+     step. One click each: neither starts a motor. */
+  const pause = document.getElementById("pause-mission");
+  const resume = document.getElementById("resume-mission");
+  function showHeld(held) {
+    if (pause) pause.hidden = held;
+    if (resume) resume.hidden = !held;
+  }
+  for (const button of [pause, resume]) {
+    if (!button) continue;
+    button.addEventListener("click", async () => {
+      const box = document.getElementById("mission-error");
+      button.disabled = true;
+      try {
+        const mission = await M.api("POST", `${config.missionApi}${button.dataset.action}/`);
+        showHeld(mission.held);
+        box.hidden = true;
+      } catch (error) { box.textContent = error.message; box.hidden = false; }
+      button.disabled = false;
+      refresh();
+    });
+  }
   refresh();
   refreshPictures();
   window.skyhiveMission = { map, refresh };
