@@ -96,7 +96,6 @@ class Agent:
         self._recent = RecentIds(RECENT_REQUESTS)
         self.sent: Counter[str] = Counter()
         self.logger = FlightLogger(config.log_dir, self.drone_id) if config.log_dir else None
-        events = self._event
         self.gear = GearManager(
             config.gear_dir,
             self.send,
@@ -112,7 +111,7 @@ class Agent:
             self.navigation,
             gear=self.gear,
             arm_timeout=config.arm_timeout,
-            events=events,
+            events=self._event,
             guard=self.envelope.refusal,
         )
         self.worker = MissionWorker(
@@ -125,7 +124,7 @@ class Agent:
             on_reading=self._on_reading,
             time_scale=config.time_scale,
             flight_timeout=config.flight_timeout,
-            events=events,
+            events=self._event,
         )
         self.failsafe = FailSafe(
             fc,
