@@ -63,3 +63,20 @@ def test_arm_without_the_typed_confirmation_sends_nothing(page, live_asgi, world
         "document.getElementById('command-result').textContent.startsWith('return: ok')"
     )
     assert sent == [{"command": "arm", "params": {}}, {"command": "return", "params": {}}]
+
+
+def test_the_fleet_table_holds_a_drone_in_one_click(page, live_asgi, world_tx):
+    online_drone(world_tx.org, "ACME_1")
+    sent: list[dict] = []
+
+    def answer(route) -> None:  # type: ignore[no-untyped-def]
+        sent.append(json.loads(route.request.post_data))
+        route.fulfill(json={"ok": True, "result": {"mode": "hold"}, "request_id": "0" * 32})
+
+    page.route("**/api/v1/drones/ACME_1/commands/", answer)
+    login(page, live_asgi, "operator")
+    page.goto(f"{live_asgi.url}/")
+    row = 'tr[data-drone="ACME_1"]'
+    page.click(f'{row} button[data-command="hold"]')
+    page.wait_for_selector(f'{row} .control-result[data-status="ok"]')
+    assert sent == [{"command": "hold", "params": {}}]
