@@ -595,6 +595,11 @@ def _apply_mission_status(
             dispatch_queued(mission, drone)
         if assignment is not None and message.status == "rejected":
             _rejected(mission, drone, assignment, message.error)
+        if message.status in ("paused", "resumed"):
+            # A drone held by its own page pauses the mission it flies: the mission
+            # page then offers Resume.
+            held = message.status == "paused"
+            Mission.objects.filter(pk=mission.pk, status=MissionStatus.RUNNING).update(held=held)
     return None
 
 

@@ -112,6 +112,7 @@
   const live = document.getElementById("live-status");
   M.liveSocket(config.socket, (message) => {
     if (message.type === "picture") refreshPictures();
+    if (message.type === "event" && (message.kind === "mission" || message.kind === "operator")) syncHeld();
     schedule();
   }, (up) => { live.textContent = up ? "live" : "reconnecting…"; live.className = `badge ${up ? "ok" : "off"}`; });
 
@@ -132,6 +133,10 @@
   function showHeld(held) {
     if (pause) pause.hidden = held;
     if (resume) resume.hidden = !held;
+  }
+  async function syncHeld() {
+    if (!pause && !resume) return;
+    try { showHeld((await M.api("GET", config.missionApi)).held); } catch (error) { /* next push retries */ }
   }
   for (const button of [pause, resume]) {
     if (!button) continue;

@@ -4,11 +4,13 @@ not sent until the drone's id has been typed."""
 from __future__ import annotations
 
 import json
+import threading
 
 import pytest
 
 from missions.models import Mission
-from missions.services import create_mission, start_mission
+from missions.services import apply_progress, create_mission, start_mission
+from onboard import protocol
 from tests.conftest import login
 
 from .conftest import online_drone
@@ -24,6 +26,7 @@ def test_pause_then_resume_on_the_mission_page_changes_the_mission(page, live_as
     start_mission(mission, drone=drone)
     login(page, live_asgi, "operator")
     page.goto(f"{live_asgi.url}/missions/{mission.pk}/")
+    page.wait_for_selector("#live-status.ok")
     assert page.locator("#resume-mission").is_hidden()
     page.click("#pause-mission")
     page.wait_for_selector("#resume-mission:not([hidden])")
@@ -33,6 +36,14 @@ def test_pause_then_resume_on_the_mission_page_changes_the_mission(page, live_as
     page.wait_for_selector("#pause-mission:not([hidden])")
     assert Mission.objects.get(pk=mission.pk).held is False
     assert page.locator("#mission-error").is_hidden()
+    # The drone held from its own page: the mission page offers Resume on the push.
+    assignment = mission.assignments.get()
+    paused = protocol.MissionProgress(str(mission.pk), str(assignment.pk), "paused")
+    # As the gateway does it: off the browser driver's event loop, so the push goes out.
+    gateway = threading.Thread(target=apply_progress, args=(drone, paused))
+    gateway.start()
+    gateway.join()
+    page.wait_for_selector("#resume-mission:not([hidden])")
 
 
 def test_arm_without_the_typed_confirmation_sends_nothing(page, live_asgi, world_tx):

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import pytest
 
+from fleet.models import Drone
 from missions import live
 from missions.models import Event, Mission
+from missions.services import apply_progress
 from onboard import protocol
 
 from .conftest import online_drone
@@ -71,3 +73,27 @@ def test_a_draft_mission_cannot_be_paused_and_only_its_operators_may(world, outb
     assert client_for(world.outsider).post(f"/api/v1/missions/{draft}/pause/").status_code == 404
     assert Mission.objects.get(pk=draft).held is False
     assert outbox.items() == []
+
+
+def test_a_drone_held_from_its_page_marks_its_mission_paused_until_resumed(world, running):
+    mission = Mission.objects.get(pk=running)
+    assignment = mission.assignments.get()
+    drone = Drone.objects.get(drone_id="ACME_1")
+    for status, held in (("paused", True), ("resumed", False)):
+        message = protocol.MissionProgress(running, str(assignment.pk), status)
+        assert apply_progress(drone, message) is None
+        mission.refresh_from_db()
+        assert (mission.held, mission.status) == (held, "running")
+    assignment.refresh_from_db()
+    assert assignment.status == "sent"  # a pause is no assignment state
+
+
+def test_a_drone_refusing_a_pause_does_not_reject_its_assignment(world, running):
+    drone = Drone.objects.get(drone_id="ACME_1")
+    refusal = protocol.mission_reply(
+        protocol.mission_pause(running, "pause"), "rejected", error="not running"
+    )
+    assert apply_progress(drone, refusal) is None
+    mission = Mission.objects.get(pk=running)
+    assert mission.status == "running"
+    assert mission.assignments.get().status == "sent"
