@@ -344,13 +344,12 @@ class MissionWorker:
             left = deadline - time.monotonic()
             if left <= 0:
                 return
-            woken = mission.wake.wait(left)
+            if mission.wake.wait(left):
+                mission.wake.clear()  # before the checks: a later pause sets it again
             if mission.stop.is_set():
                 raise MissionStopped()
             if mission.paused.is_set():
                 raise StepPaused()
-            if woken:  # a resume that raced with this wait: nothing to do
-                mission.wake.clear()
 
     def _finish(self, mission: RunningMission, status: str, error: str | None) -> None:
         payload = mission.payload
