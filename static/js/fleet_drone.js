@@ -26,7 +26,8 @@
 
   live.connect(config, show);
 
-  let missionId = null;  // the mission the drone reports flying, for Resume
+  // The mission the drone reports flying, for Resume; kept current by the live updates.
+  let missionId = config.drones[0].mission ? config.drones[0].mission.mission_id : null;
 
   function params(form) {
     const out = {};

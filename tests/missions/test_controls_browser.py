@@ -8,6 +8,7 @@ import threading
 
 import pytest
 
+from fleet.models import Drone
 from missions.models import Mission
 from missions.services import apply_progress, create_mission, start_mission
 from onboard import protocol
@@ -91,3 +92,21 @@ def test_the_fleet_table_holds_a_drone_in_one_click(page, live_asgi, world_tx):
     page.click(f'{row} button[data-command="hold"]')
     page.wait_for_selector(f'{row} .control-result[data-status="ok"]')
     assert sent == [{"command": "hold", "params": {}}]
+
+
+def test_resume_on_the_drone_page_resumes_the_mission_it_flies(page, live_asgi, world_tx):
+    drone = online_drone(world_tx.org, "ACME_1")
+    body = _mission_body()
+    mission = create_mission(organisation=world_tx.org, name=body["name"], steps=body["steps"])
+    start_mission(mission, drone=drone)
+    Mission.objects.filter(pk=mission.pk).update(held=True)
+    Drone.objects.filter(pk=drone.pk).update(mission={"mission_id": str(mission.pk), "index": 3})
+    login(page, live_asgi, "operator")
+    page.goto(f"{live_asgi.url}/drones/ACME_1/")
+    page.click('form[data-mission-action="resume"] button')
+    page.wait_for_function("document.getElementById('command-result').dataset.status === 'ok'")
+    assert Mission.objects.get(pk=mission.pk).held is False
+    page.click('form[data-mission-action="resume"] button')  # not paused any more: 409
+    page.wait_for_function(
+        "document.getElementById('command-result').textContent.startsWith('resume: 409')"
+    )
