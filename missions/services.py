@@ -233,6 +233,10 @@ def send_assignment(assignment: Assignment) -> None:
         {**message.to_dict(), "ts": protocol.now()},
         ttl=settings.MISSIONS_START_TTL_S,
     )
+    if Mission.objects.filter(pk=assignment.mission_id, held=True).exists():
+        # A drone sent to a paused mission (a replacement) holds as the others do.
+        pause = protocol.mission_pause(str(assignment.mission_id), "pause").to_dict()
+        outbox.send_to_drone(assignment.drone.drone_id, "mission", pause)
 
 
 def send_stop(drone_id: str, mission_id: str, then: str | None = None) -> None:

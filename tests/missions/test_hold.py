@@ -8,7 +8,7 @@ import pytest
 from fleet.models import Drone
 from missions import live
 from missions.models import Event, Mission
-from missions.services import apply_progress
+from missions.services import apply_progress, send_assignment
 from onboard import protocol
 
 from .conftest import online_drone
@@ -97,3 +97,10 @@ def test_a_drone_refusing_a_pause_does_not_reject_its_assignment(world, running)
     mission = Mission.objects.get(pk=running)
     assert mission.status == "running"
     assert mission.assignments.get().status == "sent"
+
+
+def test_a_drone_sent_to_a_paused_mission_is_paused_right_after_its_start(world, outbox, running):
+    assert client_for(world.operator).post(f"/api/v1/missions/{running}/pause/").status_code == 200
+    outbox.clear()
+    send_assignment(Mission.objects.get(pk=running).assignments.get())
+    assert [item["payload"]["action"] for item in outbox.items()] == ["start", "pause"]
