@@ -292,6 +292,7 @@ class MissionWorker:
             if mission.paused.is_set():
                 self._hold_while_paused(mission)
             if mission.stop.is_set():
+                self._close_retry(mission)
                 self._finish(mission, "stopped", mission.stop_reason)
                 return
             step, mission.retry = mission.retry, None
@@ -316,6 +317,14 @@ class MissionWorker:
                         f"Step {step.index} ({step.command}) failed: {error}",
                     )
                 return
+
+    def _close_retry(self, mission: RunningMission) -> None:
+        """A step a pause interrupted, then a stop ended, is reported failed like any
+        step a stop interrupts."""
+        step, mission.retry = mission.retry, None
+        if step is not None:
+            started = mission.started[step.index]
+            self._record_step(mission, step, "failed", started, {}, "the mission was stopped")
 
     def _hold_while_paused(self, mission: RunningMission) -> None:
         """Hold where the drone is until resumed (or stopped), then head for the target it

@@ -312,7 +312,7 @@ def test_pause_holds_mid_flight_and_resume_flies_the_step_again_reported_once(
     assert seen[-1].status == "completed"
 
 
-def test_a_pause_between_steps_lets_the_step_finish_and_a_stop_ends_a_paused_mission(
+def test_a_pause_interrupts_a_sleep_and_a_stop_ends_the_paused_mission_there(
     harness: Harness,
 ) -> None:
     harness.send(
@@ -325,6 +325,7 @@ def test_a_pause_between_steps_lets_the_step_finish_and_a_stop_ends_a_paused_mis
     assert harness.worker.current.index == 0 and ("arm",) not in harness.fc.calls
     harness.worker.submit(protocol.MissionStop(protocol.new_request_id(), "m1"))
     rest = harness.until_mission_status()
+    assert [(m.index, m.status) for m in rest[:-1]] == [(0, "failed")]
     assert rest[-1].status == "stopped"
     assert ("arm",) not in harness.fc.calls
 
