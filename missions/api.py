@@ -7,6 +7,8 @@ offending field named.
 
 from __future__ import annotations
 
+from typing import Any
+
 from django.conf import settings
 from django.http import HttpResponse
 from drf_spectacular.types import OpenApiTypes
@@ -22,7 +24,7 @@ from fleet.models import Drone, Membership, Organisation, Role
 from fleet.permissions import OrganisationRole, require_role
 from fleet.tenancy import current_membership
 
-from . import logs, panic, pictures, planning, qgc_plan
+from . import hold, logs, panic, pictures, planning, qgc_plan
 from .models import Mission, Picture
 from .serializers import (
     MissionDetailSerializer,
@@ -319,6 +321,27 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         mission = self._writable(pk)
         try:
             panic.release(mission, user=request.user)
+        except MissionError as exc:
+            raise refuse(exc) from None
+        mission.refresh_from_db()
+        return Response(MissionDetailSerializer(mission).data)
+
+    @extend_schema(request=None, responses=MissionDetailSerializer)
+    @action(detail=True, methods=["post"])
+    def pause(self, request: Request, pk: str | None = None) -> Response:
+        """Pause a running mission: its drones hold where they are (409 unless running)."""
+        return self._hold(pk, request, hold.pause)
+
+    @extend_schema(request=None, responses=MissionDetailSerializer)
+    @action(detail=True, methods=["post"])
+    def resume(self, request: Request, pk: str | None = None) -> Response:
+        """Resume a paused mission: each drone carries on from its step (409 unless paused)."""
+        return self._hold(pk, request, hold.resume)
+
+    def _hold(self, pk: str | None, request: Request, switch: Any) -> Response:
+        mission = self._writable(pk)
+        try:
+            switch(mission, user=request.user)
         except MissionError as exc:
             raise refuse(exc) from None
         mission.refresh_from_db()

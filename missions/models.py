@@ -99,6 +99,8 @@ class Mission(models.Model):
     created_at = models.DateTimeField(auto_now_add=True)
     started_at = models.DateTimeField(null=True, blank=True)
     ended_at = models.DateTimeField(null=True, blank=True)
+    # Paused by an operator: its drones hold where they are until it is resumed.
+    held = models.BooleanField(default=False)
 
     objects = MissionQuerySet.as_manager()
 

@@ -60,6 +60,7 @@ class MissionSerializer(serializers.ModelSerializer):
             "created_at",
             "started_at",
             "ended_at",
+            "held",
         ]
         read_only_fields = fields
 

@@ -233,6 +233,10 @@ def send_assignment(assignment: Assignment) -> None:
         {**message.to_dict(), "ts": protocol.now()},
         ttl=settings.MISSIONS_START_TTL_S,
     )
+    if Mission.objects.filter(pk=assignment.mission_id, held=True).exists():
+        # A drone sent to a paused mission (a replacement) holds as the others do.
+        pause = protocol.mission_pause(str(assignment.mission_id), "pause").to_dict()
+        outbox.send_to_drone(assignment.drone.drone_id, "mission", pause)
 
 
 def send_stop(drone_id: str, mission_id: str, then: str | None = None) -> None:
@@ -595,6 +599,11 @@ def _apply_mission_status(
             dispatch_queued(mission, drone)
         if assignment is not None and message.status == "rejected":
             _rejected(mission, drone, assignment, message.error)
+        if message.status in ("paused", "resumed"):
+            # A drone held by its own page pauses the mission it flies: the mission
+            # page then offers Resume.
+            held = message.status == "paused"
+            Mission.objects.filter(pk=mission.pk, status=MissionStatus.RUNNING).update(held=held)
     return None
 
 

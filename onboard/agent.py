@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from . import protocol
-from .controller import Controller
+from .controller import CommandError, Controller
 from .envelope import EnvelopeGuard
 from .failsafe import FailSafe, GroundClock, Limits
 from .fc.base import FlightController
@@ -96,7 +96,6 @@ class Agent:
         self._recent = RecentIds(RECENT_REQUESTS)
         self.sent: Counter[str] = Counter()
         self.logger = FlightLogger(config.log_dir, self.drone_id) if config.log_dir else None
-        events = self._event
         self.gear = GearManager(
             config.gear_dir,
             self.send,
@@ -112,7 +111,7 @@ class Agent:
             self.navigation,
             gear=self.gear,
             arm_timeout=config.arm_timeout,
-            events=events,
+            events=self._event,
             guard=self.envelope.refusal,
         )
         self.worker = MissionWorker(
@@ -125,7 +124,7 @@ class Agent:
             on_reading=self._on_reading,
             time_scale=config.time_scale,
             flight_timeout=config.flight_timeout,
-            events=events,
+            events=self._event,
         )
         self.failsafe = FailSafe(
             fc,
@@ -137,6 +136,7 @@ class Agent:
             time_scale=config.time_scale,
         )
         self.worker.on_end = self.failsafe.mission_ended
+        self.controller.actions.update(hold=self._hold, **{"return": self._return})
         self.ground_clock = GroundClock()
         self.mqtt = self._mqtt_link(config)
         self.heartbeater = Heartbeater(config.heartbeat_interval, self._beat)
@@ -386,6 +386,22 @@ class Agent:
             )
         self.send("control", response)
 
+    def _hold(self, params: dict, context: dict) -> dict:
+        """Operator hold: a running mission is paused (resumable), else hover here."""
+        if not self.fc.state.airborne:
+            raise CommandError("The drone is on the ground; there is nothing to hold.")
+        paused = self.worker.pause_current()
+        if paused is not None:
+            return {"mode": "hold", "mission_paused": paused}
+        return {"mode": self.failsafe.hold_here("held by the operator")}
+
+    def _return(self, params: dict, context: dict) -> dict:
+        """Operator return: home at this altitude, land, disarm (lands here when the
+        energy left would not get it home)."""
+        if not self.fc.state.airborne:
+            raise CommandError("The drone is on the ground; it is home already.")
+        return {"mode": self.failsafe.return_home("return requested by the operator")}
+
     def _mission(self, topic: str, obj: Any) -> None:
         try:
             request = protocol.parse_mission_request(obj)
@@ -422,7 +438,7 @@ class Agent:
             return
         if isinstance(request, protocol.MissionStart):
             self.failsafe.ground_took_over()
-        else:
+        elif isinstance(request, protocol.MissionStop):
             # Not a takeover: a late stop for a mission the fail-safe already ended must
             # not leave a returning drone hovering.
             self.failsafe.after_stop = follow_up

@@ -44,6 +44,8 @@ class Controller:
         self.gear = gear
         self.arm_timeout = arm_timeout
         self.events = events or (lambda kind, details: None)
+        # Commands the agent carries out itself (operator hold and return), by name.
+        self.actions: dict[str, Callable[[dict, dict], dict]] = {}
 
     def handle(self, request: protocol.ControlRequest) -> protocol.ControlResponse:
         """Run a parsed control request and build its response (never raises)."""
@@ -75,7 +77,7 @@ class Controller:
 
     def execute(self, command: str, params: dict, *, context: dict | None = None) -> dict:
         """Carry out one validated command; return its result or raise CommandError."""
-        handler = getattr(self, f"_do_{command}", None)
+        handler = self.actions.get(command) or getattr(self, f"_do_{command}", None)
         if handler is None:
             raise CommandError(f"The command {command!r} is not supported by this drone.")
         try:

@@ -38,6 +38,11 @@ class MissionStopped(Exception):
     """Raised inside a waiting step when the mission is stopped."""
 
 
+class StepPaused(Exception):
+    """Raised inside a waiting step when the mission is paused: the step is flown again,
+    from its start, on resume."""
+
+
 @dataclass
 class RunningMission:
     payload: protocol.MissionPayload
@@ -47,6 +52,16 @@ class RunningMission:
     index: int | None = None
     stop: threading.Event = field(default_factory=threading.Event)
     stop_reason: str | None = None
+    # Set while the operator has the mission paused; `wake` interrupts any wait at a stop,
+    # a pause or a resume.
+    paused: threading.Event = field(default_factory=threading.Event)
+    wake: threading.Event = field(default_factory=threading.Event)
+    # The step a pause interrupted, flown again on resume without a second "started".
+    retry: protocol.Step | None = None
+    # Where the drone was going when it was paused, flown to again on resume.
+    saved_target: Any = None
+    # When each step was first started (monotonic), so a re-flown step is announced once.
+    started: dict[int, float] = field(default_factory=dict)
 
 
 def position_of(state: VehicleState) -> protocol.Position | None:
@@ -149,12 +164,41 @@ class MissionWorker:
 
     # -- requests from the ground ---------------------------------------------------------
 
-    def submit(self, request: protocol.MissionStart | protocol.MissionStop) -> None:
+    def submit(
+        self, request: protocol.MissionStart | protocol.MissionStop | protocol.MissionPause
+    ) -> None:
         """Handle a parsed `<id>/mission/in` message (called from the MQTT thread)."""
         if isinstance(request, protocol.MissionStop):
             self._handle_stop(request)
+        elif isinstance(request, protocol.MissionPause):
+            self._handle_pause(request)
         else:
             self._handle_start(request)
+
+    def _handle_pause(self, request: protocol.MissionPause) -> None:
+        """Pause or resume the running mission; the worker thread holds and re-flies."""
+        with self._lock:
+            running = self._mission
+        pausing = request.action == "pause"
+        if running is None or running.payload.mission_id != request.mission_id:
+            error = "The mission is not running on this drone."
+        elif running.stop.is_set():
+            error = "The mission is stopping."
+        elif running.paused.is_set() == pausing:
+            error = f"The mission is {'already' if pausing else 'not'} paused."
+        else:
+            error = None
+        if error is not None:
+            self._mission_status(protocol.mission_reply(request, "rejected", error=error))
+            return
+        if pausing:
+            running.paused.set()
+        else:
+            running.paused.clear()
+        running.wake.set()
+        status = "paused" if pausing else "resumed"
+        self.events("mission", {"event": status, "mission_id": request.mission_id})
+        self._mission_status(protocol.mission_reply(request, status))
 
     def _handle_start(self, start: protocol.MissionStart) -> None:
         try:
@@ -193,6 +237,22 @@ class MissionWorker:
             return
         self.stop_current("stopped by the ground", request_id=stop.request_id)
 
+    def pause_current(self) -> str | None:
+        """Pause the running mission (an operator's hold); its id, or None if none runs."""
+        with self._lock:
+            mission = self._mission
+        if mission is None or mission.stop.is_set():
+            return None
+        payload = mission.payload
+        if not mission.paused.is_set():
+            mission.paused.set()
+            mission.wake.set()
+            self.events("mission", {"event": "paused", "mission_id": payload.mission_id})
+            self.publish(
+                protocol.MissionProgress(payload.mission_id, payload.assignment_id, "paused")
+            )
+        return payload.mission_id
+
     def stop_current(self, reason: str, *, request_id: str | None = None) -> bool:
         """Stop the running mission (from the ground or the fail-safe); False if none."""
         with self._lock:
@@ -203,6 +263,7 @@ class MissionWorker:
         if request_id is not None:
             mission.request_id = request_id
         mission.stop.set()
+        mission.wake.set()
         return True
 
     # -- the worker thread ----------------------------------------------------------------
@@ -228,16 +289,24 @@ class MissionWorker:
 
     def _execute(self, mission: RunningMission) -> None:
         while True:
+            if mission.paused.is_set():
+                self._hold_while_paused(mission)
             if mission.stop.is_set():
+                self._close_retry(mission)
                 self._finish(mission, "stopped", mission.stop_reason)
                 return
-            try:
-                step = mission.steps.get_nowait()
-            except queue.Empty:
-                self._finish(mission, "completed", None)
-                return
+            step, mission.retry = mission.retry, None
+            if step is None:
+                try:
+                    step = mission.steps.get_nowait()
+                except queue.Empty:
+                    self._finish(mission, "completed", None)
+                    return
             mission.index = step.index
             ok, error = self._run_step(mission, step)
+            if not ok and error is None:  # paused part-way: flown again on resume
+                mission.retry = step
+                continue
             if not ok:
                 if mission.stop.is_set():
                     self._finish(mission, "stopped", mission.stop_reason)
@@ -248,6 +317,48 @@ class MissionWorker:
                         f"Step {step.index} ({step.command}) failed: {error}",
                     )
                 return
+
+    def _close_retry(self, mission: RunningMission) -> None:
+        """A step a pause interrupted, then a stop ended, is reported failed like any
+        step a stop interrupts."""
+        step, mission.retry = mission.retry, None
+        if step is not None:
+            started = mission.started[step.index]
+            self._record_step(mission, step, "failed", started, {}, "the mission was stopped")
+
+    def _hold_while_paused(self, mission: RunningMission) -> None:
+        """Hold where the drone is until resumed (or stopped), then head for the target it
+        had when paused. A drone still on the ground is left as it is."""
+        state = self.fc.state
+        here = current_ned(state)
+        mission.saved_target = None
+        if state.airborne and here is not None:
+            mission.saved_target = self.navigation.last_target
+            self.navigation.hold_at(here)
+        while mission.paused.is_set() and not mission.stop.is_set():
+            mission.wake.wait(0.5)
+            mission.wake.clear()
+        saved, mission.saved_target = mission.saved_target, None
+        if saved is None or mission.stop.is_set():
+            return
+        if saved.kind == "land":
+            self.navigation.execute("land", {})
+        else:
+            self.navigation.hold_at(saved.ned)
+
+    def _wait(self, mission: RunningMission, seconds: float) -> None:
+        """Wait `seconds` (wall), or raise at once when the mission is stopped or paused."""
+        deadline = time.monotonic() + seconds
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return
+            if mission.wake.wait(left):
+                mission.wake.clear()  # before the checks: a later pause sets it again
+            if mission.stop.is_set():
+                raise MissionStopped()
+            if mission.paused.is_set():
+                raise StepPaused()
 
     def _finish(self, mission: RunningMission, status: str, error: str | None) -> None:
         payload = mission.payload
@@ -270,21 +381,15 @@ class MissionWorker:
             log.exception("the end of mission %s was not handled", payload.mission_id)
 
     def _run_step(self, mission: RunningMission, step: protocol.Step) -> tuple[bool, str | None]:
-        payload = mission.payload
-        self._step_status(mission, step, "started")
-        self.events(
-            "step",
-            {
-                "event": "started",
-                "mission_id": payload.mission_id,
-                "index": step.index,
-                "command": step.command,
-                "position": position_of(self.fc.state),
-            },
-        )
-        started = time.monotonic()  # after the started message: only the step is timed
+        """(True, None) done, (False, why) failed, (False, None) paused part-way."""
+        if step.index not in mission.started:  # a step flown again is reported once
+            mission.started[step.index] = time.monotonic()
+            self._announce(mission, step)
+        started = mission.started[step.index]  # only the step is timed, pauses included
         try:
             result = self._dispatch(mission, step)
+        except StepPaused:
+            return False, None
         except (StepFailed, CommandError, MissionStopped) as exc:
             error = str(exc) if not isinstance(exc, MissionStopped) else "the mission was stopped"
             self._record_step(mission, step, "failed", started, {}, error)
@@ -296,6 +401,19 @@ class MissionWorker:
             return False, error
         self._record_step(mission, step, "completed", started, result, None)
         return True, None
+
+    def _announce(self, mission: RunningMission, step: protocol.Step) -> None:
+        self._step_status(mission, step, "started")
+        self.events(
+            "step",
+            {
+                "event": "started",
+                "mission_id": mission.payload.mission_id,
+                "index": step.index,
+                "command": step.command,
+                "position": position_of(self.fc.state),
+            },
+        )
 
     def _record_step(
         self,
@@ -339,8 +457,7 @@ class MissionWorker:
         if step.command == "wait_for_flight":
             return self._wait_for_flight(mission, **step.params)
         if step.command == "sleep":
-            if mission.stop.wait(step.params["value"] / self.time_scale):
-                raise MissionStopped()
+            self._wait(mission, step.params["value"] / self.time_scale)
             return {}
         if step.command == "virtualalarm":
             self.raise_alarm(
@@ -389,8 +506,7 @@ class MissionWorker:
                 raise StepFailed(
                     f"The drone did not reach the target within {self.flight_timeout:g} s."
                 )
-            if mission.stop.wait(self.poll_interval):
-                raise MissionStopped()
+            self._wait(mission, self.poll_interval)
 
     # -- progress messages ----------------------------------------------------------------
 

@@ -1269,3 +1269,54 @@ def parse_envelope_update(obj: Any) -> EnvelopeUpdate:
 
 
 PARSERS[("envelope", "in")] = parse_envelope_update
+
+
+# Mission pause and resume (optional): `action: pause` holds the drone where it is and
+# keeps the mission's place; `action: resume` carries on from the step it was on. The drone
+# answers each with a mission progress of status `paused` or `resumed` (or `rejected`, with
+# the reason, when there is nothing to pause or resume).
+PAUSE_ACTIONS = ("pause", "resume")
+MISSION_ACTIONS = (*MISSION_ACTIONS, *PAUSE_ACTIONS)
+MISSION_STATUSES = (*MISSION_STATUSES, "paused", "resumed")
+
+
+@dataclass(frozen=True)
+class MissionPause:
+    request_id: str
+    mission_id: str
+    action: str  # "pause" or "resume"
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def mission_pause(mission_id: str | int, action: str) -> MissionPause:
+    """A ready-to-send pause or resume request for the ground (fresh request id)."""
+    return MissionPause(new_request_id(), str(mission_id), _choice(action, "action", PAUSE_ACTIONS))
+
+
+_parse_start_or_stop = parse_mission_request
+
+
+def parse_mission_request(obj: Any) -> MissionStart | MissionStop | MissionPause:  # noqa: F811
+    """A `<id>/mission/in` message, pause and resume included."""
+    obj = _object(obj, "message")
+    if obj.get("action") not in PAUSE_ACTIONS:
+        return _parse_start_or_stop(obj)
+    return MissionPause(
+        _request_id(_require(obj, "request_id")),
+        _identifier(_require(obj, "mission_id"), "mission_id"),
+        obj["action"],
+    )
+
+
+PARSERS[("mission", "in")] = parse_mission_request
+
+
+# Operator controls (optional): `hold` hovers where the drone is (pausing a running
+# mission, which `resume` carries on) and `return` flies home at the current altitude,
+# lands and disarms. Neither is a mission step.
+OPERATOR_COMMANDS = ("hold", "return")
+CONTROL_COMMANDS = (*CONTROL_COMMANDS, *OPERATOR_COMMANDS)
+_CONTROL_SET = frozenset(CONTROL_COMMANDS)
+_PARAMS.update({command: _no_params for command in OPERATOR_COMMANDS})

@@ -19,15 +19,20 @@
     set("battery", live.percent(drone.battery));
     const p = drone.position;
     set("position", p ? `${live.position(p)}, ${Number(p.alt).toFixed(1)} m` : "no fix");
+    missionId = drone.mission ? drone.mission.mission_id : null;
     set("mission", drone.mission ? `${drone.mission.mission_id} step ${live.missionStep(drone.mission)}` : "–");
     set("last_seen", live.clock(drone.last_seen));
   }
 
   live.connect(config, show);
 
+  // The mission the drone reports flying, for Resume; kept current by the live updates.
+  let missionId = config.drones[0].mission ? config.drones[0].mission.mission_id : null;
+
   function params(form) {
     const out = {};
     for (const input of form.querySelectorAll("input")) {
+      if (input.dataset.confirmTyped !== undefined) continue;
       if (input.type === "checkbox") { if (input.checked) out[input.name] = true; continue; }
       if (input.value === "") continue;
       out[input.name] = input.dataset.type === "text" ? input.value : Number(input.value);
@@ -35,8 +40,35 @@
     return out;
   }
 
+  /* A command that starts the motors is sent only once the drone's id has been typed. */
+  function confirmed(form, command) {
+    const typed = form.querySelector("input[data-confirm-typed]");
+    if (!typed || typed.value.trim() === typed.dataset.confirmTyped) return true;
+    result.textContent = `${command}: not sent. Type ${typed.dataset.confirmTyped} to confirm.`;
+    result.dataset.status = "error";
+    typed.focus();
+    return false;
+  }
+
+  async function resumeMission() {
+    if (!missionId) {
+      result.textContent = "resume: the drone is not flying a mission.";
+      result.dataset.status = "error";
+      return;
+    }
+    const response = await fetch(`/api/v1/missions/${encodeURIComponent(missionId)}/resume/`, {
+      method: "POST",
+      credentials: "same-origin",
+      headers: { "X-CSRFToken": csrf, Accept: "application/json" },
+    });
+    const body = await response.json().catch(() => ({}));
+    result.textContent = response.ok ? "resume: the mission carries on" : `resume: ${response.status} ${body.error || ""}`;
+    result.dataset.status = response.ok ? "ok" : "error";
+  }
+
   async function send(form) {
     const command = form.dataset.command;
+    if (!confirmed(form, command)) return;
     if (form.dataset.confirm && !window.confirm(form.dataset.confirm)) return;
     const buttons = form.querySelectorAll("button");
     buttons.forEach((b) => { b.disabled = true; });
@@ -66,5 +98,8 @@
 
   for (const form of document.querySelectorAll("form[data-command]")) {
     form.addEventListener("submit", (event) => { event.preventDefault(); send(form); });
+  }
+  for (const form of document.querySelectorAll("form[data-mission-action]")) {
+    form.addEventListener("submit", (event) => { event.preventDefault(); resumeMission(); });
   }
 })();

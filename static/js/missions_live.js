@@ -112,6 +112,7 @@
   const live = document.getElementById("live-status");
   M.liveSocket(config.socket, (message) => {
     if (message.type === "picture") refreshPictures();
+    if (message.type === "event" && (message.kind === "mission" || message.kind === "operator")) syncHeld();
     schedule();
   }, (up) => { live.textContent = up ? "live" : "reconnecting…"; live.className = `badge ${up ? "ok" : "off"}`; });
 
@@ -122,6 +123,32 @@
       const box = document.getElementById("mission-error");
       try { await M.api("POST", `${config.missionApi}stop/`); box.hidden = true; stop.remove(); }
       catch (error) { box.textContent = error.message; box.hidden = false; }
+      refresh();
+    });
+  }
+  /* Pause holds every drone of the mission where it is; Resume lets each carry on from its
+     step. One click each: neither starts a motor. */
+  const pause = document.getElementById("pause-mission");
+  const resume = document.getElementById("resume-mission");
+  function showHeld(held) {
+    if (pause) pause.hidden = held;
+    if (resume) resume.hidden = !held;
+  }
+  async function syncHeld() {
+    if (!pause && !resume) return;
+    try { showHeld((await M.api("GET", config.missionApi)).held); } catch (error) { /* next push retries */ }
+  }
+  for (const button of [pause, resume]) {
+    if (!button) continue;
+    button.addEventListener("click", async () => {
+      const box = document.getElementById("mission-error");
+      button.disabled = true;
+      try {
+        const mission = await M.api("POST", `${config.missionApi}${button.dataset.action}/`);
+        showHeld(mission.held);
+        box.hidden = true;
+      } catch (error) { box.textContent = error.message; box.hidden = false; }
+      button.disabled = false;
       refresh();
     });
   }

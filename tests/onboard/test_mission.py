@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import json
 import queue
 import threading
 import time
@@ -259,3 +260,92 @@ def test_wait_for_flight_after_land_waits_until_the_drone_is_down(harness: Harne
     harness.fc.move_to(10, 0, 0)
     assert harness.until_mission_status()[-1].status == "completed"
     assert harness.fc.state.armed is False
+
+
+def _pause(harness: Harness, action: str, mission_id: str = "m1") -> protocol.MissionProgress:
+    harness.worker.submit(protocol.mission_pause(mission_id, action))
+    while True:
+        message = harness.next()
+        if isinstance(message, protocol.MissionProgress):
+            return message
+
+
+def _wait_for_call(fc, call: tuple, since: int = 0, timeout: float = 5.0) -> None:
+    deadline = time.monotonic() + timeout
+    while call not in fc.calls[since:]:
+        assert time.monotonic() < deadline, f"{call} never sent; calls: {fc.calls}"
+        time.sleep(0.01)
+
+
+def test_pause_holds_mid_flight_and_resume_flies_the_step_again_reported_once(
+    harness: Harness,
+) -> None:
+    """Rule: a pause interrupts a waiting step and holds where the drone is; resume heads
+    for the paused target again and carries on from that step, each step reported once."""
+    harness.fc._state.update(armed=True)  # airborne: armed and above 0.5 m
+    harness.fc.move_to(0.0, 0.0, -10.0)
+    harness.send(
+        [
+            {"index": 0, "command": "arm"},
+            {"index": 1, "command": "takeoff", "params": {"altitude": 10}},
+            {"index": 2, "command": "changeN", "params": {"value": 50}},
+            {"index": 3, "command": "wait_for_flight"},
+            {"index": 4, "command": "sleep", "params": {"value": 1}},
+        ]
+    )
+    seen = []
+    while not (isinstance(m := harness.next(), protocol.StepProgress) and m.index == 3):
+        seen.append(m)
+    seen.append(m)
+    harness.fc.move_to(10.0, 0.0, -10.0)  # on the way north
+    paused = _pause(harness, "pause")
+    assert paused.status == "paused" and paused.request_id is not None
+    _wait_for_call(harness.fc, ("goto", 10.0, 0.0, -10.0))  # held where it was
+    assert _pause(harness, "pause").status == "rejected"  # already paused
+    calls_before = len(harness.fc.calls)
+    assert _pause(harness, "resume").status == "resumed"
+    _wait_for_call(harness.fc, ("goto", 50.0, 0.0, -10.0), since=calls_before)
+    harness.fc.move_to(50.0, 0.0, -10.0)
+    seen += harness.until_mission_status()
+    steps = [(m.index, m.status) for m in seen if isinstance(m, protocol.StepProgress)]
+    assert steps == [(i, s) for i in range(5) for s in ("started", "completed")]
+    assert seen[-1].status == "completed"
+
+
+def test_a_pause_interrupts_a_sleep_and_a_stop_ends_the_paused_mission_there(
+    harness: Harness,
+) -> None:
+    harness.send(
+        [{"index": 0, "command": "sleep", "params": {"value": 100}}, {"index": 1, "command": "arm"}]
+    )
+    while not (isinstance(m := harness.next(), protocol.StepProgress) and m.status == "started"):
+        pass
+    assert _pause(harness, "pause").status == "paused"
+    time.sleep(0.2)
+    assert harness.worker.current.index == 0 and ("arm",) not in harness.fc.calls
+    harness.worker.submit(protocol.MissionStop(protocol.new_request_id(), "m1"))
+    rest = harness.until_mission_status()
+    assert [(m.index, m.status) for m in rest[:-1]] == [(0, "failed")]
+    assert rest[-1].status == "stopped"
+    assert ("arm",) not in harness.fc.calls
+
+
+def test_pause_and_resume_without_a_running_mission_are_refused(harness: Harness) -> None:
+    refused = _pause(harness, "pause", "nope")
+    assert refused.status == "rejected" and "not running" in refused.error
+    harness.send([{"index": 0, "command": "sleep", "params": {"value": 100}}])
+    while not isinstance(harness.next(), protocol.StepProgress):
+        pass
+    refused = _pause(harness, "resume")
+    assert refused.status == "rejected" and "not paused" in refused.error
+    harness.worker.stop_current("test over")
+
+
+def test_pause_requests_parse_and_unknown_actions_are_refused() -> None:
+    request = protocol.mission_pause(7, "pause")
+    parsed = protocol.parse_mission_request(json.loads(protocol.encode(request)))
+    assert parsed == request
+    with pytest.raises(protocol.ProtocolError, match="action"):
+        protocol.parse_mission_request({**request.to_dict(), "action": "hover"})
+    with pytest.raises(protocol.ProtocolError, match="action"):
+        protocol.mission_pause(7, "hover")

@@ -157,7 +157,7 @@ def test_mission_requests_parse_start_and_stop() -> None:
     assert isinstance(stop, p.MissionStop)
     with pytest.raises(p.ProtocolError) as caught:
         p.parse_mission_request(
-            {"request_id": p.new_request_id(), "action": "pause", "mission_id": "m1"}
+            {"request_id": p.new_request_id(), "action": "hover", "mission_id": "m1"}
         )
     assert caught.value.field == "action"
 
