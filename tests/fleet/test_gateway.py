@@ -306,8 +306,17 @@ def test_the_gateway_command_connects_and_drains_on_sigterm(broker, tmp_path):
         TEST_WORKER_DB_NAME=django_settings.DATABASES["default"]["NAME"],
         PYTHONUNBUFFERED="1",
     )
+    client_id = f"gateway-sigterm-test-{os.getpid()}"
     process = subprocess.Popen(
-        [sys.executable, "manage.py", "gateway", "--broker", broker.url_for("ground")],
+        [
+            sys.executable,
+            "manage.py",
+            "gateway",
+            "--broker",
+            broker.url_for("ground"),
+            "--client-id",
+            client_id,
+        ],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         env=env,
@@ -321,8 +330,20 @@ def test_the_gateway_command_connects_and_drains_on_sigterm(broker, tmp_path):
     finally:
         if process.poll() is None:
             process.kill()
+        # The gateway's session is persistent and keeps its share of `$share` replies on the
+        # broker this module shares with later tests: end the session as an operator would.
+        _end_session(broker.url_for("ground"), client_id)
     assert process.returncode == 0
     assert "gateway: stopped" in output
+
+
+def _end_session(url: str, client_id: str) -> None:
+    """Connect once with a clean session under `client_id`, which discards the old one."""
+    from .conftest import mqtt_client
+
+    client = mqtt_client(url, client_id=client_id)
+    client.disconnect()
+    client.loop_stop()
 
 
 def test_a_batch_of_heartbeats_is_one_update_keeping_each_drones_newest(world_tx):
