@@ -306,42 +306,31 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     @action(detail=True, methods=["post"])
     def stop(self, request: Request, pk: str | None = None) -> Response:
         """Stop every drone flying the mission (stopchain)."""
-        mission = self._writable(pk)
-        try:
-            stop_mission(mission, user=request.user)
-        except MissionError as exc:
-            raise refuse(exc) from None
-        mission.refresh_from_db()
-        return Response(MissionDetailSerializer(mission).data)
+        return self._operate(pk, request, stop_mission)
 
     @extend_schema(request=None, responses=MissionDetailSerializer)
     @action(detail=True, methods=["post"])
     def release(self, request: Request, pk: str | None = None) -> Response:
         """Release a panic call: its drone returns home and lands; the call is completed."""
-        mission = self._writable(pk)
-        try:
-            panic.release(mission, user=request.user)
-        except MissionError as exc:
-            raise refuse(exc) from None
-        mission.refresh_from_db()
-        return Response(MissionDetailSerializer(mission).data)
+        return self._operate(pk, request, panic.release)
 
     @extend_schema(request=None, responses=MissionDetailSerializer)
     @action(detail=True, methods=["post"])
     def pause(self, request: Request, pk: str | None = None) -> Response:
         """Pause a running mission: its drones hold where they are (409 unless running)."""
-        return self._hold(pk, request, hold.pause)
+        return self._operate(pk, request, hold.pause)
 
     @extend_schema(request=None, responses=MissionDetailSerializer)
     @action(detail=True, methods=["post"])
     def resume(self, request: Request, pk: str | None = None) -> Response:
         """Resume a paused mission: each drone carries on from its step (409 unless paused)."""
-        return self._hold(pk, request, hold.resume)
+        return self._operate(pk, request, hold.resume)
 
-    def _hold(self, pk: str | None, request: Request, switch: Any) -> Response:
+    def _operate(self, pk: str | None, request: Request, operation: Any) -> Response:
+        """Run one operator action on a mission the user may change; a refusal is an error."""
         mission = self._writable(pk)
         try:
-            switch(mission, user=request.user)
+            operation(mission, user=request.user)
         except MissionError as exc:
             raise refuse(exc) from None
         mission.refresh_from_db()
