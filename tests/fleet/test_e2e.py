@@ -47,13 +47,15 @@ def fleet(world_tx, broker, gateway, tmp_path, settings):  # type: ignore[no-unt
     try:
         online = wait_for(
             lambda: (
-                Drone.objects.filter(drone_id__in=IDS, online=True).exclude(specs={}).count()
+                Drone.objects.filter(drone_id__in=IDS, online=True, lat__isnull=False)
+                .exclude(specs={})
+                .count()
                 == len(IDS)
             ),
             timeout=30,
             interval=0.1,
         )
-        assert online, "both simulated drones came online with their gear"
+        assert online, "both simulated drones came online with their gear and a position"
         yield running
     finally:
         running.stop()
