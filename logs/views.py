@@ -16,13 +16,6 @@ from logs.uploads import human_bytes
 MAX_COMPARED = 4
 
 
-def _viewer_settings() -> dict:
-    return {
-        "tile_url": getattr(settings, "MAP_TILE_URL", ""),
-        "tile_attribution": getattr(settings, "MAP_TILE_ATTRIBUTION", ""),
-    }
-
-
 @login_required
 def log_list(request: HttpRequest) -> HttpResponse:
     organisation = request.organisation  # type: ignore[attr-defined]
@@ -68,7 +61,6 @@ def log_detail(request: HttpRequest, pk: uuid.UUID) -> HttpResponse:
             "others": FlightLog.objects.filter(
                 organisation=log.organisation, status=LogStatus.READY
             ).exclude(pk=log.pk)[:50],
-            **_viewer_settings(),
         },
     )
 
@@ -101,5 +93,5 @@ def log_compare(request: HttpRequest) -> HttpResponse:
     return render(
         request,
         "logs/compare.html",
-        {"logs": [found[i] for i in ids], **_viewer_settings()},
+        {"logs": [found[i] for i in ids]},
     )

@@ -18,7 +18,7 @@ from pathlib import Path
 
 ROOT = Path(os.environ.get("SKYHIVE_LAYERS_ROOT") or Path(__file__).resolve().parents[1])
 
-DJANGO_APPS = ("fleet", "missions", "telemetry", "logs", "pastview", "workers")
+DJANGO_APPS = ("fleet", "missions", "telemetry", "logs", "pastview", "workers", "tiles")
 PLAIN_PACKAGES = ("onboard", "firmware")
 PACKAGES = DJANGO_APPS + PLAIN_PACKAGES
 DOMAIN_APPS = ("fleet", "missions", "telemetry", "logs", "pastview")

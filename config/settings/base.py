@@ -250,9 +250,10 @@ CELERY_BEAT_SCHEDULE["fleet.sweep_offline"] = {
     "schedule": OFFLINE_SWEEP_INTERVAL_S,
     "options": {"expires": OFFLINE_SWEEP_INTERVAL_S},
 }
-# Map tiles for the fleet map; empty shows a plain background (tests, offline sites).
-MAP_TILE_URL = env.str("MAP_TILE_URL", "https://tile.openstreetmap.org/{z}/{x}/{y}.png")
-MAP_TILE_ATTRIBUTION = env.str("MAP_TILE_ATTRIBUTION", "&copy; OpenStreetMap contributors")
+# Another tile server for every map (like one on the site's own network); empty (the
+# default) uses the portal's own tiles (/tiles/, see "map tiles" below).
+MAP_TILE_URL = env.str("MAP_TILE_URL", "")
+MAP_TILE_ATTRIBUTION = env.str("MAP_TILE_ATTRIBUTION", "")
 # Broker users kept in Mosquitto's passwd file when it is regenerated from the drones.
 MQTT_SERVICE_USERS = env.list("MQTT_SERVICE_USERS", cast=str.strip, default=["ground"])
 # What provision_drone tells a drone to connect to (default: MQTT_URL's host and port).
@@ -315,3 +316,23 @@ INSTALLED_APPS += ["pastview"]  # app label "pastview"
 PASTVIEW_PUSH_HZ = env.float("PASTVIEW_PUSH_HZ", 30.0)
 PASTVIEW_TELEOP_HZ = env.float("PASTVIEW_TELEOP_HZ", 4.0)
 PASTVIEW_TELEOP_STEP_M = env.float("PASTVIEW_TELEOP_STEP_M", 0.5)
+
+# --- map tiles (offline first) ---
+INSTALLED_APPS += ["tiles", "drf_spectacular_sidecar"]
+TEMPLATES[0]["OPTIONS"]["context_processors"].append("tiles.layer.map_layer_context")
+# Imported tile sets and the cache of the online source (manage.py import_tiles, the admin).
+TILES_DIR = env.str("TILES_DIR", f"{DATA_DIR}/tiles")
+TILES_UPLOAD_MAX_BYTES = env.int("TILES_UPLOAD_MAX_BYTES", 1024**3)
+# Browsers keep a served tile this long before asking again (then 304 when unchanged).
+TILE_CACHE_MAX_AGE_S = env.int("TILE_CACHE_MAX_AGE_S", 7 * 86400)
+# An online tile source (like https://tile.openstreetmap.org/{z}/{x}/{y}.png) the portal
+# fetches missing tiles from and keeps: off by default, nothing leaves the server.
+TILE_UPSTREAM_URL = env.str("TILE_UPSTREAM_URL", "")
+TILE_UPSTREAM_ATTRIBUTION = env.str(
+    "TILE_UPSTREAM_ATTRIBUTION", "&copy; OpenStreetMap contributors"
+)
+TILE_UPSTREAM_TIMEOUT_S = env.float("TILE_UPSTREAM_TIMEOUT_S", 5.0)
+# Swagger UI and Redoc from the installed sidecar package, never from a CDN.
+SPECTACULAR_SETTINGS.update(
+    {"SWAGGER_UI_DIST": "SIDECAR", "SWAGGER_UI_FAVICON_HREF": "SIDECAR", "REDOC_DIST": "SIDECAR"}
+)

@@ -10,6 +10,7 @@ read_data_env(BASE_DIR / ".data" / "test" / "env")
 # (scripts/bench.sh) to measure what production runs.
 os.environ.setdefault("DB_POOL", "false")
 os.environ.setdefault("MEDIA_ROOT", str(BASE_DIR / ".data" / "test" / "media"))
+os.environ.setdefault("TILES_DIR", str(BASE_DIR / ".data" / "test" / "tiles"))
 # The suite logs in from one address far more often than a person; the throttling tests
 # set the production rates themselves.
 os.environ.setdefault("AUTH_TOKEN_RATE", "10000/min")

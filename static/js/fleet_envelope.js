@@ -7,10 +7,7 @@
   const status = document.getElementById("envelope-status");
   const csrf = document.querySelector('meta[name="csrf-token"]').content;
   const limits = ["max_height", "max_distance", "min_move_height", "battery_reserve"];
-  const map = L.map("envelope-map");
-  if (config.tileUrl) {
-    L.tileLayer(config.tileUrl, { maxZoom: 19, attribution: config.attribution }).addTo(map);
-  }
+  const map = SkyhiveMap.create("envelope-map");
   map.setView([38.7369, -9.1427], 13);
   const drawn = L.layerGroup().addTo(map);
   document.getElementById("envelope-export").href = config.apiUrl + "plan/";

@@ -4,10 +4,7 @@
   "use strict";
   const config = JSON.parse(document.getElementById("fleet-config").textContent);
   const live = window.SkyhiveLive;
-  const map = L.map("fleet-map", { zoomControl: true });
-  if (config.tileUrl) {
-    L.tileLayer(config.tileUrl, { maxZoom: 19, attribution: config.attribution }).addTo(map);
-  }
+  const map = SkyhiveMap.create("fleet-map", { zoomControl: true });
   map.setView([38.7369, -9.1427], 13);
   const markers = new Map();
   let fitted = false;

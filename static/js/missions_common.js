@@ -1,5 +1,5 @@
 /* Shared helpers of the mission pages: the JSON API with CSRF, a Leaflet map with the
-   configured tiles (none in tests: no internet there), colours per drone. */
+   portal's base layers (static/js/map_base.js), colours per drone. */
 (function () {
   "use strict";
 
@@ -33,12 +33,8 @@
     return String(text).replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" }[c]));
   }
 
-  function makeMap(elementId, config) {
-    const map = L.map(elementId, { zoomControl: true });
-    if (config && config.tileUrl) {
-      L.tileLayer(config.tileUrl, { maxZoom: 21, maxNativeZoom: 19, attribution: config.attribution || "" }).addTo(map);
-    }
-    return map;
+  function makeMap(elementId) {
+    return SkyhiveMap.create(elementId, { zoomControl: true });
   }
 
   const PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b", "#e377c2"];

@@ -44,10 +44,7 @@ export class MapView {
     if (track.source === "gps") {
       this.title.textContent = "Map";
       this.note.textContent = track.tracks.length > 1 ? `GPS · ${track.tracks.length} tracks` : "GPS";
-      this.map = L.map(this.el, { attributionControl: Boolean(this.viewer.tileUrl), zoomSnap: 0.25 });
-      if (this.viewer.tileUrl) {
-        L.tileLayer(this.viewer.tileUrl, { attribution: this.viewer.tileAttribution, maxZoom: 19 }).addTo(this.map);
-      }
+      this.map = window.SkyhiveMap.create(this.el, { zoomSnap: 0.25 });
       tracks = track.tracks.map((one) => ({ name: one.name, t: one.t, points: one.lat.map((lat, i) => [lat, one.lon[i]]) }));
     } else {
       this.title.textContent = "Trajectory";

@@ -23,8 +23,6 @@ export class LogViewer extends EventTarget {
     this.root = root;
     this.api = root.dataset.api;
     this.wsPath = root.dataset.ws;
-    this.tileUrl = root.dataset.tileUrl || "";
-    this.tileAttribution = root.dataset.tileAttribution || "";
     this.compact = root.classList.contains("lv-compact");
     this.state = null;
   }
