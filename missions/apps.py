@@ -13,3 +13,8 @@ class MissionsConfig(AppConfig):
 
         drones_came_online.connect(resume_when_drones_come_online, dispatch_uid="missions-resume")
         drones_went_offline.connect(replace_when_drones_go_offline, dispatch_uid="missions-offline")
+
+        from .eventlog import drones_offline, drones_online
+
+        drones_came_online.connect(drones_online, dispatch_uid="missions-eventlog-online")
+        drones_went_offline.connect(drones_offline, dispatch_uid="missions-eventlog-offline")

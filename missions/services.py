@@ -22,7 +22,7 @@ from django.utils import timezone
 
 from fleet import envelopes
 from fleet.models import Drone, Organisation
-from missions import live
+from missions import eventlog, live
 from missions.models import (
     STEP_DONE,
     Assignment,
@@ -270,6 +270,8 @@ def record(
     event = Event.objects.create(
         mission=mission, drone=drone, kind=kind, message=message[:300], data=dict(data or {})
     )
+    if kind == Event.Kind.ALARM:
+        eventlog.note(f"alarm, mission {mission.name!r}: {event.message}")
     if push:
         payload = event_payload(event)
         transaction.on_commit(lambda: live.push(mission.pk, payload))
@@ -301,6 +303,7 @@ def move_mission(mission: Mission, new: str) -> bool:
     )
     if changed:
         transaction.on_commit(lambda: live.push(mission.pk, {"type": "mission", "status": new}))
+        eventlog.note(f"mission {mission.name!r} ({mission.pk}) {new}")
     else:
         mission.refresh_from_db()
     return bool(changed)

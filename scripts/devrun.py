@@ -1,5 +1,8 @@
 #!/usr/bin/env python
-"""Run the whole platform in the foreground with prefixed logs (what `make run` ends in).
+"""Run the whole platform in the foreground (what `make run` ends in): one line per process
+as it starts, then only warnings, errors and the drones' important events, prefixed with
+the process's name; each process's whole output goes to .data/run/logs/<name>.log
+(scripts/runlog.py).
 
 Starts the project's services if they are not running, migrates, creates the demo account,
 then web (ASGI), the MQTT gateway, telemetry ingest, a Celery worker and beat, and
@@ -22,6 +25,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from onboard.processes import Supervised  # noqa: E402
+from scripts.runlog import ProcessOutput  # noqa: E402
 from workers.ground import (  # noqa: E402
     MANAGE,
     beat_argv,
@@ -63,14 +67,19 @@ class Foreground:
         colour = COLOURS[len(self.processes) % len(COLOURS)]
         plain = f"{name:<{WIDTH}}| "
         prefix = f"\033[{colour}m{name:<{WIDTH}}|\033[0m " if sys.stdout.isatty() else plain
+        output = ProcessOutput(name, prefix)
 
         def exited(code: int) -> None:
             if not self.stopping.is_set():
-                sys.stdout.write(f"{prefix}exited with code {code}; stopping everything\n")
+                output.exited(code)
+                output.write("stopping everything")
                 self.stopping.set()
 
-        process = Supervised(name, argv, self.env, echo=prefix, on_exit=exited)
+        process = Supervised(
+            name, argv, self.env, log_path=output.log_path, on_line=output.on_line, on_exit=exited
+        )
         self.processes.append(process.start())
+        output.started(process.pid)
 
     def stop(self) -> None:
         """SIGTERM to each leader (Celery and uvicorn stop their own children cleanly),
