@@ -76,6 +76,9 @@ class PastViewConsumer(GroupConsumer):
     async def joined(self, target: tuple[Drone, bool]) -> None:
         self.drone, self.can_operate = target
         self.heading: float | None = None
+        # When (monotonic) this page last got a camera frame and a tracked pose of the drone.
+        self.live_at: float | None = None
+        self.tracked_at: float | None = None
         self.pending: Stick | None = None
         self.wakeup = asyncio.Event()
         self.worker: asyncio.Task | None = None
@@ -122,6 +125,10 @@ class PastViewConsumer(GroupConsumer):
         message = event["message"]
         if message.get("type") == "update":
             self._note_heading(message)
+            if message.get("tracking") == "tracked" and message.get("frame"):
+                self.tracked_at = time.monotonic()
+        elif message.get("type") == "live":
+            self.live_at = time.monotonic()
         await self.send_json(message)
 
     def _note_heading(self, update: dict | None) -> None:
@@ -175,9 +182,23 @@ class PastViewConsumer(GroupConsumer):
                 log.exception("teleoperation move for %s failed", self.drone)
                 await self._teleop_reply(False, "The move failed on the ground; try again.")
 
+    def stale_view(self) -> str | None:
+        """Why the operator's view is too old to steer from, or None: moves are sent only
+        while camera frames and tracked poses keep arriving (PASTVIEW_TELEOP_FRESH_S)."""
+        limit = settings.PASTVIEW_TELEOP_FRESH_S
+        now = time.monotonic()
+        if self.live_at is None or now - self.live_at > limit:
+            return f"No camera frame from the drone in the last {limit:g} s."
+        if self.tracked_at is None or now - self.tracked_at > limit:
+            return f"No tracked pose of the drone in the last {limit:g} s."
+        return None
+
     async def _move(self, stick: Stick) -> None:
         if self.heading is None:
             await self._teleop_reply(False, "The drone's heading is not known yet (no pose).")
+            return
+        if stale := self.stale_view():
+            await self._teleop_reply(False, f"{stale} Teleoperation needs a current view.")
             return
         assert self.drone is not None
         user = self.scope["user"]

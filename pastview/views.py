@@ -56,5 +56,6 @@ def page(request: HttpRequest, drone_id: str) -> HttpResponse:
         "settingsUrl": f"/pastview/api/{drone.drone_id}/settings/",
         "socketPath": f"/ws/pastview/{drone.drone_id}/",
         "teleopHz": settings.PASTVIEW_TELEOP_HZ,
+        "teleopFreshS": settings.PASTVIEW_TELEOP_FRESH_S,
     }
     return render(request, "pastview/view.html", {"drone": drone, "config": config})

@@ -336,3 +336,6 @@ TILE_UPSTREAM_TIMEOUT_S = env.float("TILE_UPSTREAM_TIMEOUT_S", 5.0)
 SPECTACULAR_SETTINGS.update(
     {"SWAGGER_UI_DIST": "SIDECAR", "SWAGGER_UI_FAVICON_HREF": "SIDECAR", "REDOC_DIST": "SIDECAR"}
 )
+# Teleoperation from the past view only while the drone's camera frames and tracked poses
+# are this fresh (the page offers it and the server accepts moves on the same rule).
+PASTVIEW_TELEOP_FRESH_S = env.float("PASTVIEW_TELEOP_FRESH_S", 3.0)

@@ -13,6 +13,10 @@ const state = {
   updates: 0,
   beeps: 0,
   socket: null,
+  linkOpen: false,
+  liveAt: null, // when (performance.now()) the drone's last camera frame arrived
+  trackedAt: null, // when the last pose update with tracking came
+  liveFrames: 0,
 };
 window.pastview = state; // for tests and the curious
 
@@ -66,10 +70,12 @@ function showWarning() {
 
 // -- messages from the server -------------------------------------------------------------
 
-function applyUpdate(update) {
+function applyUpdate(update, fresh = true) {
   if (!update) return;
   state.updates += 1;
   state.tracking = update.tracking;
+  // A stored snapshot shows the last view but says nothing about the drone now.
+  if (fresh && update.tracking === "tracked" && update.frame) state.trackedAt = performance.now();
   if (update.frame) {
     if (update.jpeg) $("pv-frame").src = `data:image/jpeg;base64,${update.jpeg}`;
     state.frame = update.frame.id;
@@ -78,23 +84,46 @@ function applyUpdate(update) {
   showWarning();
 }
 
+// This drone's counters (the service keeps them per drone), and the age of what came last.
+const STATUS = [
+  ["frames_received", "frames received"], ["frames_stored", "frames kept"],
+  ["frames_malformed", "frames malformed"], ["frames_out_of_order", "frames out of order"],
+  ["poses_received", "poses received"], ["poses_bad", "poses refused"],
+  ["poses_out_of_order", "poses out of order"], ["quaternions_repaired", "orientations repaired"],
+];
+let lastStatus = {};
+
+function age(at) {
+  return at === null ? "never" : `${((performance.now() - at) / 1000).toFixed(1)} s ago`;
+}
+
 function applyStatus(status) {
-  const list = $("pv-status");
-  const keys = [
-    "frames_stored", "frames_received", "frames_malformed", "frames_out_of_order",
-    "poses_received", "poses_bad", "poses_out_of_order", "quaternions_repaired",
+  lastStatus = status || {};
+  const rows = [
+    ...STATUS.map(([key, label]) => [label, lastStatus[key] ?? "–", key]),
+    ["last camera frame", age(state.liveAt), "live_age"],
+    ["last tracked pose", age(state.trackedAt), "pose_age"],
   ];
-  list.replaceChildren(...keys.flatMap((key) => {
+  $("pv-status").replaceChildren(...rows.flatMap(([label, value, key]) => {
     const dt = document.createElement("dt");
-    dt.textContent = key.replaceAll("_", " ");
+    dt.textContent = label;
     const dd = document.createElement("dd");
-    dd.textContent = status[key] ?? "–";
+    dd.dataset.key = key;
+    dd.textContent = value;
     return [dt, dd];
   }));
 }
 
-function applyLive(live) {
-  if (live && live.jpeg) $("pv-live").src = `data:image/jpeg;base64,${live.jpeg}`;
+function applyLive(live, fresh = true) {
+  if (!live || !live.jpeg) return;
+  $("pv-live").src = `data:image/jpeg;base64,${live.jpeg}`;
+  if (fresh) {
+    state.liveAt = performance.now();
+    state.liveFrames += 1;
+  }
+  // The live picture is offered once there is one: never an empty or broken image.
+  $("pv-show-live").disabled = false;
+  $("pv-live-box").hidden = !$("pv-show-live").checked;
 }
 
 const handlers = {
@@ -102,9 +131,9 @@ const handlers = {
     fillSettings(message.settings);
   },
   snapshot(message) {
-    applyLive(message.live);
+    applyLive(message.live, false);
     if (message.status) applyStatus(message.status);
-    applyUpdate(message.update);
+    applyUpdate(message.update, false);
   },
   update: applyUpdate,
   live: applyLive,
@@ -128,6 +157,7 @@ function connect() {
   const badge = $("pv-connection");
   socket.onopen = () => {
     retry = 500;
+    state.linkOpen = true;
     badge.dataset.state = "open";
     badge.textContent = "live";
   };
@@ -136,6 +166,7 @@ function connect() {
     handlers[message.type]?.(message);
   };
   socket.onclose = (event) => {
+    state.linkOpen = false;
     badge.dataset.state = "closed";
     badge.textContent = "disconnected";
     if (event.code === 4401 || event.code === 4404) return; // not allowed: do not hammer
@@ -208,8 +239,19 @@ $("pv-settings").addEventListener("submit", async (event) => {
 });
 
 $("pv-show-live").addEventListener("change", (event) => {
-  $("pv-live-box").hidden = !event.target.checked;
+  $("pv-live-box").hidden = !event.target.checked || state.liveAt === null;
 });
+
+// Teleoperation is offered only while the view is current: the page's link is open, and
+// a camera frame and a tracked pose arrived within teleopFreshS (the server checks too).
+function teleopBlocker() {
+  const fresh = (at) => at !== null && performance.now() - at <= config.teleopFreshS * 1000;
+  if (!state.linkOpen) return "No link to the server.";
+  if (!fresh(state.liveAt)) return "No camera frame from the drone in the last few seconds.";
+  if (!fresh(state.trackedAt)) return "No tracked pose of the drone in the last few seconds.";
+  return "";
+}
+state.teleopBlocker = teleopBlocker;
 
 // -- teleoperation ------------------------------------------------------------------------
 
@@ -223,7 +265,19 @@ if (config.canOperate) {
       button.textContent = enabled ? "Release control" : "Take control";
     },
   });
-  button.addEventListener("click", () => teleop.setEnabled(!teleop.enabled));
+  button.addEventListener("click", () => teleop.setEnabled(!teleop.enabled && !teleopBlocker()));
+  const reason = $("pv-teleop-reason");
+  const check = () => {
+    const blocker = teleopBlocker();
+    if (blocker && teleop.enabled) {
+      teleop.setEnabled(false);
+      $("pv-teleop-message").textContent = `Control released: ${blocker}`;
+    }
+    button.disabled = Boolean(blocker) && !teleop.enabled;
+    reason.textContent = blocker;
+  };
+  setInterval(check, 250);
+  check();
   window.addEventListener("gamepadconnected", () => {
     $("pv-teleop-message").textContent = "Gamepad connected.";
   });
@@ -231,4 +285,6 @@ if (config.canOperate) {
 
 fillSettings(config.settings);
 showWarning();
+applyStatus({});
+setInterval(() => applyStatus(lastStatus), 1000); // the ages move on between status messages
 connect();

@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 import io
 import json
+import threading
 import time
 from pathlib import Path
 
@@ -39,6 +40,29 @@ def service(broker, world_tx):
     running = ServiceThread(broker.url_for("ground"))
     yield running
     running.stop()
+
+
+class Streaming:
+    """A drone sending a frame and a (slightly moving) pose every 0.2 s, as the agent does:
+    teleoperation is offered only while such a stream is fresh."""
+
+    def __init__(self, drone: DronePublisher, yaw_deg: float = 90.0) -> None:
+        self.stop_event = threading.Event()
+
+        def run() -> None:
+            n = 0
+            while not self.stop_event.wait(0.2):
+                n += 1
+                t = time.time()
+                drone.frame(t, [0.0, 0.0, -10.0], level(yaw_deg))
+                drone.poses((t + 0.01, [0.0, 2.5 + 0.001 * (n % 2), -10.0], level(yaw_deg)))
+
+        self.thread = threading.Thread(target=run, daemon=True)
+        self.thread.start()
+
+    def stop(self) -> None:
+        self.stop_event.set()
+        self.thread.join(5)
 
 
 def canvas_colours(page) -> dict[str, int]:  # type: ignore[no-untyped-def]
@@ -123,6 +147,8 @@ def test_an_operator_flies_by_keyboard_and_edits_the_evaluation_function(
         page.on("websocket", lambda ws: ws.on("framesent", lambda payload: sent.append(payload)))
         page.reload()
         page.wait_for_function("window.pastview.socket && window.pastview.socket.readyState === 1")
+        stream = Streaming(drone)
+        page.wait_for_function("!document.getElementById('pv-control').disabled")
         page.click("#pv-control")
         assert page.locator("#pv-control").get_attribute("aria-pressed") == "true"
         page.keyboard.down("KeyW")
@@ -144,6 +170,7 @@ def test_an_operator_flies_by_keyboard_and_edits_the_evaluation_function(
         )
         page.check("#pv-show-live")
         assert page.locator("#pv-live").get_attribute("src").startswith("data:image/jpeg")
+        stream.stop()
     finally:
         drone.close()
 
@@ -153,7 +180,9 @@ def test_an_operator_flies_by_keyboard_and_edits_the_evaluation_function(
     assert stored["function"] == "murata" and stored["coeff_tilt"] == 3.0
 
 
-def test_a_gamepad_stick_flies_and_letting_go_or_leaving_the_page_stops(service, live_asgi, page):
+def test_a_gamepad_stick_flies_and_letting_go_or_leaving_the_page_stops(
+    service, broker, live_asgi, page
+):
     # Headless Chromium has no gamepad: stand one in for the browser's Gamepad API.
     page.add_init_script(
         "window.stick = [0, 0, 0, 0];"
@@ -164,6 +193,18 @@ def test_a_gamepad_stick_flies_and_letting_go_or_leaving_the_page_stops(service,
     login(page, live_asgi, "operator")
     page.goto(f"{live_asgi.url}/pastview/{DRONE}/")
     page.wait_for_function("window.pastview.socket && window.pastview.socket.readyState === 1")
+    page.wait_for_timeout(300)  # the consumer joins the group right after accepting
+    drone = DronePublisher(broker.port, DRONE, "dpw")
+    stream = Streaming(drone)
+    try:
+        fly_by_gamepad(page, sent)
+    finally:
+        stream.stop()
+        drone.close()
+
+
+def fly_by_gamepad(page, sent: list) -> None:  # type: ignore[no-untyped-def]
+    page.wait_for_function("!document.getElementById('pv-control').disabled")
     page.click("#pv-control")
     page.evaluate("window.stick[0] = 0.5; window.stick[1] = -1.0")  # half right, full forward
     page.wait_for_function("window.pastview.socket.bufferedAmount === 0")

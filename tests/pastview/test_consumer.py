@@ -3,6 +3,7 @@ through the Drone Manager, and what a page gets when it connects."""
 
 from __future__ import annotations
 
+import asyncio
 import json
 
 import pytest
@@ -31,6 +32,9 @@ async def push(drone_id: str, message: dict) -> None:
     await get_channel_layer().group_send(
         group_name(drone_id), {"type": "pastview.message", "message": message}
     )
+
+
+LIVE = {"type": "live", "ts": 1.0, "jpeg": "", "pose": None}
 
 
 def update(yaw_quaternion: list[float] | None = None) -> dict:
@@ -139,6 +143,14 @@ async def test_an_operators_move_goes_through_the_drone_manager(world_tx):
         await communicator.receive_json_from(timeout=5)
         await communicator.send_json_to({"type": "teleop", "forward": 1, "right": 0, "up": 0})
         reply = await communicator.receive_json_from(timeout=5)
+        # A heading but no camera frame and no tracked pose on a frame: no current view.
+        assert reply["ok"] is False and "No camera frame" in reply["error"]
+        await push("ACME_1", LIVE)
+        await push("ACME_1", {**update([0.0, 0.0, 0.7071068, 0.7071068]), "frame": {"id": 1}})
+        for _ in range(2):
+            await communicator.receive_json_from(timeout=5)
+        await communicator.send_json_to({"type": "teleop", "forward": 1, "right": 0, "up": 0})
+        reply = await communicator.receive_json_from(timeout=5)
         # The world's drone is offline: the Drone Manager refuses, and logs who tried what.
         assert reply["ok"] is False and reply["error"] == "Drone ACME_1 is offline."
         log = await sync_to_async(lambda: list(CommandLog.objects.values("command", "params")))()
@@ -217,3 +229,26 @@ def test_the_drawn_box_has_the_frames_proportions():
     assert box["length"] == box["width"] == pytest.approx(0.55 / 2**0.5)
     assert box["height"] == pytest.approx(box["width"] / 5)
     assert frame_box({"FRAME_SIZE": "huge"}) == frame_box({})
+
+
+@in_own_loop
+async def test_moves_stop_when_the_frames_stop(world_tx, settings):
+    from asgiref.sync import sync_to_async
+
+    from fleet.models import CommandLog
+
+    settings.PASTVIEW_TELEOP_FRESH_S = 0.5
+    communicator, connected, _ = await connect(world_tx.operator)
+    try:
+        await communicator.receive_json_from(timeout=5)
+        await push("ACME_1", LIVE)
+        await push("ACME_1", {**update(), "frame": {"id": 1}})
+        for _ in range(2):
+            await communicator.receive_json_from(timeout=5)
+        await asyncio.sleep(0.7)  # no frame since: the view is stale
+        await communicator.send_json_to({"type": "teleop", "forward": 1, "right": 0, "up": 0})
+        reply = await communicator.receive_json_from(timeout=5)
+        assert reply["ok"] is False and "in the last 0.5 s" in reply["error"]
+        assert not await sync_to_async(CommandLog.objects.exists)()
+    finally:
+        await communicator.disconnect()

@@ -35,6 +35,20 @@ class Command(BaseCommand):
         parser.add_argument(
             "--time-scale", type=float, default=float(os.environ.get("SIM_TIME_SCALE", "1"))
         )
+        # The past view works out of the box: every simulated drone streams its synthetic
+        # camera and its pose (0 turns a stream off).
+        parser.add_argument(
+            "--video-rate",
+            type=float,
+            default=float(os.environ.get("SIM_VIDEO_RATE", "2")),
+            help="camera frames per second each drone sends (default 2)",
+        )
+        parser.add_argument(
+            "--pose-rate",
+            type=float,
+            default=float(os.environ.get("SIM_POSE_RATE", "30")),
+            help="pose samples per second each drone sends (default 30)",
+        )
 
     def handle(self, *args, **options) -> None:  # type: ignore[no-untyped-def]
         count = options["count"]
@@ -69,6 +83,8 @@ class Command(BaseCommand):
             str(options["time_scale"]),
             "--workdir",
             str(workdir),
+            "--",
+            *streaming_args(options["video_rate"], options["pose_rate"]),
         ]
         self.stdout.write(f"starting {count} simulated drone(s) around {options['home']}")
         self.stdout.flush()
@@ -82,3 +98,10 @@ def cluster_nodes() -> list[str]:
         return []
     nodes = [urlsplit(url) for url in settings.MQTT_URLS]
     return [f"mqtt://{node.hostname}:{node.port or 1883}" for node in nodes]
+
+
+def streaming_args(video_rate: float, pose_rate: float) -> list[str]:
+    """The agent flags for the camera and pose streams the past view draws from."""
+    if not (0 <= video_rate <= 30 and 0 <= pose_rate <= 200):
+        raise CommandError("--video-rate must be within 0..30 and --pose-rate within 0..200")
+    return ["--video-rate", f"{video_rate:g}", "--pose-rate", f"{pose_rate:g}"]
