@@ -12,9 +12,9 @@ import pytest
 from firmware.sim.fleet import start_drone
 from fleet.management.commands.run_simulated_drones import Command, streaming_args
 from tests.conftest import login
-from workers.mosquitto import start_broker
 
 from .support import ServiceThread
+from .test_e2e import broker  # noqa: F401, F811 - the drone and the ground share this broker
 
 pytestmark = [
     pytest.mark.browser,
@@ -35,14 +35,7 @@ def demo_agent_args() -> list[str]:
 
 
 @pytest.fixture
-def broker(tmp_path: Path):
-    b = start_broker(tmp_path / "broker", {"ground": "pw", DRONE: "dpw"})
-    yield b
-    b.stop()
-
-
-@pytest.fixture
-def demo_drone(tmp_path: Path, broker, world_tx):
+def demo_drone(tmp_path: Path, broker, world_tx):  # noqa: F811
     service = ServiceThread(broker.url_for("ground"))
     drone = start_drone(
         tmp_path / "drone", DRONE, broker.url_for(DRONE), HOME,
