@@ -42,7 +42,8 @@ SERIES_INFO = inline_serializer(
     "FlightLogSeriesInfo",
     {
         "path": serializers.CharField(),
-        "unit": serializers.CharField(),
+        "unit": serializers.CharField(help_text="The display unit (m, m/s, °, %, V, A…)."),
+        "recorded_unit": serializers.CharField(help_text="The unit the file recorded."),
         "count": serializers.IntegerField(),
         "start": serializers.FloatField(allow_null=True),
         "end": serializers.FloatField(allow_null=True),
@@ -275,6 +276,7 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
             {
                 "t": serializers.ListField(child=serializers.FloatField()),
                 "v": serializers.ListField(),
+                "unit": serializers.CharField(help_text="The unit of `v` (converted)."),
             },
         ),
     )
@@ -289,7 +291,8 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
         if path not in store.index["series"]:
             raise exceptions.NotFound(f"There is no series {path!r} in this log.")
         return Response(
-            store.plot(
+            services.plot(
+                store,
                 path,
                 start=_seconds(request, "start"),
                 end=_seconds(request, "end"),

@@ -23,6 +23,7 @@ from django.conf import settings
 from django.db import transaction
 from django.utils import timezone
 
+from logs import units
 from logs.analysis import trajectory_of, values_at, values_tree
 from logs.importers.base import Limits, LogFormatError
 from logs.models import FlightLog, LogStatus
@@ -220,11 +221,20 @@ def forget_store(log: FlightLog) -> None:
             del _STORES[key]
 
 
+def shown(info: dict) -> units.Display:
+    """The display unit and factor of a stored series; enumerations and text stay as they are."""
+    if info["kind"] not in ("int", "double"):
+        return units.Display(info["unit"])
+    return units.display(info["unit"])
+
+
 def series_list(store: LogStore) -> list[dict]:
+    """Every series' summary, in display units ("recorded_unit" is the file's own)."""
     return [
         {
             "path": path,
-            "unit": info["unit"],
+            "unit": shown(info).unit,
+            "recorded_unit": info["unit"],
             "count": info["count"],
             "start": info["start"],
             "end": info["end"],
@@ -239,14 +249,27 @@ def series_list(store: LogStore) -> list[dict]:
 def values_at_time(store: LogStore, t: float) -> dict:
     """Every value at or before t, nested by group; NaN and infinities become None (JSON)."""
     flat = values_at(store, t)
-    for entry in flat.values():
-        if (
-            entry is not None
-            and isinstance(entry["value"], float)
-            and not math.isfinite(entry["value"])
-        ):
+    for path, entry in flat.items():
+        if entry is None or isinstance(entry["value"], bool):
+            continue
+        display = shown(store.info(path))
+        if display.converts and isinstance(entry["value"], int | float):
+            entry["value"] = entry["value"] * display.factor
+        if isinstance(entry["value"], float) and not math.isfinite(entry["value"]):
             entry["value"] = None
     return values_tree(flat)
+
+
+def plot(store: LogStore, path: str, **window: float | int | None) -> dict:
+    """The series endpoint's {"t", "v", "unit"}, in the display unit."""
+    data = store.plot(path, **window)  # type: ignore[arg-type]
+    display = shown(store.info(path))
+    if display.converts:
+        data["v"] = [
+            v * display.factor if isinstance(v, int | float) and not isinstance(v, bool) else v
+            for v in data["v"]
+        ]
+    return {**data, "unit": display.unit}
 
 
 def layer_times(store: LogStore) -> dict[str, np.ndarray]:

@@ -8,6 +8,7 @@ object per record, which is what makes it slow on 100 MB logs.
 
 from __future__ import annotations
 
+import math
 import mmap
 from array import array
 from collections.abc import Callable
@@ -79,6 +80,7 @@ class Format:
         self.columns = columns
         fields = []
         self.scales: dict[str, float] = {}
+        self.multipliers: dict[str, float] = {}  # from FMTU/MULT, for unscaled columns
         for char, col in zip(chars, columns, strict=False):
             if char not in FORMAT_CHARS:
                 raise LogFormatError(f"FMT of {name}: unsupported format character {char!r}.")
@@ -225,12 +227,14 @@ class DataFlashImporter:
             progress(0.6 + 0.3 * (number + 1) / len(offsets))
         inherited = _inherited_times(decoded)
         units, instances = _units_and_instances(formats, decoded)
+        multipliers = _multipliers(formats, decoded)
         for t, (starts, records) in decoded.items():
             fmt = formats[t]
             times = _times_ns(records)
             if times is None:
                 times = inherited(starts)
             column_units = units.get(fmt.name, {})
+            fmt.multipliers = multipliers.get(fmt.name, {})
             instance = instances.get(fmt.name)
             values_seen = np.unique(records[instance]) if instance else []
             if len(values_seen) > 1:
@@ -269,6 +273,10 @@ class DataFlashImporter:
                 kind = "text"
             elif col in fmt.scales:
                 values = values.astype(np.float64) * fmt.scales[col]
+                kind = "double"
+            elif col in fmt.multipliers and values.ndim == 1:
+                # FMTU's multiplier: stored number x multiplier = value in the column's unit.
+                values = values.astype(np.float64) * fmt.multipliers[col]
                 kind = "double"
             elif values.ndim > 1:
                 for i in range(values.shape[1]):
@@ -329,6 +337,38 @@ def _units_and_instances(
         if "#" in ids_text and ids_text.index("#") < len(fmt.columns):
             instances[fmt.name] = fmt.columns[ids_text.index("#")]
     return units, instances
+
+
+def _multipliers(
+    formats: dict[int, Format], decoded: dict[int, tuple[np.ndarray, np.ndarray]]
+) -> dict[str, dict[str, float]]:
+    """Per message, the multiplier of each column from FMTU's MultIds and the MULT messages,
+    for columns whose format character does not scale them already (c, C, e, E, L do, and
+    ArduPilot names the same factor in FMTU for them). No multiplier (0, '-') or 1 is left out."""
+    by_name = {formats[t].name: records for t, (_, records) in decoded.items()}
+    mult, fmtu = by_name.get("MULT"), by_name.get("FMTU")
+    if mult is None or fmtu is None or not {"Id", "Mult"} <= set(mult.dtype.names or ()):
+        return {}
+    if "MultIds" not in (fmtu.dtype.names or ()):
+        return {}
+    factors = {
+        chr(i & 0xFF): float(m)
+        for i, m in zip(mult["Id"].tolist(), mult["Mult"].tolist(), strict=True)
+    }
+    out: dict[str, dict[str, float]] = {}
+    for ftype, ids in zip(fmtu["FmtType"].tolist(), fmtu["MultIds"].tolist(), strict=True):
+        fmt = formats.get(ftype)
+        if fmt is None:
+            continue
+        out[fmt.name] = {
+            col: factors[mid]
+            for col, mid in zip(fmt.columns, _text(ids), strict=False)
+            if col not in fmt.scales
+            and col not in ("TimeUS", "TimeMS")
+            and math.isfinite(factors.get(mid, 0.0))
+            and factors.get(mid, 0.0) not in (0.0, 1.0)
+        }
+    return out
 
 
 def _times_ns(records: np.ndarray) -> np.ndarray | None:

@@ -14,6 +14,7 @@ from pyulog.core import ULogException
 
 from logs.importers.base import Limits, LogFormatError, Progress, describe
 from logs.series import LogData, Series, join
+from logs.units import ulog_unit
 
 MAGIC = b"ULog\x01\x12\x35"
 LOG_LEVELS = {
@@ -82,6 +83,7 @@ class UlogImporter:
                         join(layer, field),
                         values,
                         times,
+                        unit=ulog_unit(d.name, field),
                         time_source="board",
                         kind=_kind(values),
                         special=special,
