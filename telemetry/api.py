@@ -88,6 +88,11 @@ class ExportQuery(StrictSerializer):
     fields = serializers.CharField(required=False, help_text="Comma-separated field names.")
     start = EpochOrIsoField()
     end = EpochOrIsoField()
+    layout = serializers.ChoiceField(
+        ["wide", "long"],
+        default="wide",
+        help_text="wide: one column per field (default); long: ts, object, fields as JSON.",
+    )
 
     def validate_fields(self, value: str) -> list[str]:
         return _names(value, "field")
@@ -95,6 +100,8 @@ class ExportQuery(StrictSerializer):
     def validate(self, attrs: dict) -> dict:
         if attrs["end"] <= attrs["start"]:
             raise serializers.ValidationError({"end": ["Must be after start."]})
+        if attrs.get("fields") and attrs.get("layout") == "long":
+            raise serializers.ValidationError({"fields": ["Field columns need layout=wide."]})
         if attrs.get("fields") and not attrs.get("object"):
             raise serializers.ValidationError({"fields": ["Choose an object to pick fields of."]})
         return attrs
@@ -186,6 +193,7 @@ def export(request: Request, drone_id: str) -> StreamingHttpResponse:
         q["end"],
         q.get("object"),
         q.get("fields") or (),
+        layout=q["layout"],
     )
     response = StreamingHttpResponse(rows, content_type="text/csv; charset=utf-8")
     stamp = q["start"].strftime("%Y%m%dT%H%M%S")

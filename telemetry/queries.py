@@ -272,6 +272,24 @@ def _fill_from_rollup(result: Range, fields: Sequence[str], params: dict, table:
 # CSV export
 
 
+EXPORT_WHERE = "drone_id = %(drone)s AND ts >= %(start)s AND ts < %(end)s"
+
+
+def export_columns(
+    conninfo: str, drone_pk: int, start: datetime, end: datetime, object_name: str | None = None
+) -> list[tuple[str, str]]:
+    """(object, field) of every field stored in the range, sorted: the wide CSV's columns."""
+    where = EXPORT_WHERE + (" AND object = %(object)s" if object_name else "")
+    params = {"drone": drone_pk, "start": start, "end": end, "object": object_name}
+    with psycopg.connect(conninfo) as conn:
+        rows = conn.execute(
+            "SELECT DISTINCT object, jsonb_object_keys(fields || coalesce(labels, '{}')) "
+            f"FROM telemetry_sample WHERE {where} ORDER BY 1, 2",
+            params,
+        ).fetchall()
+    return [(str(name), str(field)) for name, field in rows]
+
+
 def export_csv(
     conninfo: str,
     drone_pk: int,
@@ -280,18 +298,51 @@ def export_csv(
     object_name: str | None = None,
     fields: Sequence[str] = (),
     chunk_rows: int = 5000,
+    layout: str = "wide",
 ) -> Iterator[str]:
     """CSV text in chunks, from a server-side cursor, so a long range never sits in memory.
 
-    With `fields`, one column per field (arrays as JSON); otherwise ts, object, fields JSON.
+    "wide" (the default): one column per field (arrays as JSON), the given `fields` or
+    every field stored in the range; columns are `Object.field` unless one object is
+    asked for. "long": ts, object and all fields as one JSON column.
     """
     buffer = io.StringIO()
     writer = csv.writer(buffer)
-    writer.writerow(["ts", *fields] if fields else ["ts", "object", "fields"])
+    columns: list[tuple[str | None, str]] = []
+    if layout == "wide":
+        columns = [(object_name, f) for f in fields] or list(
+            export_columns(conninfo, drone_pk, start, end, object_name)
+        )
+    if layout == "long":
+        writer.writerow(["ts", "object", "fields"])
+    elif object_name:
+        writer.writerow(["ts", *(f for _, f in columns)])
+    else:
+        writer.writerow(["ts", "object", *(f"{o}.{f}" for o, f in columns)])
     yield buffer.getvalue()
-    where = "drone_id = %(drone)s AND ts >= %(start)s AND ts < %(end)s"
-    if object_name:
-        where += " AND object = %(object)s"
+    rows = _export_rows(conninfo, drone_pk, start, end, object_name, chunk_rows)
+    for chunk in rows:
+        buffer.seek(0)
+        buffer.truncate()
+        for ts, name, values in chunk:
+            stamp = ts.astimezone(UTC).isoformat()
+            if layout == "long":
+                writer.writerow([stamp, name, json.dumps(values, separators=(",", ":"))])
+                continue
+            cells = [_cell(values.get(f)) if o in (None, name) else "" for o, f in columns]
+            writer.writerow([stamp, *cells] if object_name else [stamp, name, *cells])
+        yield buffer.getvalue()
+
+
+def _export_rows(
+    conninfo: str,
+    drone_pk: int,
+    start: datetime,
+    end: datetime,
+    object_name: str | None,
+    chunk_rows: int,
+) -> Iterator[list[tuple]]:
+    where = EXPORT_WHERE + (" AND object = %(object)s" if object_name else "")
     params = {"drone": drone_pk, "start": start, "end": end, "object": object_name}
     with psycopg.connect(conninfo) as conn, conn.cursor(name="telemetry_export") as cursor:
         cursor.itersize = chunk_rows
@@ -301,15 +352,7 @@ def export_csv(
             params,
         )
         while rows := cursor.fetchmany(chunk_rows):
-            buffer.seek(0)
-            buffer.truncate()
-            for ts, name, values in rows:
-                stamp = ts.astimezone(UTC).isoformat()
-                if fields:
-                    writer.writerow([stamp, *(_cell(values.get(f)) for f in fields)])
-                else:
-                    writer.writerow([stamp, name, json.dumps(values, separators=(",", ":"))])
-            yield buffer.getvalue()
+            yield rows
 
 
 def _cell(value: object) -> object:

@@ -25,13 +25,15 @@
       ["BaroAltitude", "Altitude", "Barometric"], ["GPSPosition", "Altitude", "GPS (MSL)"]] },
   ];
   const COLORS = ["#2358d6", "#d92d20", "#17803d", "#b54708", "#7a5af8"];
-  const LIVE_WINDOW_S = 120;
+  const LIVE_WINDOW_S = 300; // the live charts keep (and open with) the last five minutes
 
   const state = { mode: "live", start: null, end: null, request: 0 };
   const stateLabel = document.getElementById("tm-state");
   const exportLink = document.getElementById("tm-export");
+  const exportLong = document.getElementById("tm-export-long");
   const container = document.getElementById("tm-panels");
   const charts = [];
+  window.telemetryCharts = charts; // for tests and the curious
 
   function alpha(hex, a) {
     const n = parseInt(hex.slice(1), 16);
@@ -72,6 +74,22 @@
     };
   }
 
+  const pad = (n) => String(n).padStart(2, "0");
+  const MONTHS = ["Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec"];
+
+  /* Time ticks a person reads at a glance, in local time: HH:MM:SS within a day (with
+     tenths when ticks are closer than a second), the date added beyond a day. */
+  function timeTicks(u, splits, axisIdx, space, incr) {
+    return splits.map((ts) => {
+      const d = new Date(ts * 1000);
+      const clock = `${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}`;
+      if (incr < 1) return `${clock}.${Math.floor(d.getMilliseconds() / 100)}`;
+      if (incr >= 86400) return `${d.getDate()} ${MONTHS[d.getMonth()]}`;
+      const span = u.scales.x.max - u.scales.x.min;
+      return span > 86400 ? `${d.getDate()} ${MONTHS[d.getMonth()]} ${clock.slice(0, 5)}` : clock;
+    });
+  }
+
   function chartSize(el) {
     const width = Math.max(240, el.clientWidth);
     return { width, height: window.innerWidth < 720 ? 160 : 200 };
@@ -105,7 +123,7 @@
         label, stroke: COLORS[i % COLORS.length], width: 1.5, spanGaps: false,
         value: (u, v) => (v == null ? "–" : +v.toPrecision(5)),
       }))),
-      axes: [{}, { size: 60 }],
+      axes: [{ values: timeTicks, space: 70 }, { size: 60 }],
       hooks: { setSelect: [(u) => onZoom(u)] },
     };
     chart.plot = new uPlot(opts, [[], ...panel.series.map(() => [])], body);
@@ -210,6 +228,46 @@
   // Keeps the drone marked as watched, so the ingest keeps pushing for it.
   setInterval(() => socket && socket.readyState === 1 && socket.send('{"type":"ping"}'), 20000);
 
+  /* A panel's fields grouped by object: one range request per object. */
+  function fieldsByObject(panel) {
+    const byObject = new Map();
+    panel.series.forEach(([object, field]) => {
+      if (!byObject.has(object)) byObject.set(object, []);
+      byObject.get(object).push(field);
+    });
+    return byObject;
+  }
+
+  /* The live charts start with the last LIVE_WINDOW_S of stored history (bucket averages),
+     so a page opened mid-flight shows the recent minutes at once; live samples follow. */
+  async function prefillLive() {
+    const end = Date.now() / 1000;
+    const start = end - LIVE_WINDOW_S;
+    await Promise.all(charts.map(async (chart) => {
+      const byObject = fieldsByObject(chart.panel);
+      const points = Math.max(100, Math.min(1000, Math.round(chart.body.clientWidth)));
+      const results = new Map();
+      try {
+        await Promise.all([...byObject].map(async ([object, fields]) => {
+          results.set(object, await fetchRange(object, fields, start, end, points));
+        }));
+      } catch (err) {
+        return; // the live samples still come; history is a bonus here
+      }
+      chart.panel.series.forEach(([object, field], i) => {
+        const r = results.get(object);
+        const avg = r && r.series[field] ? r.series[field].avg : [];
+        const [xs, ys] = chart.live[i];
+        const first = xs.length ? xs[0] : Infinity;
+        const older = r ? r.t.map((t, k) => [t, avg[k]]).filter(([t, v]) => t < first && typeof v === "number") : [];
+        xs.unshift(...older.map(([t]) => t));
+        ys.unshift(...older.map(([, v]) => v));
+      });
+      chart.dirty = true;
+    }));
+    root.dataset.prefilled = "true";
+  }
+
   // -- history ------------------------------------------------------------------------
 
   async function fetchRange(object, fields, start, end, points) {
@@ -230,11 +288,7 @@
     stateLabel.textContent = `Loading ${fmt(start)} – ${fmt(end)}…`;
     const began = performance.now();
     await Promise.all(charts.map(async (chart) => {
-      const byObject = new Map();
-      chart.panel.series.forEach(([object, field]) => {
-        if (!byObject.has(object)) byObject.set(object, []);
-        byObject.get(object).push(field);
-      });
+      const byObject = fieldsByObject(chart.panel);
       const points = Math.max(100, Math.min(2000, Math.round(chart.body.clientWidth)));
       try {
         const results = new Map();
@@ -293,6 +347,7 @@
     const now = Date.now() / 1000;
     const [start, end] = state.mode === "live" ? [now - 900, now] : [state.start, state.end];
     exportLink.href = `${root.dataset.exportUrl}?${new URLSearchParams({ start, end })}`;
+    if (exportLong) exportLong.href = `${root.dataset.exportUrl}?${new URLSearchParams({ start, end, layout: "long" })}`;
   }
 
   function toLocalInput(ts) {
@@ -325,5 +380,6 @@
   new ResizeObserver(() => charts.forEach((c) => c.plot.setSize(chartSize(c.body)))).observe(container);
   updateExport();
   connect();
+  prefillLive();
   requestAnimationFrame(drawLive);
 })();

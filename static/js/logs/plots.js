@@ -15,7 +15,9 @@ function markFirstPlot(viewer) {
   document.documentElement.dataset.firstPlot = String(Math.round(performance.now()));
 }
 
-/** lines: [{path, label, color, scale, offset}] */
+/** lines: [{path, label, unit, color, scale, offset}]. Lines of one unit share a y axis
+ *  labelled with it; each other unit (and each unitless line) gets its own, so 16 V and
+ *  66 m are both readable. `normalise` maps every line to 0–1 on one axis instead. */
 export class Chart {
   constructor(el, viewer, { height = 170, lines = [], legend = true } = {}) {
     this.el = el;
@@ -25,6 +27,7 @@ export class Chart {
     this.legend = legend;
     this.lines = lines;
     this.raw = new Map();
+    this.normalise = false;
     this.u = null;
     this.controller = null;
     this.refreshSoon = debounce(() => this.refresh(), 120);
@@ -32,6 +35,17 @@ export class Chart {
     this.state.on("cursor", () => this.u?.redraw(false, false));
     this.state.on("selection", () => this.u?.redraw(false, false));
     new ResizeObserver(() => this.resize()).observe(el);
+  }
+
+  setNormalise(on) {
+    this.normalise = on;
+    this.rebuild();
+  }
+
+  /** The y scale of a line: its unit's (or its own when it has none), or the shared one. */
+  scaleOf(line) {
+    if (this.normalise) return "norm";
+    return line.unit ? `unit:${line.unit}` : `line:${line.path}`;
   }
 
   setLines(lines) {
@@ -80,7 +94,8 @@ export class Chart {
       const raw = this.raw.get(line.path) || { t: [], v: [] };
       const scale = Number.isFinite(line.scale) ? line.scale : 1;
       const offset = Number.isFinite(line.offset) ? line.offset : 0;
-      const v = raw.v.map((x) => (typeof x === "number" ? x * scale + offset : x === true ? scale + offset : x === false ? offset : null));
+      let v = raw.v.map((x) => (typeof x === "number" ? x * scale + offset : x === true ? scale + offset : x === false ? offset : null));
+      if (this.normalise) v = normalised(v);
       return [raw.t.map((t) => t - start), v];
     });
     if (!tables.length) return [[]];
@@ -90,7 +105,7 @@ export class Chart {
 
   rebuild() {
     const data = this.data();
-    const signature = this.lines.map((l) => `${l.path}|${l.color}|${l.label}`).join(";");
+    const signature = `${this.normalise}|` + this.lines.map((l) => `${l.path}|${l.color}|${l.label}|${l.unit}`).join(";");
     if (this.u && this.signature === signature) {
       this.u.setData(data, false);
       this.setRange();
@@ -124,11 +139,13 @@ export class Chart {
       legend: { show: this.legend, live: true },
       scales: {
         x: { time: false, auto: false, range: () => [state.view[0] - state.start, state.view[1] - state.start] },
+        ...Object.fromEntries(this.lines.map((line) => [this.scaleOf(line), { auto: true }])),
       },
       series: [
         { label: "time", value: (u, v) => (v == null ? "–" : formatDuration(v)) },
         ...this.lines.map((line) => ({
           label: line.label,
+          scale: this.scaleOf(line),
           stroke: line.color,
           width: 1.4,
           spanGaps: true,
@@ -146,13 +163,7 @@ export class Chart {
           font: "11px system-ui",
           grid: { stroke: "#eef0f3" },
         },
-        {
-          // Wide enough for the longest tick label (about 6.5 px a character at 11 px).
-          size: (u, values) => Math.max(34, ...(values || []).map((v) => String(v).length * 6.5 + 14)),
-          font: "11px system-ui",
-          grid: { stroke: "#eef0f3" },
-          values: (u, ticks) => (ticks || []).map(formatAxis),
-        },
+        ...this.yAxes(),
       ],
       cursor: { drag: { x: true, y: false, setScale: false }, points: { size: 5 } },
       select: { show: true },
@@ -187,6 +198,44 @@ export class Chart {
       },
     };
   }
+}
+
+/** One y axis per scale, alternating left and right, labelled with the unit (in the line's
+ *  colour when the scale has one line); only the first draws grid lines. */
+Chart.prototype.yAxes = function yAxes() {
+  const scales = [];
+  for (const line of this.lines.length ? this.lines : [{ path: "", unit: "" }]) {
+    const key = this.lines.length ? this.scaleOf(line) : "y";
+    const found = scales.find((s) => s.key === key);
+    if (found) found.lines.push(line);
+    else scales.push({ key, lines: [line] });
+  }
+  return scales.map(({ key, lines }, i) => {
+    const only = lines.length === 1 ? lines[0] : null;
+    const unit = this.normalise ? "0–1" : lines[0].unit || (only ? only.label : "");
+    return {
+      scale: key,
+      side: i % 2 ? 1 : 3,
+      label: unit,
+      labelSize: unit ? 16 : 0,
+      labelFont: "11px system-ui",
+      stroke: only && scales.length > 1 ? only.color : "#475467",
+      // Wide enough for the longest tick label (about 6.5 px a character at 11 px).
+      size: (u, values) => Math.max(34, ...(values || []).map((v) => String(v).length * 6.5 + 14)),
+      font: "11px system-ui",
+      grid: { show: i === 0, stroke: "#eef0f3" },
+      values: (u, ticks) => (ticks || []).map(formatAxis),
+    };
+  });
+};
+
+function normalised(values) {
+  const finite = values.filter((x) => typeof x === "number" && Number.isFinite(x));
+  if (!finite.length) return values;
+  let lo = Infinity, hi = -Infinity;
+  for (const x of finite) { if (x < lo) lo = x; if (x > hi) hi = x; }
+  const span = hi - lo || 1;
+  return values.map((x) => (typeof x === "number" && Number.isFinite(x) ? (x - lo) / span : null));
 }
 
 function drawOverlay(u, state) {

@@ -144,7 +144,8 @@ export class LogViewer extends EventTarget {
   line(path, i) {
     const series = this.units.get(path);
     const name = path.split("/").slice(-1)[0];
-    return { path, label: series?.unit ? `${name} [${series.unit}]` : name, color: PALETTE[i % PALETTE.length], scale: 1, offset: 0 };
+    const unit = series?.unit || "";
+    return { path, unit, label: unit ? `${name} [${unit}]` : name, color: PALETTE[i % PALETTE.length], scale: 1, offset: 0 };
   }
 
   buildQuickPlots() {
@@ -173,6 +174,8 @@ export class LogViewer extends EventTarget {
     const tbody = this.part("lines").querySelector("tbody");
     const chart = new Chart(this.part("multi"), this, { height: this.compact ? 200 : 260 });
     this.multi = chart;
+    const normalise = this.part("normalise");
+    normalise?.addEventListener("change", () => chart.setNormalise(normalise.checked));
     let lines = [];
     const series = this.info.series.filter((s) => PLOTTABLE.has(s.kind));
     const byLayer = new Map();
@@ -212,7 +215,7 @@ export class LogViewer extends EventTarget {
       const old = new Map(lines.map((l) => [l.path, l]));
       lines = paths.map((p, i) => old.get(p) || this.line(p, lines.length + i));
       renderRows();
-      chart.setLines(lines.map((l) => ({ ...l, label: l.path })));
+      chart.setLines(lines.map((l) => ({ ...l, label: l.unit ? `${l.path} [${l.unit}]` : l.path })));
       this.dispatchEvent(new Event("plotchange"));
     };
     this.plotPaths = () => lines.map((l) => l.path);
@@ -232,7 +235,7 @@ export class LogViewer extends EventTarget {
       const line = lines.find((l) => l.path === row.dataset.path);
       line[field] = field === "color" ? event.target.value : Number.parseFloat(event.target.value);
       if (field === "color") row.querySelector("span").style.color = line.color;
-      chart.restyle(lines.map((l) => ({ ...l, label: l.path })));
+      chart.restyle(lines.map((l) => ({ ...l, label: l.unit ? `${l.path} [${l.unit}]` : l.path })));
     });
     tbody.addEventListener("click", (event) => {
       const index = event.target.dataset.remove;
