@@ -24,7 +24,7 @@
   function formatDegrees(value, step, positive, negative) {
     const decimals = Math.max(0, Math.ceil(-Math.log10(step)));
     const text = Math.abs(value).toFixed(decimals);
-    return `${text}° ${value >= 0 ? positive : negative}`;
+    return `${text}\u00b0 ${value >= 0 ? positive : negative}`;
   }
 
   function label(latLng, text, anchor) {
@@ -48,7 +48,8 @@
     }
     for (let lon = Math.ceil(west / step) * step; lon <= east; lon += step) {
       L.polyline([[south, lon], [north, lon]], style).addTo(group);
-      label([south, lon], formatDegrees(lon, step, "E", "W"), [-2, 14]).addTo(group);
+      // Along the top edge: the bottom corners hold the scale and the attribution.
+      label([north, lon], formatDegrees(lon, step, "E", "W"), [-3, -3]).addTo(group);
     }
   }
 
