@@ -12,12 +12,14 @@
     try { return JSON.parse(el.textContent) || { url: "" }; } catch (e) { return { url: "" }; }
   }
 
-  // Grid spacings in degrees, coarse to fine; the first giving at least 3 lines is used.
-  const STEPS = [30, 10, 5, 2, 1, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001,
-    0.0005, 0.0002, 0.0001, 0.00005, 0.00002, 0.00001];
+  // Grid spacings in degrees, fine to coarse; the finest leaving room for its labels wins.
+  const STEPS = [0.00001, 0.00002, 0.00005, 0.0001, 0.0002, 0.0005, 0.001, 0.002, 0.005,
+    0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10, 30];
 
-  function gridStep(span) {
-    for (const step of STEPS) if (span / step >= 3) return step;
+  /* The finest step whose lines are at least `minPx` pixels apart over `span` degrees
+     drawn across `px` pixels (longitude labels are wider, so they ask for more room). */
+  function gridStep(span, px, minPx) {
+    for (const step of STEPS) if ((step / span) * px >= minPx) return step;
     return STEPS[STEPS.length - 1];
   }
 
@@ -40,16 +42,18 @@
     const south = Math.max(b.getSouth(), -85), north = Math.min(b.getNorth(), 85);
     const west = Math.max(b.getWest(), -180), east = Math.min(b.getEast(), 180);
     if (!(north > south && east > west)) return;
-    const step = gridStep(Math.min(north - south, east - west));
+    const size = map.getSize();
+    const latStep = gridStep(north - south, size.y, 60);
+    const lonStep = gridStep(east - west, size.x, 110);
     const style = { pane: "skyhive-grid", color: "#64748b", weight: 1, opacity: 0.35, interactive: false };
-    for (let lat = Math.ceil(south / step) * step; lat <= north; lat += step) {
+    for (let lat = Math.ceil(south / latStep) * latStep; lat <= north; lat += latStep) {
       L.polyline([[lat, west], [lat, east]], style).addTo(group);
-      label([lat, west], formatDegrees(lat, step, "N", "S"), [-2, 14]).addTo(group);
+      label([lat, west], formatDegrees(lat, latStep, "N", "S"), [-2, 14]).addTo(group);
     }
-    for (let lon = Math.ceil(west / step) * step; lon <= east; lon += step) {
+    for (let lon = Math.ceil(west / lonStep) * lonStep; lon <= east; lon += lonStep) {
       L.polyline([[south, lon], [north, lon]], style).addTo(group);
       // Along the top edge: the bottom corners hold the scale and the attribution.
-      label([north, lon], formatDegrees(lon, step, "E", "W"), [-3, -3]).addTo(group);
+      label([north, lon], formatDegrees(lon, lonStep, "E", "W"), [-3, -3]).addTo(group);
     }
   }
 

@@ -3,6 +3,7 @@ on request every line normalised to one shared axis."""
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -49,6 +50,10 @@ def test_the_viewer_labels_units_and_gives_each_its_own_axis(
     assert max(abs(m) for m in metres) < 10_000  # metres above the ellipsoid, not millimetres
     legend = viewer.locator('[data-part="multi"] .u-legend').inner_text()
     assert "[V]" in legend and "[m]" in legend
+    if shots := os.environ.get("DOCS_SCREENSHOTS"):  # the README's picture of the viewer
+        page.set_viewport_size({"width": 1280, "height": 1000})
+        page.wait_for_timeout(500)
+        page.screenshot(path=f"{shots}/log-viewer.png", full_page=False)
 
     viewer.locator('[data-part="normalise"]').check()
     page.wait_for_function(f"{chart}.axes.length === 2")
