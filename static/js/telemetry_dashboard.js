@@ -6,7 +6,8 @@
   if (!root || typeof uPlot === "undefined") return;
 
   // The panels of the Telemetry Dashboard of [Paula 2018], figure 4.23, plus battery and altitude.
-  // Each series: [object, field, label].
+  // Each series: [object, field, label, unit]; the unit defaults to the panel's. A panel
+  // of two units (battery: V and A) draws one y axis for each.
   const PANELS = [
     { id: "barometer", title: "Barometer", unit: "kPa", series: [["BaroAltitude", "Pressure", "Pressure"]] },
     { id: "temperature", title: "Temperature", unit: "°C", series: [
@@ -20,7 +21,7 @@
     { id: "memory", title: "Free memory", unit: "bytes", series: [
       ["SystemStats", "HeapRemaining", "Heap"]] },
     { id: "battery", title: "Battery", unit: "V · A", series: [
-      ["FlightBatteryState", "Voltage", "Voltage"], ["FlightBatteryState", "Current", "Current"]] },
+      ["FlightBatteryState", "Voltage", "Voltage", "V"], ["FlightBatteryState", "Current", "Current", "A"]] },
     { id: "altitude", title: "Altitude", unit: "m", series: [
       ["BaroAltitude", "Altitude", "Barometric"], ["GPSPosition", "Altitude", "GPS (MSL)"]] },
   ];
@@ -48,14 +49,15 @@
           const band = chart.bands[si - 1];
           if (!band || !band.lo) return;
           const xs = u.data[0];
+          const scale = u.series[si].scale;
           const ctx = u.ctx;
           const top = [];
           const bottom = [];
           for (let i = 0; i < xs.length; i++) {
             if (band.hi[i] == null || band.lo[i] == null) continue;
             const x = u.valToPos(xs[i], "x", true);
-            top.push([x, u.valToPos(band.hi[i], "y", true)]);
-            bottom.push([x, u.valToPos(band.lo[i], "y", true)]);
+            top.push([x, u.valToPos(band.hi[i], scale, true)]);
+            bottom.push([x, u.valToPos(band.lo[i], scale, true)]);
           }
           if (top.length < 2) return;
           ctx.save();
@@ -113,17 +115,23 @@
 
     const chart = { panel, section, body, note, live: panel.series.map(() => [[], []]),
       bands: [], plot: null, dirty: false };
+    const unitOf = (s) => s[3] || panel.unit;
+    const units = [...new Set(panel.series.map(unitOf))];
     const opts = {
       ...chartSize(body),
       plugins: [bandsPlugin(chart)],
       cursor: { sync: { key: "telemetry" }, drag: { x: true, y: false, setScale: false } },
-      scales: { x: { time: true } },
+      scales: { x: { time: true }, ...Object.fromEntries(units.map((u) => [u, { auto: true }])) },
       legend: { live: true },
-      series: [{}].concat(panel.series.map(([, , label], i) => ({
-        label, stroke: COLORS[i % COLORS.length], width: 1.5, spanGaps: false,
+      series: [{}].concat(panel.series.map((s, i) => ({
+        label: units.length > 1 ? `${s[2]} [${unitOf(s)}]` : s[2], scale: unitOf(s),
+        stroke: COLORS[i % COLORS.length], width: 1.5, spanGaps: false,
         value: (u, v) => (v == null ? "–" : +v.toPrecision(5)),
       }))),
-      axes: [{ values: timeTicks, space: 70 }, { size: 60 }],
+      axes: [{ values: timeTicks, space: 70 }, ...units.map((unit, i) => ({
+        scale: unit, size: 60, side: i % 2 ? 1 : 3, grid: { show: i === 0 },
+        label: units.length > 1 ? unit : undefined, labelSize: units.length > 1 ? 14 : 0,
+      }))],
       hooks: { setSelect: [(u) => onZoom(u)] },
     };
     chart.plot = new uPlot(opts, [[], ...panel.series.map(() => [])], body);

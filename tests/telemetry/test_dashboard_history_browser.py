@@ -37,5 +37,8 @@ def test_live_charts_open_with_the_last_minutes_and_readable_times(page, live_as
     assert min(values) > 100  # the sample of an hour ago is outside the live window
     ticks = page.evaluate(f"{chart}.axes[0]._values")
     assert ticks and all(re.fullmatch(r"\d\d:\d\d:\d\d", t) for t in ticks), ticks
+    battery = "window.telemetryCharts.find((c) => c.panel.id === 'battery').plot"
+    axes = page.evaluate(f"{battery}.axes.slice(1).map((a) => [a.scale, a.label])")
+    assert axes == [["V", "V"], ["A", "A"]]  # volts and amps each on their own axis
     href = page.get_attribute("#tm-export-long", "href")
     assert "layout=long" in href and "layout" not in page.get_attribute("#tm-export", "href")
