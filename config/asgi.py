@@ -16,13 +16,19 @@ from channels.security.websocket import AllowedHostsOriginValidator  # noqa: E40
 from config.lifespan import InstanceLifespan  # noqa: E402
 from config.routing import websocket_urlpatterns  # noqa: E402
 from logs.asgi import UploadLimitMiddleware  # noqa: E402
+from tiles.admin import TILE_UPLOAD_PATH, tile_upload_limit  # noqa: E402
 
 # Each server process is listed on the operations page while it runs.
 application = InstanceLifespan(
     ProtocolTypeRouter(
         {
-            # Oversized log uploads are refused before Django spools their body to disk.
-            "http": UploadLimitMiddleware(django_asgi_app),
+            # Oversized log and map-tile uploads are refused before Django spools their
+            # body to disk.
+            "http": UploadLimitMiddleware(
+                UploadLimitMiddleware(django_asgi_app),
+                path=TILE_UPLOAD_PATH,
+                limit=tile_upload_limit,
+            ),
             "websocket": AllowedHostsOriginValidator(
                 AuthMiddlewareStack(URLRouter(websocket_urlpatterns))
             ),

@@ -28,16 +28,26 @@ ASGIApp = Callable[[Scope, Receive, Send], Awaitable[None]]
 UPLOAD_PATH = "/api/v1/logs/"
 
 
+def log_upload_limit() -> int:
+    return int(settings.LOG_UPLOAD_MAX_BYTES)
+
+
 class UploadLimitMiddleware:
-    def __init__(self, app: ASGIApp, *, path: str = UPLOAD_PATH) -> None:
+    """POSTs to `path` limited to `limit()` bytes (the log upload limit by default; the
+    map-tile upload of the admin wraps another one around it with its own)."""
+
+    def __init__(
+        self, app: ASGIApp, *, path: str = UPLOAD_PATH, limit: Callable[[], int] = log_upload_limit
+    ) -> None:
         self.app = app
         self.path = path
+        self.limit = limit
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http" or scope["method"] != "POST" or scope["path"] != self.path:
             await self.app(scope, receive, send)
             return
-        limit = int(settings.LOG_UPLOAD_MAX_BYTES)
+        limit = self.limit()
         allowed = limit + MULTIPART_SLACK_BYTES
         length = _content_length(scope)
         if length is not None and length > allowed:

@@ -14,6 +14,13 @@ from tiles import importer, sources, store
 from tiles.models import TileSet
 from tiles.store import TileError
 
+# The admin's upload form posts here; config/asgi.py refuses bodies over the limit at once.
+TILE_UPLOAD_PATH = "/admin/tiles/tileset/add/"
+
+
+def tile_upload_limit() -> int:
+    return int(settings.TILES_UPLOAD_MAX_BYTES)
+
 
 class TileSetUploadForm(forms.ModelForm):
     file = forms.FileField(help_text="An .mbtiles file, or a .zip of <z>/<x>/<y>.png tiles.")
@@ -37,7 +44,7 @@ class TileSetUploadForm(forms.ModelForm):
         upload = data.get("file")
         if upload is None:
             return data
-        limit = int(settings.TILES_UPLOAD_MAX_BYTES)
+        limit = tile_upload_limit()
         if upload.size > limit:
             raise forms.ValidationError(f"The file is larger than the limit of {limit} bytes.")
         on_disk = hasattr(upload, "temporary_file_path")

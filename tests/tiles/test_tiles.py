@@ -169,3 +169,19 @@ def test_the_admin_refuses_an_upload_over_the_limit_or_not_tiles(
     response = upload(client, tmp_path / "big.mbtiles")
     assert response.status_code == 200 and b"larger than the limit" in response.content
     assert not TileSet.objects.exists() and sets_on_disk(tiles_dir) == []
+
+
+def test_an_upload_over_the_limit_is_refused_before_django_reads_it(settings):
+    """The admin's tile upload path has its own limit in the ASGI app, as the log upload."""
+    from config.asgi import application
+    from tests.logs.test_upload_limit_asgi import call
+
+    settings.TILES_UPLOAD_MAX_BYTES = 1000
+    too_big = str(1000 + 1024 * 1024).encode()
+    status, body, sent = call(
+        application.app.application_mapping["http"],
+        path="/admin/tiles/tileset/add/",
+        headers=[(b"content-length", too_big)],
+        chunks=[b"x" * 1000] * 3,
+    )
+    assert status == 413 and sent == 0 and b"upload limit" in body
