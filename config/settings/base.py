@@ -262,6 +262,10 @@ MQTT_PUBLIC_PORT = env.int("MQTT_PUBLIC_PORT", 0)
 # --- missions ---
 # Coverage requests above this many waypoints are refused, so one request cannot tie up a worker.
 MISSIONS_MAX_WAYPOINTS = env.int("MISSIONS_MAX_WAYPOINTS", 50_000)
+# Survey estimates: cruise speed between photos, and the flight time of a full battery for
+# a drone whose gear does not state its ENDURANCE_MIN.
+MISSIONS_SURVEY_SPEED_M_S = env.float("MISSIONS_SURVEY_SPEED_M_S", 5.0)
+MISSIONS_SURVEY_ENDURANCE_MIN = env.float("MISSIONS_SURVEY_ENDURANCE_MIN", 20.0)
 # A drone at or below this battery fraction is never chosen for a mission.
 MISSIONS_BATTERY_RESERVE = env.float("MISSIONS_BATTERY_RESERVE", 0.3)
 # Drones brought in by an OUT_MEASURE alarm: two, as in the collaborative-sensing
