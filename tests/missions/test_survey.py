@@ -81,17 +81,9 @@ def test_estimate_of_a_serpentine_from_home():
     e = survey.estimate(waypoints, home=home, height_m=100, speed_m_s=5, endurance_s=1200)
     # Legs: 0 to the first waypoint, 300 m along the lines (row order here, not serpentine:
     # every line starts at the west edge), two returns across, and back from (90, 100) home.
-    legs = (
-        [0.0]
-        + [
-            math.dist((r1 * 45, c1 * 20), (r2 * 45, c2 * 20))
-            for (r1, c1), (r2, c2) in zip(
-                [(r, c) for r in range(3) for c in range(6)],
-                [(r, c) for r in range(3) for c in range(6)][1:],
-            )
-        ]
-        + [math.dist((90, 100), (0, 0))]
-    )
+    grid = [(r * 45, c * 20) for r in range(3) for c in range(6)]
+    route = [(0, 0), *grid, (0, 0)]
+    legs = [math.dist(a, b) for a, b in zip(route, route[1:], strict=False)]
     assert e.distance_m == pytest.approx(sum(legs), rel=2e-3)
     seconds = (
         sum(legs) / 5
