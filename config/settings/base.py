@@ -297,9 +297,9 @@ MISSION_START_STOP_HANDLERS = {
 # --- flight logs ---
 # Uploaded logs and their columnar stores, one folder per organisation and log.
 LOGS_DIR = env.str("LOGS_DIR", f"{DATA_DIR}/logs")
-# The Celery queue the import task goes to (a worker started with `-Q celery,logs` keeps
-# long imports away from the fleet's short periodic tasks when this is set to "logs").
-LOGS_IMPORT_QUEUE = env.str("LOGS_IMPORT_QUEUE", "celery")
+# The Celery queue the import task goes to, served by workers of its own (docs/scaling.md):
+# a 30-minute import never delays the fleet's work. Empty: the default queue.
+LOGS_IMPORT_QUEUE = env.str("LOGS_IMPORT_QUEUE", "logs")
 # ZIP archives (DFI): total uncompressed size and per-member compression ratio (ZIP bombs).
 LOGS_MAX_UNCOMPRESSED_BYTES = env.int("LOGS_MAX_UNCOMPRESSED_BYTES", 2 * 1024**3)
 LOGS_MAX_COMPRESSION_RATIO = env.float("LOGS_MAX_COMPRESSION_RATIO", 200.0)
@@ -315,3 +315,33 @@ INSTALLED_APPS += ["pastview"]  # app label "pastview"
 PASTVIEW_PUSH_HZ = env.float("PASTVIEW_PUSH_HZ", 30.0)
 PASTVIEW_TELEOP_HZ = env.float("PASTVIEW_TELEOP_HZ", 4.0)
 PASTVIEW_TELEOP_STEP_M = env.float("PASTVIEW_TELEOP_STEP_M", 0.5)
+
+# --- queues by urgency (config/queues.py routes; docs/scaling.md lists who serves them) ---
+# Work that keeps drones safe (replacing a failing drone, bringing in helpers, handling a
+# drone gone offline, relieving a panic station) has a queue and workers of its own, so
+# it never waits behind a log import or any other slow task. Empty: the default queue.
+SAFETY_TASK_QUEUE = env.str("SAFETY_TASK_QUEUE", "safety")
+SAFETY_TASKS = [
+    "missions.replace_drone",
+    "missions.collaborate",
+    "missions.replace_offline",
+    "missions.resume_paused",
+    "missions.relieve_panic_stations",
+    "fleet.sweep_offline",
+]
+CELERY_TASK_ROUTES = ["config.queues.route_task"]
+# Imports: a log whose import stopped its worker (a crash, the kernel's OOM killer) this
+# many times is marked failed instead of being delivered again.
+LOGS_IMPORT_REDELIVERY_LIMIT = env.int("LOGS_IMPORT_REDELIVERY_LIMIT", 3)
+# A running import shows it is alive this often; one silent for LOGS_STUCK_AFTER_S (or
+# queued that long without starting) is retried or failed by the sweep, run this often.
+LOGS_HEARTBEAT_INTERVAL_S = env.float("LOGS_HEARTBEAT_INTERVAL_S", 10.0)
+LOGS_STUCK_AFTER_S = env.float("LOGS_STUCK_AFTER_S", 300.0)
+LOGS_SWEEP_INTERVAL_S = env.float("LOGS_SWEEP_INTERVAL_S", 60.0)
+CELERY_BEAT_SCHEDULE["logs.sweep_stuck"] = {
+    "task": "logs.sweep_stuck",
+    "schedule": LOGS_SWEEP_INTERVAL_S,
+    "options": {"expires": LOGS_SWEEP_INTERVAL_S},
+}
+# What parses an uploaded file into its store (path, store directory, limits=, progress=).
+LOGS_IMPORT_FUNCTION = env.str("LOGS_IMPORT_FUNCTION", "logs.store.import_to_store")
