@@ -33,6 +33,7 @@ INSTALLED_APPS = [
 
 MIDDLEWARE = [
     "django.middleware.security.SecurityMiddleware",
+    "config.bodylimits.BodyLimitMiddleware",
     "whitenoise.middleware.WhiteNoiseMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",
     "django.middleware.common.CommonMiddleware",
@@ -129,8 +130,30 @@ MEDIA_URL = "/media/"
 
 # Uploads are streamed to disk (never held in memory) beyond this size.
 FILE_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
-DATA_UPLOAD_MAX_MEMORY_SIZE = 10 * 1024 * 1024
+# Form fields (not files) of one request: the largest non-file body any address takes
+# (a mission of MISSIONS_MAX_WAYPOINTS steps), and no more fields or files than a form has.
+DATA_UPLOAD_MAX_MEMORY_SIZE = 16 * 1024 * 1024
+DATA_UPLOAD_MAX_NUMBER_FIELDS = 1000
+DATA_UPLOAD_MAX_NUMBER_FILES = 10
 LOG_UPLOAD_MAX_BYTES = env.int("LOG_UPLOAD_MAX_BYTES", 2 * 1024**3)
+# Request bodies (config/bodylimits.py): HTTP 413 past these, before any view runs. The
+# first matching pattern wins; None leaves the limit to the endpoint itself.
+REQUEST_BODY_MAX_BYTES = env.int("REQUEST_BODY_MAX_BYTES", 1024 * 1024)
+REQUEST_BODY_LIMITS = [
+    # Flight logs stream to disk with their own limit (LOG_UPLOAD_MAX_BYTES, logs/asgi.py).
+    (r"^/api/v1/logs/$", None),
+    # A mission log to view (missions/logs.py reads up to 50 MiB) and its multipart framing.
+    (r"^/api/v1/missions/logs/check/$", 51 * 1024 * 1024),
+    # Missions with their steps, QGroundControl plans and envelope checks of a mission,
+    # up to MISSIONS_MAX_WAYPOINTS waypoints.
+    (r"^/api/v1/missions/", 16 * 1024 * 1024),
+    # An organisation's envelope: a geofence of a few thousand vertices.
+    (r"^/api/v1/organisations/[^/]+/envelope/", 2 * 1024 * 1024),
+    (r"^/organisation/envelope/$", 2 * 1024 * 1024),
+    # `/control` and a drone's commands: one command with its parameters.
+    (r"^/control$", 64 * 1024),
+    (r"^/api/v1/drones/[^/]+/commands/$", 64 * 1024),
+]
 
 REST_FRAMEWORK = {
     "DEFAULT_AUTHENTICATION_CLASSES": [
