@@ -281,6 +281,9 @@ MQTT_SERVICE_USERS = env.list("MQTT_SERVICE_USERS", cast=str.strip, default=["gr
 # What provision_drone tells a drone to connect to (default: MQTT_URL's host and port).
 MQTT_PUBLIC_HOST = env.str("MQTT_PUBLIC_HOST", "")
 MQTT_PUBLIC_PORT = env.int("MQTT_PUBLIC_PORT", 0)
+# Drones are told mqtts:// URLs: MQTT_PUBLIC_PORT is then Mosquitto's TLS listener
+# (MQTT_TLS_PORT of scripts/services.sh).
+MQTT_PUBLIC_TLS = env.bool("MQTT_PUBLIC_TLS", False)
 
 # --- missions ---
 # Coverage requests above this many waypoints are refused, so one request cannot tie up a worker.

@@ -17,7 +17,7 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import NameOID
 
 from onboard.mqtt import MqttLink
-from onboard.processes import free_port
+from onboard.processes import free_port, wait_for
 from tests.support.mqtt_check import round_trip
 from tests.support.paths import ROOT
 from workers.mosquitto import start_broker
@@ -123,3 +123,30 @@ def test_the_services_script_refuses_a_tls_port_without_its_certificate(tmp_path
                              text=True, timeout=60)  # fmt: skip
     assert started.returncode != 0
     assert "MQTT_TLS_CERT" in started.stderr
+
+
+@pytest.mark.django_db
+def test_a_drone_provisioned_for_tls_connects_with_the_url_it_was_given(
+    tmp_path, trusted, settings, world
+):
+    """Provisioning rewrites the (unprivileged) broker's files and hands the drone an
+    mqtts:// URL; the drone's own link uses it, and the ground hears it on loopback."""
+    from fleet.credentials import provision
+
+    directory = tmp_path / "mq"
+    broker = start_broker(directory, {"ground": "ground-pw"}, tls=trusted,
+                          extra_config=f"pid_file {directory / 'mosquitto.pid'}\n")  # fmt: skip
+    settings.MQTT_BROKER = "mosquitto"
+    settings.MOSQUITTO_DIR = str(directory)
+    settings.MQTT_URL = broker.url_for("ground")
+    settings.MQTT_PUBLIC_HOST, settings.MQTT_PUBLIC_PORT = "127.0.0.1", broker.tls_port
+    settings.MQTT_PUBLIC_TLS = True
+    try:
+        credentials = provision("ACME_TLS", world.org.slug)
+        [url] = credentials.urls
+        assert url.startswith("mqtts://ACME_TLS:") and url.endswith(f":{broker.tls_port}")
+        assert wait_for(
+            lambda: round_trip(broker.url_for("ground"), "ACME_TLS/telemetry/out", url), 20
+        )
+    finally:
+        broker.stop()
