@@ -92,13 +92,17 @@ def heartbeat(log_id: str, task_id: str) -> Iterator[None]:
 
 
 def stuck_logs() -> list[FlightLog]:
-    """Logs processing with no sign of life (heartbeat or queueing) for LOGS_STUCK_AFTER_S:
-    their worker died with its message (a lost machine, a hard time limit), or the message
-    never reached the broker."""
+    """Logs processing with no worker: started, then silent (heartbeat and last queueing)
+    for LOGS_STUCK_AFTER_S, as when a worker died with its message (a lost machine, a
+    hard time limit); or never started LOGS_UNSTARTED_AFTER_S after being queued, as when
+    the message never reached the broker (a long queue of imports waits less than that)."""
+    unstarted_before = timezone.now() - timedelta(seconds=float(settings.LOGS_UNSTARTED_AFTER_S))
+    silent = Q(heartbeat_at__isnull=False, last_seen__lt=stale_before())
+    lost = Q(heartbeat_at__isnull=True, queued_at__lt=unstarted_before)
     return list(
         FlightLog.objects.filter(status=LogStatus.PROCESSING)
         .annotate(last_seen=Greatest("heartbeat_at", "queued_at"))
-        .filter(last_seen__lt=stale_before())
+        .filter(silent | lost)
     )
 
 

@@ -359,10 +359,12 @@ CELERY_TASK_ROUTES = ["config.queues.route_task"]
 # Imports: a log whose import stopped its worker (a crash, the kernel's OOM killer) this
 # many times is marked failed instead of being delivered again.
 LOGS_IMPORT_REDELIVERY_LIMIT = env.int("LOGS_IMPORT_REDELIVERY_LIMIT", 3)
-# A running import shows it is alive this often; one silent for LOGS_STUCK_AFTER_S (or
-# queued that long without starting) is retried or failed by the sweep, run this often.
+# A running import shows it is alive this often; one silent for LOGS_STUCK_AFTER_S, or
+# queued LOGS_UNSTARTED_AFTER_S ago and never started (its message lost), is retried or
+# failed by the sweep, which runs every LOGS_SWEEP_INTERVAL_S.
 LOGS_HEARTBEAT_INTERVAL_S = env.float("LOGS_HEARTBEAT_INTERVAL_S", 10.0)
 LOGS_STUCK_AFTER_S = env.float("LOGS_STUCK_AFTER_S", 300.0)
+LOGS_UNSTARTED_AFTER_S = env.float("LOGS_UNSTARTED_AFTER_S", 3600.0)
 LOGS_SWEEP_INTERVAL_S = env.float("LOGS_SWEEP_INTERVAL_S", 60.0)
 CELERY_BEAT_SCHEDULE["logs.sweep_stuck"] = {
     "task": "logs.sweep_stuck",

@@ -169,11 +169,14 @@ def test_logs_left_processing_by_a_vanished_worker_are_queued_again_or_failed(
     settings.LOGS_DIR = str(logs_dir)
     settings.LOGS_IMPORT_QUEUE = queue
     settings.LOGS_STUCK_AFTER_S = 60.0
+    settings.LOGS_UNSTARTED_AFTER_S = 300.0
     broker = redis.Redis.from_url(str(app.conf.broker_url))
     long_ago = timezone.now() - timedelta(minutes=10)
     dead = _stuck(world_tx.org, logs_dir, attempts=1, import_task="gone",
                   heartbeat_at=long_ago, queued_at=long_ago)  # fmt: skip
     never_started = _stuck(world_tx.org, logs_dir, queued_at=long_ago)
+    # Queued two minutes ago and not started: still waiting its turn, not lost.
+    waiting = _stuck(world_tx.org, logs_dir, queued_at=timezone.now() - timedelta(minutes=2))
     hopeless = _stuck(world_tx.org, logs_dir, attempts=LIMIT, import_task="gone",
                       heartbeat_at=long_ago, queued_at=long_ago)  # fmt: skip
     alive = _stuck(world_tx.org, logs_dir, attempts=1, import_task="running",
@@ -200,8 +203,10 @@ def test_logs_left_processing_by_a_vanished_worker_are_queued_again_or_failed(
             log.refresh_from_db()
             assert log.status == LogStatus.READY, log.error
         assert dead.attempts == 2 and never_started.attempts == 1
-        alive.refresh_from_db()
-        assert alive.status == LogStatus.PROCESSING and alive.attempts == 1
+        for untouched in (alive, waiting):
+            untouched.refresh_from_db()
+            assert untouched.status == LogStatus.PROCESSING
+        assert alive.attempts == 1 and waiting.attempts == 0
     finally:
         worker.stop()
         broker.delete(queue)
