@@ -52,14 +52,16 @@ def _start_worker(name: str, queue: str, directory: Path, env: dict[str, str]) -
 
 
 @pytest.fixture
-def queues(settings, outbox, tmp_path):  # type: ignore[no-untyped-def]  # noqa: F811
-    """Safety and log queues of this test only, and a worker process serving each."""
+def queues(request, settings, outbox, tmp_path):  # type: ignore[no-untyped-def]  # noqa: F811
+    """Safety and log queues of this test only, and a worker process serving each; with
+    the parameter True, one queue and one worker for both (the layout without urgency)."""
     from django.db import connection
 
     from config.celery import app
 
     tag = uuid.uuid4().hex[:8]
-    names = SimpleNamespace(safety=f"safety-{tag}", logs=f"logs-{tag}")
+    shared = getattr(request, "param", False)
+    names = SimpleNamespace(safety=f"{'logs' if shared else 'safety'}-{tag}", logs=f"logs-{tag}")
     settings.SAFETY_TASK_QUEUE = names.safety
     settings.LOGS_IMPORT_QUEUE = names.logs
     settings.LOGS_DIR = str(tmp_path / "logs")
@@ -78,10 +80,12 @@ def queues(settings, outbox, tmp_path):  # type: ignore[no-untyped-def]  # noqa:
         LOGS_IMPORT_FUNCTION="tests.support.crashing_import.import_to_store",
         CRASH_AFTER_S=str(CRASH_AFTER_S),
     )
-    names.safety_worker = _start_worker(f"safety-{tag}", names.safety, tmp_path, env)
     names.logs_worker = _start_worker(f"logs-{tag}", names.logs, tmp_path, crashing)
+    names.safety_worker = (
+        names.logs_worker if shared else _start_worker(f"safety-{tag}", names.safety, tmp_path, env)
+    )
     yield names
-    for worker in (names.logs_worker, names.safety_worker):
+    for worker in {id(w): w for w in (names.logs_worker, names.safety_worker)}.values():
         worker.stop()
     redis.Redis.from_url(str(app.conf.broker_url)).delete(names.safety, names.logs)
 
@@ -106,31 +110,52 @@ def _mission_with_a_critical_alarm(org):  # type: ignore[no-untyped-def]
     return mission, assignment, alarm
 
 
-def test_a_log_that_kills_its_worker_fails_after_the_limit_and_a_replacement_runs_at_once(
-    world_tx, queues, tmp_path
-):
+def _replace_during_a_doomed_import(org, queues) -> tuple[FlightLog, float, FlightLog]:  # type: ignore[no-untyped-def]
+    """Upload a log whose import kills its worker; once its first attempt runs, queue a
+    replacement: (the log, seconds until the replacement ran, the log at that moment)."""
+    from django.conf import settings
+
     from missions.models import Assignment
     from missions.tasks import replace_drone
 
-    mission, assignment, alarm = _mission_with_a_critical_alarm(world_tx.org)
-    from django.conf import settings
-
-    log = _upload(world_tx.org, Path(settings.LOGS_DIR))
+    mission, assignment, alarm = _mission_with_a_critical_alarm(org)
+    log = _upload(org, Path(settings.LOGS_DIR))
     assert wait_for(lambda: FlightLog.objects.get(pk=log.pk).attempts >= 1, 60)
-
     queued = time.monotonic()
     replace_drone.delay(str(mission.pk), str(assignment.pk), alarm.pk)
     replaced = mission.assignments.filter(reason=Assignment.Reason.REPLACEMENT)
-    assert wait_for(replaced.exists, 30), queues.safety_worker.output()[-3000:]
+    deadline = (LIMIT + 2) * (CRASH_AFTER_S + 10)
+    assert wait_for(replaced.exists, deadline), queues.safety_worker.output()[-3000:]
     latency = time.monotonic() - queued
-    busy = FlightLog.objects.get(pk=log.pk)
+    assert replaced.get().drone.drone_id == "ACME_B"
+    return log, latency, FlightLog.objects.get(pk=log.pk)
+
+
+@pytest.mark.parametrize("queues", [True], indirect=True)
+def test_baseline_on_one_queue_the_replacement_waits_for_every_crash(world_tx, queues):
+    """The layout without urgency queues, measured for comparison with the next test."""
+    log, latency, _ = _replace_during_a_doomed_import(world_tx.org, queues)
+    print(f"baseline, one queue for both: the replacement ran {latency:.2f} s after it was "
+          f"queued, behind a log whose {LIMIT} attempts take {CRASH_AFTER_S} s each")  # fmt: skip
+    # At least until the running attempt killed its worker (queued just after it began);
+    # where a redelivered import goes in the queue decides how many more it waits.
+    assert latency > CRASH_AFTER_S / 2
+    assert wait_for(
+        lambda: FlightLog.objects.get(pk=log.pk).status == LogStatus.FAILED,
+        (LIMIT + 2) * (CRASH_AFTER_S + 10),
+    )
+
+
+def test_a_log_that_kills_its_worker_fails_after_the_limit_and_a_replacement_runs_at_once(
+    world_tx, queues
+):
+    log, latency, busy = _replace_during_a_doomed_import(world_tx.org, queues)
     print(f"replacement ran {latency:.2f} s after it was queued, during import attempt "
           f"{busy.attempts} of a log whose every attempt takes {CRASH_AFTER_S} s")  # fmt: skip
     # The log queue was still busy with the doomed import: on its queue, the replacement
     # would have waited for every remaining crash (several times CRASH_AFTER_S).
     assert busy.status == LogStatus.PROCESSING and busy.attempts <= LIMIT
     assert latency < CRASH_AFTER_S
-    assert replaced.get().drone.drone_id == "ACME_B"
 
     assert wait_for(
         lambda: FlightLog.objects.get(pk=log.pk).status != LogStatus.PROCESSING,
