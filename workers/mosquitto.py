@@ -34,10 +34,23 @@ def broker_user() -> str:
         return "nobody"
 
 
-def own_files(directory: Path) -> None:
+def written_folders(config: str) -> list[Path]:
+    """Folders the broker writes to that a configuration names (persistence, pid file)."""
+    folders = []
+    for line in config.splitlines():
+        key, _, value = line.strip().partition(" ")
+        if key == "persistence_location" and value:
+            folders.append(Path(value.strip()))
+        elif key == "pid_file" and value:
+            folders.append(Path(value.strip()).parent)
+    return folders
+
+
+def own_files(directory: Path, elsewhere: list[Path] = ()) -> None:  # type: ignore[assignment]
     """Root: the broker's files belong to its user, and files rewritten later as root
     (passwd and acl, by provisioning) stay readable by its group: a setgid directory and
-    mode 0640 (workers.broker.credentials keeps a file's mode when it rewrites it)."""
+    mode 0640 (workers.broker.credentials keeps a file's mode when it rewrites it).
+    Folders `elsewhere` it writes to become its own too."""
     if os.geteuid() != 0:
         return
     user = pwd.getpwnam(broker_user())
@@ -47,6 +60,9 @@ def own_files(directory: Path) -> None:
         mode = parent.stat().st_mode
         if not mode & stat.S_IXOTH:
             parent.chmod(stat.S_IMODE(mode) | stat.S_IXOTH)
+    for folder in elsewhere:
+        if folder.is_dir() and folder.resolve() != directory.resolve():
+            os.chown(folder, user.pw_uid, user.pw_gid)
     for path in [directory, *directory.rglob("*")]:
         os.chown(path, user.pw_uid, user.pw_gid)
         if path.is_file() and path.name != "mosquitto.conf":
@@ -111,8 +127,9 @@ class Broker:
         # Started as root, it runs as an unprivileged user once its ports are open.
         lines.append(f"user {broker_user()}")
         lines += self._tls_lines()
-        conf.write_text("\n".join(lines) + "\n" + self.extra_config)
-        own_files(self.directory)
+        text = "\n".join(lines) + "\n" + self.extra_config
+        conf.write_text(text)
+        own_files(self.directory, written_folders(text))
         return conf
 
     def _tls_lines(self) -> list[str]:
