@@ -5,30 +5,29 @@ from django.db import migrations, models
 
 
 class Migration(migrations.Migration):
-
     dependencies = [
-        ('logs', '0001_flight_log'),
+        ("logs", "0001_flight_log"),
     ]
 
     operations = [
         migrations.AddField(
-            model_name='flightlog',
-            name='attempts',
+            model_name="flightlog",
+            name="attempts",
             field=models.PositiveSmallIntegerField(default=0),
         ),
         migrations.AddField(
-            model_name='flightlog',
-            name='heartbeat_at',
+            model_name="flightlog",
+            name="heartbeat_at",
             field=models.DateTimeField(blank=True, null=True),
         ),
         migrations.AddField(
-            model_name='flightlog',
-            name='import_task',
+            model_name="flightlog",
+            name="import_task",
             field=models.CharField(blank=True, max_length=64),
         ),
         migrations.AddField(
-            model_name='flightlog',
-            name='queued_at',
+            model_name="flightlog",
+            name="queued_at",
             field=models.DateTimeField(default=django.utils.timezone.now),
         ),
     ]
