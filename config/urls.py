@@ -4,6 +4,7 @@ from django.urls import include, path, re_path
 from drf_spectacular.views import SpectacularAPIView, SpectacularSwaggerView
 from rest_framework.routers import DefaultRouter
 
+from accounts import api as accounts_api
 from fleet import api as fleet_api
 from fleet.control import ControlView
 from logs import urls as logs_urls
@@ -19,7 +20,7 @@ router.register("missions", missions_api.MissionViewSet, basename="mission")
 
 api_v1 = [
     path("me/", fleet_api.me, name="me"),
-    path("token/", fleet_api.obtain_token, name="token"),
+    path("token/", accounts_api.obtain_token, name="token"),
     re_path(
         r"^drones/(?P<drone_id>[A-Za-z0-9_-]{1,64})/commands/$",
         fleet_api.DroneCommandView.as_view(),
@@ -57,6 +58,7 @@ urlpatterns = [
         auth_views.PasswordChangeDoneView.as_view(),
         name="password_change_done",
     ),
+    path("accounts/", include("accounts.urls")),
     path("api/v1/", include((api_v1, "api"), namespace="api")),
     path("api/schema/", SpectacularAPIView.as_view(), name="schema"),
     path("api/docs/", SpectacularSwaggerView.as_view(url_name="schema"), name="api-docs"),

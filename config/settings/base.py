@@ -315,3 +315,15 @@ INSTALLED_APPS += ["pastview"]  # app label "pastview"
 PASTVIEW_PUSH_HZ = env.float("PASTVIEW_PUSH_HZ", 30.0)
 PASTVIEW_TELEOP_HZ = env.float("PASTVIEW_TELEOP_HZ", 4.0)
 PASTVIEW_TELEOP_STEP_M = env.float("PASTVIEW_TELEOP_STEP_M", 0.5)
+
+# --- accounts ---
+INSTALLED_APPS += ["django_otp", "django_otp.plugins.otp_totp", "accounts"]
+# The token class first: its refusals answer 401 with `WWW-Authenticate: Token`.
+REST_FRAMEWORK["DEFAULT_AUTHENTICATION_CLASSES"] = [
+    "accounts.authentication.TokenAuthentication",
+    "rest_framework.authentication.SessionAuthentication",
+]
+# Personal API tokens: their default and longest life. DRF's older unnamed tokens are
+# accepted until API_TOKEN_DEFAULT_DAYS after they were made.
+API_TOKEN_DEFAULT_DAYS = env.int("API_TOKEN_DEFAULT_DAYS", 90)
+API_TOKEN_MAX_DAYS = env.int("API_TOKEN_MAX_DAYS", 365)

@@ -1,0 +1,77 @@
+"""`POST /api/v1/token/`: a username and password (and a one-time code once the user has
+a second factor) for a named, expiring personal token."""
+
+from __future__ import annotations
+
+from django.contrib.auth import authenticate
+from drf_spectacular.utils import extend_schema, inline_serializer
+from rest_framework import exceptions, serializers
+from rest_framework.decorators import (
+    api_view,
+    authentication_classes,
+    permission_classes,
+    throttle_classes,
+)
+from rest_framework.permissions import AllowAny
+from rest_framework.request import Request
+from rest_framework.response import Response
+
+from config.api import StrictSerializer
+from config.throttling import AuthRateThrottle
+
+from . import tokens
+from .models import ApiToken
+
+
+class TokenRequestSerializer(StrictSerializer):
+    username = serializers.CharField()
+    password = serializers.CharField(style={"input_type": "password"}, trim_whitespace=False)
+    name = serializers.CharField(required=False, allow_blank=True, max_length=80)
+    expires_in_days = serializers.IntegerField(required=False, min_value=1)
+    scope = serializers.ChoiceField(choices=ApiToken.Scope.choices, required=False)
+
+
+TokenSerializer = inline_serializer(
+    "Token",
+    {
+        "token": serializers.CharField(),
+        "name": serializers.CharField(),
+        "scope": serializers.CharField(),
+        "expires_at": serializers.DateTimeField(),
+    },
+)
+
+
+def token_body(issued: tokens.Issued) -> dict:
+    return {
+        "token": issued.key,
+        "name": issued.token.name,
+        "scope": issued.token.scope,
+        "expires_at": issued.token.expires_at.isoformat(),
+    }
+
+
+@extend_schema(request=TokenRequestSerializer, responses=TokenSerializer, auth=[])
+@api_view(["POST"])
+@authentication_classes([])
+@permission_classes([AllowAny])
+@throttle_classes([AuthRateThrottle])
+def obtain_token(request: Request) -> Response:
+    """Exchange a username and password for a new personal API token (header
+    `Authorization: Token …`), named, expiring after `expires_in_days` (default
+    API_TOKEN_DEFAULT_DAYS), `operate` unless `scope` is `read`."""
+    serializer = TokenRequestSerializer(data=request.data)
+    serializer.is_valid(raise_exception=True)
+    data = serializer.validated_data
+    user = authenticate(
+        request=request._request, username=data["username"], password=data["password"]
+    )
+    if user is None or not user.is_active:
+        raise exceptions.AuthenticationFailed("Unable to log in with the provided credentials.")
+    try:
+        issued = tokens.issue(
+            user, name=data.get("name"), days=data.get("expires_in_days"), scope=data.get("scope")
+        )
+    except tokens.TokenError as exc:
+        raise exceptions.ValidationError({exc.field: [exc.message]}) from None
+    return Response(token_body(issued))

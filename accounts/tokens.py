@@ -1,0 +1,147 @@
+"""Personal API tokens: issue, find, refuse, revoke.
+
+A key is `sky_` and 32 random bytes; the database keeps its SHA-256 only. A fast hash is
+enough for keys that random and lets each request find its token through one index.
+Tokens made by DRF's own `Token` model before these existed are still accepted, with the
+same operate scope, until API_TOKEN_DEFAULT_DAYS after they were made.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import secrets
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+from typing import Any
+
+from django.conf import settings
+from django.utils import timezone
+from rest_framework.authtoken.models import Token as LegacyToken
+
+from .models import ApiToken
+
+PREFIX = "sky_"
+# last_used_at is written at most this often per token, not on every request.
+TOUCH_EVERY = timedelta(seconds=60)
+
+
+class TokenError(ValueError):
+    """A token request refused; `field` names the bad input."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(message)
+        self.field = field
+        self.message = message
+
+
+@dataclass(frozen=True)
+class Issued:
+    token: ApiToken
+    key: str  # shown to the user once, never stored
+
+
+def digest(key: str) -> str:
+    return hashlib.sha256(key.encode()).hexdigest()
+
+
+def clean_request(name: Any, days: Any, scope: Any) -> tuple[str, int, str]:
+    """Validated (name, days, scope); defaults for missing ones; TokenError otherwise."""
+    name = str(name or "").strip() or f"API token {timezone.now():%Y-%m-%d %H:%M}"
+    if len(name) > 80:
+        raise TokenError("name", "at most 80 characters")
+    if days in (None, ""):
+        days = settings.API_TOKEN_DEFAULT_DAYS
+    try:
+        days = int(days)
+    except (TypeError, ValueError):
+        raise TokenError("expires_in_days", "must be a whole number of days") from None
+    if not 1 <= days <= settings.API_TOKEN_MAX_DAYS:
+        raise TokenError("expires_in_days", f"must be 1 to {settings.API_TOKEN_MAX_DAYS}")
+    scope = scope or ApiToken.Scope.OPERATE
+    if scope not in ApiToken.Scope.values:
+        raise TokenError("scope", f"must be one of {', '.join(ApiToken.Scope.values)}")
+    return name, days, scope
+
+
+def issue(
+    user: Any,
+    *,
+    name: Any = None,
+    days: Any = None,
+    scope: Any = None,
+    organisation: Any = None,
+) -> Issued:
+    """A new token for `user`; raises TokenError for a bad name, expiry or scope."""
+    name, days, scope = clean_request(name, days, scope)
+    key = PREFIX + secrets.token_urlsafe(32)
+    token = ApiToken.objects.create(
+        user=user,
+        organisation=organisation,
+        name=name,
+        scope=scope,
+        key_hash=digest(key),
+        prefix=key[: len(PREFIX) + 6],
+        expires_at=timezone.now() + timedelta(days=days),
+    )
+    return Issued(token, key)
+
+
+def find(key: str) -> ApiToken | None:
+    return ApiToken.objects.select_related("user").filter(key_hash=digest(key)).first()
+
+
+def refusal(token: ApiToken | None) -> tuple[str, str] | None:
+    """(code, message) saying why the token may not be used, or None if it may."""
+    if token is None or not token.user.is_active:
+        return "token_invalid", "Invalid token."
+    if token.revoked_at is not None:
+        return "token_revoked", "This token was revoked; create a new one on your security page."
+    if token.expires_at <= timezone.now():
+        when = f"{token.expires_at:%Y-%m-%d %H:%M} UTC"
+        return "token_expired", f"This token expired on {when}; create a new one."
+    return None
+
+
+def touch(token: ApiToken) -> None:
+    now = timezone.now()
+    if token.last_used_at is None or now - token.last_used_at > TOUCH_EVERY:
+        ApiToken.objects.filter(pk=token.pk).update(last_used_at=now)
+
+
+def legacy_expiry(token: LegacyToken) -> datetime:
+    return token.created + timedelta(days=settings.API_TOKEN_DEFAULT_DAYS)
+
+
+def revoke(token: ApiToken) -> bool:
+    """Revoke an active token; False if it was already revoked."""
+    return bool(
+        ApiToken.objects.filter(pk=token.pk, revoked_at__isnull=True).update(
+            revoked_at=timezone.now()
+        )
+    )
+
+
+def revoke_for_organisation(user: Any, organisation: Any) -> int:
+    """Revoke what `user` holds for `organisation` on leaving it: the tokens made for it,
+    and the older unnamed token (it cannot be told apart by organisation)."""
+    count = ApiToken.objects.filter(
+        user=user, organisation=organisation, revoked_at__isnull=True
+    ).update(revoked_at=timezone.now())
+    return count + revoke_legacy(user)
+
+
+def tokens_of(user: Any) -> list[ApiToken]:
+    return list(ApiToken.objects.filter(user=user).select_related("organisation")[:100])
+
+
+def legacy_tokens_of(user: Any) -> list[dict]:
+    """The user's older DRF token, if any, with its expiry (for the security page)."""
+    return [
+        {"created": t.created, "expires_at": legacy_expiry(t), "prefix": t.key[:6]}
+        for t in LegacyToken.objects.filter(user=user)
+    ]
+
+
+def revoke_legacy(user: Any) -> int:
+    deleted, _ = LegacyToken.objects.filter(user=user).delete()
+    return deleted
