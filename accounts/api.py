@@ -20,6 +20,7 @@ from config.api import StrictSerializer
 from config.throttling import AuthRateThrottle
 
 from . import tokens
+from .errors import Refused
 from .models import ApiToken
 
 
@@ -72,6 +73,6 @@ def obtain_token(request: Request) -> Response:
         issued = tokens.issue(
             user, name=data.get("name"), days=data.get("expires_in_days"), scope=data.get("scope")
         )
-    except tokens.TokenError as exc:
+    except Refused as exc:
         raise exceptions.ValidationError({exc.field: [exc.message]}) from None
     return Response(token_body(issued))

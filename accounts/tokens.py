@@ -18,6 +18,7 @@ from django.conf import settings
 from django.utils import timezone
 from rest_framework.authtoken.models import Token as LegacyToken
 
+from .errors import Refused
 from .models import ApiToken
 
 PREFIX = "sky_"
@@ -25,13 +26,8 @@ PREFIX = "sky_"
 TOUCH_EVERY = timedelta(seconds=60)
 
 
-class TokenError(ValueError):
-    """A token request refused; `field` names the bad input."""
-
-    def __init__(self, field: str, message: str) -> None:
-        super().__init__(message)
-        self.field = field
-        self.message = message
+def _bad(field: str, message: str) -> Refused:
+    return Refused(message, 400, field)
 
 
 @dataclass(frozen=True)
@@ -45,21 +41,21 @@ def digest(key: str) -> str:
 
 
 def clean_request(name: Any, days: Any, scope: Any) -> tuple[str, int, str]:
-    """Validated (name, days, scope); defaults for missing ones; TokenError otherwise."""
+    """Validated (name, days, scope); defaults for missing ones; Refused otherwise."""
     name = str(name or "").strip() or f"API token {timezone.now():%Y-%m-%d %H:%M}"
     if len(name) > 80:
-        raise TokenError("name", "at most 80 characters")
+        raise _bad("name", "at most 80 characters")
     if days in (None, ""):
         days = settings.API_TOKEN_DEFAULT_DAYS
     try:
         days = int(days)
     except (TypeError, ValueError):
-        raise TokenError("expires_in_days", "must be a whole number of days") from None
+        raise _bad("expires_in_days", "must be a whole number of days") from None
     if not 1 <= days <= settings.API_TOKEN_MAX_DAYS:
-        raise TokenError("expires_in_days", f"must be 1 to {settings.API_TOKEN_MAX_DAYS}")
+        raise _bad("expires_in_days", f"must be 1 to {settings.API_TOKEN_MAX_DAYS}")
     scope = scope or ApiToken.Scope.OPERATE
     if scope not in ApiToken.Scope.values:
-        raise TokenError("scope", f"must be one of {', '.join(ApiToken.Scope.values)}")
+        raise _bad("scope", f"must be one of {', '.join(ApiToken.Scope.values)}")
     return name, days, scope
 
 
@@ -71,7 +67,7 @@ def issue(
     scope: Any = None,
     organisation: Any = None,
 ) -> Issued:
-    """A new token for `user`; raises TokenError for a bad name, expiry or scope."""
+    """A new token for `user`; raises Refused for a bad name, expiry or scope."""
     name, days, scope = clean_request(name, days, scope)
     key = PREFIX + secrets.token_urlsafe(32)
     token = ApiToken.objects.create(

@@ -1,6 +1,6 @@
 from django.urls import path
 
-from . import views
+from . import member_views, views
 
 app_name = "accounts"
 
@@ -9,4 +9,17 @@ urlpatterns = [
     path("security/tokens/", views.create_token, name="create_token"),
     path("security/tokens/<int:pk>/revoke/", views.revoke_token, name="revoke_token"),
     path("security/tokens/legacy/revoke/", views.revoke_legacy_token, name="revoke_legacy_token"),
+]
+
+urlpatterns += [
+    path("members/", member_views.members_page, name="members"),
+    path("members/invite/", member_views.invite, name="invite"),
+    path("members/<int:pk>/role/", member_views.change_role, name="change_role"),
+    path("members/<int:pk>/remove/", member_views.remove_member, name="remove_member"),
+    path(
+        "invitations/<int:pk>/revoke/",
+        member_views.revoke_invitation,
+        name="revoke_invitation",
+    ),
+    path("invitation/<str:key>/", member_views.invitation, name="invitation"),
 ]

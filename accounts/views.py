@@ -10,6 +10,7 @@ from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_POST
 
 from . import tokens
+from .errors import Refused
 from .models import ApiToken
 
 
@@ -41,7 +42,7 @@ def create_token(request: HttpRequest) -> HttpResponse:
             scope=request.POST.get("scope"),
             organisation=getattr(request, "organisation", None),
         )
-    except tokens.TokenError as exc:
+    except Refused as exc:
         context = {**_security_context(request), "token_error": f"{exc.field}: {exc.message}"}
         return render(request, "accounts/security.html", context, status=400)
     context = {**_security_context(request), "new_key": issued.key, "new_token": issued.token}

@@ -54,7 +54,10 @@ def test_the_token_endpoint_defaults_to_the_configured_expiry_and_issues_one_per
 
 
 def test_a_bad_expiry_or_scope_is_refused_by_name_and_no_token_is_made(world, settings):
-    for extra, field in (({"expires_in_days": 10_000}, "expires_in_days"), ({"scope": "x"}, "scope")):
+    for extra, field in (
+        ({"expires_in_days": 10_000}, "expires_in_days"),
+        ({"scope": "x"}, "scope"),
+    ):
         body = {"username": "viewer", "password": PASSWORD, **extra}
         response = APIClient().post("/api/v1/token/", body, format="json")
         assert response.status_code == 400
