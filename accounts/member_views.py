@@ -19,7 +19,7 @@ from django.views.decorators.http import require_POST
 from fleet.models import Membership, Role
 from fleet.tenancy import SESSION_KEY
 
-from . import members
+from . import audit, members
 from .errors import Refused
 
 
@@ -72,14 +72,22 @@ def _member(request: HttpRequest, pk: int) -> Membership:
 
 
 def _member_change(
-    request: HttpRequest, pk: int, change: Callable[[Membership], str]
+    request: HttpRequest, pk: int, action: str, change: Callable[[Membership], str]
 ) -> HttpResponse:
     """Apply `change` (which returns what to tell the admin) to a member of the
-    admin's organisation; a refusal is shown on the page, nothing changed."""
+    admin's organisation; a refusal is shown on the page (and audited), nothing changed."""
     membership = _member(request, pk)
     try:
         done = change(membership)
     except Refused as exc:
+        audit.record(
+            membership.organisation_id,
+            audit.Kind.MEMBER,
+            action,
+            target=membership.user.get_username(),
+            outcome="refused",
+            detail={"reason": exc.message},
+        )
         return _members_page(request, exc.status, member_error=exc.message)
     messages.success(request, done)
     return redirect("accounts:members")
@@ -92,7 +100,7 @@ def change_role(request: HttpRequest, pk: int) -> HttpResponse:
         members.change_role(membership, request.POST.get("role"))
         return f"{membership.user} is now {membership.get_role_display()}."
 
-    return _member_change(request, pk, change)
+    return _member_change(request, pk, "member.role", change)
 
 
 @login_required
@@ -102,7 +110,7 @@ def remove_member(request: HttpRequest, pk: int) -> HttpResponse:
         members.remove(membership)
         return f"{membership.user} was removed."
 
-    return _member_change(request, pk, change)
+    return _member_change(request, pk, "member.remove", change)
 
 
 @login_required

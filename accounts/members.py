@@ -27,7 +27,7 @@ from django.utils import timezone
 from fleet.consumers import user_group
 from fleet.models import Membership, Organisation, Role
 
-from . import tokens
+from . import audit, tokens
 from .errors import Refused
 from .models import Invitation
 
@@ -69,7 +69,12 @@ def invite(organisation: Organisation, email: Any, role: Any, by: Any) -> Invite
             invited_by=by,
             expires_at=timezone.now() + timedelta(days=settings.INVITATION_DAYS),
         )
+        _audit(organisation, "member.invite", email, role=role)
     return Invited(invitation, key)
+
+
+def _audit(organisation: Organisation, action: str, target: str, **detail: Any) -> None:
+    audit.record(organisation.pk, audit.Kind.MEMBER, action, target=target, detail=detail)
 
 
 def send_invitation(invited: Invited, link: str) -> None:
@@ -133,6 +138,14 @@ def accept(key: str, user: Any) -> Membership:
         invitation.accepted_at = timezone.now()
         invitation.accepted_by = user
         invitation.save(update_fields=["accepted_at", "accepted_by"])
+        audit.record(
+            invitation.organisation_id,
+            audit.Kind.MEMBER,
+            "member.join",
+            target=user.get_username(),
+            actor=user,
+            detail={"role": invitation.role, "email": invitation.email},
+        )
     return membership
 
 
@@ -161,6 +174,13 @@ def change_role(membership: Membership, role: Any) -> Membership:
     with transaction.atomic():
         _keep_an_admin(membership, role)
         Membership.objects.filter(pk=membership.pk).update(role=role)
+        _audit(
+            membership.organisation,
+            "member.role",
+            membership.user.get_username(),
+            before=membership.role,
+            after=role,
+        )
     membership.role = role
     return membership
 
@@ -171,7 +191,14 @@ def remove(membership: Membership) -> None:
     with transaction.atomic():
         _keep_an_admin(membership, None)
         membership.delete()
-        tokens.revoke_for_organisation(membership.user, membership.organisation)
+        revoked = tokens.revoke_for_organisation(membership.user, membership.organisation)
+        _audit(
+            membership.organisation,
+            "member.remove",
+            membership.user.get_username(),
+            role=membership.role,
+            tokens_revoked=revoked,
+        )
         user_id = membership.user_id
         transaction.on_commit(lambda: close_sockets(user_id))
 
@@ -193,6 +220,7 @@ def members_of(organisation: Organisation) -> list[Membership]:
 
 
 def withdraw(invitation: Invitation) -> None:
-    Invitation.objects.filter(pk=invitation.pk, revoked_at__isnull=True).update(
+    if Invitation.objects.filter(pk=invitation.pk, revoked_at__isnull=True).update(
         revoked_at=timezone.now()
-    )
+    ):
+        _audit(invitation.organisation, "member.withdraw", invitation.email)

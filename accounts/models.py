@@ -87,3 +87,59 @@ class Invitation(models.Model):
         if self.revoked_at is not None:
             return "revoked"
         return "expired" if self.expires_at <= timezone.now() else "pending"
+
+
+class AuditQuerySet(models.QuerySet):
+    """Append-only: rows are added, never changed or deleted through the ORM."""
+
+    def update(self, **kwargs: object) -> int:
+        raise PermissionError("the audit trail is append-only")
+
+    def delete(self) -> tuple[int, dict[str, int]]:
+        raise PermissionError("the audit trail is append-only")
+
+
+class AuditEvent(models.Model):
+    """Who did what, when, from where, and how it ended, in one organisation."""
+
+    class Kind(models.TextChoices):
+        COMMAND = "command", "Command"
+        MISSION = "mission", "Mission"
+        ENVELOPE = "envelope", "Envelope"
+        MEMBER = "member", "Member"
+        TOKEN = "token", "Token"
+        SECURITY = "security", "Sign-in security"
+        ORGANISATION = "organisation", "Organisation settings"
+
+    organisation = models.ForeignKey(
+        "fleet.Organisation", on_delete=models.CASCADE, related_name="audit_events"
+    )
+    at = models.DateTimeField(default=timezone.now, db_index=True)
+    actor = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL, related_name="+"
+    )
+    # Kept when the account is deleted later.
+    actor_name = models.CharField(max_length=150, blank=True)
+    kind = models.CharField(max_length=16, choices=Kind.choices)
+    action = models.CharField(max_length=60)
+    target = models.CharField(max_length=200, blank=True)
+    outcome = models.CharField(max_length=16)
+    ip = models.GenericIPAddressField(null=True, blank=True)
+    detail = models.JSONField(default=dict, blank=True)
+
+    objects = AuditQuerySet.as_manager()
+
+    class Meta:
+        ordering = ["-at", "-id"]
+        indexes = [models.Index(fields=["organisation", "-at"])]
+
+    def __str__(self) -> str:
+        return f"{self.at:%Y-%m-%d %H:%M:%S} {self.actor_name} {self.action} {self.target}"
+
+    def save(self, *args: object, **kwargs: object) -> None:
+        if self.pk is not None:
+            raise PermissionError("the audit trail is append-only")
+        super().save(*args, **kwargs)  # type: ignore[arg-type]
+
+    def delete(self, *args: object, **kwargs: object) -> tuple[int, dict[str, int]]:
+        raise PermissionError("the audit trail is append-only")

@@ -18,6 +18,7 @@ from django.conf import settings
 from django.utils import timezone
 from rest_framework.authtoken.models import Token as LegacyToken
 
+from . import audit
 from .errors import Refused
 from .models import ApiToken
 
@@ -79,7 +80,22 @@ def issue(
         prefix=key[: len(PREFIX) + 6],
         expires_at=timezone.now() + timedelta(days=days),
     )
+    _audit(token, "token.create", actor=user)
     return Issued(token, key)
+
+
+def _audit(token: ApiToken, action: str, actor: Any = None) -> None:
+    """Token changes go to the token's organisation, or to every organisation of its
+    user when it acts for all of them."""
+    where = token.organisation_id or audit.organisation_ids_of(token.user)
+    audit.record(
+        where,
+        audit.Kind.TOKEN,
+        action,
+        target=f"{token.name} ({token.prefix}…) of {token.user.get_username()}",
+        actor=actor,
+        detail={"scope": token.scope, "expires_at": token.expires_at.isoformat()},
+    )
 
 
 def find(key: str) -> ApiToken | None:
@@ -110,11 +126,12 @@ def legacy_expiry(token: LegacyToken) -> datetime:
 
 def revoke(token: ApiToken) -> bool:
     """Revoke an active token; False if it was already revoked."""
-    return bool(
-        ApiToken.objects.filter(pk=token.pk, revoked_at__isnull=True).update(
-            revoked_at=timezone.now()
-        )
+    done = ApiToken.objects.filter(pk=token.pk, revoked_at__isnull=True).update(
+        revoked_at=timezone.now()
     )
+    if done:
+        _audit(token, "token.revoke")
+    return bool(done)
 
 
 def revoke_for_organisation(user: Any, organisation: Any) -> int:
@@ -140,4 +157,11 @@ def legacy_tokens_of(user: Any) -> list[dict]:
 
 def revoke_legacy(user: Any) -> int:
     deleted, _ = LegacyToken.objects.filter(user=user).delete()
+    if deleted:
+        audit.record(
+            audit.organisation_ids_of(user),
+            audit.Kind.TOKEN,
+            "token.revoke",
+            target=f"older unnamed token of {user.get_username()}",
+        )
     return deleted

@@ -1,6 +1,6 @@
 from django.urls import path
 
-from . import member_views, views
+from . import audit_views, member_views, views
 
 app_name = "accounts"
 
@@ -22,4 +22,9 @@ urlpatterns += [
         name="revoke_invitation",
     ),
     path("invitation/<str:key>/", member_views.invitation, name="invitation"),
+]
+
+urlpatterns += [
+    path("audit/", audit_views.audit_page, name="audit"),
+    path("audit.csv", audit_views.audit_csv, name="audit_csv"),
 ]

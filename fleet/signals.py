@@ -8,3 +8,6 @@ drones_came_online = Signal()
 
 # Sent by the offline sweep after it marked drones offline. Arguments: drone_ids (list[str]).
 drones_went_offline = Signal()
+
+# Sent after an organisation's envelope was stored. Arguments: organisation, envelope (dict).
+envelope_changed = Signal()

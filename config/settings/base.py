@@ -338,3 +338,5 @@ EMAIL_HOST_PASSWORD = env.str("EMAIL_HOST_PASSWORD", "")
 EMAIL_USE_TLS = env.bool("EMAIL_USE_TLS", False)
 EMAIL_USE_SSL = env.bool("EMAIL_USE_SSL", False)
 DEFAULT_FROM_EMAIL = env.str("DEFAULT_FROM_EMAIL", "skyhive@localhost")
+# The audit trail records the caller of the request being served (accounts/audit.py).
+MIDDLEWARE += ["accounts.audit.AuditContextMiddleware"]
