@@ -19,7 +19,7 @@ from rest_framework.response import Response
 from config.api import StrictSerializer
 from config.throttling import AuthRateThrottle
 
-from . import tokens
+from . import tokens, twofactor
 from .errors import Refused
 from .models import ApiToken
 
@@ -30,6 +30,7 @@ class TokenRequestSerializer(StrictSerializer):
     name = serializers.CharField(required=False, allow_blank=True, max_length=80)
     expires_in_days = serializers.IntegerField(required=False, min_value=1)
     scope = serializers.ChoiceField(choices=ApiToken.Scope.choices, required=False)
+    otp = serializers.CharField(required=False, allow_blank=True, max_length=16)
 
 
 TokenSerializer = inline_serializer(
@@ -52,15 +53,32 @@ def token_body(issued: tokens.Issued) -> dict:
     }
 
 
+def _second_factor(user: object, code: object) -> None:
+    """A user with an authenticator gives its code (`otp`); one whose organisation
+    requires a second factor and who has none gets no token until they enrol."""
+    device = twofactor.device_of(user)
+    if device is not None:
+        if not twofactor.check(device, code):
+            raise exceptions.AuthenticationFailed(
+                "otp: the current code of your authenticator app is required.", code="otp_required"
+            )
+    elif twofactor.required_for(user):
+        raise exceptions.PermissionDenied(
+            "Your organisation requires a second factor: set it up on your security page first.",
+            code="second_factor_required",
+        )
+
+
 @extend_schema(request=TokenRequestSerializer, responses=TokenSerializer, auth=[])
 @api_view(["POST"])
 @authentication_classes([])
 @permission_classes([AllowAny])
 @throttle_classes([AuthRateThrottle])
 def obtain_token(request: Request) -> Response:
-    """Exchange a username and password for a new personal API token (header
-    `Authorization: Token …`), named, expiring after `expires_in_days` (default
-    API_TOKEN_DEFAULT_DAYS), `operate` unless `scope` is `read`."""
+    """Exchange a username and password (and `otp`, the authenticator's code, once the
+    user has one) for a new personal API token (header `Authorization: Token …`), named,
+    expiring after `expires_in_days` (default API_TOKEN_DEFAULT_DAYS), `operate` unless
+    `scope` is `read`."""
     serializer = TokenRequestSerializer(data=request.data)
     serializer.is_valid(raise_exception=True)
     data = serializer.validated_data
@@ -69,6 +87,7 @@ def obtain_token(request: Request) -> Response:
     )
     if user is None or not user.is_active:
         raise exceptions.AuthenticationFailed("Unable to log in with the provided credentials.")
+    _second_factor(user, data.get("otp"))
     try:
         issued = tokens.issue(
             user, name=data.get("name"), days=data.get("expires_in_days"), scope=data.get("scope")

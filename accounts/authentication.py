@@ -1,8 +1,11 @@
 """How the API knows who calls: the session (portal pages) or `Authorization: Token <key>`.
 
 Token refusals say why (revoked, expired) with 401; a read-only token asking to change
-anything gets 403 `read_only_token`. The scope is enforced here, at authentication, so
-it holds for every view, including those with their own permission classes.
+anything gets 403 `read_only_token`; a session whose user must use a second factor and
+has not gets 403 `second_factor_required` for anything but reading. Both are enforced
+here, at authentication, so they hold for every view, including those with their own
+permission classes. Tokens are not asked for a code on each request: a token is only
+issued after one (accounts/api.py) or from a session that gave one.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from django.utils import timezone
 from rest_framework import authentication, exceptions
 from rest_framework.permissions import SAFE_METHODS
 
-from . import tokens
+from . import tokens, twofactor
 from .models import ApiToken
 
 
@@ -47,3 +50,18 @@ class TokenAuthentication(authentication.TokenAuthentication):
                 "This token has expired; create a new one.", code="token_expired"
             )
         return user, legacy
+
+
+class SessionAuthentication(authentication.SessionAuthentication):
+    """DRF's session authentication (with its CSRF check), refusing changes from a
+    session that still owes the second factor its organisation requires."""
+
+    def authenticate(self, request: Any) -> tuple[Any, Any] | None:
+        result = super().authenticate(request)
+        if result and request.method not in SAFE_METHODS and twofactor.missing(request._request):
+            raise exceptions.PermissionDenied(
+                "Your organisation requires a second factor: set up your authenticator "
+                "app on your security page and sign in with it.",
+                code="second_factor_required",
+            )
+        return result

@@ -143,3 +143,47 @@ class AuditEvent(models.Model):
 
     def delete(self, *args: object, **kwargs: object) -> tuple[int, dict[str, int]]:
         raise PermissionError("the audit trail is append-only")
+
+
+class SignInAttempt(models.Model):
+    """One sign-in, successful or not, for the user's own security page."""
+
+    user = models.ForeignKey(
+        settings.AUTH_USER_MODEL,
+        null=True,
+        blank=True,
+        on_delete=models.CASCADE,
+        related_name="sign_in_attempts",
+    )
+    username = models.CharField(max_length=150)
+    at = models.DateTimeField(default=timezone.now)
+    succeeded = models.BooleanField()
+    # What was checked: `password`, `one-time code`, or `password and one-time code`.
+    method = models.CharField(max_length=40)
+    ip = models.GenericIPAddressField(null=True, blank=True)
+    user_agent = models.CharField(max_length=200, blank=True)
+
+    class Meta:
+        ordering = ["-at", "-id"]
+        indexes = [models.Index(fields=["user", "-at"])]
+
+    def __str__(self) -> str:
+        state = "ok" if self.succeeded else "failed"
+        return f"{self.username} {state} at {self.at:%Y-%m-%d %H:%M:%S}"
+
+
+class OrganisationSettings(models.Model):
+    """What an organisation's admins set for it beyond its name and envelope."""
+
+    organisation = models.OneToOneField(
+        "fleet.Organisation", on_delete=models.CASCADE, related_name="account_settings"
+    )
+    # Operators and admins must sign in with a one-time code before changing anything.
+    require_second_factor = models.BooleanField(default=False)
+    # [lat, lon] the organisation's maps and new plans start from; null: none set.
+    default_home = models.JSONField(null=True, blank=True)
+    # E-mail addresses and webhook URLs alerts go to.
+    alert_recipients = models.JSONField(default=list, blank=True)
+
+    def __str__(self) -> str:
+        return f"settings of {self.organisation}"

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from django.contrib.auth.signals import user_logged_in, user_login_failed
 from django.db.models.signals import post_save
 
 from fleet.signals import envelope_changed
 
-from . import audit
+from . import audit, signin
 
 # The command log's outcomes, as the audit trail names them.
 COMMAND_OUTCOMES = {"ok": "ok", "failed": "failed", "timeout": "timeout", "rejected": "refused"}
@@ -76,3 +77,5 @@ def connect() -> None:
     post_save.connect(command_logged, sender="fleet.CommandLog", dispatch_uid="audit-command")
     post_save.connect(mission_event, sender="missions.Event", dispatch_uid="audit-mission")
     envelope_changed.connect(envelope_stored, dispatch_uid="audit-envelope")
+    user_logged_in.connect(signin.signed_in, dispatch_uid="sign-in-record")
+    user_login_failed.connect(signin.sign_in_failed, dispatch_uid="sign-in-failed-record")

@@ -1,6 +1,7 @@
+from django.contrib.auth import views as auth_views
 from django.urls import path
 
-from . import audit_views, member_views, views
+from . import audit_views, member_views, signin, views
 
 app_name = "accounts"
 
@@ -27,4 +28,26 @@ urlpatterns += [
 urlpatterns += [
     path("audit/", audit_views.audit_page, name="audit"),
     path("audit.csv", audit_views.audit_csv, name="audit_csv"),
+]
+
+urlpatterns += [
+    path("login/code/", signin.login_code, name="login_code"),
+    path("security/two-factor/", views.two_factor, name="two_factor"),
+    path("security/two-factor/disable/", views.disable_two_factor, name="disable_two_factor"),
+    path("password/reset/", views.PasswordResetView.as_view(), name="password_reset"),
+    path(
+        "password/reset/sent/",
+        auth_views.PasswordResetDoneView.as_view(),
+        name="password_reset_done",
+    ),
+    path(
+        "password/reset/<uidb64>/<token>/",
+        views.PasswordResetConfirmView.as_view(),
+        name="password_reset_confirm",
+    ),
+    path(
+        "password/reset/done/",
+        auth_views.PasswordResetCompleteView.as_view(),
+        name="password_reset_complete",
+    ),
 ]

@@ -5,6 +5,7 @@ from drf_spectacular.views import SpectacularAPIView, SpectacularSwaggerView
 from rest_framework.routers import DefaultRouter
 
 from accounts import api as accounts_api
+from accounts.signin import LoginView
 from fleet import api as fleet_api
 from fleet.control import ControlView
 from logs import urls as logs_urls
@@ -12,7 +13,6 @@ from missions import api as missions_api
 from telemetry import views as operations_views
 
 from .health import health
-from .throttling import LoginView
 
 router = DefaultRouter()
 router.register("drones", fleet_api.DroneViewSet, basename="drone")

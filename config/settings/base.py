@@ -321,7 +321,7 @@ INSTALLED_APPS += ["django_otp", "django_otp.plugins.otp_totp", "accounts"]
 # The token class first: its refusals answer 401 with `WWW-Authenticate: Token`.
 REST_FRAMEWORK["DEFAULT_AUTHENTICATION_CLASSES"] = [
     "accounts.authentication.TokenAuthentication",
-    "rest_framework.authentication.SessionAuthentication",
+    "accounts.authentication.SessionAuthentication",
 ]
 # Personal API tokens: their default and longest life. DRF's older unnamed tokens are
 # accepted until API_TOKEN_DEFAULT_DAYS after they were made.
@@ -340,3 +340,6 @@ EMAIL_USE_SSL = env.bool("EMAIL_USE_SSL", False)
 DEFAULT_FROM_EMAIL = env.str("DEFAULT_FROM_EMAIL", "skyhive@localhost")
 # The audit trail records the caller of the request being served (accounts/audit.py).
 MIDDLEWARE += ["accounts.audit.AuditContextMiddleware"]
+# Sign-in: the second factor's state on every page (a reminder to enrol when required).
+TEMPLATES[0]["OPTIONS"]["context_processors"].append("accounts.twofactor.context")
+OTP_TOTP_ISSUER = "Skyhive"
