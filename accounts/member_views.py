@@ -1,4 +1,5 @@
-"""The members page (organisation admins) and the invitation link (anyone with it)."""
+"""The members and organisation settings pages (organisation admins) and the invitation
+link (anyone with it)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from fleet.models import Membership, Role
 from fleet.tenancy import SESSION_KEY
 
 from . import audit, members
+from . import organisation as org_settings
 from .errors import Refused
 
 
@@ -177,3 +179,26 @@ def _join(request: HttpRequest, key: str, account: Callable[[], Any]) -> HttpRes
         f"Welcome to {membership.organisation.name} ({membership.get_role_display()}).",
     )
     return redirect("fleet:index")
+
+
+@login_required
+def organisation_settings(request: HttpRequest) -> HttpResponse:
+    """Name, default home, alert recipients and the second-factor rule (admins)."""
+    organisation = admin_organisation(request)
+    status, error = 200, None
+    if request.method == "POST":
+        try:
+            org_settings.update(organisation, org_settings.clean(request.POST))
+        except Refused as exc:
+            status, error = 400, exc.message
+        else:
+            messages.success(request, "Organisation settings saved.")
+            return redirect("accounts:organisation")
+    stored = org_settings.settings_of(organisation)
+    context = {
+        "stored": stored,
+        "recipients_text": "\n".join(stored.alert_recipients),
+        "error": error,
+        "form": request.POST if error else None,
+    }
+    return render(request, "accounts/organisation.html", context, status=status)

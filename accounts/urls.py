@@ -51,3 +51,7 @@ urlpatterns += [
         name="password_reset_complete",
     ),
 ]
+
+urlpatterns += [
+    path("organisation/", member_views.organisation_settings, name="organisation"),
+]
