@@ -169,3 +169,19 @@ def test_the_trail_is_append_only_even_for_a_superuser(world):
     # Deleting the account keeps its entries, under its name.
     world.owner.delete()
     assert AuditEvent.objects.get().actor_name == "owner"
+
+
+@pytest.mark.django_db(transaction=True)
+def test_under_the_asgi_server_the_caller_and_address_reach_the_trail(world_tx, live_asgi):
+    import httpx
+
+    key = tokens.issue(world_tx.operator, name="script").key
+    response = httpx.post(
+        f"{live_asgi.url}/api/v1/drones/ACME_1/commands/",
+        json={"command": "arm"},
+        headers={"Authorization": f"Token {key}"},
+        timeout=30,
+    )
+    assert response.status_code == 409  # offline: refused by the command path
+    event = AuditEvent.objects.get(kind="command")
+    assert (event.actor, event.outcome, event.ip) == (world_tx.operator, "refused", "127.0.0.1")
