@@ -188,3 +188,23 @@ async def test_removal_takes_effect_at_once_sockets_tokens_and_pages(world_tx):
     assert page.status_code == 404
     response = await sync_to_async(APIClient(HTTP_AUTHORIZATION=f"Token {key}").get)("/api/v1/me/")
     assert response.status_code == 401 and response.json()["code"] == "token_revoked"
+
+
+def test_a_superuser_outside_the_organisation_does_not_manage_its_members(world):
+    root = User.objects.create_superuser("root", "root@example.org", PASSWORD)
+    client = signed_in(root)
+    assert client.get("/accounts/members/").status_code == 403
+    theirs = Membership.objects.get(user=world.viewer)
+    assert client.post(f"/accounts/members/{theirs.pk}/remove/").status_code == 403
+    assert Membership.objects.filter(pk=theirs.pk).exists()
+
+
+def test_a_demoted_operator_cannot_command_on_the_next_request(world):
+    key = tokens.issue(world.operator, name="script", organisation=world.org).key
+    client = APIClient(HTTP_AUTHORIZATION=f"Token {key}")
+    body = {"command": "arm"}
+    url = "/api/v1/drones/ACME_1/commands/"
+    assert client.post(url, body, format="json").status_code == 409  # allowed, drone offline
+    membership = Membership.objects.get(user=world.operator)
+    signed_in(world.owner).post(f"/accounts/members/{membership.pk}/role/", {"role": "viewer"})
+    assert client.post(url, body, format="json").status_code == 403
