@@ -1,5 +1,6 @@
 """`POST /api/v1/token/`: a username and password (and a one-time code once the user has
-a second factor) for a named, expiring personal token."""
+a second factor) for a named, expiring personal token; the caller's own tokens listed
+(`GET /api/v1/tokens/`) and revoked (`DELETE /api/v1/tokens/{id}/`)."""
 
 from __future__ import annotations
 
@@ -29,7 +30,8 @@ class TokenRequestSerializer(StrictSerializer):
     password = serializers.CharField(style={"input_type": "password"}, trim_whitespace=False)
     name = serializers.CharField(required=False, allow_blank=True, max_length=80)
     expires_in_days = serializers.IntegerField(required=False, min_value=1)
-    scope = serializers.ChoiceField(choices=ApiToken.Scope.choices, required=False)
+    expires_at = serializers.DateTimeField(required=False)
+    scope = serializers.ChoiceField(choices=[*tokens.READ_ALIASES, "operate"], required=False)
     otp = serializers.CharField(required=False, allow_blank=True, max_length=16)
 
 
@@ -90,8 +92,49 @@ def obtain_token(request: Request) -> Response:
     _second_factor(user, data.get("otp"))
     try:
         issued = tokens.issue(
-            user, name=data.get("name"), days=data.get("expires_in_days"), scope=data.get("scope")
+            user,
+            name=data.get("name"),
+            days=data.get("expires_in_days"),
+            expires_at=data.get("expires_at"),
+            scope=data.get("scope"),
         )
     except Refused as exc:
         raise exceptions.ValidationError({exc.field: [exc.message]}) from None
     return Response(token_body(issued))
+
+
+class ApiTokenSerializer(serializers.ModelSerializer):
+    organisation = serializers.SlugRelatedField(slug_field="slug", read_only=True)
+
+    class Meta:
+        model = ApiToken
+        fields = [
+            "id",
+            "name",
+            "prefix",
+            "scope",
+            "organisation",
+            "created_at",
+            "expires_at",
+            "last_used_at",
+            "revoked_at",
+            "state",
+        ]
+
+
+@extend_schema(responses=ApiTokenSerializer(many=True))
+@api_view(["GET"])
+def my_tokens(request: Request) -> Response:
+    """The caller's own personal tokens (never their keys), newest first."""
+    return Response(ApiTokenSerializer(tokens.tokens_of(request.user), many=True).data)
+
+
+@extend_schema(request=None, responses={204: None})
+@api_view(["DELETE"])
+def revoke_my_token(request: Request, pk: int) -> Response:
+    """Revoke one of the caller's tokens (another user's answers 404)."""
+    token = ApiToken.objects.filter(pk=pk, user=request.user).first()
+    if token is None:
+        raise exceptions.NotFound("No such token of yours.")
+    tokens.revoke(token)
+    return Response(status=204)

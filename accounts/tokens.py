@@ -16,6 +16,7 @@ from typing import Any
 
 from django.conf import settings
 from django.utils import timezone
+from django.utils.dateparse import parse_datetime
 from rest_framework.authtoken.models import Token as LegacyToken
 
 from . import audit
@@ -41,23 +42,40 @@ def digest(key: str) -> str:
     return hashlib.sha256(key.encode()).hexdigest()
 
 
-def clean_request(name: Any, days: Any, scope: Any) -> tuple[str, int, str]:
-    """Validated (name, days, scope); defaults for missing ones; Refused otherwise."""
-    name = str(name or "").strip() or f"API token {timezone.now():%Y-%m-%d %H:%M}"
-    if len(name) > 80:
-        raise _bad("name", "at most 80 characters")
+# Spellings of the read-only scope accepted on input (stored as `read`).
+READ_ALIASES = ("read", "read-only", "read_only", "readonly")
+
+
+def _scope(scope: Any) -> str:
+    scope = str(scope or ApiToken.Scope.OPERATE).strip().lower()
+    if scope in READ_ALIASES:
+        return ApiToken.Scope.READ
+    if scope != ApiToken.Scope.OPERATE:
+        raise _bad("scope", "must be read (read-only) or operate")
+    return scope
+
+
+def _expiry(days: Any, expires_at: Any) -> datetime:
+    """When the token expires: `expires_at` (a datetime or ISO 8601 text) or `days`
+    from now (default API_TOKEN_DEFAULT_DAYS), within API_TOKEN_MAX_DAYS."""
+    now, longest = timezone.now(), settings.API_TOKEN_MAX_DAYS
+    if expires_at not in (None, ""):
+        when = expires_at if isinstance(expires_at, datetime) else parse_datetime(str(expires_at))
+        if when is None:
+            raise _bad("expires_at", "must be an ISO 8601 date and time")
+        when = when if timezone.is_aware(when) else timezone.make_aware(when)
+        if not now < when <= now + timedelta(days=longest):
+            raise _bad("expires_at", f"must be in the next {longest} days")
+        return when
     if days in (None, ""):
         days = settings.API_TOKEN_DEFAULT_DAYS
     try:
         days = int(days)
     except (TypeError, ValueError):
         raise _bad("expires_in_days", "must be a whole number of days") from None
-    if not 1 <= days <= settings.API_TOKEN_MAX_DAYS:
-        raise _bad("expires_in_days", f"must be 1 to {settings.API_TOKEN_MAX_DAYS}")
-    scope = scope or ApiToken.Scope.OPERATE
-    if scope not in ApiToken.Scope.values:
-        raise _bad("scope", f"must be one of {', '.join(ApiToken.Scope.values)}")
-    return name, days, scope
+    if not 1 <= days <= longest:
+        raise _bad("expires_in_days", f"must be 1 to {longest}")
+    return now + timedelta(days=days)
 
 
 def issue(
@@ -67,9 +85,13 @@ def issue(
     days: Any = None,
     scope: Any = None,
     organisation: Any = None,
+    expires_at: Any = None,
 ) -> Issued:
     """A new token for `user`; raises Refused for a bad name, expiry or scope."""
-    name, days, scope = clean_request(name, days, scope)
+    name = str(name or "").strip() or f"API token {timezone.now():%Y-%m-%d %H:%M}"
+    if len(name) > 80:
+        raise _bad("name", "at most 80 characters")
+    expiry, scope = _expiry(days, expires_at), _scope(scope)
     key = PREFIX + secrets.token_urlsafe(32)
     token = ApiToken.objects.create(
         user=user,
@@ -78,7 +100,7 @@ def issue(
         scope=scope,
         key_hash=digest(key),
         prefix=key[: len(PREFIX) + 6],
-        expires_at=timezone.now() + timedelta(days=days),
+        expires_at=expiry,
     )
     _audit(token, "token.create", actor=user)
     return Issued(token, key)

@@ -21,6 +21,8 @@ router.register("missions", missions_api.MissionViewSet, basename="mission")
 api_v1 = [
     path("me/", fleet_api.me, name="me"),
     path("token/", accounts_api.obtain_token, name="token"),
+    path("tokens/", accounts_api.my_tokens, name="tokens"),
+    path("tokens/<int:pk>/", accounts_api.revoke_my_token, name="token-revoke"),
     re_path(
         r"^drones/(?P<drone_id>[A-Za-z0-9_-]{1,64})/commands/$",
         fleet_api.DroneCommandView.as_view(),

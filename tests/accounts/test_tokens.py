@@ -145,3 +145,35 @@ def test_a_bad_token_form_says_why_and_makes_nothing(world):
     assert response.status_code == 400
     assert "expires_in_days" in response.content.decode()
     assert not ApiToken.objects.exists()
+
+
+def test_an_expiry_date_and_the_read_only_spelling_are_accepted(world):
+    when = (timezone.now() + timedelta(days=3)).replace(microsecond=0)
+    body = {
+        "username": "viewer",
+        "password": PASSWORD,
+        "expires_at": when.isoformat(),
+        "scope": "read-only",
+    }
+    response = APIClient().post("/api/v1/token/", body, format="json")
+    assert response.status_code == 200, response.content
+    token = ApiToken.objects.get(user=world.viewer)
+    assert token.expires_at == when and token.scope == "read"
+    past = {**body, "expires_at": (timezone.now() - timedelta(days=1)).isoformat()}
+    refused = APIClient().post("/api/v1/token/", past, format="json")
+    assert refused.status_code == 400 and "expires_at" in refused.json()["fields"]
+
+
+def test_a_user_lists_and_revokes_their_tokens_through_the_api(world):
+    key = tokens.issue(world.operator, name="ci", scope="operate").key
+    other = tokens.issue(world.viewer, name="theirs").token
+    client = api(key)
+    listed = client.get("/api/v1/tokens/").json()
+    assert [(t["name"], t["state"]) for t in listed] == [("ci", "active")]
+    assert key not in str(listed)
+    assert client.delete(f"/api/v1/tokens/{other.pk}/").status_code == 404
+    assert client.delete(f"/api/v1/tokens/{listed[0]['id']}/").status_code == 204
+    assert client.get("/api/v1/tokens/").status_code == 401
+    # A read-only token may list but not revoke.
+    read = tokens.issue(world.viewer, name="ro", scope="read").key
+    assert api(read).delete(f"/api/v1/tokens/{other.pk}/").status_code == 403
