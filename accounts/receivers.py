@@ -8,7 +8,7 @@ from typing import Any
 from django.contrib.auth.signals import user_logged_in, user_login_failed
 from django.db.models.signals import post_save
 
-from fleet.signals import envelope_changed
+from fleet.signals import action_refused, envelope_changed
 
 from . import audit, signin
 
@@ -57,8 +57,8 @@ def mission_event(sender: Any, instance: Any, created: bool, **kwargs: Any) -> N
         mission.organisation_id,
         audit.Kind.MISSION,
         f"mission.{action}",
-        target=f"{mission.name} ({mission.pk})",
-        detail={"message": instance.message, **(instance.data or {})},
+        target=mission.name,
+        detail={"mission": str(mission.pk), "message": instance.message, **(instance.data or {})},
     )
 
 
@@ -72,10 +72,26 @@ def envelope_stored(sender: Any, organisation: Any, envelope: dict, **kwargs: An
     )
 
 
+def refused(
+    sender: Any, organisation_id: int, user: Any, action: str, target: str, reason: str, **kw: Any
+) -> None:
+    """A mission action or envelope change another app refused."""
+    audit.record(
+        organisation_id,
+        action.split(".", 1)[0],
+        action,
+        target=target,
+        outcome="refused",
+        actor=user,
+        detail={"reason": reason},
+    )
+
+
 def connect() -> None:
     """Called once from AppConfig.ready(); senders by label, so no import of their apps."""
     post_save.connect(command_logged, sender="fleet.CommandLog", dispatch_uid="audit-command")
     post_save.connect(mission_event, sender="missions.Event", dispatch_uid="audit-mission")
     envelope_changed.connect(envelope_stored, dispatch_uid="audit-envelope")
+    action_refused.connect(refused, dispatch_uid="audit-refused")
     user_logged_in.connect(signin.signed_in, dispatch_uid="sign-in-record")
     user_login_failed.connect(signin.sign_in_failed, dispatch_uid="sign-in-failed-record")

@@ -29,6 +29,7 @@ from .serializers import (
     DroneSerializer,
     MembershipSerializer,
 )
+from .signals import note_refusal
 
 GearSerializer = inline_serializer(
     "Gear",
@@ -248,6 +249,7 @@ class EnvelopeView(APIView):
         try:
             envelopes.set_envelope(organisation, request.data)
         except EnvelopeError as exc:
+            note_refusal(organisation.pk, request.user, "envelope.change", organisation, str(exc))
             raise exceptions.ValidationError({exc.field: [exc.message]}) from None
         return Response(envelopes.envelope_body(organisation))
 

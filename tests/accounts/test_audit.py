@@ -185,3 +185,31 @@ def test_under_the_asgi_server_the_caller_and_address_reach_the_trail(world_tx, 
     assert response.status_code == 409  # offline: refused by the command path
     event = AuditEvent.objects.get(kind="command")
     assert (event.actor, event.outcome, event.ip) == (world_tx.operator, "refused", "127.0.0.1")
+
+
+def test_refused_envelope_changes_and_mission_actions_are_recorded_as_refused(world):
+    owner = signed_in(world.owner)
+    bad = owner.put(
+        "/api/v1/organisations/acme/envelope/",
+        {"max_height": -5},
+        content_type="application/json",
+    )
+    assert bad.status_code == 400
+    envelope = AuditEvent.objects.get(kind="envelope")
+    assert (envelope.outcome, envelope.actor) == ("refused", world.owner)
+    assert "max_height" in envelope.detail["reason"]
+
+    mission = Mission.objects.create(organisation=world.org, name="Empty plan")
+    operator = signed_in(world.operator)
+    assert operator.post(f"/api/v1/missions/{mission.pk}/start/").status_code in (400, 409)
+    assert operator.post(f"/api/v1/missions/{mission.pk}/stop/").status_code == 200
+    assert operator.post(f"/api/v1/missions/{mission.pk}/stop/").status_code == 409
+    found = [
+        (e.action, e.outcome, e.actor_name)
+        for e in AuditEvent.objects.filter(kind="mission").order_by("at", "id")
+    ]
+    assert found == [
+        ("mission.start", "refused", "operator"),
+        ("mission.stop", "ok", "operator"),
+        ("mission.stop", "refused", "operator"),
+    ]
