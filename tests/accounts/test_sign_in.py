@@ -14,6 +14,7 @@ from django_otp.plugins.otp_totp.models import TOTPDevice
 from rest_framework.test import APIClient
 
 from accounts.models import OrganisationSettings, SignInAttempt
+from fleet.models import Membership
 
 PASSWORD = "correct horse battery staple"
 COMMAND = {"command": "arm", "params": {}}
@@ -171,3 +172,16 @@ def test_the_required_second_factor_cannot_be_turned_off(world):
     OrganisationSettings.objects.update(require_second_factor=False)
     client.post("/accounts/security/two-factor/disable/", {"code": code(device, ahead=1)})
     assert not TOTPDevice.objects.filter(user=world.operator).exists()
+
+
+def test_an_admin_owing_the_required_second_factor_changes_no_member(world):
+    require_second_factor(world.org)
+    client = signed_in(world.owner)
+    viewer = Membership.objects.get(user=world.viewer)
+    assert client.get("/accounts/members/").status_code == 200
+    refused = client.post(f"/accounts/members/{viewer.pk}/role/", {"role": "admin"})
+    assert refused.status_code == 403
+    viewer.refresh_from_db()
+    assert viewer.role == "viewer"
+    enrol(client, world.owner)
+    assert client.post(f"/accounts/members/{viewer.pk}/role/", {"role": "admin"}).status_code == 302
