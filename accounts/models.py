@@ -165,7 +165,7 @@ class SignInAttempt(models.Model):
 
     class Meta:
         ordering = ["-at", "-id"]
-        indexes = [models.Index(fields=["user", "-at"])]
+        indexes = [models.Index(fields=["user", "-at"]), models.Index(fields=["at"])]
 
     def __str__(self) -> str:
         state = "ok" if self.succeeded else "failed"

@@ -9,13 +9,16 @@ out for good). Every attempt is kept for the user's own security page.
 from __future__ import annotations
 
 import time
+from datetime import timedelta
 from typing import Any
 
 import django_otp
+from django.conf import settings
 from django.contrib.auth import get_user_model, login, user_login_failed
 from django.http import HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
 from django.urls import reverse
+from django.utils import timezone
 from django.utils.http import url_has_allowed_host_and_scheme
 
 from config.throttling import LoginAttempts, client_address
@@ -88,12 +91,15 @@ def login_code(request: HttpRequest) -> HttpResponse:
 
 
 def _attempt(request: HttpRequest | None, **fields: Any) -> None:
+    """Keep one attempt; those older than SIGN_IN_HISTORY_DAYS go."""
     meta = getattr(request, "META", {}) if request is not None else {}
     SignInAttempt.objects.create(
         ip=client_address(request) if meta.get("REMOTE_ADDR") else None,
         user_agent=str(meta.get("HTTP_USER_AGENT", ""))[:200],
         **fields,
     )
+    cutoff = timezone.now() - timedelta(days=settings.SIGN_IN_HISTORY_DAYS)
+    SignInAttempt.objects.filter(at__lt=cutoff).delete()
 
 
 def signed_in(sender: Any, request: HttpRequest | None, user: Any, **kwargs: Any) -> None:

@@ -343,3 +343,5 @@ MIDDLEWARE += ["accounts.audit.AuditContextMiddleware"]
 # Sign-in: the second factor's state on every page (a reminder to enrol when required).
 TEMPLATES[0]["OPTIONS"]["context_processors"].append("accounts.twofactor.context")
 OTP_TOTP_ISSUER = "Skyhive"
+# Sign-ins and failures are listed on each user's security page for this many days.
+SIGN_IN_HISTORY_DAYS = env.int("SIGN_IN_HISTORY_DAYS", 90)

@@ -6,9 +6,11 @@ from __future__ import annotations
 import re
 import time
 import uuid
+from datetime import timedelta
 
 from django.core import mail
 from django.test import Client
+from django.utils import timezone
 from django_otp.oath import TOTP
 from django_otp.plugins.otp_totp.models import TOTPDevice
 from rest_framework.test import APIClient
@@ -185,3 +187,17 @@ def test_an_admin_owing_the_required_second_factor_changes_no_member(world):
     assert viewer.role == "viewer"
     enrol(client, world.owner)
     assert client.post(f"/accounts/members/{viewer.pk}/role/", {"role": "admin"}).status_code == 302
+
+
+def test_sign_ins_older_than_the_history_are_dropped(world, settings):
+    settings.SIGN_IN_HISTORY_DAYS = 30
+    old = SignInAttempt.objects.create(
+        username="viewer",
+        user=world.viewer,
+        succeeded=False,
+        method="password",
+        at=timezone.now() - timedelta(days=31),
+    )
+    signed_in(world.viewer)
+    assert not SignInAttempt.objects.filter(pk=old.pk).exists()
+    assert SignInAttempt.objects.filter(user=world.viewer, succeeded=True).count() == 1
