@@ -63,7 +63,10 @@ def invite(request: HttpRequest) -> HttpResponse:
     except Refused as exc:
         return _members_page(request, exc.status, invite_error=exc.message)
     link = request.build_absolute_uri(reverse("accounts:invitation", args=[invited.key]))
-    members.send_invitation(invited, link)
+    try:
+        members.send_invitation(invited, link)
+    except Refused as exc:
+        return _members_page(request, exc.status, invite_error=exc.message)
     messages.success(request, f"Invitation sent to {invited.invitation.email}.")
     return redirect("accounts:members")
 

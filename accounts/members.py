@@ -11,6 +11,7 @@ import hashlib
 import secrets
 from dataclasses import dataclass
 from datetime import timedelta
+from smtplib import SMTPException
 from typing import Any
 
 from asgiref.sync import async_to_sync
@@ -78,14 +79,20 @@ def _audit(organisation: Organisation, action: str, target: str, **detail: Any) 
 
 
 def send_invitation(invited: Invited, link: str) -> None:
+    """Mail the link; if the mail server refuses or is away, the invitation is withdrawn
+    (nobody could use it) and Refused (502) says why."""
     invitation = invited.invitation
     context = {"invitation": invitation, "link": link, "days": settings.INVITATION_DAYS}
-    send_mail(
-        f"Join {invitation.organisation.name} on Skyhive",
-        render_to_string("accounts/invitation_email.txt", context),
-        None,
-        [invitation.email],
-    )
+    try:
+        send_mail(
+            f"Join {invitation.organisation.name} on Skyhive",
+            render_to_string("accounts/invitation_email.txt", context),
+            None,
+            [invitation.email],
+        )
+    except (OSError, SMTPException) as exc:
+        withdraw(invitation)
+        raise Refused(f"The invitation e-mail could not be sent ({exc}); try again.", 502) from None
 
 
 def pending(organisation: Organisation):  # type: ignore[no-untyped-def]

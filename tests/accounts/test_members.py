@@ -17,6 +17,7 @@ from accounts import tokens
 from accounts.models import Invitation
 from fleet.consumers import CLOSE_FORBIDDEN
 from fleet.models import Membership, Role
+from onboard.processes import free_port
 from tests.support.websocket import connect_websocket
 
 PASSWORD = "correct horse battery staple"
@@ -208,3 +209,15 @@ def test_a_demoted_operator_cannot_command_on_the_next_request(world):
     membership = Membership.objects.get(user=world.operator)
     signed_in(world.owner).post(f"/accounts/members/{membership.pk}/role/", {"role": "viewer"})
     assert client.post(url, body, format="json").status_code == 403
+
+
+def test_an_invitation_the_mail_server_refuses_is_withdrawn_and_said(world, settings):
+    # A mail server nobody listens on: the connection is refused at once.
+    settings.EMAIL_BACKEND = "django.core.mail.backends.smtp.EmailBackend"
+    settings.EMAIL_HOST, settings.EMAIL_PORT, settings.EMAIL_TIMEOUT = "127.0.0.1", free_port(), 2
+    response = signed_in(world.owner).post(
+        "/accounts/members/invite/", {"email": "pilot@example.org", "role": "viewer"}
+    )
+    assert response.status_code == 502
+    assert "could not be sent" in response.content.decode()
+    assert Invitation.objects.get().state == "revoked"
