@@ -13,7 +13,7 @@ from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import reverse_lazy
 from django.views.decorators.http import require_POST
 
-from config.throttling import LoginAttempts
+from config.throttling import LoginAttempts, parse_rate
 
 from . import signin, tokens, twofactor
 from .errors import Refused
@@ -30,7 +30,7 @@ def _security_context(request: HttpRequest) -> dict:
         "attempts": signin.recent_attempts(request.user),
         "has_second_factor": twofactor.device_of(request.user) is not None,
         "second_factor_required": twofactor.required_for(request.user),
-        "login_rate": settings.LOGIN_RATE,
+        "login_limit": parse_rate(settings.LOGIN_RATE),
     }
 
 
