@@ -4,6 +4,8 @@ from django.urls import include, path, re_path
 from drf_spectacular.views import SpectacularAPIView, SpectacularSwaggerView
 from rest_framework.routers import DefaultRouter
 
+from accounts import api as accounts_api
+from accounts.signin import LoginView
 from fleet import api as fleet_api
 from fleet.control import ControlView
 from logs import urls as logs_urls
@@ -12,7 +14,6 @@ from missions import survey_api
 from telemetry import views as operations_views
 
 from .health import health
-from .throttling import LoginView
 
 router = DefaultRouter()
 router.register("drones", fleet_api.DroneViewSet, basename="drone")
@@ -20,7 +21,9 @@ router.register("missions", missions_api.MissionViewSet, basename="mission")
 
 api_v1 = [
     path("me/", fleet_api.me, name="me"),
-    path("token/", fleet_api.obtain_token, name="token"),
+    path("token/", accounts_api.obtain_token, name="token"),
+    path("tokens/", accounts_api.my_tokens, name="tokens"),
+    path("tokens/<int:pk>/", accounts_api.revoke_my_token, name="token-revoke"),
     re_path(
         r"^drones/(?P<drone_id>[A-Za-z0-9_-]{1,64})/commands/$",
         fleet_api.DroneCommandView.as_view(),
@@ -60,6 +63,7 @@ urlpatterns = [
         auth_views.PasswordChangeDoneView.as_view(),
         name="password_change_done",
     ),
+    path("accounts/", include("accounts.urls")),
     path("api/v1/", include((api_v1, "api"), namespace="api")),
     path("api/schema/", SpectacularAPIView.as_view(), name="schema"),
     path("api/docs/", SpectacularSwaggerView.as_view(url_name="schema"), name="api-docs"),

@@ -4,25 +4,18 @@ from __future__ import annotations
 
 from asgiref.sync import sync_to_async
 from django.conf import settings
-from django.contrib.auth import authenticate
 from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiResponse, extend_schema, inline_serializer
 from rest_framework import exceptions, serializers, status, viewsets
-from rest_framework.authtoken.models import Token
 from rest_framework.decorators import (
     action,
     api_view,
-    authentication_classes,
-    permission_classes,
-    throttle_classes,
 )
-from rest_framework.permissions import AllowAny
 from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
 from config.api import StrictSerializer
-from config.throttling import AuthRateThrottle
 from onboard.envelope import EnvelopeError
 
 from . import commands, credentials, envelopes
@@ -36,6 +29,7 @@ from .serializers import (
     DroneSerializer,
     MembershipSerializer,
 )
+from .signals import note_refusal
 
 GearSerializer = inline_serializer(
     "Gear",
@@ -228,35 +222,6 @@ def me(request: Request) -> Response:
     )
 
 
-class TokenRequestSerializer(StrictSerializer):
-    username = serializers.CharField()
-    password = serializers.CharField(style={"input_type": "password"}, trim_whitespace=False)
-
-
-@extend_schema(
-    request=TokenRequestSerializer,
-    responses=inline_serializer("Token", {"token": serializers.CharField()}),
-    auth=[],
-)
-@api_view(["POST"])
-@authentication_classes([])
-@permission_classes([AllowAny])
-@throttle_classes([AuthRateThrottle])
-def obtain_token(request: Request) -> Response:
-    """Exchange a username and password for an API token (header `Authorization: Token …`)."""
-    serializer = TokenRequestSerializer(data=request.data)
-    serializer.is_valid(raise_exception=True)
-    user = authenticate(
-        request=request._request,
-        username=serializer.validated_data["username"],
-        password=serializer.validated_data["password"],
-    )
-    if user is None or not user.is_active:
-        raise exceptions.AuthenticationFailed("Unable to log in with the provided credentials.")
-    token, _ = Token.objects.get_or_create(user=user)
-    return Response({"token": token.key})
-
-
 def _member_organisation(request: Request, slug: str) -> Organisation:
     membership = Membership.objects.for_user(request.user).filter(organisation__slug=slug).first()
     if membership is None:
@@ -284,6 +249,7 @@ class EnvelopeView(APIView):
         try:
             envelopes.set_envelope(organisation, request.data)
         except EnvelopeError as exc:
+            note_refusal(organisation.pk, request.user, "envelope.change", organisation, str(exc))
             raise exceptions.ValidationError({exc.field: [exc.message]}) from None
         return Response(envelopes.envelope_body(organisation))
 

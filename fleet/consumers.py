@@ -23,10 +23,17 @@ CLOSE_FORBIDDEN = 4403
 CLOSE_NOT_FOUND = 4404
 
 
+def user_group(user_id: int) -> str:
+    """Every open socket of one user: told to close when their access changes (a
+    reconnecting page is then authorised anew)."""
+    return f"user-{user_id}"
+
+
 class GroupConsumer(AsyncJsonWebsocketConsumer):
     """A server → client socket on one group; subclasses say what a user may watch."""
 
     group: str | None = None
+    user_group: str | None = None
     refused_code = CLOSE_FORBIDDEN
 
     async def authorise(self, user: Any) -> Any | None:
@@ -54,18 +61,25 @@ class GroupConsumer(AsyncJsonWebsocketConsumer):
             await self.close(code=self.refused_code)
             return
         self.group = self.group_for(target)
+        self.user_group = user_group(user.pk)
         await self.channel_layer.group_add(self.group, self.channel_name)
+        await self.channel_layer.group_add(self.user_group, self.channel_name)
         await self.joined(target)
         await self.accept()
         await self.welcome(target)
 
     async def disconnect(self, code: int) -> None:
-        if self.group:
-            await self.channel_layer.group_discard(self.group, self.channel_name)
+        for group in (self.group, self.user_group):
+            if group:
+                await self.channel_layer.group_discard(group, self.channel_name)
 
     async def receive_json(self, content: Any, **kwargs: object) -> None:
         # Clients only listen; commands go through the REST API with its permissions.
         return
+
+    async def access_changed(self, event: dict) -> None:
+        """`{"type": "access.changed"}` on the user's group: membership removed."""
+        await self.close(code=CLOSE_FORBIDDEN)
 
     async def send_payload(self, event: dict) -> None:
         """A `{"type": ..., "payload": {...}}` group event, passed on as its payload."""

@@ -20,6 +20,7 @@ from onboard import protocol
 from workers import outbox
 
 from .models import Drone, Organisation
+from .signals import envelope_changed
 
 log = logging.getLogger(__name__)
 
@@ -106,6 +107,7 @@ def set_envelope(organisation: Organisation, body: Any) -> env.Envelope:
     stored = {**envelope.to_dict(), **({"home": home} if home else {})}
     Organisation.objects.filter(pk=organisation.pk).update(envelope=stored)
     organisation.envelope = stored
+    envelope_changed.send(sender=Organisation, organisation=organisation, envelope=stored)
     drones = Drone.objects.filter(organisation=organisation).select_related("organisation")
     transaction.on_commit(lambda: send_to_drones(list(drones)))
     return envelope

@@ -22,6 +22,7 @@ from rest_framework.response import Response
 from fleet import envelopes
 from fleet.models import Drone, Membership, Organisation, Role
 from fleet.permissions import OrganisationRole, require_role
+from fleet.signals import note_refusal
 from fleet.tenancy import current_membership
 
 from . import hold, logs, panic, pictures, planning, qgc_plan
@@ -298,6 +299,9 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         try:
             start_mission(mission, drone=drone, user=request.user)
         except MissionError as exc:
+            note_refusal(
+                mission.organisation_id, request.user, "mission.start", mission, exc.message
+            )
             raise refuse(exc) from None
         mission.refresh_from_db()
         return Response(MissionDetailSerializer(mission).data)
@@ -332,6 +336,8 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         try:
             operation(mission, user=request.user)
         except MissionError as exc:
+            action = f"mission.{operation.__name__.removesuffix('_mission')}"
+            note_refusal(mission.organisation_id, request.user, action, mission, exc.message)
             raise refuse(exc) from None
         mission.refresh_from_db()
         return Response(MissionDetailSerializer(mission).data)

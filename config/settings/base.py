@@ -377,3 +377,32 @@ CELERY_BEAT_SCHEDULE["logs.sweep_stuck"] = {
 }
 # What parses an uploaded file into its store (path, store directory, limits=, progress=).
 LOGS_IMPORT_FUNCTION = env.str("LOGS_IMPORT_FUNCTION", "logs.store.import_to_store")
+# --- accounts ---
+INSTALLED_APPS += ["django_otp", "django_otp.plugins.otp_totp", "accounts"]
+# The token class first: its refusals answer 401 with `WWW-Authenticate: Token`.
+REST_FRAMEWORK["DEFAULT_AUTHENTICATION_CLASSES"] = [
+    "accounts.authentication.TokenAuthentication",
+    "accounts.authentication.SessionAuthentication",
+]
+# Personal API tokens: their default and longest life. DRF's older unnamed tokens are
+# accepted until API_TOKEN_DEFAULT_DAYS after they were made.
+API_TOKEN_DEFAULT_DAYS = env.int("API_TOKEN_DEFAULT_DAYS", 90)
+API_TOKEN_MAX_DAYS = env.int("API_TOKEN_MAX_DAYS", 365)
+# Invitation links expire this many days after they are sent.
+INVITATION_DAYS = env.int("INVITATION_DAYS", 7)
+# Outgoing mail (invitations, password resets): any SMTP server, from the environment.
+EMAIL_BACKEND = env.str("EMAIL_BACKEND", "django.core.mail.backends.smtp.EmailBackend")
+EMAIL_HOST = env.str("EMAIL_HOST", "localhost")
+EMAIL_PORT = env.int("EMAIL_PORT", 25)
+EMAIL_HOST_USER = env.str("EMAIL_HOST_USER", "")
+EMAIL_HOST_PASSWORD = env.str("EMAIL_HOST_PASSWORD", "")
+EMAIL_USE_TLS = env.bool("EMAIL_USE_TLS", False)
+EMAIL_USE_SSL = env.bool("EMAIL_USE_SSL", False)
+DEFAULT_FROM_EMAIL = env.str("DEFAULT_FROM_EMAIL", "skyhive@localhost")
+# The audit trail records the caller of the request being served (accounts/audit.py).
+MIDDLEWARE += ["accounts.audit.AuditContextMiddleware"]
+# Sign-in: the second factor's state on every page (a reminder to enrol when required).
+TEMPLATES[0]["OPTIONS"]["context_processors"].append("accounts.twofactor.context")
+OTP_TOTP_ISSUER = "Skyhive"
+# Sign-ins and failures are listed on each user's security page for this many days.
+SIGN_IN_HISTORY_DAYS = env.int("SIGN_IN_HISTORY_DAYS", 90)

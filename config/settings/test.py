@@ -31,3 +31,5 @@ ALLOWED_HOSTS = ["*"]
 # A Celery worker started by a test must read the database pytest-django created.
 if env.str("TEST_WORKER_DB_NAME", ""):
     DATABASES["default"]["NAME"] = env.str("TEST_WORKER_DB_NAME")
+# Mail stays in memory (pytest-django's outbox; the live test server keeps its own).
+EMAIL_BACKEND = "django.core.mail.backends.locmem.EmailBackend"
