@@ -6,6 +6,7 @@ from rest_framework.routers import DefaultRouter
 
 from accounts import api as accounts_api
 from accounts.signin import LoginView
+from alerts import api as alerts_api
 from fleet import api as fleet_api
 from fleet.control import ControlView
 from logs import urls as logs_urls
@@ -39,6 +40,7 @@ api_v1 = [
     path("telemetry/", include("telemetry.api_urls")),
     path("logs/", include(logs_urls.api_urlpatterns)),
     path("operations/", operations_views.operations_api, name="operations"),
+    path("alerts/", alerts_api.recent, name="alerts"),
     path("", include(router.urls)),
 ]
 

@@ -343,3 +343,13 @@ MIDDLEWARE += ["accounts.audit.AuditContextMiddleware"]
 # Sign-in: the second factor's state on every page (a reminder to enrol when required).
 TEMPLATES[0]["OPTIONS"]["context_processors"].append("accounts.twofactor.context")
 OTP_TOTP_ISSUER = "Skyhive"
+
+# --- alerts ---
+INSTALLED_APPS += ["alerts"]
+# Alerts raised in the last ALERT_RECENT_S are shown to a page that opens afterwards.
+ALERT_RECENT_S = env.int("ALERT_RECENT_S", 600)
+# Each e-mail or webhook delivery is tried up to this many times, waiting
+# ALERT_RETRY_BASE_S, then twice as long each time.
+ALERT_MAX_ATTEMPTS = env.int("ALERT_MAX_ATTEMPTS", 6)
+ALERT_RETRY_BASE_S = env.float("ALERT_RETRY_BASE_S", 30.0)
+ALERT_WEBHOOK_TIMEOUT_S = env.float("ALERT_WEBHOOK_TIMEOUT_S", 10.0)
