@@ -6,6 +6,7 @@ from rest_framework.routers import DefaultRouter
 
 from accounts import api as accounts_api
 from accounts.signin import LoginView
+from alerts import api as alerts_api
 from fleet import api as fleet_api
 from fleet.control import ControlView
 from logs import urls as logs_urls
@@ -44,6 +45,7 @@ api_v1 = [
     path("operations/", operations_views.operations_api, name="operations"),
     path("missions/survey/", survey_api.plan, name="mission-survey"),
     path("missions/survey/cameras/", survey_api.cameras, name="mission-survey-cameras"),
+    path("alerts/", alerts_api.recent, name="alerts"),
     path("", include(router.urls)),
 ]
 

@@ -94,6 +94,16 @@ def _membership(user, slug: str | None) -> Membership | None:  # type: ignore[no
     return memberships.first()
 
 
+async def membership_for_query(user: Any, scope: dict) -> Membership | None:
+    """The user's membership in `?org=<slug>`, else their first one."""
+    query = dict(
+        part.split("=", 1)
+        for part in scope.get("query_string", b"").decode().split("&")
+        if "=" in part
+    )
+    return await _membership(user, query.get("org"))
+
+
 @database_sync_to_async
 def _snapshot(organisation_id: int) -> list[dict]:
     drones = Drone.objects.filter(organisation_id=organisation_id).select_related("organisation")
@@ -104,12 +114,7 @@ class FleetConsumer(GroupConsumer):
     """`/ws/fleet/?org=<slug>`: the organisation's drones, then every change as it happens."""
 
     async def authorise(self, user: Any) -> Membership | None:
-        query = dict(
-            part.split("=", 1)
-            for part in self.scope.get("query_string", b"").decode().split("&")
-            if "=" in part
-        )
-        return await _membership(user, query.get("org"))
+        return await membership_for_query(user, self.scope)
 
     def group_for(self, membership: Membership) -> str:
         return membership.organisation.group_name

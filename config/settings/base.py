@@ -406,3 +406,13 @@ TEMPLATES[0]["OPTIONS"]["context_processors"].append("accounts.twofactor.context
 OTP_TOTP_ISSUER = "Skyhive"
 # Sign-ins and failures are listed on each user's security page for this many days.
 SIGN_IN_HISTORY_DAYS = env.int("SIGN_IN_HISTORY_DAYS", 90)
+
+# --- alerts ---
+INSTALLED_APPS += ["alerts"]
+# Alerts raised in the last ALERT_RECENT_S are shown to a page that opens afterwards.
+ALERT_RECENT_S = env.int("ALERT_RECENT_S", 600)
+# Each e-mail or webhook delivery is tried up to this many times, waiting
+# ALERT_RETRY_BASE_S, then twice as long each time.
+ALERT_MAX_ATTEMPTS = env.int("ALERT_MAX_ATTEMPTS", 6)
+ALERT_RETRY_BASE_S = env.float("ALERT_RETRY_BASE_S", 30.0)
+ALERT_WEBHOOK_TIMEOUT_S = env.float("ALERT_WEBHOOK_TIMEOUT_S", 10.0)
