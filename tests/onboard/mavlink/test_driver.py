@@ -281,7 +281,7 @@ def test_a_px4_autopilot_is_flown_with_its_own_modes_and_reposition(tmp_path):
         assert wait_for(lambda: fc.state.home is not None, 5)
         assert fc.is_px4 and fc.state.flight_mode == "MANUAL"
         fly_up(fc, 12.0)  # NAV_TAKEOFF to home + 12 m above mean sea level
-        assert fc.state.flight_mode == "LOITER"
+        assert wait_for(lambda: fc.state.flight_mode == "LOITER", 3)  # Takeoff ends in Hold
         fc.goto_ned(25.0, -10.0, -15.0)  # MAV_CMD_DO_REPOSITION, acknowledged
         assert wait_for(
             lambda: (
@@ -291,8 +291,9 @@ def test_a_px4_autopilot_is_flown_with_its_own_modes_and_reposition(tmp_path):
             ),
             15,
         ), fc.state
-        fc.set_mode("AUTO")
-        assert wait_for(lambda: fc.state.flight_mode == "MISSION", 3)
+        # PX4 enters Mission mode only with a valid mission on board.
+        with pytest.raises(CommandRejected, match="TEMPORARILY_REJECTED.*no valid mission"):
+            fc.set_mode("AUTO")
         fc.land()
         assert wait_for(lambda: not fc.state.armed, 15), fc.state
         assert fc.state.flight_mode == "LAND"

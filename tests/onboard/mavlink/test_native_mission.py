@@ -93,7 +93,7 @@ def test_an_uploaded_mission_reads_back_item_for_item(fc):
     uploader = MissionUploader(fc)
     uploader.upload(items)
     assert uploader.download() == items
-    assert uploader.stats["items_sent"] == len(items)
+    assert uploader.stats["items_sent"] == len(items) + 1  # ArduPilot's home item 0 first
 
 
 def test_a_refused_mission_names_the_mav_mission_result(fc):
@@ -152,7 +152,8 @@ def test_the_worker_flies_a_survey_natively_and_reports_every_step(worker, fc):
     outbox = worker.outbox
     assert wait_for(lambda: outbox.missions()[-1:] == ["completed"], 30), list(outbox)
     assert outbox.steps("completed") == [(s.index, s.command) for s in mission]
-    assert reached == [0, 1, 2, 3, 4]  # takeoff, two waypoints, loiter, land
+    # Takeoff, two waypoints, loiter, land: from item 1, as ArduPilot keeps home in item 0.
+    assert reached == [1, 2, 3, 4, 5]
     assert not fc.state.armed
     assert fc.state.ned[:2] == pytest.approx((30.0, 20.0), abs=1.0)
     loiter = next(
