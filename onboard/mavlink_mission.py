@@ -3,8 +3,10 @@
 For links too weak for step-by-step control, the flying steps of a mission (take-off,
 navigate, changeN/changeE/altitude, wait_for_flight, sleep, land) are turned into
 MISSION_ITEM_INTs, uploaded with the mission protocol (MISSION_COUNT → MISSION_REQUEST_INT
-→ MISSION_ITEM_INT … → MISSION_ACK) and flown in AUTO; MISSION_ITEM_REACHED marks each
-step completed, so the ground sees the same step progress as for a step-by-step mission.
+→ MISSION_ITEM_INT … → MISSION_ACK) and flown in AUTO (PX4: AUTO.MISSION) after
+MAV_CMD_MISSION_START; MISSION_ITEM_REACHED marks each step completed, so the ground sees
+the same step progress as for a step-by-step mission. ArduPilot keeps home in item 0 and
+flies from item 1, so its uploads carry a home item first; PX4's start at item 0.
 Steps the autopilot cannot do (arm, takepic, sense, virtualalarm, ...) still run in the
 agent between native runs, exactly as the ordinary Mission Worker runs them.
 

@@ -16,8 +16,17 @@ UAVTalk personality; only the language differs:
 - SET_POSITION_TARGET_GLOBAL_INT / LOCAL_NED in GUIDED;
 - the mission protocol (upload and download, MISSION_ITEM_INT and legacy MISSION_ITEM),
   AUTO mode flying the items, MISSION_CURRENT and MISSION_ITEM_REACHED;
-- with `autopilot="px4"`: PX4's HEARTBEAT and main/sub modes, NAV_TAKEOFF from any mode
-  to an AMSL altitude, DO_REPOSITION into hold, setpoints ignored (no OFFBOARD);
+- each autopilot's preconditions, refused with its result and STATUSTEXT: ArduPilot's
+  take-off only armed in GUIDED, setpoints only in GUIDED, no arming in AUTO/RTL/LAND, AUTO
+  only with a mission (item 0 is home; armed on the ground it must start with a take-off);
+- with `autopilot="px4"`: PX4's HEARTBEAT and main/sub modes, default streams without
+  requests, NAV_TAKEOFF from any mode to an AMSL altitude (Takeoff mode, then Hold),
+  DO_REPOSITION into Hold, OFFBOARD only on a setpoint stream already running (> 2 Hz for
+  a second) and left for Hold when it stops for COM_OF_LOSS_T, AUTO.MISSION only with a
+  mission (MISSION_START arms);
+- both: position modes and arming in them need a GPS fix (SIM_GPS_DISABLE takes it away),
+  RTL climbs to RTL_ALT / RTL_RETURN_ALT, flies home, lands and disarms, AUTOPILOT_VERSION
+  and EXTENDED_SYS_STATE;
 - parameters (PARAM_SET/READ/LIST), including fault knobs in the style of SITL's SIM_*:
   SIM_CMD_MUTE (a command id never answered), SIM_JUNK_RATE (bad-CRC and unknown-id
   frames per second sent to the ground), SIM_MSGINT_OFF (answer SET_MESSAGE_INTERVAL as

@@ -30,7 +30,10 @@ SET_POSITION_TARGET_GLOBAL_INT (or LOCAL_NED with `goto_frame="local"`). A COMMA
 that is not ACCEPTED raises `CommandRejected` naming the MAV_RESULT; no ACK raises
 `CommandTimeout`. Flight modes are ArduCopter's custom modes (GUIDED, AUTO, LAND, ...);
 with a PX4 autopilot (told by its HEARTBEAT) the driver uses PX4's main/sub modes, takes
-off to an AMSL altitude and flies to points with MAV_CMD_DO_REPOSITION in hold (LOITER).
+off to an AMSL altitude and flies to points with MAV_CMD_DO_REPOSITION (COMMAND_INT,
+AMSL, CHANGE_MODE flag) in hold (LOITER). PX4 is not flown in OFFBOARD: that mode drops
+to its fail-safe whenever a > 2 Hz setpoint stream pauses, while a reposition is one
+acknowledged command that PX4 keeps flying on its own (onboard/README.md says more).
 """
 
 from __future__ import annotations
