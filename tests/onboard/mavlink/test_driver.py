@@ -322,3 +322,30 @@ def test_a_plain_pymavlink_script_connects_to_the_simulator_as_to_sitl(mav_sim):
         )
     finally:
         conn.close()
+
+
+def test_px4_refusals_reach_the_driver_with_the_result_and_the_autopilots_words(tmp_path):
+    sim = start_simulator(
+        home=HOME,
+        time_scale=TIME_SCALE,
+        fc="mavlink",
+        extra_args=["--autopilot", "px4", "--param", "SIM_GPS_DISABLE=1"],
+        log_file=tmp_path / "sim.log",
+    )
+    fc = MavlinkFlightController(sim.link_url)
+    try:
+        fc.start()
+        assert fc.wait_connected(5)
+        assert wait_for(lambda: fc.state.home is not None, 5)
+        assert not fc.state.gps_fix
+        fc.arm(timeout=5)  # Manual needs no global position
+        with pytest.raises(CommandRejected) as takeoff:
+            fc.takeoff(10.0)
+        assert takeoff.value.result_name == "MAV_RESULT_TEMPORARILY_REJECTED"
+        assert "Takeoff denied! Please disarm and retry" in str(takeoff.value)
+        with pytest.raises(CommandRejected, match="Hold mode not available: no global position"):
+            fc.goto_ned(10.0, 0.0, -5.0)
+        assert fc.state.ned[2] == pytest.approx(0.0, abs=0.05) and fc.state.flight_mode == "MANUAL"
+    finally:
+        fc.stop()
+        sim.stop()
