@@ -798,9 +798,7 @@ class MavlinkSession:
                     self._mission_ack(mavlink.MAV_MISSION_UNSUPPORTED, msg.mission_type)
             return
         if kind == "MISSION_COUNT":
-            if self.mode == "AUTO" and self.armed:
-                self._mission_ack(mavlink.MAV_MISSION_DENIED)
-                return
+            # Both autopilots take a new mission in flight, AUTO too: it runs from its start.
             self.upload = _Upload(msg.count)
             if msg.count == 0:
                 self._finish_upload()
@@ -932,8 +930,10 @@ class MavlinkSession:
 
     # --- AUTO mode --------------------------------------------------------------------
     def _run_mission(self) -> None:
-        if self.mode != "AUTO" or not self.armed or self.mission_done or not self.mission:
+        if self.mode != "AUTO" or not self.armed or self.mission_done:
             return
+        if self.current >= len(self.mission):
+            return  # nothing flyable on board (cleared, or ArduPilot's home alone)
         v = self.vehicle
         item = self.mission[self.current]
         if not self.item_started:
@@ -1028,7 +1028,7 @@ class MavlinkSession:
             or (self.mode == "RTL" and self.rtl_phase == "land")
             or (
                 self.mode == "AUTO"
-                and self.mission
+                and self.current < len(self.mission)
                 and self.mission[self.current].command
                 in (mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
             )

@@ -328,3 +328,20 @@ def test_px4_streams_unasked_and_describes_itself_in_autopilot_version():
     quiet = Ground("ardupilot")
     quiet.run(2.5)
     assert not {"SYS_STATUS", "GLOBAL_POSITION_INT"} & {m.get_type() for m in quiet.inbox}
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_a_mission_uploaded_in_flight_replaces_the_running_one(autopilot):
+    ground = Ground(autopilot)
+    ground.fly_up(10.0)
+    home = [(mavlink.MAV_CMD_NAV_WAYPOINT, *lla(0, 0), 0.0)] if autopilot == "ardupilot" else []
+    far = [(mavlink.MAV_CMD_NAV_WAYPOINT, *lla(300.0, 0.0), 10.0)]
+    assert ground.upload(home + far) == mavlink.MAV_MISSION_ACCEPTED
+    assert ground.command(mavlink.MAV_CMD_MISSION_START, 0, 0) == mavlink.MAV_RESULT_ACCEPTED
+    ground.run(5.0)
+    assert 5.0 < ground.vehicle.ned[0] < 100.0
+    near = [(mavlink.MAV_CMD_NAV_WAYPOINT, *lla(0.0, 30.0), 10.0)]
+    assert ground.upload(home + near) == mavlink.MAV_MISSION_ACCEPTED
+    ground.run(25.0)
+    assert ground.session.mode == "AUTO"
+    assert ground.vehicle.ned == pytest.approx([0.0, 30.0, -10.0], abs=1.0)  # acceptance radius
