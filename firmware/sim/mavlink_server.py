@@ -334,11 +334,9 @@ class MavlinkSession:
 
     def _auto_refusal(self) -> str | None:
         if len(self.mission) <= self.first_seq:
-            return (
-                "Mission mode not available: no valid mission"
-                if self.px4
-                else ("Mode change to AUTO failed: no mission")
-            )
+            if self.px4:
+                return "Mission mode not available: no valid mission"
+            return "Mode change to AUTO failed: no mission"
         first = self.mission[self.first_seq]
         if (
             not self.px4
