@@ -443,11 +443,14 @@ def validate_command(
         params = {}
     elif not isinstance(params, dict):
         raise ProtocolError(prefix + "params", f"must be a JSON object, got {_type_name(params)}")
-    if not prefix:
-        return _PARAMS[command](params, "params.")
     try:
-        return _PARAMS[command](params, "params.")
+        result = _PARAMS[command](params, "params.")
+        if mission and command in _STEP_EXTRAS:
+            result.update(_STEP_EXTRAS[command](params, "params."))
+        return result
     except ProtocolError as exc:
+        if not prefix:
+            raise
         raise ProtocolError(prefix + exc.field, exc.message) from None
 
 
@@ -1320,3 +1323,34 @@ OPERATOR_COMMANDS = ("hold", "return")
 CONTROL_COMMANDS = (*CONTROL_COMMANDS, *OPERATOR_COMMANDS)
 _CONTROL_SET = frozenset(CONTROL_COMMANDS)
 _PARAMS.update({command: _no_params for command in OPERATOR_COMMANDS})
+
+
+# Optional step params (docs/protocol.md "Mission"): a mission leg's speed, the point the
+# drone faces while flying it, and pictures by distance while it flies. Only mission steps
+# carry them; a drone whose flight controller cannot do one refuses the whole mission.
+MAX_SPEED = 50.0  # m/s
+
+
+def _navigate_extras(params: dict, prefix: str) -> dict:
+    extras: dict = {}
+    if params.get("speed") is not None:
+        extras["speed"] = number(params["speed"], prefix + "speed", lo=0.1, hi=MAX_SPEED)
+    roi = params.get("roi")
+    if roi is not None:
+        if not isinstance(roi, list | tuple) or len(roi) != 2:
+            raise ProtocolError(prefix + "roi", "must be [lat, lon]")
+        extras["roi"] = [latitude(roi[0], prefix + "roi[0]"), longitude(roi[1], prefix + "roi[1]")]
+    return extras
+
+
+def _wait_extras(params: dict, prefix: str) -> dict:
+    distance = params.get("photo_distance")
+    if distance is None:
+        return {}
+    return {"photo_distance": number(distance, prefix + "photo_distance", lo=0.1, hi=1e4)}
+
+
+_STEP_EXTRAS: dict[str, Callable[[dict, str], dict]] = {
+    "navigate": _navigate_extras,
+    "wait_for_flight": _wait_extras,
+}
