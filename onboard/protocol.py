@@ -841,6 +841,8 @@ class Heartbeat:
     fc_protocol: str
     fc_connected: bool
     type: str = "heartbeat"
+    # (optional) what to change on the flight controller before it can fly (sentences).
+    fc_setup: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         return {
@@ -853,7 +855,11 @@ class Heartbeat:
             "airborne": self.airborne,
             "flight_mode": self.flight_mode,
             "mission": None if self.mission is None else self.mission.to_dict(),
-            "fc": {"protocol": self.fc_protocol, "connected": self.fc_connected},
+            "fc": {
+                "protocol": self.fc_protocol,
+                "connected": self.fc_connected,
+                **({"setup": list(self.fc_setup)} if self.fc_setup else {}),
+            },
         }
 
 
@@ -895,7 +901,16 @@ def parse_heartbeat(obj: Any) -> Heartbeat:
         mission=_mission_ref(obj.get("mission")),
         fc_protocol=_string(fc.get("protocol") or "unknown", "fc.protocol"),
         fc_connected=_boolean(fc.get("connected", False), "fc.connected"),
+        fc_setup=_setup_list(fc.get("setup")),
     )
+
+
+def _setup_list(value: Any) -> tuple[str, ...]:
+    if value is None:
+        return ()
+    if not isinstance(value, list) or len(value) > 64:
+        raise ProtocolError("fc.setup", "must be a list of at most 64 sentences")
+    return tuple(_string(item, f"fc.setup[{i}]") for i, item in enumerate(value))
 
 
 @dataclass(frozen=True)
