@@ -279,3 +279,27 @@ def test_a_plan_outside_the_organisations_envelope_changes_nothing(world):
     world.org.refresh_from_db()
     assert world.org.envelope == {"max_distance": 20}
     assert Mission.objects.count() == 0
+
+
+def test_a_plan_round_trips_through_the_api_with_its_leg_settings(world):
+    client = client_for(world.operator)
+    first = client.post(
+        "/api/v1/missions/import-plan/", {"file": upload("mixed_frames.plan")}, format="multipart"
+    )
+    assert first.status_code == 201, first.json()
+    steps = first.json()["steps"]
+    navigate = next(s for s in steps if s["command"] == "navigate")
+    assert navigate["params"]["speed"] == 4 and navigate["params"]["roi"] == [40.631, -8.657]
+    assert {"photo_distance": 10}.items() <= steps[6]["params"].items()
+    exported = client.get(f"/api/v1/missions/{first.json()['id']}/plan/")
+    assert plan_errors(json.loads(exported.content)) == []
+    again = client.post(
+        "/api/v1/missions/import-plan/",
+        {"file": upload("again.plan", json.loads(exported.content))},
+        format="multipart",
+    )
+    assert again.status_code == 201, again.json()
+    strip = [{k: s[k] for k in ("index", "command", "params")} for s in steps]
+    assert [
+        {k: s[k] for k in ("index", "command", "params")} for s in again.json()["steps"]
+    ] == strip
