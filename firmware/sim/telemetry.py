@@ -100,6 +100,8 @@ class BoardSession:
         self._reset_link_state()
         self._receiver: list[int] | None = None
         self._receiver_at = -math.inf
+        self._judged_settings: dict | None = None
+        self._receiver_ok = True
         self._line_value: str | None = None
         self._iap_step = 0
         self._iap_at = 0.0
@@ -326,9 +328,15 @@ class BoardSession:
         return self.frames.safe_frame_us
 
     def _reads_uavtalk_receiver(self) -> bool:
-        """A board set up otherwise ignores UAVTalkReceiver channels, as dRonin does."""
+        """A board set up otherwise ignores UAVTalkReceiver channels, as dRonin does
+        (judged again whenever ManualControlSettings is written)."""
         settings = self.values.get((receiver_setup.SETTINGS, 0))
-        return settings is None or not receiver_setup.problems(settings, self.frames)
+        if settings is not self._judged_settings:
+            self._judged_settings = settings
+            self._receiver_ok = settings is None or not receiver_setup.problems(
+                settings, self.frames
+            )
+        return self._receiver_ok
 
     def _read_arming_line(self) -> str | None:
         if self.arming_line is None:
