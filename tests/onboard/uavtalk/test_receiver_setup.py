@@ -136,3 +136,33 @@ def test_a_write_the_board_does_not_know_is_refused_at_once(tmp_path: Path):
     finally:
         fc.stop()
         sim.stop()
+
+
+def test_the_drone_page_lists_what_to_change_on_its_board(world):
+    from django.test import Client
+
+    from fleet.heartbeats import fc_state
+    from fleet.models import Drone
+
+    state = _heartbeat_state(
+        ("set ManualControlSettings.Arming to Yaw Right+Throttle (it is Switch)",)
+    )
+    Drone.objects.filter(drone_id="ACME_1").update(fc=fc_state(state, _now()))
+    client = Client()
+    client.force_login(world.viewer)
+    html = client.get("/drones/ACME_1/").content.decode()
+    assert "needs setting up before the drone can arm" in html
+    assert "set ManualControlSettings.Arming to Yaw Right+Throttle (it is Switch)" in html
+
+
+def _heartbeat_state(setup: tuple[str, ...]):  # type: ignore[no-untyped-def]
+    from onboard.fc.base import VehicleState
+
+    state = VehicleState(connected=True, setup=setup)
+    return parse_heartbeat(build_heartbeat("ACME_1", state, None).to_dict())
+
+
+def _now():  # type: ignore[no-untyped-def]
+    from django.utils import timezone
+
+    return timezone.now()
