@@ -42,7 +42,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from missions.planning import PlanningError
-from onboard.envelope import EnvelopeError, parse_geofence
+from onboard.envelope import (
+    Circle,
+    Envelope,
+    EnvelopeError,
+    Polygon,
+    geofence_dict,
+    parse_geofence,
+)
 from onboard.protocol import ProtocolError, validate_command
 
 NAV_WAYPOINT = 16
@@ -434,27 +441,20 @@ def read_geofence(data: Any) -> dict:
 
 
 def geofence_json(fence: Mapping | None) -> dict:
-    """A geofence as `QgcPlan.geofence` holds it → QGroundControl's `geoFence` object."""
+    """A geofence as `QgcPlan.geofence` holds it → QGroundControl's `geoFence` object,
+    written by the flight envelope's own writer."""
     fence = fence or {}
-    return {
-        "circles": [
-            {
-                "circle": {"center": list(c["center"]), "radius": c["radius"]},
-                "inclusion": c.get("inclusion", True),
-                "version": 1,
-            }
-            for c in fence.get("circles", [])
-        ],
-        "polygons": [
-            {
-                "inclusion": p.get("inclusion", True),
-                "polygon": [list(v) for v in p["polygon"]],
-                "version": 1,
-            }
+    shapes = Envelope(
+        polygons=tuple(
+            Polygon(p.get("inclusion", True), tuple(tuple(v) for v in p["polygon"]))
             for p in fence.get("polygons", [])
-        ],
-        "version": 2,
-    }
+        ),
+        circles=tuple(
+            Circle(c.get("inclusion", True), tuple(c["center"]), c["radius"])
+            for c in fence.get("circles", [])
+        ),
+    )
+    return geofence_dict(shapes)
 
 
 def _read_rally(data: Any) -> list[list[float]]:
