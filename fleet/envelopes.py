@@ -60,16 +60,21 @@ def envelope_body(organisation: Organisation) -> dict:
 def plan_document(organisation: Organisation) -> dict:
     """The geofence as a QGroundControl `.plan` file with no mission items."""
     home = (organisation.envelope or {}).get("home")
+    fence = env.geofence_dict(organisation_envelope(organisation))
+    # QGroundControl refuses a plan without a home: the fence's first point stands in.
+    anchors = [p["polygon"][0] for p in fence["polygons"]]
+    anchors += [c["circle"]["center"] for c in fence["circles"]]
+    home = home or (anchors[0] if anchors else None)
     return {
         "fileType": "Plan",
-        "geoFence": env.geofence_dict(organisation_envelope(organisation)),
+        "geoFence": fence,
         "groundStation": "Skyhive",
         "mission": {
             "cruiseSpeed": 15,
             "firmwareType": 12,
             "hoverSpeed": 5,
             "items": [],
-            "plannedHomePosition": [*home, 0] if home else None,
+            "plannedHomePosition": [*home[:2], 0] if home else [0, 0, 0],
             "vehicleType": 2,
             "version": 2,
         },
@@ -192,7 +197,7 @@ def step_violations(
     if drone is not None:
         home = home_of(drone)
         return env.step_violations(
-            drone_envelope(drone),
+            with_fence(drone_envelope(drone), fence),
             home,
             steps,
             current_target(drone, home),
@@ -200,17 +205,26 @@ def step_violations(
             _battery_percent(drone),
         )
     home = home if home is not None else plan_home(organisation, steps)
-    envelope = organisation_envelope(organisation)
-    polygons, circles = env.parse_geofence(fence)
-    envelope = replace(
-        envelope, polygons=envelope.polygons + polygons, circles=envelope.circles + circles
-    )
+    envelope = with_fence(organisation_envelope(organisation), fence)
     return env.step_violations(envelope, home, steps, (0.0, 0.0, 0.0), False, None)
 
 
-def check_steps(drone: Drone, steps: Sequence[Mapping[str, Any]]) -> None:
-    """Raise OutsideEnvelope naming the first mission step the drone may not fly."""
-    found = step_violations(drone.organisation, steps, drone)
+def with_fence(envelope: env.Envelope, fence: Mapping | None) -> env.Envelope:
+    """The envelope with a mission's own geoFence (QGroundControl shape) on top."""
+    if not fence:
+        return envelope
+    polygons, circles = env.parse_geofence(fence)
+    return replace(
+        envelope, polygons=envelope.polygons + polygons, circles=envelope.circles + circles
+    )
+
+
+def check_steps(
+    drone: Drone, steps: Sequence[Mapping[str, Any]], fence: Mapping | None = None
+) -> None:
+    """Raise OutsideEnvelope naming the first mission step the drone may not fly (within
+    `fence` too: a mission's own geoFence)."""
+    found = step_violations(drone.organisation, steps, drone, fence=fence)
     if found:
         raise OutsideEnvelope(found[0].violation, found[0].index)
 

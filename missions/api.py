@@ -25,7 +25,7 @@ from fleet.permissions import OrganisationRole, require_role
 from fleet.signals import note_refusal
 from fleet.tenancy import current_membership
 
-from . import hold, logs, panic, pictures, planning, qgc_plan
+from . import hold, logs, panic, pictures, plan_files, planning, qgc_plan
 from .models import Mission, Picture
 from .serializers import (
     MissionDetailSerializer,
@@ -34,6 +34,9 @@ from .serializers import (
     StepSerializer,
 )
 from .services import MissionError, create_mission, start_mission, stop_mission, validate_steps
+
+# A QGroundControl plan of thousands of items is a few MiB; anything bigger is not a plan.
+MAX_PLAN_BYTES = 8 * 1024 * 1024
 
 
 class Refused(exceptions.APIException):
@@ -457,15 +460,8 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     def export_plan(self, request: Request, pk: str | None = None) -> HttpResponse:
         """The mission as a QGroundControl `.plan` file."""
         mission = self.get_object()
-        steps = [
-            {"index": s.index, "command": s.command, "params": s.params}
-            for s in mission.steps.order_by("index")
-        ]
         try:
-            fence = envelopes.envelope_body(mission.organisation)["geoFence"]
-            document = qgc_plan.export_plan(
-                steps, altitude=mission.altitude, geofence=qgc_plan.read_geofence(fence)
-            )
+            document = plan_files.export_document(mission)
         except planning.PlanningError as exc:
             raise refuse(exc) from None
         response = HttpResponse(qgc_plan.dumps(document), content_type="application/json")
@@ -478,6 +474,15 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 "PlanUpload", {"file": serializers.FileField()}
             )
         },
+        parameters=[
+            OpenApiParameter(
+                "fence",
+                str,
+                enum=list(plan_files.FENCE_SCOPES),
+                description="where the plan's geoFence goes: the mission (default) or, "
+                "for admins, the organisation's envelope",
+            )
+        ],
         responses={201: MissionDetailSerializer},
     )
     @action(detail=False, methods=["post"], url_path="import-plan")
@@ -487,31 +492,21 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         upload = request.FILES.get("file")
         organisation = _organisation_for_write(request, request.data.get("organisation"))
         if upload is not None:
+            if upload.size > MAX_PLAN_BYTES:
+                raise Refused("file", "is too large", 413)
             source: object = upload.read()
         elif isinstance(request.data, dict) and request.data.get("fileType"):
             source = dict(request.data)
         else:
             raise Refused("file", "attach the .plan file as `file`")
         try:
-            plan = qgc_plan.import_plan(source)  # type: ignore[arg-type]
-            mission = create_mission(
+            mission = plan_files.import_document(
+                source,  # type: ignore[arg-type]
                 organisation=organisation,
-                name=(upload.name if upload is not None else "") or "Imported plan",
-                steps=plan.steps,
-                altitude=_plan_altitude(plan.steps),
                 user=request.user,
-                home=plan.home,
-                fence=qgc_plan.geofence_json(plan.geofence),
+                name=upload.name if upload is not None else "",
+                fence_scope=request.query_params.get("fence", "mission"),
             )
-        except planning.PlanningError as exc:
-            raise refuse(exc) from None
-        except MissionError as exc:
+        except (planning.PlanningError, MissionError) as exc:
             raise refuse(exc) from None
         return Response(MissionDetailSerializer(mission).data, status=status.HTTP_201_CREATED)
-
-
-def _plan_altitude(steps: list[dict]) -> float:
-    for step in steps:
-        if step.get("command") == "takeoff":
-            return float(step["params"].get("altitude") or 10.0)
-    return 10.0

@@ -101,6 +101,11 @@ class Mission(models.Model):
     ended_at = models.DateTimeField(null=True, blank=True)
     # Paused by an operator: its drones hold where they are until it is resumed.
     held = models.BooleanField(default=False)
+    # An imported plan's own geofence (QGroundControl geoFence shape), enforced on top of
+    # the organisation's envelope when the mission starts, and its planned home
+    # [lat, lon, AMSL altitude].
+    fence = models.JSONField(null=True, blank=True)
+    plan_home = models.JSONField(null=True, blank=True)
 
     objects = MissionQuerySet.as_manager()
 

@@ -200,7 +200,7 @@ def _plan_handover(
         handover = plan_replacement(
             view, stop_position=stop_position, altitude=mission.altitude, drone_id=drone.drone_id
         )
-        envelopes.check_steps(drone, handover.assignments[0].steps)
+        envelopes.check_steps(drone, handover.assignments[0].steps, fence=mission.fence)
     except PlanningError as exc:
         record(
             mission,

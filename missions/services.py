@@ -121,6 +121,10 @@ def create_mission(
             altitude=altitude,
             extensibility=dict(extensibility) if extensibility else None,
             created_by=user if getattr(user, "is_authenticated", False) else None,
+            fence=dict(fence)
+            if fence and (fence.get("polygons") or fence.get("circles"))
+            else None,
+            plan_home=list(home) if home is not None else None,
         )
         Step.objects.bulk_create(
             Step(mission=mission, index=s["index"], command=s["command"], params=s["params"])
@@ -338,7 +342,7 @@ def start_mission(mission: Mission, *, drone: Drone | None = None, user: Any = N
             drone = found[0]
             how = "nearest available"
         try:
-            envelopes.check_steps(drone, plain)
+            envelopes.check_steps(drone, plain, fence=mission.fence)
         except envelopes.OutsideEnvelope as exc:
             raise outside_envelope(exc) from None
         envelopes.forget_target(drone)
