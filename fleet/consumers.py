@@ -13,8 +13,10 @@ from typing import Any
 from channels.db import database_sync_to_async
 from channels.generic.websocket import AsyncJsonWebsocketConsumer
 
+from .listing import MARKER_FIELDS, marker_rows
 from .models import Drone, Membership
 from .serializers import DroneSerializer
+from .state import describe
 
 # Close codes: not signed in, and not allowed. Pages whose object's existence is private
 # answer "not found" for both "not yours" and "does not exist".
@@ -81,13 +83,44 @@ def _membership(user, slug: str | None) -> Membership | None:  # type: ignore[no
 
 
 @database_sync_to_async
-def _snapshot(organisation_id: int) -> list[dict]:
-    drones = Drone.objects.filter(organisation_id=organisation_id).select_related("organisation")
-    return list(DroneSerializer(drones, many=True).data)
+def _one_drone(organisation_id: int, drone_id: str) -> dict | None:
+    drone = Drone.objects.filter(organisation_id=organisation_id, drone_id=drone_id).first()
+    return None if drone is None else describe(dict(DroneSerializer(drone).data))
+
+
+# Up to this many drones the first message carries each in full; a bigger fleet gets
+# compact marker rows (the table pages through the table API instead).
+FULL_SNAPSHOT_LIMIT = 200
+
+
+@database_sync_to_async
+def _fleet_snapshot(organisation_id: int) -> dict:
+    drones = Drone.objects.filter(organisation_id=organisation_id)
+    if drones.count() <= FULL_SNAPSHOT_LIMIT:
+        full = [describe(dict(d)) for d in DroneSerializer(drones, many=True).data]
+        return {"type": "snapshot", "drones": full, "fields": list(MARKER_FIELDS), "markers": []}
+    rows = marker_rows(organisation_id)
+    return {"type": "snapshot", "drones": [], "fields": list(MARKER_FIELDS), "markers": rows}
+
+
+def changed_fields(before: dict | None, after: dict) -> dict:
+    """What of `after` differs from `before` (all of it when nothing was sent yet); the
+    drone id always, so a client knows whose change it is."""
+    if before is None:
+        return dict(after)
+    diff = {k: v for k, v in after.items() if before.get(k, _MISSING) != v}
+    return {"drone_id": after["drone_id"], **diff} if diff else {}
+
+
+_MISSING = object()
 
 
 class FleetConsumer(GroupConsumer):
-    """`/ws/fleet/?org=<slug>`: the organisation's drones, then every change as it happens."""
+    """`/ws/fleet/?org=<slug>[&drone=<id>]`: the organisation's drones as compact marker
+    rows (or the one drone in full), then each change as only the fields that changed
+    since this socket last heard of the drone; with `drone`, also its commands."""
+
+    drone_id: str | None = None
 
     async def authorise(self, user: Any) -> Membership | None:
         query = dict(
@@ -95,15 +128,43 @@ class FleetConsumer(GroupConsumer):
             for part in self.scope.get("query_string", b"").decode().split("&")
             if "=" in part
         )
+        self.drone_id = query.get("drone") or None
+        self.sent: dict[str, dict] = {}
         return await _membership(user, query.get("org"))
 
     def group_for(self, membership: Membership) -> str:
         return membership.organisation.group_name
 
     async def welcome(self, membership: Membership) -> None:
-        await self.send_json(
-            {"type": "snapshot", "drones": await _snapshot(membership.organisation_id)}
-        )
+        if self.drone_id is None:
+            snapshot = await _fleet_snapshot(membership.organisation_id)
+            for drone in snapshot["drones"]:
+                self.sent[drone["drone_id"]] = drone
+            await self.send_json(snapshot)
+            return
+        drone = await _one_drone(membership.organisation_id, self.drone_id)
+        if drone is not None:
+            self.sent[self.drone_id] = drone
+        await self.send_json({"type": "snapshot", "drones": [] if drone is None else [drone]})
 
-    # Any `{"type": "fleet.event", "payload": {...}}` sent to the organisation's group.
-    fleet_event = GroupConsumer.send_payload
+    async def fleet_event(self, event: dict) -> None:
+        """Any `{"type": "fleet.event", "payload": {...}}` sent to the organisation's group:
+        drone changes as diffs, commands to the page of their drone, the rest as it is."""
+        payload = event["payload"]
+        kind = payload.get("type")
+        if kind == "command":
+            if payload.get("drone_id") == self.drone_id:
+                await self.send_json(payload)
+            return
+        drone = payload.get("drone")
+        if kind != "drone" or not isinstance(drone, dict) or "drone_id" not in drone:
+            await self.send_json(payload)
+            return
+        drone_id = drone["drone_id"]
+        if self.drone_id is not None and drone_id != self.drone_id:
+            return
+        before = self.sent.get(drone_id)
+        diff = changed_fields(before, drone)
+        if diff:
+            self.sent[drone_id] = {**(before or {}), **drone}
+            await self.send_json({"type": "drone", "drone": diff})

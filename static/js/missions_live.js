@@ -93,6 +93,8 @@
     let rows = [];
     try { rows = await M.api("GET", `${config.missionApi}pictures/`); } catch (error) { return; }
     pictureLayer.clearLayers();
+    // The OpenDroneMap download is offered as soon as there is a picture to put in it.
+    document.getElementById("odm-links").hidden = rows.length === 0;
     const strip = document.getElementById("thumbnails");
     strip.replaceChildren();
     for (const p of rows) {
