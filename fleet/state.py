@@ -140,12 +140,12 @@ class Motion:
 
     def update(self, drone_id: str, t: float, position: dict | None, remaining: Any) -> dict:
         """The derived fields for a heartbeat at `t` (seconds): ground_speed, heading,
-        battery_time_left_s (each None while unknown)."""
+        battery_time_left_s, battery_drain_per_s (each None while unknown)."""
         with self._lock:
             track = self._tracks.get(drone_id)
             out: dict[str, float | None] = {"ground_speed": None, "heading": None}
             if position is None:
-                return {**out, "battery_time_left_s": None}
+                return {**out, "battery_time_left_s": None, "battery_drain_per_s": None}
             if track is None:
                 track = self._tracks[drone_id] = _Track(t, 0.0, 0.0, deque())
             elif t > track.t:
@@ -159,8 +159,13 @@ class Motion:
                 track.battery.append((t, float(remaining)))
                 while track.battery and t - track.battery[0][0] > DRAIN_WINDOW_S:
                     track.battery.popleft()
-            left = battery_time_left(remaining, drain_rate(list(track.battery)))
-            return {**out, "battery_time_left_s": _round(left)}
+            drain = drain_rate(list(track.battery))
+            left = battery_time_left(remaining, drain)
+            return {
+                **out,
+                "battery_time_left_s": _round(left),
+                "battery_drain_per_s": None if drain is None else round(drain, 7),
+            }
 
 
 def _round(value: float | None) -> float | None:

@@ -81,11 +81,17 @@ def test_battery_time_left_from_the_measured_drain() -> None:
 def test_motion_follows_a_drone_between_updates() -> None:
     motion = Motion()
     first = motion.update("A", 100.0, {"lat": 40.0, "lon": -8.0, "alt": 10}, 0.9)
-    assert first == {"ground_speed": None, "heading": None, "battery_time_left_s": None}
+    assert first == {
+        "ground_speed": None,
+        "heading": None,
+        "battery_time_left_s": None,
+        "battery_drain_per_s": None,
+    }
     second = motion.update("A", 110.0, {"lat": 40.001, "lon": -8.0, "alt": 10}, 0.89)
     assert second["ground_speed"] == pytest.approx(11.12, abs=0.01)
     assert second["heading"] == pytest.approx(0.0, abs=0.1)
     # 0.01 in 10 s: 0.001/s, 0.89 left is 890 s.
     assert second["battery_time_left_s"] == pytest.approx(890.0, abs=0.5)
+    assert second["battery_drain_per_s"] == pytest.approx(0.001)
     # Another drone has its own track; no position, nothing to say.
     assert motion.update("B", 110.0, None, 0.5)["ground_speed"] is None
