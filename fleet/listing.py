@@ -133,9 +133,9 @@ def marker_rows(organisation_id: int) -> list[list]:
     return [
         [
             drone_id,
-            lat,
-            lon,
-            alt,
+            round(lat, 7),  # about a centimetre: a third of the bytes of a full float
+            round(lon, 7),
+            None if alt is None else round(alt, 1),
             drone_state(
                 online=online,
                 armed=armed,
@@ -144,7 +144,8 @@ def marker_rows(organisation_id: int) -> list[list]:
                 battery_remaining=remaining,
             ),
         ]
-        for drone_id, lat, lon, alt, online, armed, airborne, mode, remaining in drones.order_by(
-            "drone_id"
-        ).values_list(*fields, "battery_remaining")
+        # Unordered: the map needs no order, and sorting 10 000 ids costs more than the rest.
+        for drone_id, lat, lon, alt, online, armed, airborne, mode, remaining in drones.order_by().values_list(
+            *fields, "battery_remaining"
+        )
     ]

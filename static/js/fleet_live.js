@@ -4,7 +4,8 @@
 (function () {
   "use strict";
 
-  function connect(config, onChange, onStatus, onOther) {
+  /* onSnapshot runs after each snapshot is merged (after a reconnection too). */
+  function connect(config, onChange, onStatus, onOther, onSnapshot) {
     const drones = new Map();
     for (const d of config.drones || []) drones.set(d.drone_id, d);
     let delay = 500;
@@ -29,8 +30,10 @@
         let message;
         try { message = JSON.parse(event.data); } catch (e) { return; }
         if (message.type === "snapshot") {
+
           (message.drones || []).forEach(merge);
           for (const values of message.markers || []) merge(fromMarkerRow(message.fields, values));
+          if (onSnapshot) onSnapshot(message);
         } else if (message.type === "drone" && message.drone) merge(message.drone);
         else if (onOther) onOther(message);
       };

@@ -125,3 +125,19 @@ def test_the_drone_page_shows_state_and_battery_capacity_with_its_unit(world) ->
     assert "<dt>Cell count</dt><dd>4</dd>" in html
     assert 'class="state-badge state-lost_link">lost link<' in html
     assert 'id="command-history"' in html
+
+
+def test_the_telemetry_overview_pages_and_filters_like_the_fleet_table(world) -> None:
+    make_fleet(world.org)
+    client = Client()
+    client.force_login(world.viewer)
+    html = client.get("/telemetry/", {"filter": "airborne"}).content.decode()
+    assert 'data-drone="AIR_1"' in html and 'data-drone="LOW_1"' in html
+    assert 'data-drone="GROUND_1"' not in html and "3 drones" in html
+    html = client.get("/telemetry/", {"q": "low"}).content.decode()
+    assert 'data-drone="LOW_1"' in html and "1 drone<" in html
+    html = client.get("/telemetry/", {"page_size": "2", "page": "2"}).content.decode()
+    assert html.count("<tr data-drone=") == 2 and "page 2 of 4" in html
+    assert "page=1" in html and "page=3" in html and "page_size=2" in html
+    # Unknown filters are ignored on the page (the API refuses them).
+    assert client.get("/telemetry/", {"filter": "flying"}).status_code == 200

@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 
 import pytest
+from django.utils import timezone
 
 from fleet.heartbeats import handle_heartbeat
 from fleet.models import CommandLog, Drone
@@ -142,3 +143,85 @@ def test_the_drone_page_follows_commands_and_the_clock_live(page, live_asgi, wor
     assert page.locator("#drone-status [data-field=state]").inner_text() == "airborne"
     assert page.locator("#drone-status [data-field=alt]").inner_text() == "5.0 m"
     assert len(FLEET) == 6
+
+
+def big_fleet(org, count: int) -> None:  # type: ignore[no-untyped-def]
+    """`count` drones over a few kilometres, each fifth low on battery, each third lost."""
+    now = timezone.now()
+    Drone.objects.bulk_create(
+        [
+            Drone(
+                organisation=org,
+                drone_id=f"SWARM_{i:05d}",
+                online=i % 3 != 0,
+                airborne=i % 2 == 0,
+                armed=i % 2 == 0,
+                battery_remaining=0.1 if i % 5 == 0 else 0.9,
+                lat=40.60 + (i % 50) * 0.001,
+                lon=-8.70 + (i // 50) * 0.001,
+                alt=10.0,
+                last_seen=now,
+                mission={"mission_id": "m", "index": 1} if i % 7 == 0 else None,
+            )
+            for i in range(count)
+        ]
+    )
+
+
+def test_two_thousand_drones_cluster_and_page_with_search_and_filters(page, live_asgi, world_tx):
+    big_fleet(world_tx.org, 2000)
+    login(page, live_asgi, "viewer")
+    page.goto(f"{live_asgi.url}/")
+    page.wait_for_function("document.documentElement.dataset.fleetReady", timeout=30_000)
+    assert page.evaluate("skyhiveFleet.markerIds().length") == 2000
+    # Clustered: a few hundred markers at most on the map, not 2 000.
+    assert 0 < page.evaluate("skyhiveFleet.shownMarkers()") < 300
+    assert page.locator("#drone-table tbody tr").count() == 50
+    count = page.locator("#fleet-count")
+    assert count.inner_text() == "2001 drones"  # and ACME_1
+
+    def expect(text: str) -> None:
+        page.wait_for_function(
+            f"document.getElementById('fleet-count').textContent === '{text}'", timeout=10_000
+        )
+
+    page.fill("#fleet-search", "SWARM_0199")
+    expect("10 drones")
+    page.fill("#fleet-search", "SWARM_01999")
+    expect("1 drone")
+    assert page.locator("#drone-table tbody tr").get_attribute("data-drone") == "SWARM_01999"
+    page.fill("#fleet-search", "")
+    expect("2001 drones")
+
+    lost = Drone.objects.filter(organisation=world_tx.org, online=False).count()
+    page.check("input[name=filter][value=lost_link]")
+    expect(f"{lost} drones")
+    rows = page.eval_on_selector_all("#drone-table tbody tr", "rs => rs.map(r => r.dataset.state)")
+    assert set(rows) == {"lost_link"}
+    page.uncheck("input[name=filter][value=lost_link]")
+    page.check("input[name=filter][value=low_battery]")
+    page.check("input[name=filter][value=airborne]")
+    low_flying = Drone.objects.filter(
+        organisation=world_tx.org, online=True, airborne=True, battery_remaining__lte=0.25
+    ).count()
+    expect(f"{low_flying} drones")
+    page.uncheck("input[name=filter][value=airborne]")
+    page.uncheck("input[name=filter][value=low_battery]")
+    page.check("input[name=filter][value=mission]")
+    expect(f"{Drone.objects.filter(mission__isnull=False).count()} drones")
+    page.uncheck("input[name=filter][value=mission]")
+    expect("2001 drones")
+    page.click("#page-next")
+    page.wait_for_selector("#drone-table tbody tr[data-drone='SWARM_00049']")
+    assert page.locator("#page-info").inner_text() == "page 2 of 41"
+
+    # The shared drone picker (here the missions list's drone filter) asks the same API.
+    page.goto(f"{live_asgi.url}/missions/")
+    page.fill("input[name=drone]", "SWARM_0001")
+    page.wait_for_function(
+        "document.querySelector('input[name=drone]').dataset.matches === '10'", timeout=10_000
+    )
+    options = page.eval_on_selector_all(
+        "input[name=drone] + datalist option", "os => os.map(o => o.value)"
+    )
+    assert options == [f"SWARM_{i:05d}" for i in range(10, 20)]
