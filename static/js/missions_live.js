@@ -68,6 +68,15 @@
     const m = Math.floor(s / 60), r = Math.round(s % 60);
     return m ? `${m} min ${String(r).padStart(2, "0")} s` : `${r} s`;
   }
+  function batteryText(p, margin) {
+    if (p.battery_at_end === null || p.battery_at_end === undefined) {
+      return `battery ${percentText(p.battery)} (drain not measured yet)`;
+    }
+    const sign = margin >= 0 ? "+" : "";
+    return `battery ${percentText(p.battery)} → ${percentText(p.battery_at_end)} at the end ` +
+      `(${sign}${Math.round(margin * 100)} % over the ${Math.round(config.reserve * 100)} % reserve)`;
+  }
+
   function renderProgress() {
     const list = document.getElementById("progress-list");
     const items = [];
@@ -83,8 +92,7 @@
         `<div class="progress-bar" role="progressbar" aria-valuemin="0" aria-valuemax="${p.steps_total}" aria-valuenow="${p.steps_done}"><span style="width:${(share * 100).toFixed(1)}%"></span></div>` +
         `<div class="progress-figures"><span class="time-left">${durationText(p.time_remaining_s)} left</span>` +
         `<span>${Math.round(p.remaining_m)} m to fly</span>` +
-        `<span class="battery-end${tight ? " tight" : ""}">battery ${percentText(p.battery)} → ${percentText(p.battery_at_end)} at the end` +
-        `${margin === null || margin === undefined ? "" : ` (margin ${margin >= 0 ? "+" : ""}${Math.round(margin * 100)} % over the ${Math.round(config.reserve * 100)} % reserve)`}</span></div>`;
+        `<span class="battery-end${tight ? " tight" : ""}">${batteryText(p, margin)}</span></div>`;
       items.push(item);
     }
     if (items.length) list.replaceChildren(...items);

@@ -135,5 +135,6 @@ def test_the_progress_bar_fits_a_phone(browser, live_asgi, world_tx):
         bar.wait_for(timeout=10_000)
         box = bar.bounding_box()
         assert box["width"] > 200 and box["x"] + box["width"] <= 390
+        assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
     finally:
         context.close()
