@@ -290,6 +290,7 @@
   window.skyhiveMission = {
     map, refresh,
     progress(id) { return progress.get(id) || null; },
+    fenceShapes() { return fenceLayer.getLayers().length; },
     droneState(id) { const d = drones.get(id); return d ? d.state : null; },
     dronePosition(id) { const d = drones.get(id); return d && d.marker ? d.marker.getLatLng() : null; },
   };

@@ -73,6 +73,17 @@ def beat(mission: Mission, metres: float, remaining: float) -> Heartbeat:
 
 def test_the_mission_page_shows_live_progress_and_folds_the_steps(page, live_asgi, world_tx):
     mission = running_mission(world_tx)
+    corners = [north(-50), north(700), [north(700)[0], -7.99], [north(-50)[0], -7.99]]
+    world_tx.org.envelope = {
+        "geoFence": {
+            "version": 2,
+            "polygons": [{"inclusion": True, "polygon": corners, "version": 1}],
+            "circles": [
+                {"inclusion": False, "circle": {"center": north(300), "radius": 20}, "version": 1}
+            ],
+        }
+    }
+    world_tx.org.save()
     login(page, live_asgi, "viewer")
     page.goto(f"{live_asgi.url}/missions/{mission.pk}/")
     page.wait_for_selector("#live-status.ok")
@@ -86,6 +97,9 @@ def test_the_mission_page_shows_live_progress_and_folds_the_steps(page, live_asg
     assert first["time_remaining_s"] == pytest.approx(72, rel=0.01)
     assert page.evaluate("skyhiveMission.dronePosition('ACME_1')") is not None
     assert page.evaluate("skyhiveMission.droneState('ACME_1')") == "airborne"
+    # The geofence: the inclusion polygon and the exclusion circle, and the drone's home.
+    assert page.evaluate("skyhiveMission.fenceShapes()") == 2
+    assert page.locator("#mission-map .home-marker").count() == 1
 
     # Steps: the current one (12) with two before and five after; the rest folded.
     page.wait_for_selector("#step-table tr.step-current[data-index='12']")
