@@ -141,3 +141,44 @@ def test_the_telemetry_overview_pages_and_filters_like_the_fleet_table(world) ->
     assert "page=1" in html and "page=3" in html and "page_size=2" in html
     # Unknown filters are ignored on the page (the API refuses them).
     assert client.get("/telemetry/", {"filter": "flying"}).status_code == 200
+
+
+@pytest.mark.django_db(transaction=True)
+async def test_the_fleet_socket_sends_each_drone_once_then_only_its_changes(world_tx) -> None:
+    from channels.layers import get_channel_layer
+
+    from tests.support.websocket import connect_websocket
+
+    layer = get_channel_layer()
+    group = world_tx.org.group_name
+    fleet, connected, _ = await connect_websocket(
+        f"/ws/fleet/?org={world_tx.org.slug}", world_tx.owner
+    )
+    one, one_connected, _ = await connect_websocket(
+        f"/ws/fleet/?org={world_tx.org.slug}&drone=ACME_2", world_tx.owner
+    )
+    assert connected and one_connected
+    try:
+        snapshot = await fleet.receive_json_from(timeout=5)
+        assert snapshot["type"] == "snapshot" and snapshot["drones"][0]["state"] == "lost_link"
+        assert (await one.receive_json_from(timeout=5))["drones"] == []  # no such drone yet
+        state = {"drone_id": "ACME_1", "online": True, "armed": False, "state": "on_ground"}
+        for seen in ("12:00:00", "12:00:01"):
+            payload = {"type": "drone", "drone": {**state, "last_seen": seen}}
+            await layer.group_send(group, {"type": "fleet.event", "payload": payload})
+        first = (await fleet.receive_json_from(timeout=5))["drone"]
+        assert first["online"] is True and first["state"] == "on_ground"
+        assert (await fleet.receive_json_from(timeout=5))["drone"] == {
+            "drone_id": "ACME_1",
+            "last_seen": "12:00:01",
+        }
+        # Nothing new, nothing sent; the one-drone socket hears nothing of ACME_1.
+        payload = {"type": "drone", "drone": {**state, "last_seen": "12:00:01"}}
+        await layer.group_send(group, {"type": "fleet.event", "payload": payload})
+        command = {"type": "command", "drone_id": "ACME_2", "command": {"id": 1}}
+        await layer.group_send(group, {"type": "fleet.event", "payload": command})
+        assert await fleet.receive_nothing(timeout=0.5)
+        assert (await one.receive_json_from(timeout=5)) == command
+    finally:
+        await fleet.disconnect()
+        await one.disconnect()
