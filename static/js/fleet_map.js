@@ -20,11 +20,12 @@
   const positions = new Map(); // drone id → [lon, lat, urgency]: what the cluster index holds
   const shown = new Map(); // key (drone id or "c" + cluster id) → the marker on the map
   const layer = L.layerGroup().addTo(map);
-  // No clusters below zoom 3 (a continent) nor above 16: fewer levels to index.
+  // No clusters below zoom 3 (a continent) nor above 15 (closer, every drone in view is
+  // drawn): fewer levels to index.
   const index = new Supercluster({
-    radius: 50,
+    radius: 45,
     minZoom: 3,
-    maxZoom: 16,
+    maxZoom: 15,
     map: (props) => ({ u: props.u }),
     reduce: (acc, props) => { if (props.u > acc.u) acc.u = props.u; },
   });
