@@ -82,10 +82,14 @@ def _membership(user, slug: str | None) -> Membership | None:  # type: ignore[no
     return memberships.first()
 
 
+# A socket may follow at most this many named drones (a page of a table).
+MAX_NAMED_DRONES = 500
+
+
 @database_sync_to_async
-def _one_drone(organisation_id: int, drone_id: str) -> dict | None:
-    drone = Drone.objects.filter(organisation_id=organisation_id, drone_id=drone_id).first()
-    return None if drone is None else describe(dict(DroneSerializer(drone).data))
+def _named_drones(organisation_id: int, drone_ids: set[str]) -> list[dict]:
+    drones = Drone.objects.filter(organisation_id=organisation_id, drone_id__in=drone_ids)
+    return [describe(dict(d)) for d in DroneSerializer(drones, many=True).data]
 
 
 # Up to this many drones the first message carries each in full; a bigger fleet gets
@@ -116,11 +120,11 @@ _MISSING = object()
 
 
 class FleetConsumer(GroupConsumer):
-    """`/ws/fleet/?org=<slug>[&drone=<id>]`: the organisation's drones as compact marker
-    rows (or the one drone in full), then each change as only the fields that changed
-    since this socket last heard of the drone; with `drone`, also its commands."""
+    """`/ws/fleet/?org=<slug>[&drone=<id>,<id>…]`: the organisation's drones as compact
+    marker rows (or the named drones in full), then each change as only the fields that
+    changed since this socket last heard of the drone; with `drone`, also their commands."""
 
-    drone_id: str | None = None
+    drone_ids: set[str] | None = None
 
     async def authorise(self, user: Any) -> Membership | None:
         query = dict(
@@ -128,7 +132,8 @@ class FleetConsumer(GroupConsumer):
             for part in self.scope.get("query_string", b"").decode().split("&")
             if "=" in part
         )
-        self.drone_id = query.get("drone") or None
+        named = [d for d in query.get("drone", "").split(",") if d][:MAX_NAMED_DRONES]
+        self.drone_ids = set(named) or None
         self.sent: dict[str, dict] = {}
         return await _membership(user, query.get("org"))
 
@@ -136,16 +141,16 @@ class FleetConsumer(GroupConsumer):
         return membership.organisation.group_name
 
     async def welcome(self, membership: Membership) -> None:
-        if self.drone_id is None:
+        if self.drone_ids is None:
             snapshot = await _fleet_snapshot(membership.organisation_id)
             for drone in snapshot["drones"]:
                 self.sent[drone["drone_id"]] = drone
             await self.send_json(snapshot)
             return
-        drone = await _one_drone(membership.organisation_id, self.drone_id)
-        if drone is not None:
-            self.sent[self.drone_id] = drone
-        await self.send_json({"type": "snapshot", "drones": [] if drone is None else [drone]})
+        drones = await _named_drones(membership.organisation_id, self.drone_ids)
+        for drone in drones:
+            self.sent[drone["drone_id"]] = drone
+        await self.send_json({"type": "snapshot", "drones": drones})
 
     async def fleet_event(self, event: dict) -> None:
         """Any `{"type": "fleet.event", "payload": {...}}` sent to the organisation's group:
@@ -153,7 +158,7 @@ class FleetConsumer(GroupConsumer):
         payload = event["payload"]
         kind = payload.get("type")
         if kind == "command":
-            if payload.get("drone_id") == self.drone_id:
+            if self.drone_ids is not None and payload.get("drone_id") in self.drone_ids:
                 await self.send_json(payload)
             return
         drone = payload.get("drone")
@@ -161,7 +166,7 @@ class FleetConsumer(GroupConsumer):
             await self.send_json(payload)
             return
         drone_id = drone["drone_id"]
-        if self.drone_id is not None and drone_id != self.drone_id:
+        if self.drone_ids is not None and drone_id not in self.drone_ids:
             return
         before = self.sent.get(drone_id)
         diff = changed_fields(before, drone)

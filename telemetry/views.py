@@ -70,6 +70,12 @@ def overview(request: HttpRequest) -> HttpResponse:
         "q": query.search,
         "filters": [(n, n.replace("_", " "), n in query.filters) for n in listing.FILTERS],
         "keep": params.urlencode(),
+        # The page's drones, live: their state and battery as their heartbeats arrive.
+        "overview_config": {
+            "socketPath": f"/ws/fleet/?org={organisation.slug}"
+            f"&drone={','.join(d.drone_id for d in drones)}",
+            "drones": [],
+        },
     }
     return render(request, "telemetry/overview.html", context)
 

@@ -225,3 +225,19 @@ def test_two_thousand_drones_cluster_and_page_with_search_and_filters(page, live
         "input[name=drone] + datalist option", "os => os.map(o => o.value)"
     )
     assert options == [f"SWARM_{i:05d}" for i in range(10, 20)]
+
+
+def test_the_telemetry_overview_follows_its_drones_live(page, live_asgi, world_tx):
+    make_fleet(world_tx.org)
+    login(page, live_asgi, "viewer")
+    page.goto(f"{live_asgi.url}/telemetry/?filter=lost_link")
+    row = page.locator("#telemetry-overview tr[data-drone='LOST_1']")
+    assert row.locator("[data-field=online]").inner_text() == "offline"
+    time.sleep(1.0)  # the socket joins its group once the page's script ran
+    assert handle_heartbeat("LOST_1", heartbeat("LOST_1", lat=40.0, alt=3.0)) is None
+    page.wait_for_function(
+        "document.querySelector('tr[data-drone=LOST_1] [data-field=online]')"
+        ".textContent === 'online'",
+        timeout=10_000,
+    )
+    assert row.locator("[data-field=battery]").inner_text().strip() == "77 %"
