@@ -39,6 +39,8 @@ MIN_SPEED_FOR_HEADING = 0.5
 # Battery drain is measured over at least this span, since the reported charge is coarse.
 MIN_DRAIN_SPAN_S = 10.0
 DRAIN_WINDOW_S = 120.0
+# A charge this much above the last reading is another battery, not a noisy reading.
+BATTERY_SWAP_RISE = 0.02
 EARTH_RADIUS_M = 6371008.8
 
 
@@ -156,6 +158,8 @@ class Motion:
                     out["ground_speed"], out["heading"] = round(moved[0], 2), _round(moved[1])
             track.t, track.lat, track.lon = t, position["lat"], position["lon"]
             if remaining is not None:
+                if track.battery and remaining > track.battery[-1][1] + BATTERY_SWAP_RISE:
+                    track.battery.clear()  # a fresh or charged battery: measure anew
                 track.battery.append((t, float(remaining)))
                 while track.battery and t - track.battery[0][0] > DRAIN_WINDOW_S:
                     track.battery.popleft()

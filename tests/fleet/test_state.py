@@ -95,3 +95,18 @@ def test_motion_follows_a_drone_between_updates() -> None:
     assert second["battery_drain_per_s"] == pytest.approx(0.001)
     # Another drone has its own track; no position, nothing to say.
     assert motion.update("B", 110.0, None, 0.5)["ground_speed"] is None
+
+
+def test_a_fresh_battery_starts_a_new_drain_measurement() -> None:
+    motion = Motion()
+    here = {"lat": 40.0, "lon": -8.0, "alt": 0}
+    motion.update("A", 0.0, here, 0.40)
+    assert motion.update("A", 20.0, here, 0.38)["battery_drain_per_s"] == pytest.approx(0.001)
+    # Swapped for a full battery: the old readings no longer say anything.
+    assert motion.update("A", 30.0, here, 0.99)["battery_drain_per_s"] is None
+    drain = motion.update("A", 45.0, here, 0.985)["battery_drain_per_s"]
+    assert drain == pytest.approx(0.005 / 15, rel=1e-3)
+    # A reading a little above the last one is noise, not a new battery.
+    assert motion.update("A", 50.0, here, 0.99)["battery_drain_per_s"] == 0.0
+    drain = motion.update("A", 60.0, here, 0.98)["battery_drain_per_s"]
+    assert drain == pytest.approx(0.01 / 30, rel=1e-3)
