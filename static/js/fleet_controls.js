@@ -32,7 +32,12 @@
     }
   }
 
-  for (const button of document.querySelectorAll("#drone-table button[data-command]")) {
-    button.addEventListener("click", () => send(button));
+  // Rows come and go with the table's pages and searches: one listener on the table.
+  const table = document.getElementById("drone-table");
+  if (table) {
+    table.addEventListener("click", (event) => {
+      const button = event.target.closest("button[data-command]");
+      if (button && table.contains(button)) send(button);
+    });
   }
 })();

@@ -12,19 +12,51 @@
     const badge = document.getElementById("drone-state");
     badge.textContent = drone.online ? "online" : "offline";
     badge.className = `badge ${drone.online ? "ok" : "off"}`;
-    const set = (field, text) => { const el = document.querySelector(`#drone-status [data-field="${field}"]`); if (el) el.textContent = text; };
+    const field = (name) => document.querySelector(`#drone-status [data-field="${name}"]`);
+    const set = (name, text) => { const el = field(name); if (el) el.textContent = text; };
     set("armed", drone.armed ? "yes" : "no");
     set("airborne", drone.airborne ? "yes" : "no");
     set("flight_mode", drone.flight_mode || "–");
-    set("battery", live.percent(drone.battery));
+    const state = field("state");
+    if (state) state.innerHTML = `<span class="state-badge state-${drone.state}">${live.stateLabel(drone.state)}</span>`;
+    const b = drone.battery;
+    const volts = b && b.voltage !== null && b.voltage !== undefined ? ` (${Number(b.voltage).toFixed(2)} V)` : "";
+    set("battery", `${live.batteryText(drone)}${volts}`);
     const p = drone.position;
     set("position", p ? `${live.position(p)}, ${Number(p.alt).toFixed(1)} m` : "no fix");
+    set("alt", live.altitude(p));
+    set("speed", live.speed(drone.ground_speed));
+    set("heading", live.heading(drone.heading));
     missionId = drone.mission ? drone.mission.mission_id : null;
     set("mission", drone.mission ? `${drone.mission.mission_id} step ${live.missionStep(drone.mission)}` : "–");
+    const clock = field("clock");
+    if (clock) {
+      const c = live.clockText(drone.fc);
+      clock.textContent = c.text;
+      if (!c.trusted) clock.insertAdjacentHTML("beforeend", ' <span class="badge off">not trusted</span>');
+    }
     set("last_seen", live.clock(drone.last_seen));
   }
 
-  live.connect(config, show);
+  /* Recent commands: each new command on top, its outcome filled in when it ends. */
+  const history = document.getElementById("command-history");
+  function showCommand(message) {
+    if (message.type !== "command" || message.drone_id !== droneId || !history) return;
+    const c = message.command;
+    let item = history.querySelector(`[data-command-id="${c.id}"]`);
+    if (!item) {
+      item = document.createElement("li");
+      item.dataset.commandId = c.id;
+      history.querySelectorAll(".empty").forEach((e) => e.remove());
+      history.prepend(item);
+      while (history.children.length > 20) history.lastElementChild.remove();
+    }
+    item.dataset.outcome = c.outcome;
+    const at = c.sent_at ? new Date(c.sent_at).toLocaleTimeString([], { hour12: false }) : "";
+    item.textContent = `${at} ${c.command} — ${c.outcome_label}${c.user ? ` by ${c.user}` : ""}${c.error ? `: ${c.error}` : ""}`;
+  }
+
+  live.connect(config, show, null, showCommand);
 
   // The mission the drone reports flying, for Resume; kept current by the live updates.
   let missionId = config.drones[0].mission ? config.drones[0].mission.mission_id : null;
