@@ -64,6 +64,19 @@ def _body(request: Request) -> dict:
     return request.data
 
 
+CONFIRM_FIELD = "confirm_beyond_defaults"
+CONFIRM_HELP = (
+    "The operator confirmed steps beyond the envelope's defaults (120 m high, 1000 m from "
+    "home); without it such a mission answers 409 confirmation_required naming the step."
+)
+
+
+def _confirmed(data: Any) -> bool:
+    """The body's confirmation flag (JSON true, or true/1/yes/on in a form)."""
+    value = data.get(CONFIRM_FIELD) if hasattr(data, "get") else None
+    return value is True or str(value).strip().lower() in ("true", "1", "yes", "on")
+
+
 def _organisation_for_write(request: Request, slug: object = None) -> Organisation:
     """The organisation named in the body (slug), else the portal's current one; the
     user must be an operator there."""
@@ -139,13 +152,23 @@ CreateRequest = inline_serializer(
             },
         ),
         "extensibility": serializers.DictField(required=False),
+        CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
     },
 )
 StartRequest = inline_serializer(
-    "MissionStartRequest", {"drone": serializers.CharField(required=False, allow_null=True)}
+    "MissionStartRequest",
+    {
+        "drone": serializers.CharField(required=False, allow_null=True),
+        CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
+    },
 )
 PanicRequest = inline_serializer(
-    "PanicRequest", {"lat": serializers.FloatField(), "lon": serializers.FloatField()}
+    "PanicRequest",
+    {
+        "lat": serializers.FloatField(),
+        "lon": serializers.FloatField(),
+        CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
+    },
 )
 
 
@@ -275,6 +298,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 altitude=altitude,
                 extensibility=extensibility,
                 user=request.user,
+                confirmed=_confirmed(body),
             )
         except MissionError as exc:
             raise refuse(exc) from None
@@ -296,7 +320,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             if drone is None:
                 raise Refused("drone", f"no drone {drone_id!r} in this organisation", 404)
         try:
-            start_mission(mission, drone=drone, user=request.user)
+            start_mission(mission, drone=drone, user=request.user, confirmed=_confirmed(body))
         except MissionError as exc:
             raise refuse(exc) from None
         mission.refresh_from_db()
@@ -347,7 +371,8 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     @action(detail=False, methods=["post"], url_path="check-envelope")
     def check_envelope(self, request: Request) -> Response:
         """Every step of `steps` the flight envelope refuses (flown by `drone` when given),
-        for the planner to mark before anything is sent; nothing is stored or sent."""
+        for the planner to mark before anything is sent, and every step beyond the
+        envelope's defaults (`beyond_defaults`: to confirm); nothing is stored or sent."""
         body = _body(request)
         organisation = _organisation_for_write(request, body.get("organisation"))
         try:
@@ -362,12 +387,11 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             if drone is None:
                 raise Refused("drone", f"no drone {body['drone']!r} in this organisation", 404)
         found = envelopes.step_violations(organisation, steps, drone)
+        beyond = envelopes.steps_beyond_defaults(organisation, steps, drone)
         return Response(
             {
-                "violations": [
-                    {"index": v.index, "limit": v.violation.limit, "message": v.violation.message}
-                    for v in found
-                ],
+                "violations": [_violation_row(v) for v in found],
+                "beyond_defaults": [_violation_row(v) for v in beyond],
                 "envelope": envelopes.envelope_body(organisation),
             }
         )
@@ -384,6 +408,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 lat=body.get("lat"),
                 lon=body.get("lon"),
                 user=request.user,
+                confirmed=_confirmed(body),
             )
         except MissionError as exc:
             raise refuse(exc) from None
@@ -496,12 +521,26 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 user=request.user,
                 home=plan.home,
                 fence=qgc_plan.geofence_json(plan.geofence),
+                confirmed=_confirmed(request.data),
             )
         except planning.PlanningError as exc:
             raise refuse(exc) from None
         except MissionError as exc:
             raise refuse(exc) from None
         return Response(MissionDetailSerializer(mission).data, status=status.HTTP_201_CREATED)
+
+
+def _violation_row(found: Any) -> dict:
+    """One refused step for the planner; `leg` ([[lat, lon], [lat, lon]]) when it is the
+    straight leg to the step's target, not the target, that breaks the fence."""
+    violation = found.violation
+    leg = [list(point) for point in violation.leg] if violation.leg else None
+    return {
+        "index": found.index,
+        "limit": violation.limit,
+        "message": violation.message,
+        "leg": leg,
+    }
 
 
 def _plan_altitude(steps: list[dict]) -> float:

@@ -43,8 +43,11 @@ def panic_steps(lat: float, lon: float, altitude: float) -> list[dict]:
     ]
 
 
-def call_drone(*, organisation: Organisation, lat: Any, lon: Any, user: Any = None) -> Started:
-    """Create and start a panic mission to the caller's position."""
+def call_drone(
+    *, organisation: Organisation, lat: Any, lon: Any, user: Any = None, confirmed: bool = False
+) -> Started:
+    """Create and start a panic mission to the caller's position; a caller beyond the
+    envelope's defaults from the drone needs `confirmed`."""
     try:
         lat = protocol.latitude(lat, "lat")
         lon = protocol.longitude(lon, "lon")
@@ -57,9 +60,10 @@ def call_drone(*, organisation: Organisation, lat: Any, lon: Any, user: Any = No
         steps=panic_steps(lat, lon, altitude),
         altitude=altitude,
         user=user,
+        confirmed=confirmed,
     )
     try:
-        return start_mission(mission, user=user)
+        return start_mission(mission, user=user, confirmed=confirmed)
     except MissionError:
         mission.delete()
         raise
