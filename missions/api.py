@@ -162,6 +162,14 @@ StartRequest = inline_serializer(
         CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
     },
 )
+HoldRequest = inline_serializer(
+    "MissionHoldRequest",
+    {
+        "drone": serializers.CharField(
+            required=False, help_text="only this drone of the mission holds or resumes"
+        )
+    },
+)
 PanicRequest = inline_serializer(
     "PanicRequest",
     {
@@ -338,17 +346,19 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         """Release a panic call: its drone returns home and lands; the call is completed."""
         return self._operate(pk, request, panic.release)
 
-    @extend_schema(request=None, responses=MissionDetailSerializer)
+    @extend_schema(request=HoldRequest, responses=MissionDetailSerializer)
     @action(detail=True, methods=["post"])
     def pause(self, request: Request, pk: str | None = None) -> Response:
-        """Pause a running mission: its drones hold where they are (409 unless running)."""
-        return self._operate(pk, request, hold.pause)
+        """Pause a running mission: its drones hold where they are (409 unless running);
+        with `drone`, only that drone holds."""
+        return self._operate(pk, request, _for_drone(request, hold.pause))
 
-    @extend_schema(request=None, responses=MissionDetailSerializer)
+    @extend_schema(request=HoldRequest, responses=MissionDetailSerializer)
     @action(detail=True, methods=["post"])
     def resume(self, request: Request, pk: str | None = None) -> Response:
-        """Resume a paused mission: each drone carries on from its step (409 unless paused)."""
-        return self._operate(pk, request, hold.resume)
+        """Resume a paused mission: each held drone carries on from its step (409 unless
+        one holds); with `drone`, only that drone."""
+        return self._operate(pk, request, _for_drone(request, hold.resume))
 
     def _operate(self, pk: str | None, request: Request, operation: Any) -> Response:
         """Run one operator action on a mission the user may change; a refusal is an error."""
@@ -528,6 +538,15 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         except MissionError as exc:
             raise refuse(exc) from None
         return Response(MissionDetailSerializer(mission).data, status=status.HTTP_201_CREATED)
+
+
+def _for_drone(request: Request, operation: Any) -> Any:
+    """The pause or resume of the whole mission, or of the body's `drone` only."""
+    data = request.data if isinstance(request.data, dict) else {}
+    drone = data.get("drone")
+    if drone in (None, ""):
+        return operation
+    return lambda mission, user: operation(mission, user=user, drone=str(drone))
 
 
 def _violation_row(found: Any) -> dict:

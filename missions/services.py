@@ -612,11 +612,18 @@ def _apply_mission_status(
         if assignment is not None and message.status == "rejected":
             _rejected(mission, drone, assignment, message.error)
         if message.status in ("paused", "resumed"):
-            # A drone held by its own page pauses the mission it flies: the mission
-            # page then offers Resume.
-            held = message.status == "paused"
-            Mission.objects.filter(pk=mission.pk, status=MissionStatus.RUNNING).update(held=held)
+            _held_reported(mission, drone, message.status == "paused")
     return None
+
+
+def _held_reported(mission: Mission, drone: Drone, held: bool) -> None:
+    """A drone says it holds (its own page's Hold, or a pause it obeyed) or flies on: only
+    its own assignment changes, never its companions'. The mission's Pause ends when
+    none of its drones holds any more."""
+    mission.assignments.filter(drone=drone, status__in=Assignment.ACTIVE).update(held=held)
+    flying = (Assignment.Status.SENT, Assignment.Status.ACCEPTED)
+    if not held and not mission.assignments.filter(status__in=flying, held=True).exists():
+        Mission.objects.filter(pk=mission.pk, held=True).update(held=False)
 
 
 def _move_assignment(assignment: Assignment, message: protocol.MissionProgress) -> None:

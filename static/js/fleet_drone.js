@@ -56,13 +56,15 @@
       result.dataset.status = "error";
       return;
     }
+    // Only this drone resumes: its companions in the mission hold or fly as they were.
     const response = await fetch(`/api/v1/missions/${encodeURIComponent(missionId)}/resume/`, {
       method: "POST",
       credentials: "same-origin",
-      headers: { "X-CSRFToken": csrf, Accept: "application/json" },
+      headers: { "Content-Type": "application/json", "X-CSRFToken": csrf, Accept: "application/json" },
+      body: JSON.stringify({ drone: droneId }),
     });
     const body = await response.json().catch(() => ({}));
-    result.textContent = response.ok ? "resume: the mission carries on" : `resume: ${response.status} ${body.error || ""}`;
+    result.textContent = response.ok ? "resume: the drone carries on with its mission" : `resume: ${response.status} ${body.error || ""}`;
     result.dataset.status = response.ok ? "ok" : "error";
   }
 

@@ -54,7 +54,8 @@
       const row = document.createElement("tr");
       row.dataset.drone = a.drone_id;
       const swatch = `<span class="swatch" style="background:${M.colourFor(a.drone_id)}"></span>`;
-      row.innerHTML = `<td>${swatch}${M.escapeHtml(a.drone_id)}</td><td>${a.reason}</td><td>${a.status}</td>` +
+      const state = a.held && ["sent", "accepted"].includes(a.status) ? `${a.status} (holding)` : a.status;
+      row.innerHTML = `<td>${swatch}${M.escapeHtml(a.drone_id)}</td><td>${a.reason}</td><td class="assignment">${state}</td>` +
         `<td class="done">${done.length} / ${mine.size}</td><td>${last ? `#${last.index} ${M.escapeHtml(last.command)}` : "–"}</td>`;
       body.append(row);
     }
@@ -134,9 +135,14 @@
     if (pause) pause.hidden = held;
     if (resume) resume.hidden = !held;
   }
+  /* Resume is offered while the mission is paused or any of its drones holds (a drone
+     held from its own page holds alone; its companions fly on). */
+  function anyHeld(mission) {
+    return mission.held || (mission.assignments || []).some((a) => a.held && ["sent", "accepted"].includes(a.status));
+  }
   async function syncHeld() {
     if (!pause && !resume) return;
-    try { showHeld((await M.api("GET", config.missionApi)).held); } catch (error) { /* next push retries */ }
+    try { showHeld(anyHeld(await M.api("GET", config.missionApi))); } catch (error) { /* next push retries */ }
   }
   for (const button of [pause, resume]) {
     if (!button) continue;
@@ -145,7 +151,7 @@
       button.disabled = true;
       try {
         const mission = await M.api("POST", `${config.missionApi}${button.dataset.action}/`);
-        showHeld(mission.held);
+        showHeld(anyHeld(mission));
         box.hidden = true;
       } catch (error) { box.textContent = error.message; box.hidden = false; }
       button.disabled = false;
@@ -154,5 +160,6 @@
   }
   refresh();
   refreshPictures();
+  syncHeld();
   window.skyhiveMission = { map, refresh };
 })();
