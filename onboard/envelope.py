@@ -12,6 +12,7 @@ same local frame. Standard library only: the ground imports this module too.
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import math
@@ -356,25 +357,62 @@ def _circle_crossings(a: NE, b: NE, center: NE, radius: float) -> list[float]:
     return [t for t in ((-qb - root) / (2 * qa), (-qb + root) / (2 * qa)) if 0 < t < 1]
 
 
-def _borders(zone: Polygon | Circle, a: NE, b: NE, home: Sequence[float]) -> list[float]:
+@dataclass(frozen=True)
+class _LocalZone:
+    """A zone in the local frame about home: its ring (polygon) or centre and radius
+    (circle), and its bounding box (min north, min east, max north, max east)."""
+
+    ring: tuple[NE, ...]
+    center: NE
+    radius: float
+    box: tuple[float, float, float, float]
+
+
+@functools.lru_cache(maxsize=1024)
+def _local_zone(zone: Polygon | Circle, home: LatLon) -> _LocalZone:
     if isinstance(zone, Circle):
-        return _circle_crossings(a, b, latlon_to_ne(*zone.center, home), zone.radius)
-    ring = _to_local(zone.points, home)
+        c = latlon_to_ne(*zone.center, home)
+        r = zone.radius
+        return _LocalZone((), c, r, (c[0] - r, c[1] - r, c[0] + r, c[1] + r))
+    ring = tuple(_to_local(zone.points, home))
+    norths, easts = [p[0] for p in ring], [p[1] for p in ring]
+    return _LocalZone(ring, (0.0, 0.0), 0.0, (min(norths), min(easts), max(norths), max(easts)))
+
+
+def _near(zone: _LocalZone, a: NE, b: NE) -> bool:
+    """The leg's bounding box meets the zone's: else no part of the leg is in the zone."""
+    n0, e0, n1, e1 = zone.box
+    return not (
+        max(a[0], b[0]) < n0 or min(a[0], b[0]) > n1 or max(a[1], b[1]) < e0 or min(a[1], b[1]) > e1
+    )
+
+
+def _borders(zone: _LocalZone, a: NE, b: NE) -> list[float]:
+    if not zone.ring:
+        return _circle_crossings(a, b, zone.center, zone.radius)
+    ring = list(zone.ring)
     found = (_edge_crossing(a, b, p, q) for p, q in zip(ring, ring[1:] + ring[:1], strict=True))
     return [t for t in found if t is not None]
 
 
-def _inside(zone: Polygon | Circle, point: LatLon) -> bool:
-    return _inside_circle(point, zone) if isinstance(zone, Circle) else _inside_polygon(point, zone)
+def _inside(zone: _LocalZone, point: NE) -> bool:
+    """The point rules (_inside_circle, _inside_polygon) in the local frame about home."""
+    n, e = point
+    if not zone.ring:
+        return math.hypot(n - zone.center[0], e - zone.center[1]) <= zone.radius
+    inside = False
+    ring = zone.ring
+    for (n1, e1), (n2, e2) in zip(ring, ring[1:] + ring[:1], strict=True):
+        if (e1 > e) != (e2 > e) and n < n1 + (n2 - n1) * (e - e1) / (e2 - e1):
+            inside = not inside
+    return inside
 
 
-def _pieces(zones: Sequence[Polygon | Circle], a: NE, b: NE, home: Sequence[float]) -> list[LatLon]:
+def _pieces(zones: Sequence[_LocalZone], a: NE, b: NE) -> list[NE]:
     """The midpoint of every piece the zones' borders cut the leg a→b into."""
-    cuts = sorted({0.0, 1.0, *(t for zone in zones for t in _borders(zone, a, b, home))})
+    cuts = sorted({0.0, 1.0, *(t for zone in zones for t in _borders(zone, a, b))})
     middles = ((t0 + t1) / 2 for t0, t1 in zip(cuts, cuts[1:], strict=False))
-    return [
-        ned_to_latlon(a[0] + m * (b[0] - a[0]), a[1] + m * (b[1] - a[1]), home) for m in middles
-    ]
+    return [(a[0] + m * (b[0] - a[0]), a[1] + m * (b[1] - a[1])) for m in middles]
 
 
 def leg_breach(envelope: Envelope, home: Sequence[float], start: NED, end: NED) -> str | None:
@@ -387,18 +425,22 @@ def leg_breach(envelope: Envelope, home: Sequence[float], start: NED, end: NED) 
     a, b = (start[0], start[1]), (end[0], end[1])
     if math.hypot(b[0] - a[0], b[1] - a[1]) < MIN_LEG:
         return None
-    origin = ned_to_latlon(a[0], a[1], home)
-    zones: list[Polygon | Circle] = [*envelope.polygons, *envelope.circles]
-    inclusions = [zone for zone in zones if zone.inclusion]
-    if any(_inside(zone, origin) for zone in inclusions):
-        for point in _pieces(inclusions, a, b, home):
+    origin = _ll(home)
+    inclusions = [
+        local
+        for zone in (*envelope.polygons, *envelope.circles)
+        if zone.inclusion and _near(local := _local_zone(zone, origin), a, b)
+    ]
+    if any(_inside(zone, a) for zone in inclusions):
+        for point in _pieces(inclusions, a, b):
             if not any(_inside(zone, point) for zone in inclusions):
                 return "leaves the geofence's inclusion zones"
     for kind, group in (("polygon", envelope.polygons), ("circle", envelope.circles)):
         for index, zone in enumerate(group):
-            if zone.inclusion or _inside(zone, origin):
+            local = _local_zone(zone, origin)
+            if zone.inclusion or not _near(local, a, b) or _inside(local, a):
                 continue
-            if any(_inside(zone, point) for point in _pieces([zone], a, b, home)):
+            if any(_inside(local, point) for point in _pieces([local], a, b)):
                 return f"crosses the geofence's exclusion {kind} {index}"
     return None
 
