@@ -158,6 +158,43 @@
       refresh();
     });
   }
+  /* A draft starts with the nearest available drone. Steps beyond the envelope's defaults
+     (409 confirmation_required) start only once CONFIRM has been typed. */
+  const start = document.getElementById("start-mission");
+  async function startMission(confirmed) {
+    const box = document.getElementById("mission-error");
+    start.disabled = true;
+    try {
+      await M.api("POST", `${config.missionApi}start/`, confirmed ? { confirm_beyond_defaults: true } : {});
+      location.reload();
+      return;
+    } catch (error) {
+      if (error.code === "confirmation_required") {
+        document.getElementById("beyond-defaults-message").textContent = error.message;
+        document.getElementById("beyond-defaults-typed").value = "";
+        document.getElementById("beyond-defaults").hidden = false;
+        box.hidden = true;
+      } else { box.textContent = error.message; box.hidden = false; }
+    }
+    start.disabled = false;
+  }
+  if (start) {
+    start.addEventListener("click", () => startMission(false));
+    document.getElementById("beyond-defaults-send").addEventListener("click", () => {
+      const box = document.getElementById("mission-error");
+      if (document.getElementById("beyond-defaults-typed").value.trim() !== "CONFIRM") {
+        box.textContent = "Not started: type CONFIRM to fly beyond the envelope's defaults.";
+        box.hidden = false;
+        return;
+      }
+      document.getElementById("beyond-defaults").hidden = true;
+      startMission(true);
+    });
+    document.getElementById("beyond-defaults-cancel").addEventListener("click", () => {
+      document.getElementById("beyond-defaults").hidden = true;
+    });
+  }
+
   refresh();
   refreshPictures();
   syncHeld();

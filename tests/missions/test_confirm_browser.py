@@ -128,3 +128,34 @@ def test_the_planner_marks_a_step_whose_leg_crosses_an_exclusion_zone(page, live
     assert page.locator("#planner-map path.offending-leg").count() == 1
     assert "Step 3" in page.inner_text("#planner-error")
     assert not Mission.objects.exists()
+
+
+def test_the_mission_page_starts_a_draft_beyond_the_defaults_once_confirmed(
+    page, live_asgi, world_tx
+):
+    from missions.services import create_mission
+
+    from .test_envelope import body
+
+    Organisation.objects.filter(pk=world_tx.org.pk).update(envelope=RAISED)
+    online_drone(world_tx.org, "ACME_1")
+    steps = body(1500)["steps"]
+    organisation = Organisation.objects.get(pk=world_tx.org.pk)
+    mission = create_mission(organisation=organisation, name="far", steps=steps, confirmed=True)
+    login(page, live_asgi, "operator")
+    page.goto(f"{live_asgi.url}/missions/{mission.pk}/")
+    page.click("#start-mission")
+    page.wait_for_selector("#beyond-defaults:not([hidden])")
+    assert "Step 3" in page.inner_text("#beyond-defaults-message")
+    assert "default maximum distance" in page.inner_text("#beyond-defaults-message")
+    page.fill("#beyond-defaults-typed", "ok")
+    page.click("#beyond-defaults-send")
+    page.wait_for_selector("#mission-error:not([hidden])")
+    assert Mission.objects.get(pk=mission.pk).status == MissionStatus.DRAFT
+
+    page.fill("#beyond-defaults-typed", "CONFIRM")
+    page.click("#beyond-defaults-send")
+    page.wait_for_selector("#pause-mission")  # reloaded: the mission runs
+    mission.refresh_from_db()
+    assert mission.status == MissionStatus.RUNNING
+    assert mission.assignments.get().drone.drone_id == "ACME_1"
