@@ -504,7 +504,11 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     @extend_schema(
         request={
             "multipart/form-data": inline_serializer(
-                "PlanUpload", {"file": serializers.FileField()}
+                "PlanUpload",
+                {
+                    "file": serializers.FileField(),
+                    CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
+                },
             )
         },
         responses={201: MissionDetailSerializer},
