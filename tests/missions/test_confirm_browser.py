@@ -159,3 +159,37 @@ def test_the_mission_page_starts_a_draft_beyond_the_defaults_once_confirmed(
     mission.refresh_from_db()
     assert mission.status == MissionStatus.RUNNING
     assert mission.assignments.get().drone.drone_id == "ACME_1"
+
+
+def test_the_fleet_table_resends_with_the_confirmation_once_the_id_is_typed(
+    page, live_asgi, world_tx
+):
+    online_drone(world_tx.org, "ACME_1")
+    sent: list[dict] = []
+    typed: list[str] = []
+
+    def answer(route) -> None:  # type: ignore[no-untyped-def]
+        body = json.loads(route.request.post_data)
+        sent.append(body)
+        if body.get("confirm_beyond_defaults"):
+            route.fulfill(json={"ok": True, "result": {}, "request_id": "0" * 32})
+        else:  # the ground's answer to a move beyond the defaults (the API's contract)
+            error = "The target is 1500 m from home, beyond the default maximum distance."
+            route.fulfill(status=409, json={"error": error, "code": "confirmation_required"})
+
+    def reply(dialog) -> None:  # type: ignore[no-untyped-def]
+        typed.append(dialog.message)
+        dialog.accept(["ACME_2", "ACME_1"][len(typed) - 1])
+
+    page.route("**/api/v1/drones/ACME_1/commands/", answer)
+    page.on("dialog", reply)
+    login(page, live_asgi, "operator")
+    page.goto(f"{live_asgi.url}/")
+    row = 'tr[data-drone="ACME_1"]'
+    page.click(f'{row} button[data-command="return"]')
+    page.wait_for_selector(f'{row} .control-result[data-status="error"]')
+    assert sent == [{"command": "return", "params": {}}]  # a wrong id: not sent again
+    page.click(f'{row} button[data-command="return"]')
+    page.wait_for_selector(f'{row} .control-result[data-status="ok"]')
+    assert sent[-1] == {"command": "return", "params": {}, "confirm_beyond_defaults": True}
+    assert all("Type ACME_1" in message for message in typed)
