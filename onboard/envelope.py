@@ -409,8 +409,12 @@ def _inside(zone: _LocalZone, point: NE) -> bool:
 
 
 def _pieces(zones: Sequence[_LocalZone], a: NE, b: NE) -> list[NE]:
-    """The midpoint of every piece the zones' borders cut the leg a→b into."""
-    cuts = sorted({0.0, 1.0, *(t for zone in zones for t in _borders(zone, a, b))})
+    """The midpoint of every piece the zones' borders cut the leg a→b into; none when no
+    border crosses it (the whole leg is then on the same side as its start)."""
+    crossings = {t for zone in zones for t in _borders(zone, a, b)}
+    if not crossings:
+        return []
+    cuts = sorted({0.0, 1.0, *crossings})
     middles = ((t0 + t1) / 2 for t0, t1 in zip(cuts, cuts[1:], strict=False))
     return [(a[0] + m * (b[0] - a[0]), a[1] + m * (b[1] - a[1])) for m in middles]
 
@@ -442,6 +446,22 @@ def leg_breach(envelope: Envelope, home: Sequence[float], start: NED, end: NED) 
                 continue
             if any(_inside(local, point) for point in _pieces([local], a, b)):
                 return f"crosses the geofence's exclusion {kind} {index}"
+    return None
+
+
+def local_fence_breach(envelope: Envelope, home: Sequence[float], point: NE) -> str | None:
+    """fence_breach for a point given in metres from home: the zones are taken in the
+    local frame about home once (cached), as the legs are."""
+    origin = _ll(home)
+    zones = [(z, _local_zone(z, origin)) for z in (*envelope.polygons, *envelope.circles)]
+    inclusions = [local for zone, local in zones if zone.inclusion]
+    if inclusions and not any(_near(z, point, point) and _inside(z, point) for z in inclusions):
+        return "outside the geofence's inclusion zones"
+    for kind, group in (("polygon", envelope.polygons), ("circle", envelope.circles)):
+        for index, zone in enumerate(group):
+            local = _local_zone(zone, origin)
+            if not zone.inclusion and _near(local, point, point) and _inside(local, point):
+                return f"inside the geofence's exclusion {kind} {index}"
     return None
 
 
@@ -505,7 +525,7 @@ def check(
             f"{envelope.min_move_height:g} m above home; the target is at {height:.1f} m.",
         )
     if home is not None:
-        breach = fence_breach(envelope, ned_to_latlon(north, east, home))
+        breach = local_fence_breach(envelope, home, (north, east))
         if breach is not None:
             return Violation("geofence", f"The target is {breach}.")
         if start is not None and target.kind == "goto":
