@@ -198,7 +198,7 @@ class DroneCommandView(AsyncAPIView):
         try:
             if command in commands.CHAIN_COMMANDS:
                 result = await sync_to_async(commands.run_mission_start_stop)(
-                    request.user, drone_id, command, params.get("mission")
+                    request.user, drone_id, command, params.get("mission"), confirmed
                 )
                 return Response(
                     {

@@ -233,12 +233,15 @@ def check_mission_start_stop(user: Any, drone_id: str) -> Drone:
     return drone
 
 
-def run_mission_start_stop(user: Any, drone_id: str, command: str, mission: object = None) -> dict:
-    """startchain / stopchain through the configured hook, after the shared checks."""
+def run_mission_start_stop(
+    user: Any, drone_id: str, command: str, mission: object = None, confirmed: bool = False
+) -> dict:
+    """startchain / stopchain through the configured hook, after the shared checks;
+    `confirmed` lets a startchain go beyond the envelope's defaults."""
     drone = check_mission_start_stop(user, drone_id)
     hook = mission_start_stop_handler(command)
     if command == "startchain":
         if not isinstance(mission, str) or not mission:
             raise CommandRefused(400, "mission: is required", "mission")
-        return hook(drone=drone, user=user, mission=mission)
+        return hook(drone=drone, user=user, mission=mission, confirmed=confirmed)
     return hook(drone=drone, user=user)

@@ -174,6 +174,6 @@ class ControlView(AsyncAPIView):
 
     async def chain(self, user: Any, drone_id: str, command: str, data: Any) -> Response:
         result = await sync_to_async(commands.run_mission_start_stop)(
-            user, drone_id, command, data.get("mission")
+            user, drone_id, command, data.get("mission"), _flag(data.get("confirm_beyond_defaults"))
         )
         return Response({"ok": True, "result": result})

@@ -143,3 +143,31 @@ def test_a_mission_leg_beside_the_zone_is_accepted(world, outbox):
     beside["steps"][2]["params"] = dict(zip(("lat", "lon"), point_at(0, 40), strict=True))
     created = client_for(world.operator).post("/api/v1/missions/", beside, format="json")
     assert created.status_code == 201, created.json()
+
+
+def test_a_startchain_beyond_the_defaults_needs_a_confirmation(
+    raised,
+    outbox,
+    sent,  # noqa: F811
+):
+    import base64
+    import json
+
+    from django.test import Client
+
+    online_drone(raised.org, "ACME_1")
+    chain = base64.b64encode(json.dumps(body(1500)["steps"]).encode()).decode()
+    client = Client()
+    client.force_login(raised.operator)
+    form = {"command": "startchain", "droneID": "ACME_1", "mission": chain}
+    refused = sent(client.post, "/control", form)
+    assert refused.status_code == 409, refused.content
+    assert refused.json()["code"] == "confirmation_required"
+    assert (
+        "Step 3:" in refused.json()["error"]
+        and "default maximum distance" in (refused.json()["error"])
+    )
+    assert not Mission.objects.exists() and outbox.items() == []
+    started = sent(client.post, "/control", {**form, "confirm_beyond_defaults": "true"})
+    assert started.status_code == 200, started.content
+    assert [item["topic"] for item in outbox.items()] == ["ACME_1/mission/in"]
