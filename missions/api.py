@@ -72,9 +72,15 @@ CONFIRM_HELP = (
 
 
 def _confirmed(data: Any) -> bool:
-    """The body's confirmation flag (JSON true, or true/1/yes/on in a form)."""
+    """The body's confirmation flag: JSON true or false, or true/false (1/0, yes/no, on/off)
+    in a form; anything else is refused naming the field."""
     value = data.get(CONFIRM_FIELD) if hasattr(data, "get") else None
-    return value is True or str(value).strip().lower() in ("true", "1", "yes", "on")
+    if value is None or isinstance(value, bool):
+        return bool(value)
+    text = str(value).strip().lower()
+    if text not in ("true", "1", "yes", "on", "false", "0", "no", "off", ""):
+        raise Refused(CONFIRM_FIELD, "must be true or false")
+    return text in ("true", "1", "yes", "on")
 
 
 def _organisation_for_write(request: Request, slug: object = None) -> Organisation:

@@ -171,3 +171,12 @@ def test_a_startchain_beyond_the_defaults_needs_a_confirmation(
     started = sent(client.post, "/control", {**form, "confirm_beyond_defaults": "true"})
     assert started.status_code == 200, started.content
     assert [item["topic"] for item in outbox.items()] == ["ACME_1/mission/in"]
+
+
+def test_a_malformed_confirmation_is_refused_naming_the_field(raised, outbox):
+    response = client_for(raised.operator).post(
+        "/api/v1/missions/", {**body(1500), "confirm_beyond_defaults": "maybe"}, format="json"
+    )
+    assert response.status_code == 400, response.json()
+    assert "confirm_beyond_defaults" in response.json()["fields"]
+    assert not Mission.objects.exists() and outbox.items() == []
