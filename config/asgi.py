@@ -13,6 +13,7 @@ from channels.auth import AuthMiddlewareStack  # noqa: E402
 from channels.routing import ProtocolTypeRouter, URLRouter  # noqa: E402
 from channels.security.websocket import AllowedHostsOriginValidator  # noqa: E402
 
+from config.bodylimits import BodyLimitASGI  # noqa: E402
 from config.lifespan import InstanceLifespan  # noqa: E402
 from config.routing import websocket_urlpatterns  # noqa: E402
 from logs.asgi import UploadLimitMiddleware  # noqa: E402
@@ -21,8 +22,9 @@ from logs.asgi import UploadLimitMiddleware  # noqa: E402
 application = InstanceLifespan(
     ProtocolTypeRouter(
         {
-            # Oversized log uploads are refused before Django spools their body to disk.
-            "http": UploadLimitMiddleware(django_asgi_app),
+            # Oversized bodies (log uploads: their own limit) are refused before Django
+            # spools them to disk (config/bodylimits.py).
+            "http": BodyLimitASGI(UploadLimitMiddleware(django_asgi_app)),
             "websocket": AllowedHostsOriginValidator(
                 AuthMiddlewareStack(URLRouter(websocket_urlpatterns))
             ),

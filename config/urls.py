@@ -8,6 +8,7 @@ from fleet import api as fleet_api
 from fleet.control import ControlView
 from logs import urls as logs_urls
 from missions import api as missions_api
+from missions import survey_api
 from telemetry import views as operations_views
 
 from .health import health
@@ -38,6 +39,8 @@ api_v1 = [
     path("telemetry/", include("telemetry.api_urls")),
     path("logs/", include(logs_urls.api_urlpatterns)),
     path("operations/", operations_views.operations_api, name="operations"),
+    path("missions/survey/", survey_api.plan, name="mission-survey"),
+    path("missions/survey/cameras/", survey_api.cameras, name="mission-survey-cameras"),
     path("", include(router.urls)),
 ]
 

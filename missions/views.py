@@ -99,6 +99,9 @@ def planner(request: HttpRequest) -> HttpResponse:
             "planner_config": _map_config(
                 organisation,
                 coverageUrl=reverse("api:mission-coverage"),
+                surveyUrl=reverse("api:mission-survey"),
+                camerasUrl=reverse("api:mission-survey-cameras"),
+                dronesUrl=reverse("api:drone-list"),
                 createUrl=reverse("api:mission-list"),
                 checkUrl=reverse("api:mission-check-envelope"),
                 envelopeUrl=reverse("api:organisation-envelope", args=[organisation.slug]),

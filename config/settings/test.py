@@ -14,6 +14,10 @@ os.environ.setdefault("MEDIA_ROOT", str(BASE_DIR / ".data" / "test" / "media"))
 # set the production rates themselves.
 os.environ.setdefault("AUTH_TOKEN_RATE", "10000/min")
 os.environ.setdefault("LOGIN_RATE", "10000/min")
+# Each test that runs a worker gives it a queue of its own (shared Redis): safety work and
+# imports go to the default queue unless a test names theirs (tests/config/test_queues.py).
+os.environ.setdefault("SAFETY_TASK_QUEUE", "")
+os.environ.setdefault("LOGS_IMPORT_QUEUE", "")
 
 from .base import *  # noqa: E402,F403
 from .base import DATABASES  # noqa: E402

@@ -94,9 +94,20 @@
     return label;
   }
 
+  // One line for the whole list: the long list itself is one click away.
+  function summarise() {
+    const navigations = steps.filter((s) => s.command === "navigate").length;
+    const photos = steps.filter((s) => s.command === "takepic").length;
+    const parts = [`${steps.length} steps`];
+    if (navigations) parts.push(`${navigations} waypoints`);
+    if (photos) parts.push(`${photos} photos`);
+    $("step-summary").textContent = steps.length ? parts.join(" · ") : "none yet";
+  }
+
   function renderSteps() {
     confirmedBeyond = false;
     draftId = null;
+    summarise();
     const list = $("step-list");
     list.replaceChildren();
     steps.forEach((step, i) => {
@@ -150,13 +161,26 @@
     $("area").textContent = area.area_m2.toFixed(0);
   }
 
+  // With a camera survey switched on, the spacings and the height come from the camera.
+  async function areaFor(points) {
+    const survey = window.skyhiveSurvey;
+    if (survey && survey.active()) {
+      const planned = await survey.plan(points, $("drone-choice").value || null);
+      $("altitude").value = planned.geometry.height_m.toFixed(1);
+      $("step-distance").value = planned.coverage.step_distance.toFixed(1);
+      $("intermediate-action").value = "takepic";
+      return planned.coverage;
+    }
+    return M.api("POST", config.coverageUrl, {
+      vertices: points, step_distance: Number($("step-distance").value), altitude: Number($("altitude").value),
+    });
+  }
+
   async function requestCoverage() {
     if (vertices.length !== 3) return;
     showError("");
     try {
-      area = await M.api("POST", config.coverageUrl, {
-        vertices, step_distance: Number($("step-distance").value), altitude: Number($("altitude").value),
-      });
+      area = await areaFor(vertices);
       buildSteps();
     } catch (error) {
       area = null;
@@ -173,6 +197,7 @@
   });
   $("clear-area").addEventListener("click", () => { vertices = []; area = null; steps = []; renderSteps(); drawArea(); });
   $("step-distance").addEventListener("change", requestCoverage);
+  document.addEventListener("skyhive:survey-change", requestCoverage);
   $("altitude").addEventListener("change", () => (area ? buildSteps() : null));
   $("intermediate-action").addEventListener("change", () => {
     const kind = $("intermediate-action").value;
@@ -183,6 +208,7 @@
   });
   $("action-param").addEventListener("change", () => (area ? buildSteps() : null));
   $("add-step").addEventListener("click", () => {
+    $("step-details").open = true;
     const command = $("new-step-command").value;
     steps.push({ command, params: defaults(command) });
     renderSteps();
@@ -214,6 +240,8 @@
       if (item) { item.classList.remove("beyond-defaults"); item.classList.add("outside-envelope"); item.title = v.message; }
       if (v.leg) L.polyline(v.leg, { color: "#c33", weight: 4, dashArray: "6 4", className: "offending-leg" }).addTo(legLayer).bindTooltip(`Step ${v.index}: ${v.message}`);
     });
+    // The marks are in the step list: open it so they are seen.
+    if (answer.violations.length || (answer.beyond_defaults || []).length) $("step-details").open = true;
     if (answer.violations.length) {
       const first = answer.violations[0];
       showError(`Outside the flight envelope (${answer.violations.length} step(s) marked). Step ${first.index}: ${first.message}`);
@@ -295,5 +323,5 @@
   $("step-list").addEventListener("change", () => { confirmedBeyond = false; draftId = null; });
 
   // For tests and the console.
-  window.skyhivePlanner = { map, get steps() { return steps; }, get area() { return area; } };
+  window.skyhivePlanner = { map, get steps() { return steps; }, get area() { return area; }, get vertices() { return vertices; } };
 })();

@@ -75,6 +75,7 @@ def add_step(page, command: str, **params: float) -> None:  # type: ignore[no-un
 
 def plan_north(page, north: float) -> None:  # type: ignore[no-untyped-def]
     home, target = point_at(0, 0), point_at(north, 0)
+    page.click("#step-details summary")  # the step list opens for editing
     add_step(page, "arm")
     add_step(page, "takeoff", altitude=10)
     add_step(page, "navigate", lat=home[0], lon=home[1])
