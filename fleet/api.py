@@ -110,6 +110,14 @@ class DroneViewSet(viewsets.ReadOnlyModelViewSet):
 class CommandRequestSerializer(StrictSerializer):
     command = serializers.ChoiceField(choices=commands.API_COMMANDS)
     params = serializers.DictField(required=False, default=dict)
+    confirm_beyond_defaults = serializers.BooleanField(
+        required=False,
+        default=False,
+        help_text=(
+            "The operator confirmed a move beyond the envelope's defaults (120 m high, "
+            "1000 m from home); without it such a move answers 409 confirmation_required."
+        ),
+    )
 
 
 CommandReplySerializer = inline_serializer(
@@ -157,13 +165,22 @@ class DroneCommandView(AsyncAPIView):
             400: OpenApiResponse(description="bad command or parameter (named in `fields`)"),
             403: OpenApiResponse(description="viewers may not command"),
             404: OpenApiResponse(description="unknown drone"),
-            409: OpenApiResponse(description="drone offline or unsafe"),
+            409: OpenApiResponse(
+                description=(
+                    "drone offline or unsafe; `code: outside_envelope` when the move leaves "
+                    "the flight envelope, `code: confirmation_required` when it goes beyond "
+                    "the envelope's defaults without `confirm_beyond_defaults`"
+                )
+            ),
             504: OpenApiResponse(description="no reply in time"),
         },
         description=(
             "Send one command of the `/control` command set (`params` as in docs/protocol.md). "
             "A reply with "
-            "`ok: false` is the drone's own refusal."
+            "`ok: false` is the drone's own refusal. A move inside the organisation's "
+            "envelope but beyond its defaults (higher than 120 m or farther than 1000 m "
+            "from home) is sent only with `confirm_beyond_defaults: true`; nothing is sent "
+            "otherwise."
         ),
     )
     async def post(self, request: Request, drone_id: str) -> Response:
@@ -171,10 +188,11 @@ class DroneCommandView(AsyncAPIView):
         serializer.is_valid(raise_exception=True)
         command = serializer.validated_data["command"]
         params = serializer.validated_data["params"]
+        confirmed = serializer.validated_data["confirm_beyond_defaults"]
         try:
             if command in commands.CHAIN_COMMANDS:
                 result = await sync_to_async(commands.run_mission_start_stop)(
-                    request.user, drone_id, command, params.get("mission")
+                    request.user, drone_id, command, params.get("mission"), confirmed
                 )
                 return Response(
                     {
@@ -185,7 +203,7 @@ class DroneCommandView(AsyncAPIView):
                         "error": None,
                     }
                 )
-            outcome = await commands.send(request.user, drone_id, command, params)
+            outcome = await commands.send(request.user, drone_id, command, params, confirmed)
         except CommandRefused as refusal:
             raise _api_error(refusal) from None
         if outcome.timed_out:

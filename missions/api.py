@@ -68,6 +68,25 @@ def _body(request: Request) -> dict:
     return request.data
 
 
+CONFIRM_FIELD = "confirm_beyond_defaults"
+CONFIRM_HELP = (
+    "The operator confirmed steps beyond the envelope's defaults (120 m high, 1000 m from "
+    "home); without it such a mission answers 409 confirmation_required naming the step."
+)
+
+
+def _confirmed(data: Any) -> bool:
+    """The body's confirmation flag: JSON true or false, or true/false (1/0, yes/no, on/off)
+    in a form; anything else is refused naming the field."""
+    value = data.get(CONFIRM_FIELD) if hasattr(data, "get") else None
+    if value is None or isinstance(value, bool):
+        return bool(value)
+    text = str(value).strip().lower()
+    if text not in ("true", "1", "yes", "on", "false", "0", "no", "off", ""):
+        raise Refused(CONFIRM_FIELD, "must be true or false")
+    return text in ("true", "1", "yes", "on")
+
+
 def _organisation_for_write(request: Request, slug: object = None) -> Organisation:
     """The organisation named in the body (slug), else the portal's current one; the
     user must be an operator there."""
@@ -143,13 +162,31 @@ CreateRequest = inline_serializer(
             },
         ),
         "extensibility": serializers.DictField(required=False),
+        CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
     },
 )
 StartRequest = inline_serializer(
-    "MissionStartRequest", {"drone": serializers.CharField(required=False, allow_null=True)}
+    "MissionStartRequest",
+    {
+        "drone": serializers.CharField(required=False, allow_null=True),
+        CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
+    },
+)
+HoldRequest = inline_serializer(
+    "MissionHoldRequest",
+    {
+        "drone": serializers.CharField(
+            required=False, help_text="only this drone of the mission holds or resumes"
+        )
+    },
 )
 PanicRequest = inline_serializer(
-    "PanicRequest", {"lat": serializers.FloatField(), "lon": serializers.FloatField()}
+    "PanicRequest",
+    {
+        "lat": serializers.FloatField(),
+        "lon": serializers.FloatField(),
+        CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
+    },
 )
 
 
@@ -279,6 +316,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 altitude=altitude,
                 extensibility=extensibility,
                 user=request.user,
+                confirmed=_confirmed(body),
             )
         except MissionError as exc:
             raise refuse(exc) from None
@@ -300,7 +338,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             if drone is None:
                 raise Refused("drone", f"no drone {drone_id!r} in this organisation", 404)
         try:
-            start_mission(mission, drone=drone, user=request.user)
+            start_mission(mission, drone=drone, user=request.user, confirmed=_confirmed(body))
         except MissionError as exc:
             note_refusal(
                 mission.organisation_id, request.user, "mission.start", mission, exc.message
@@ -321,17 +359,19 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         """Release a panic call: its drone returns home and lands; the call is completed."""
         return self._operate(pk, request, panic.release)
 
-    @extend_schema(request=None, responses=MissionDetailSerializer)
+    @extend_schema(request=HoldRequest, responses=MissionDetailSerializer)
     @action(detail=True, methods=["post"])
     def pause(self, request: Request, pk: str | None = None) -> Response:
-        """Pause a running mission: its drones hold where they are (409 unless running)."""
-        return self._operate(pk, request, hold.pause)
+        """Pause a running mission: its drones hold where they are (409 unless running);
+        with `drone`, only that drone holds."""
+        return self._operate(pk, request, _for_drone(request, hold.pause))
 
-    @extend_schema(request=None, responses=MissionDetailSerializer)
+    @extend_schema(request=HoldRequest, responses=MissionDetailSerializer)
     @action(detail=True, methods=["post"])
     def resume(self, request: Request, pk: str | None = None) -> Response:
-        """Resume a paused mission: each drone carries on from its step (409 unless paused)."""
-        return self._operate(pk, request, hold.resume)
+        """Resume a paused mission: each held drone carries on from its step (409 unless
+        one holds); with `drone`, only that drone."""
+        return self._operate(pk, request, _for_drone(request, hold.resume))
 
     def _operate(self, pk: str | None, request: Request, operation: Any) -> Response:
         """Run one operator action on a mission the user may change; a refusal is an error."""
@@ -356,7 +396,8 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     @action(detail=False, methods=["post"], url_path="check-envelope")
     def check_envelope(self, request: Request) -> Response:
         """Every step of `steps` the flight envelope refuses (flown by `drone` when given),
-        for the planner to mark before anything is sent; nothing is stored or sent."""
+        for the planner to mark before anything is sent, and every step beyond the
+        envelope's defaults (`beyond_defaults`: to confirm); nothing is stored or sent."""
         body = _body(request)
         organisation = _organisation_for_write(request, body.get("organisation"))
         try:
@@ -371,12 +412,11 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             if drone is None:
                 raise Refused("drone", f"no drone {body['drone']!r} in this organisation", 404)
         found = envelopes.step_violations(organisation, steps, drone)
+        beyond = envelopes.steps_beyond_defaults(organisation, steps, drone)
         return Response(
             {
-                "violations": [
-                    {"index": v.index, "limit": v.violation.limit, "message": v.violation.message}
-                    for v in found
-                ],
+                "violations": [_violation_row(v) for v in found],
+                "beyond_defaults": [_violation_row(v) for v in beyond],
                 "envelope": envelopes.envelope_body(organisation),
             }
         )
@@ -393,6 +433,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 lat=body.get("lat"),
                 lon=body.get("lon"),
                 user=request.user,
+                confirmed=_confirmed(body),
             )
         except MissionError as exc:
             raise refuse(exc) from None
@@ -471,7 +512,11 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     @extend_schema(
         request={
             "multipart/form-data": inline_serializer(
-                "PlanUpload", {"file": serializers.FileField()}
+                "PlanUpload",
+                {
+                    "file": serializers.FileField(),
+                    CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
+                },
             )
         },
         parameters=[
@@ -506,7 +551,30 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 user=request.user,
                 name=upload.name if upload is not None else "",
                 fence_scope=request.query_params.get("fence", "mission"),
+                confirmed=_confirmed(request.data),
             )
         except (planning.PlanningError, MissionError) as exc:
             raise refuse(exc) from None
         return Response(MissionDetailSerializer(mission).data, status=status.HTTP_201_CREATED)
+
+
+def _for_drone(request: Request, operation: Any) -> Any:
+    """The pause or resume of the whole mission, or of the body's `drone` only."""
+    data = request.data if isinstance(request.data, dict) else {}
+    drone = data.get("drone")
+    if drone in (None, ""):
+        return operation
+    return lambda mission, user: operation(mission, user=user, drone=str(drone))
+
+
+def _violation_row(found: Any) -> dict:
+    """One refused step for the planner; `leg` ([[lat, lon], [lat, lon]]) when it is the
+    straight leg to the step's target, not the target, that breaks the fence."""
+    violation = found.violation
+    leg = [list(point) for point in violation.leg] if violation.leg else None
+    return {
+        "index": found.index,
+        "limit": violation.limit,
+        "message": violation.message,
+        "leg": leg,
+    }

@@ -185,6 +185,8 @@ class Assignment(models.Model):
     status = models.CharField(max_length=10, choices=Status.choices, default=Status.SENT)
     created_at = models.DateTimeField(auto_now_add=True)
     decode_ms = models.FloatField(null=True, blank=True)
+    # The drone holds where it is (its own page's Hold, or the mission's Pause) until resumed.
+    held = models.BooleanField(default=False)
     # The failing assignment this one replaces: one replacement per failure, by constraint.
     replaces = models.OneToOneField(
         "self", null=True, blank=True, on_delete=models.SET_NULL, related_name="replaced_by"

@@ -90,6 +90,7 @@ def import_document(
     user: Any,
     name: str = "",
     fence_scope: str = "mission",
+    confirmed: bool = False,
 ) -> Mission:
     """A draft mission from a plan; PlanningError / MissionError say what is wrong."""
     if fence_scope not in FENCE_SCOPES:
@@ -107,6 +108,7 @@ def import_document(
             user=user,
             home=plan.home,
             fence=qgc_plan.geofence_json(plan.geofence) if fence_scope == "mission" else None,
+            confirmed=confirmed,
         )
 
 

@@ -88,44 +88,92 @@
       result.dataset.status = "error";
       return;
     }
+    // Only this drone resumes: its companions in the mission hold or fly as they were.
     const response = await fetch(`/api/v1/missions/${encodeURIComponent(missionId)}/resume/`, {
       method: "POST",
       credentials: "same-origin",
-      headers: { "X-CSRFToken": csrf, Accept: "application/json" },
+      headers: { "Content-Type": "application/json", "X-CSRFToken": csrf, Accept: "application/json" },
+      body: JSON.stringify({ drone: droneId }),
     });
     const body = await response.json().catch(() => ({}));
-    result.textContent = response.ok ? "resume: the mission carries on" : `resume: ${response.status} ${body.error || ""}`;
+    result.textContent = response.ok ? "resume: the drone carries on with its mission" : `resume: ${response.status} ${body.error || ""}`;
     result.dataset.status = response.ok ? "ok" : "error";
   }
 
-  async function send(form) {
-    const command = form.dataset.command;
-    if (!confirmed(form, command)) return;
-    if (form.dataset.confirm && !window.confirm(form.dataset.confirm)) return;
-    const buttons = form.querySelectorAll("button");
+  /* Post one command; a move beyond the envelope's defaults comes back 409
+     confirmation_required and is sent again only once the drone's id has been typed. */
+  async function post(command, params, buttons, confirmed) {
     buttons.forEach((b) => { b.disabled = true; });
     result.textContent = `${command}: waiting for ${droneId}…`;
     try {
+      const body = { command, params };
+      if (confirmed) body.confirm_beyond_defaults = true;
       const response = await fetch(config.commandUrl, {
         method: "POST",
         credentials: "same-origin",
         headers: { "Content-Type": "application/json", "X-CSRFToken": csrf, Accept: "application/json" },
-        body: JSON.stringify({ command, params: params(form) }),
+        body: JSON.stringify(body),
       });
-      const body = await response.json().catch(() => ({ error: response.statusText }));
-      if (response.ok) {
-        const verdict = body.ok ? "ok" : `refused: ${body.error}`;
-        result.textContent = `${command}: ${verdict}\n${JSON.stringify(body.result || {}, null, 2)}`;
-      } else {
-        result.textContent = `${command}: ${response.status} ${body.error || ""}`;
+      const answer = await response.json().catch(() => ({ error: response.statusText }));
+      if (response.status === 409 && answer.code === "confirmation_required") {
+        askBeyondDefaults(command, params, answer.error);
+        result.textContent = `${command}: not sent, waiting for your confirmation.`;
+        result.dataset.status = "error";
+        return;
       }
-      result.dataset.status = response.ok && body.ok ? "ok" : "error";
+      if (response.ok) {
+        const verdict = answer.ok ? "ok" : `refused: ${answer.error}`;
+        result.textContent = `${command}: ${verdict}\n${JSON.stringify(answer.result || {}, null, 2)}`;
+      } else {
+        result.textContent = `${command}: ${response.status} ${answer.error || ""}`;
+      }
+      result.dataset.status = response.ok && answer.ok ? "ok" : "error";
     } catch (error) {
       result.textContent = `${command}: ${error}`;
       result.dataset.status = "error";
     } finally {
       buttons.forEach((b) => { b.disabled = false; });
     }
+  }
+
+  const beyond = document.getElementById("beyond-defaults");
+  const beyondTyped = document.getElementById("beyond-defaults-typed");
+  let pending = null;
+
+  function askBeyondDefaults(command, params, message) {
+    pending = { command, params };
+    document.getElementById("beyond-defaults-message").textContent = `${command}: ${message}`;
+    beyondTyped.value = "";
+    beyond.hidden = false;
+    beyondTyped.focus();
+  }
+
+  if (beyond) {
+    document.getElementById("beyond-defaults-send").addEventListener("click", () => {
+      if (!pending) return;
+      if (beyondTyped.value.trim() !== beyondTyped.dataset.confirmTyped) {
+        result.textContent = `${pending.command}: not sent. Type ${beyondTyped.dataset.confirmTyped} to confirm.`;
+        result.dataset.status = "error";
+        beyondTyped.focus();
+        return;
+      }
+      const { command, params } = pending;
+      pending = null;
+      beyond.hidden = true;
+      post(command, params, beyond.querySelectorAll("button"), true);
+    });
+    document.getElementById("beyond-defaults-cancel").addEventListener("click", () => {
+      if (pending) result.textContent = `${pending.command}: not sent.`;
+      pending = null;
+      beyond.hidden = true;
+    });
+  }
+
+  async function send(form) {
+    const command = form.dataset.command;
+    if (!confirmed(form, command)) return;
+    if (form.dataset.confirm && !window.confirm(form.dataset.confirm)) return;
+    await post(command, params(form), form.querySelectorAll("button"), false);
   }
 
   for (const form of document.querySelectorAll("form[data-command]")) {

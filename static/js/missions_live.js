@@ -141,7 +141,8 @@
       const row = document.createElement("tr");
       row.dataset.drone = a.drone_id;
       const swatch = `<span class="swatch" style="background:${M.colourFor(a.drone_id)}"></span>`;
-      row.innerHTML = `<td>${swatch}${M.escapeHtml(a.drone_id)}</td><td>${a.reason}</td><td>${a.status}</td>` +
+      const state = a.held && ["sent", "accepted"].includes(a.status) ? `${a.status} (holding)` : a.status;
+      row.innerHTML = `<td>${swatch}${M.escapeHtml(a.drone_id)}</td><td>${a.reason}</td><td class="assignment">${state}</td>` +
         `<td class="done">${done.length} / ${mine.size}</td><td>${last ? `#${last.index} ${M.escapeHtml(last.command)}` : "–"}</td>`;
       body.append(row);
     }
@@ -267,9 +268,14 @@
     if (pause) pause.hidden = held;
     if (resume) resume.hidden = !held;
   }
+  /* Resume is offered while the mission is paused or any of its drones holds (a drone
+     held from its own page holds alone; its companions fly on). */
+  function anyHeld(mission) {
+    return mission.held || (mission.assignments || []).some((a) => a.held && ["sent", "accepted"].includes(a.status));
+  }
   async function syncHeld() {
     if (!pause && !resume) return;
-    try { showHeld((await M.api("GET", config.missionApi)).held); } catch (error) { /* next push retries */ }
+    try { showHeld(anyHeld(await M.api("GET", config.missionApi))); } catch (error) { /* next push retries */ }
   }
   for (const button of [pause, resume]) {
     if (!button) continue;
@@ -278,15 +284,53 @@
       button.disabled = true;
       try {
         const mission = await M.api("POST", `${config.missionApi}${button.dataset.action}/`);
-        showHeld(mission.held);
+        showHeld(anyHeld(mission));
         box.hidden = true;
       } catch (error) { box.textContent = error.message; box.hidden = false; }
       button.disabled = false;
       refresh();
     });
   }
+  /* A draft starts with the nearest available drone. Steps beyond the envelope's defaults
+     (409 confirmation_required) start only once CONFIRM has been typed. */
+  const start = document.getElementById("start-mission");
+  async function startMission(confirmed) {
+    const box = document.getElementById("mission-error");
+    start.disabled = true;
+    try {
+      await M.api("POST", `${config.missionApi}start/`, confirmed ? { confirm_beyond_defaults: true } : {});
+      location.reload();
+      return;
+    } catch (error) {
+      if (error.code === "confirmation_required") {
+        document.getElementById("beyond-defaults-message").textContent = error.message;
+        document.getElementById("beyond-defaults-typed").value = "";
+        document.getElementById("beyond-defaults").hidden = false;
+        box.hidden = true;
+      } else { box.textContent = error.message; box.hidden = false; }
+    }
+    start.disabled = false;
+  }
+  if (start) {
+    start.addEventListener("click", () => startMission(false));
+    document.getElementById("beyond-defaults-send").addEventListener("click", () => {
+      const box = document.getElementById("mission-error");
+      if (document.getElementById("beyond-defaults-typed").value.trim() !== "CONFIRM") {
+        box.textContent = "Not started: type CONFIRM to fly beyond the envelope's defaults.";
+        box.hidden = false;
+        return;
+      }
+      document.getElementById("beyond-defaults").hidden = true;
+      startMission(true);
+    });
+    document.getElementById("beyond-defaults-cancel").addEventListener("click", () => {
+      document.getElementById("beyond-defaults").hidden = true;
+    });
+  }
+
   refresh();
   refreshPictures();
+  syncHeld();
   window.skyhiveMission = {
     map, refresh,
     progress(id) { return progress.get(id) || null; },
