@@ -3,6 +3,8 @@
 Run: .venv/bin/python -m bench.bench_logs [--bin-slice-mb N]
 
 - logs.import_ulog_100mb: our import_log of a generated ~100 MB ULog vs pyulog's own parse.
+- logs.import_ulog_1gb_s / logs.import_ulog_1gb_rss: the same on ~1 GB, each side in its own
+  process, with the peak resident memory of each (--skip-1gb leaves them out).
 - logs.import_bin_100mb: our import_log of a generated ~100 MB ArduPilot .bin vs pymavlink's
   full decode (mavlink_connection + recv_match loop). pymavlink takes tens of seconds per
   100 MB, so with --bin-slice-mb both sides are timed on the first N MB of the same
@@ -17,6 +19,9 @@ import argparse
 import contextlib
 import io
 import json
+import os
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -73,8 +78,70 @@ def bench_ulog(directory: Path) -> None:
         baseline_name="pyulog ULog(path) parse of the same file",
         baseline_value=theirs,
         higher_is_better=False,
-        goal="< 1.5x pyulog",
+        goal="<= 0.5x pyulog (at least twice as fast), values identical",
         file_mb=round(size_mb, 1),
+    )
+
+
+# Each side runs in a fresh process so its peak resident memory is its own.
+_CHILD = """
+import sys, time
+import django
+django.setup()
+from pathlib import Path
+start = time.perf_counter()
+if sys.argv[1] == "ours":
+    from logs import import_log
+    import_log(Path(sys.argv[2]))
+else:
+    from pyulog import ULog
+    ULog(sys.argv[2])
+elapsed = time.perf_counter() - start
+# VmHWM is this process's own peak (ru_maxrss would carry the parent's across exec).
+peak = next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith("VmHWM:"))
+print(elapsed, peak * 1024)
+"""
+
+
+def _in_child(side: str, path: Path) -> tuple[float, int]:
+    env = {**os.environ, "DJANGO_SETTINGS_MODULE": "config.settings.test"}
+    out = subprocess.run(
+        [sys.executable, "-c", _CHILD, side, str(path)],
+        check=True,
+        capture_output=True,
+        text=True,
+        env=env,
+    ).stdout.split()
+    return float(out[-2]), int(out[-1])
+
+
+def bench_ulog_1gb(directory: Path) -> None:
+    path = directory / "huge.ulg"
+    synthetic_ulog(path, seconds=_seconds_for(synthetic_ulog, directory, 1024 * MB))
+    size = path.stat().st_size
+    ours_s, ours_rss = _in_child("ours", path)
+    theirs_s, theirs_rss = _in_child("pyulog", path)
+    common = {"file_mb": round(size / MB, 1)}
+    record(
+        "logs.import_ulog_1gb_s",
+        value=ours_s,
+        unit="s",
+        baseline_name="pyulog ULog(path) parse of the same file",
+        baseline_value=theirs_s,
+        higher_is_better=False,
+        goal="<= 0.5x pyulog",
+        **common,
+    )
+    record(
+        "logs.import_ulog_1gb_rss",
+        value=ours_rss / MB,
+        unit="MiB",
+        baseline_name="pyulog's peak resident memory on the same file",
+        baseline_value=theirs_rss / MB,
+        higher_is_better=False,
+        goal="peak resident memory <= 1.5x the file size (the decoded values plus one 64 MiB chunk)",
+        bound_mib=round(1.5 * size / MB, 1),
+        **common,
     )
 
 
@@ -132,11 +199,14 @@ def bench_hour_series() -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--bin-slice-mb", type=float, default=None)
+    parser.add_argument("--skip-1gb", action="store_true", help="leave out the 1 GB ULog")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="bench_logs_") as tmp:
         directory = Path(tmp)
         bench_hour_series()
         bench_ulog(directory)
+        if not args.skip_1gb:
+            bench_ulog_1gb(directory)
         bench_bin(directory, args.bin_slice_mb)
 
 

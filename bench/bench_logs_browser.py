@@ -19,9 +19,8 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from bench.browser import launch_chromium
-from onboard.processes import Supervised, free_port, python_env
-from workers.ground import web_argv
+from bench.browser import launch_chromium, serve_app
+from onboard.processes import Supervised
 
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.test")
 os.environ["TEST_DB_NAME"] = f"bench_logs_browser_{os.getpid()}"
@@ -134,15 +133,7 @@ def _measure(base_url: str, log_id: str) -> dict:
 
 def _live_server(database: str, logs_dir: Path) -> Supervised:
     """The ASGI app under uvicorn on the bench database, its logs in `logs_dir`."""
-    port = free_port()
-    env = python_env(
-        TEST_WORKER_DB_NAME=database,
-        PYTHONUNBUFFERED="1",
-        LOGS_DIR=str(logs_dir),
-        MAP_TILE_URL="",
-    )
-    server = Supervised("web", web_argv(port), env, logs_dir / "web.log", port=port)
-    return server.start().wait_ready(30)
+    return serve_app(database, logs_dir, LOGS_DIR=str(logs_dir))
 
 
 def main() -> None:

@@ -13,6 +13,7 @@ from channels.auth import AuthMiddlewareStack  # noqa: E402
 from channels.routing import ProtocolTypeRouter, URLRouter  # noqa: E402
 from channels.security.websocket import AllowedHostsOriginValidator  # noqa: E402
 
+from config.bodylimits import BodyLimitASGI  # noqa: E402
 from config.lifespan import InstanceLifespan  # noqa: E402
 from config.routing import websocket_urlpatterns  # noqa: E402
 from logs.asgi import UploadLimitMiddleware  # noqa: E402
@@ -22,12 +23,14 @@ from tiles.admin import TILE_UPLOAD_PATH, tile_upload_limit  # noqa: E402
 application = InstanceLifespan(
     ProtocolTypeRouter(
         {
-            # Oversized log and map-tile uploads are refused before Django spools their
-            # body to disk.
-            "http": UploadLimitMiddleware(
-                UploadLimitMiddleware(django_asgi_app),
-                path=TILE_UPLOAD_PATH,
-                limit=tile_upload_limit,
+            # Oversized bodies (log and map-tile uploads: their own limits) are refused
+            # before Django spools them to disk (config/bodylimits.py).
+            "http": BodyLimitASGI(
+                UploadLimitMiddleware(
+                    UploadLimitMiddleware(django_asgi_app),
+                    path=TILE_UPLOAD_PATH,
+                    limit=tile_upload_limit,
+                )
             ),
             "websocket": AllowedHostsOriginValidator(
                 AuthMiddlewareStack(URLRouter(websocket_urlpatterns))

@@ -76,7 +76,10 @@ class LoginView(auth_views.LoginView):
             message = "Too many failed logins; try again in a minute."
             context = self.get_context_data(form=self.get_form(), throttled=message)
             return self.render_to_response(context, status=429)
-        response = super().post(request, *args, **kwargs)
-        if not (request.user and request.user.is_authenticated):
-            attempts.failed()
-        return response
+        return super().post(request, *args, **kwargs)
+
+    def form_invalid(self, form):  # type: ignore[no-untyped-def]
+        # Only refused credentials count: a password accepted pending a second
+        # factor (accounts.signin) is not a failure.
+        LoginAttempts(self.request).failed()
+        return super().form_invalid(form)

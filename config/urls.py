@@ -10,14 +10,17 @@ from drf_spectacular.views import (
 )
 from rest_framework.routers import DefaultRouter
 
+from accounts import api as accounts_api
+from accounts.signin import LoginView
+from alerts import api as alerts_api
 from fleet import api as fleet_api
 from fleet.control import ControlView
 from logs import urls as logs_urls
 from missions import api as missions_api
+from missions import survey_api
 from telemetry import views as operations_views
 
 from .health import health
-from .throttling import LoginView
 
 
 def favicon(request: HttpRequest) -> HttpResponsePermanentRedirect:
@@ -30,7 +33,9 @@ router.register("missions", missions_api.MissionViewSet, basename="mission")
 
 api_v1 = [
     path("me/", fleet_api.me, name="me"),
-    path("token/", fleet_api.obtain_token, name="token"),
+    path("token/", accounts_api.obtain_token, name="token"),
+    path("tokens/", accounts_api.my_tokens, name="tokens"),
+    path("tokens/<int:pk>/", accounts_api.revoke_my_token, name="token-revoke"),
     re_path(
         r"^drones/(?P<drone_id>[A-Za-z0-9_-]{1,64})/commands/$",
         fleet_api.DroneCommandView.as_view(),
@@ -49,6 +54,9 @@ api_v1 = [
     path("telemetry/", include("telemetry.api_urls")),
     path("logs/", include(logs_urls.api_urlpatterns)),
     path("operations/", operations_views.operations_api, name="operations"),
+    path("missions/survey/", survey_api.plan, name="mission-survey"),
+    path("missions/survey/cameras/", survey_api.cameras, name="mission-survey-cameras"),
+    path("alerts/", alerts_api.recent, name="alerts"),
     path("", include(router.urls)),
 ]
 
@@ -68,6 +76,7 @@ urlpatterns = [
         auth_views.PasswordChangeDoneView.as_view(),
         name="password_change_done",
     ),
+    path("accounts/", include("accounts.urls")),
     path("api/v1/", include((api_v1, "api"), namespace="api")),
     path("api/schema/", SpectacularAPIView.as_view(), name="schema"),
     path("api/docs/", SpectacularSwaggerView.as_view(url_name="schema"), name="api-docs"),

@@ -4,25 +4,18 @@ from __future__ import annotations
 
 from asgiref.sync import sync_to_async
 from django.conf import settings
-from django.contrib.auth import authenticate
 from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiResponse, extend_schema, inline_serializer
 from rest_framework import exceptions, serializers, status, viewsets
-from rest_framework.authtoken.models import Token
 from rest_framework.decorators import (
     action,
     api_view,
-    authentication_classes,
-    permission_classes,
-    throttle_classes,
 )
-from rest_framework.permissions import AllowAny
 from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
 from config.api import StrictSerializer
-from config.throttling import AuthRateThrottle
 from onboard.envelope import EnvelopeError
 
 from . import commands, credentials, envelopes
@@ -36,6 +29,7 @@ from .serializers import (
     DroneSerializer,
     MembershipSerializer,
 )
+from .signals import note_refusal
 
 GearSerializer = inline_serializer(
     "Gear",
@@ -116,6 +110,14 @@ class DroneViewSet(viewsets.ReadOnlyModelViewSet):
 class CommandRequestSerializer(StrictSerializer):
     command = serializers.ChoiceField(choices=commands.API_COMMANDS)
     params = serializers.DictField(required=False, default=dict)
+    confirm_beyond_defaults = serializers.BooleanField(
+        required=False,
+        default=False,
+        help_text=(
+            "The operator confirmed a move beyond the envelope's defaults (120 m high, "
+            "1000 m from home); without it such a move answers 409 confirmation_required."
+        ),
+    )
 
 
 CommandReplySerializer = inline_serializer(
@@ -163,13 +165,22 @@ class DroneCommandView(AsyncAPIView):
             400: OpenApiResponse(description="bad command or parameter (named in `fields`)"),
             403: OpenApiResponse(description="viewers may not command"),
             404: OpenApiResponse(description="unknown drone"),
-            409: OpenApiResponse(description="drone offline or unsafe"),
+            409: OpenApiResponse(
+                description=(
+                    "drone offline or unsafe; `code: outside_envelope` when the move leaves "
+                    "the flight envelope, `code: confirmation_required` when it goes beyond "
+                    "the envelope's defaults without `confirm_beyond_defaults`"
+                )
+            ),
             504: OpenApiResponse(description="no reply in time"),
         },
         description=(
             "Send one command of the `/control` command set (`params` as in docs/protocol.md). "
             "A reply with "
-            "`ok: false` is the drone's own refusal."
+            "`ok: false` is the drone's own refusal. A move inside the organisation's "
+            "envelope but beyond its defaults (higher than 120 m or farther than 1000 m "
+            "from home) is sent only with `confirm_beyond_defaults: true`; nothing is sent "
+            "otherwise."
         ),
     )
     async def post(self, request: Request, drone_id: str) -> Response:
@@ -177,10 +188,11 @@ class DroneCommandView(AsyncAPIView):
         serializer.is_valid(raise_exception=True)
         command = serializer.validated_data["command"]
         params = serializer.validated_data["params"]
+        confirmed = serializer.validated_data["confirm_beyond_defaults"]
         try:
             if command in commands.CHAIN_COMMANDS:
                 result = await sync_to_async(commands.run_mission_start_stop)(
-                    request.user, drone_id, command, params.get("mission")
+                    request.user, drone_id, command, params.get("mission"), confirmed
                 )
                 return Response(
                     {
@@ -191,7 +203,7 @@ class DroneCommandView(AsyncAPIView):
                         "error": None,
                     }
                 )
-            outcome = await commands.send(request.user, drone_id, command, params)
+            outcome = await commands.send(request.user, drone_id, command, params, confirmed)
         except CommandRefused as refusal:
             raise _api_error(refusal) from None
         if outcome.timed_out:
@@ -228,35 +240,6 @@ def me(request: Request) -> Response:
     )
 
 
-class TokenRequestSerializer(StrictSerializer):
-    username = serializers.CharField()
-    password = serializers.CharField(style={"input_type": "password"}, trim_whitespace=False)
-
-
-@extend_schema(
-    request=TokenRequestSerializer,
-    responses=inline_serializer("Token", {"token": serializers.CharField()}),
-    auth=[],
-)
-@api_view(["POST"])
-@authentication_classes([])
-@permission_classes([AllowAny])
-@throttle_classes([AuthRateThrottle])
-def obtain_token(request: Request) -> Response:
-    """Exchange a username and password for an API token (header `Authorization: Token …`)."""
-    serializer = TokenRequestSerializer(data=request.data)
-    serializer.is_valid(raise_exception=True)
-    user = authenticate(
-        request=request._request,
-        username=serializer.validated_data["username"],
-        password=serializer.validated_data["password"],
-    )
-    if user is None or not user.is_active:
-        raise exceptions.AuthenticationFailed("Unable to log in with the provided credentials.")
-    token, _ = Token.objects.get_or_create(user=user)
-    return Response({"token": token.key})
-
-
 def _member_organisation(request: Request, slug: str) -> Organisation:
     membership = Membership.objects.for_user(request.user).filter(organisation__slug=slug).first()
     if membership is None:
@@ -284,6 +267,7 @@ class EnvelopeView(APIView):
         try:
             envelopes.set_envelope(organisation, request.data)
         except EnvelopeError as exc:
+            note_refusal(organisation.pk, request.user, "envelope.change", organisation, str(exc))
             raise exceptions.ValidationError({exc.field: [exc.message]}) from None
         return Response(envelopes.envelope_body(organisation))
 

@@ -11,3 +11,10 @@ class FleetConfig(AppConfig):
         from .signals import drones_came_online
 
         drones_came_online.connect(send_when_online, dispatch_uid="fleet-envelope")
+
+        from django.db.models.signals import post_save
+
+        from .events import command_logged
+        from .models import CommandLog
+
+        post_save.connect(command_logged, sender=CommandLog, dispatch_uid="fleet-command-live")

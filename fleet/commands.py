@@ -116,9 +116,12 @@ def _refuse(entry_fields: dict, refusal: CommandRefused) -> CommandRefused:
     return refusal
 
 
-def prepare(user: Any, drone_id: str, command: str, params: dict | None) -> Prepared:
+def prepare(
+    user: Any, drone_id: str, command: str, params: dict | None, confirmed: bool = False
+) -> Prepared:
     """Every check in order: drone (404), role (403), params (400), state and envelope (409).
 
+    A move beyond the envelope's defaults needs `confirmed` (409 confirmation_required).
     Returns the pending log entry with a fresh request id; refusals are logged too.
     """
     drone = find_drone(user, drone_id)
@@ -140,11 +143,9 @@ def prepare(user: Any, drone_id: str, command: str, params: dict | None) -> Prep
             ),
         )
     try:
-        envelopes.check_command(drone, command, clean)
-    except envelopes.OutsideEnvelope as exc:
-        raise _refuse(
-            base, CommandRefused(409, exc.message, code=envelopes.OUTSIDE_ENVELOPE)
-        ) from None
+        envelopes.check_command(drone, command, clean, confirmed)
+    except envelopes.EnvelopeRefusal as exc:
+        raise _refuse(base, CommandRefused(409, exc.message, code=exc.code)) from None
     entry = CommandLog.objects.create(
         drone=drone,
         user=user,
@@ -178,9 +179,11 @@ async def execute(prepared: Prepared, *, timeout: float | None = None) -> Outcom
     return Outcome(request.request_id, prepared.command, reply)
 
 
-async def send(user: Any, drone_id: str, command: str, params: dict | None) -> Outcome:
+async def send(
+    user: Any, drone_id: str, command: str, params: dict | None, confirmed: bool = False
+) -> Outcome:
     """prepare + execute, for async callers (views, tests, other apps)."""
-    prepared = await sync_to_async(prepare)(user, drone_id, command, params)
+    prepared = await sync_to_async(prepare)(user, drone_id, command, params, confirmed)
     return await execute(prepared)
 
 
@@ -230,12 +233,15 @@ def check_mission_start_stop(user: Any, drone_id: str) -> Drone:
     return drone
 
 
-def run_mission_start_stop(user: Any, drone_id: str, command: str, mission: object = None) -> dict:
-    """startchain / stopchain through the configured hook, after the shared checks."""
+def run_mission_start_stop(
+    user: Any, drone_id: str, command: str, mission: object = None, confirmed: bool = False
+) -> dict:
+    """startchain / stopchain through the configured hook, after the shared checks;
+    `confirmed` lets a startchain go beyond the envelope's defaults."""
     drone = check_mission_start_stop(user, drone_id)
     hook = mission_start_stop_handler(command)
     if command == "startchain":
         if not isinstance(mission, str) or not mission:
             raise CommandRefused(400, "mission: is required", "mission")
-        return hook(drone=drone, user=user, mission=mission)
+        return hook(drone=drone, user=user, mission=mission, confirmed=confirmed)
     return hook(drone=drone, user=user)

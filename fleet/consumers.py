@@ -13,8 +13,10 @@ from typing import Any
 from channels.db import database_sync_to_async
 from channels.generic.websocket import AsyncJsonWebsocketConsumer
 
+from .listing import MARKER_FIELDS, marker_rows
 from .models import Drone, Membership
 from .serializers import DroneSerializer
+from .state import describe
 
 # Close codes: not signed in, and not allowed. Pages whose object's existence is private
 # answer "not found" for both "not yours" and "does not exist".
@@ -23,10 +25,17 @@ CLOSE_FORBIDDEN = 4403
 CLOSE_NOT_FOUND = 4404
 
 
+def user_group(user_id: int) -> str:
+    """Every open socket of one user: told to close when their access changes (a
+    reconnecting page is then authorised anew)."""
+    return f"user-{user_id}"
+
+
 class GroupConsumer(AsyncJsonWebsocketConsumer):
     """A server → client socket on one group; subclasses say what a user may watch."""
 
     group: str | None = None
+    user_group: str | None = None
     refused_code = CLOSE_FORBIDDEN
 
     async def authorise(self, user: Any) -> Any | None:
@@ -54,18 +63,25 @@ class GroupConsumer(AsyncJsonWebsocketConsumer):
             await self.close(code=self.refused_code)
             return
         self.group = self.group_for(target)
+        self.user_group = user_group(user.pk)
         await self.channel_layer.group_add(self.group, self.channel_name)
+        await self.channel_layer.group_add(self.user_group, self.channel_name)
         await self.joined(target)
         await self.accept()
         await self.welcome(target)
 
     async def disconnect(self, code: int) -> None:
-        if self.group:
-            await self.channel_layer.group_discard(self.group, self.channel_name)
+        for group in (self.group, self.user_group):
+            if group:
+                await self.channel_layer.group_discard(group, self.channel_name)
 
     async def receive_json(self, content: Any, **kwargs: object) -> None:
         # Clients only listen; commands go through the REST API with its permissions.
         return
+
+    async def access_changed(self, event: dict) -> None:
+        """`{"type": "access.changed"}` on the user's group: membership removed."""
+        await self.close(code=CLOSE_FORBIDDEN)
 
     async def send_payload(self, event: dict) -> None:
         """A `{"type": ..., "payload": {...}}` group event, passed on as its payload."""
@@ -80,30 +96,104 @@ def _membership(user, slug: str | None) -> Membership | None:  # type: ignore[no
     return memberships.first()
 
 
+def query_of(scope: dict) -> dict[str, str]:
+    """The socket URL's query parameters."""
+    return dict(
+        part.split("=", 1)
+        for part in scope.get("query_string", b"").decode().split("&")
+        if "=" in part
+    )
+
+
+async def membership_for_query(user: Any, scope: dict) -> Membership | None:
+    """The user's membership in `?org=<slug>`, else their first one."""
+    return await _membership(user, query_of(scope).get("org"))
+
+
+# A socket may follow at most this many named drones (a page of a table).
+MAX_NAMED_DRONES = 500
+
+
 @database_sync_to_async
-def _snapshot(organisation_id: int) -> list[dict]:
-    drones = Drone.objects.filter(organisation_id=organisation_id).select_related("organisation")
-    return list(DroneSerializer(drones, many=True).data)
+def _named_drones(organisation_id: int, drone_ids: set[str]) -> list[dict]:
+    drones = Drone.objects.filter(organisation_id=organisation_id, drone_id__in=drone_ids)
+    return [describe(dict(d)) for d in DroneSerializer(drones, many=True).data]
+
+
+# Up to this many drones the first message carries each in full; a bigger fleet gets
+# compact marker rows (the table pages through the table API instead).
+FULL_SNAPSHOT_LIMIT = 200
+
+
+@database_sync_to_async
+def _fleet_snapshot(organisation_id: int) -> dict:
+    drones = Drone.objects.filter(organisation_id=organisation_id)
+    if drones.count() <= FULL_SNAPSHOT_LIMIT:
+        full = [describe(dict(d)) for d in DroneSerializer(drones, many=True).data]
+        return {"type": "snapshot", "drones": full, "fields": list(MARKER_FIELDS), "markers": []}
+    rows = marker_rows(organisation_id)
+    return {"type": "snapshot", "drones": [], "fields": list(MARKER_FIELDS), "markers": rows}
+
+
+def changed_fields(before: dict | None, after: dict) -> dict:
+    """What of `after` differs from `before` (all of it when nothing was sent yet); the
+    drone id always, so a client knows whose change it is."""
+    if before is None:
+        return dict(after)
+    diff = {k: v for k, v in after.items() if before.get(k, _MISSING) != v}
+    return {"drone_id": after["drone_id"], **diff} if diff else {}
+
+
+_MISSING = object()
 
 
 class FleetConsumer(GroupConsumer):
-    """`/ws/fleet/?org=<slug>`: the organisation's drones, then every change as it happens."""
+    """`/ws/fleet/?org=<slug>[&drone=<id>,<id>…]`: the organisation's drones as compact
+    marker rows (or the named drones in full), then each change as only the fields that
+    changed since this socket last heard of the drone; with `drone`, also their commands."""
+
+    drone_ids: set[str] | None = None
 
     async def authorise(self, user: Any) -> Membership | None:
-        query = dict(
-            part.split("=", 1)
-            for part in self.scope.get("query_string", b"").decode().split("&")
-            if "=" in part
-        )
+        query = query_of(self.scope)
+        named = [d for d in query.get("drone", "").split(",") if d][:MAX_NAMED_DRONES]
+        self.drone_ids = set(named) or None
+        self.sent: dict[str, dict] = {}
         return await _membership(user, query.get("org"))
 
     def group_for(self, membership: Membership) -> str:
         return membership.organisation.group_name
 
     async def welcome(self, membership: Membership) -> None:
-        await self.send_json(
-            {"type": "snapshot", "drones": await _snapshot(membership.organisation_id)}
-        )
+        if self.drone_ids is None:
+            snapshot = await _fleet_snapshot(membership.organisation_id)
+            for drone in snapshot["drones"]:
+                self.sent[drone["drone_id"]] = drone
+            await self.send_json(snapshot)
+            return
+        drones = await _named_drones(membership.organisation_id, self.drone_ids)
+        for drone in drones:
+            self.sent[drone["drone_id"]] = drone
+        await self.send_json({"type": "snapshot", "drones": drones})
 
-    # Any `{"type": "fleet.event", "payload": {...}}` sent to the organisation's group.
-    fleet_event = GroupConsumer.send_payload
+    async def fleet_event(self, event: dict) -> None:
+        """Any `{"type": "fleet.event", "payload": {...}}` sent to the organisation's group:
+        drone changes as diffs, commands to the page of their drone, the rest as it is."""
+        payload = event["payload"]
+        kind = payload.get("type")
+        if kind == "command":
+            if self.drone_ids is not None and payload.get("drone_id") in self.drone_ids:
+                await self.send_json(payload)
+            return
+        drone = payload.get("drone")
+        if kind != "drone" or not isinstance(drone, dict) or "drone_id" not in drone:
+            await self.send_json(payload)
+            return
+        drone_id = drone["drone_id"]
+        if self.drone_ids is not None and drone_id not in self.drone_ids:
+            return
+        before = self.sent.get(drone_id)
+        diff = changed_fields(before, drone)
+        if diff:
+            self.sent[drone_id] = {**(before or {}), **drone}
+            await self.send_json({"type": "drone", "drone": diff})

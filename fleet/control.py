@@ -38,6 +38,9 @@ class ControlParams(serializers.Serializer):
     altitude = serializers.FloatField(required=False, help_text="takeoff: height, m (default 10)")
     force = serializers.BooleanField(required=False, help_text="disarm/resetfc while airborne")
     mission = serializers.CharField(required=False, help_text="startchain: base64 mission steps")
+    confirm_beyond_defaults = serializers.BooleanField(
+        required=False, help_text="confirmed: a move beyond the envelope's defaults is sent"
+    )
 
 
 CONTROL_OK = inline_serializer(
@@ -64,7 +67,11 @@ ERRORS = {
         (403, "not allowed"),
         (404, "unknown drone"),
         (405, "wrong method for this command"),
-        (409, "drone offline, unsafe, or the drone refused"),
+        (
+            409,
+            "drone offline, unsafe, or the drone refused; `code` outside_envelope or "
+            "confirmation_required (resend with confirm_beyond_defaults=true)",
+        ),
         (504, "no reply in time"),
     ]
 }
@@ -79,6 +86,11 @@ def _error(
     if request_id:
         body["request_id"] = request_id
     return Response(body, status=status)
+
+
+def _flag(value: Any) -> bool:
+    """A form or query flag: true, 1, yes or on (any case) is set."""
+    return value is True or str(value).strip().lower() in ("true", "1", "yes", "on")
 
 
 class ControlView(AsyncAPIView):
@@ -138,7 +150,8 @@ class ControlView(AsyncAPIView):
             if command in commands.CHAIN_COMMANDS:
                 return await self.chain(user, drone_id, command, data)
             params = {name: data[name] for name in COMMAND_PARAMS if name in data}
-            outcome = await commands.send(user, drone_id, command, params)
+            confirmed = _flag(data.get("confirm_beyond_defaults"))
+            outcome = await commands.send(user, drone_id, command, params, confirmed)
         except CommandRefused as refusal:
             return _error(refusal.status, refusal.message, code=refusal.code)
         if outcome.timed_out:
@@ -161,6 +174,6 @@ class ControlView(AsyncAPIView):
 
     async def chain(self, user: Any, drone_id: str, command: str, data: Any) -> Response:
         result = await sync_to_async(commands.run_mission_start_stop)(
-            user, drone_id, command, data.get("mission")
+            user, drone_id, command, data.get("mission"), _flag(data.get("confirm_beyond_defaults"))
         )
         return Response({"ok": True, "result": result})

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from urllib.parse import quote
 
+from django.conf import settings
 from django.db import transaction
 
 from workers.broker import credentials as broker
@@ -59,7 +60,7 @@ class Credentials:
     host: str
     port: int
     password: str
-    # Every broker node as mqtt://<id>:<password>@host:port, in the order to try them.
+    # Every broker node as mqtt(s)://<id>:<password>@host:port, in the order to try them.
     urls: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
@@ -77,7 +78,8 @@ class Credentials:
 
 def _credentials(drone_id: str, password: str, addresses: list[tuple[str, int]]) -> Credentials:
     userinfo = f"{quote(drone_id, safe='')}:{quote(password, safe='')}"
-    urls = tuple(f"mqtt://{userinfo}@{host}:{port}" for host, port in addresses)
+    scheme = "mqtts" if settings.MQTT_PUBLIC_TLS else "mqtt"
+    urls = tuple(f"{scheme}://{userinfo}@{host}:{port}" for host, port in addresses)
     host, port = addresses[0]
     return Credentials(drone_id, host, port, password, urls)
 

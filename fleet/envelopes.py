@@ -20,17 +20,22 @@ from onboard import protocol
 from workers import outbox
 
 from .models import Drone, Organisation
+from .signals import envelope_changed
 
 log = logging.getLogger(__name__)
 
 OUTSIDE_ENVELOPE = "outside_envelope"
+CONFIRMATION_REQUIRED = "confirmation_required"
 # An envelope message lives in the outbox for a day: a drone that was away gets it on
 # its next heartbeat anyway (send_to_drones on drones_came_online).
 ENVELOPE_TTL_S = 86_400.0
 
 
-class OutsideEnvelope(Exception):
-    """A move the envelope refuses; `message` names the limit (and the step of a mission)."""
+class EnvelopeRefusal(Exception):
+    """A move refused before sending; `message` names the limit (and the step of a
+    mission), `code` is the API's error code."""
+
+    code = OUTSIDE_ENVELOPE
 
     def __init__(self, violation: env.Violation, step: int | None = None) -> None:
         prefix = "" if step is None else f"Step {step}: "
@@ -38,6 +43,16 @@ class OutsideEnvelope(Exception):
         self.limit = violation.limit
         self.step = step
         super().__init__(self.message)
+
+
+class OutsideEnvelope(EnvelopeRefusal):
+    """A move the envelope refuses."""
+
+
+class NeedsConfirmation(EnvelopeRefusal):
+    """A move inside the envelope but beyond its defaults, sent without a confirmation."""
+
+    code = CONFIRMATION_REQUIRED
 
 
 # -- storing ------------------------------------------------------------------------------
@@ -59,16 +74,21 @@ def envelope_body(organisation: Organisation) -> dict:
 def plan_document(organisation: Organisation) -> dict:
     """The geofence as a QGroundControl `.plan` file with no mission items."""
     home = (organisation.envelope or {}).get("home")
+    fence = env.geofence_dict(organisation_envelope(organisation))
+    # QGroundControl refuses a plan without a home: the fence's first point stands in.
+    anchors = [p["polygon"][0] for p in fence["polygons"]]
+    anchors += [c["circle"]["center"] for c in fence["circles"]]
+    home = home or (anchors[0] if anchors else None)
     return {
         "fileType": "Plan",
-        "geoFence": env.geofence_dict(organisation_envelope(organisation)),
+        "geoFence": fence,
         "groundStation": "Skyhive",
         "mission": {
             "cruiseSpeed": 15,
             "firmwareType": 12,
             "hoverSpeed": 5,
             "items": [],
-            "plannedHomePosition": [*home, 0] if home else None,
+            "plannedHomePosition": [*home[:2], 0] if home else [0, 0, 0],
             "vehicleType": 2,
             "version": 2,
         },
@@ -106,6 +126,7 @@ def set_envelope(organisation: Organisation, body: Any) -> env.Envelope:
     stored = {**envelope.to_dict(), **({"home": home} if home else {})}
     Organisation.objects.filter(pk=organisation.pk).update(envelope=stored)
     organisation.envelope = stored
+    envelope_changed.send(sender=Organisation, organisation=organisation, envelope=stored)
     drones = Drone.objects.filter(organisation=organisation).select_related("organisation")
     transaction.on_commit(lambda: send_to_drones(list(drones)))
     return envelope
@@ -161,20 +182,27 @@ def _battery_percent(drone: Drone) -> float | None:
     return None if drone.battery_remaining is None else drone.battery_remaining * 100.0
 
 
-def check_command(drone: Drone, command: str, params: Mapping[str, Any]) -> None:
-    """Raise OutsideEnvelope when the command's move breaks the drone's envelope."""
+def check_command(
+    drone: Drone, command: str, params: Mapping[str, Any], confirmed: bool = False
+) -> None:
+    """Raise OutsideEnvelope when the command's move (or its leg) breaks the drone's
+    envelope, NeedsConfirmation when it goes beyond the defaults unconfirmed."""
     home = home_of(drone)
     here = position_ned(drone, home)
-    move = env.resolve(command, params, current_target(drone, home), here, home)
+    base = current_target(drone, home)
+    move = env.resolve(command, params, base, here, home)
     if move is None:
         return
     horizontal = command in env.HORIZONTAL_COMMANDS
     move = env.Move(move.kind, move.ned, horizontal)
     violation = env.check(
-        drone_envelope(drone), home, move, drone.airborne, _battery_percent(drone)
+        drone_envelope(drone), home, move, drone.airborne, _battery_percent(drone), base
     )
     if violation is not None:
         raise OutsideEnvelope(violation)
+    beyond = None if confirmed else env.beyond_defaults(move)
+    if beyond is not None:
+        raise NeedsConfirmation(beyond)
 
 
 def step_violations(
@@ -190,7 +218,7 @@ def step_violations(
     if drone is not None:
         home = home_of(drone)
         return env.step_violations(
-            drone_envelope(drone),
+            with_fence(drone_envelope(drone), fence),
             home,
             steps,
             current_target(drone, home),
@@ -198,19 +226,54 @@ def step_violations(
             _battery_percent(drone),
         )
     home = home if home is not None else plan_home(organisation, steps)
-    envelope = organisation_envelope(organisation)
-    polygons, circles = env.parse_geofence(fence)
-    envelope = replace(
-        envelope, polygons=envelope.polygons + polygons, circles=envelope.circles + circles
-    )
+    envelope = with_fence(organisation_envelope(organisation), fence)
     return env.step_violations(envelope, home, steps, (0.0, 0.0, 0.0), False, None)
 
 
-def check_steps(drone: Drone, steps: Sequence[Mapping[str, Any]]) -> None:
-    """Raise OutsideEnvelope naming the first mission step the drone may not fly."""
-    found = step_violations(drone.organisation, steps, drone)
+def with_fence(envelope: env.Envelope, fence: Mapping | None) -> env.Envelope:
+    """The envelope with a mission's own geoFence (QGroundControl shape) on top."""
+    if not fence:
+        return envelope
+    polygons, circles = env.parse_geofence(fence)
+    return replace(
+        envelope, polygons=envelope.polygons + polygons, circles=envelope.circles + circles
+    )
+
+
+def check_steps(
+    drone: Drone, steps: Sequence[Mapping[str, Any]], fence: Mapping | None = None
+) -> None:
+    """Raise OutsideEnvelope naming the first mission step the drone may not fly (within
+    `fence` too: a mission's own geoFence)."""
+    found = step_violations(drone.organisation, steps, drone, fence=fence)
     if found:
         raise OutsideEnvelope(found[0].violation, found[0].index)
+
+
+def steps_beyond_defaults(
+    organisation: Organisation,
+    steps: Sequence[Mapping[str, Any]],
+    drone: Drone | None = None,
+    home: Sequence | None = None,
+) -> list[env.StepViolation]:
+    """Every step going beyond the envelope's defaults, walked as step_violations does."""
+    if drone is not None:
+        home = home_of(drone)
+        return env.steps_beyond_defaults(home, steps, current_target(drone, home))
+    home = home if home is not None else plan_home(organisation, steps)
+    return env.steps_beyond_defaults(home, steps, (0.0, 0.0, 0.0))
+
+
+def confirm_steps(
+    organisation: Organisation,
+    steps: Sequence[Mapping[str, Any]],
+    drone: Drone | None = None,
+    home: Sequence | None = None,
+) -> None:
+    """Raise NeedsConfirmation naming the first step beyond the defaults."""
+    found = steps_beyond_defaults(organisation, steps, drone, home)
+    if found:
+        raise NeedsConfirmation(found[0].violation, found[0].index)
 
 
 def plan_home(organisation: Organisation, steps: Sequence[Mapping[str, Any]]) -> list | None:

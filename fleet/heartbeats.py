@@ -85,6 +85,8 @@ def fc_state(heartbeat: Heartbeat, seen: datetime) -> dict:
         "connected": heartbeat.fc_connected,
         "clock_offset_s": offset,
         "clock_trusted": abs(offset) <= CLOCK_TOLERANCE_S,
+        # What the drone says must change on its flight controller before it can fly.
+        "setup": list(heartbeat.fc_setup),
     }
 
 

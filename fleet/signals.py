@@ -1,5 +1,7 @@
 """Fleet happenings other apps react to, without the fleet app importing them."""
 
+from typing import Any
+
 from django.dispatch import Signal
 
 # Sent by the Drone Identifier after drones that were offline sent a heartbeat.
@@ -8,3 +10,22 @@ drones_came_online = Signal()
 
 # Sent by the offline sweep after it marked drones offline. Arguments: drone_ids (list[str]).
 drones_went_offline = Signal()
+
+# Sent after an organisation's envelope was stored. Arguments: organisation, envelope (dict).
+envelope_changed = Signal()
+
+# Sent when a user's change was refused, for the audit trail. Arguments: organisation_id
+# (int), user, action (like "mission.start"), target (str), reason (str).
+action_refused = Signal()
+
+
+def note_refusal(organisation_id: int, user: Any, action: str, target: object, reason: str) -> None:
+    """Send action_refused: `user`'s `action` on `target` was refused for `reason`."""
+    action_refused.send(
+        None,
+        organisation_id=organisation_id,
+        user=user,
+        action=action,
+        target=str(target),
+        reason=reason,
+    )

@@ -9,4 +9,6 @@ urlpatterns = [
     path("drones/<str:drone_id>/", views.drone_detail, name="drone"),
     path("organisation/envelope/", views.envelope, name="envelope"),
     path("organisation/switch/", views.switch_organisation, name="switch_organisation"),
+    path("fleet/table/", views.drone_table, name="table"),
+    path("fleet/table/", views.drone_table, name="table"),
 ]

@@ -4,12 +4,15 @@ from __future__ import annotations
 
 from django.conf import settings
 from django.contrib.auth.decorators import login_required
-from django.http import Http404, HttpRequest, HttpResponse
+from django.http import Http404, HttpRequest, HttpResponse, JsonResponse
 from django.shortcuts import get_object_or_404, redirect, render
+from django.urls import reverse
 from django.views.decorators.http import require_POST
 
+from . import listing
 from .models import Drone, Membership, Role
-from .serializers import DroneDetailSerializer, DroneSerializer
+from .serializers import DroneDetailSerializer
+from .state import LABELS, describe
 from .tenancy import SESSION_KEY, role_in
 
 
@@ -21,25 +24,47 @@ def _organisation_or_404(request: HttpRequest):  # type: ignore[no-untyped-def]
 
 @login_required
 def index(request: HttpRequest) -> HttpResponse:
+    """The map and a table page: the drones themselves come from the table API and the
+    socket, so the page costs the same with 10 drones or 10 000."""
     organisation = _organisation_or_404(request)
-    drones = Drone.objects.filter(organisation=organisation).select_related("organisation")
+    config = _live_config(request, [])
+    config.update(
+        tableUrl=reverse("fleet:table"),
+        filters=list(listing.FILTERS),
+        states=LABELS,
+        pageSize=listing.PAGE_SIZE,
+    )
     return render(
         request,
         "fleet/index.html",
         {
-            "drones": drones,
-            "fleet_config": _live_config(request, DroneSerializer(drones, many=True).data),
+            "has_drones": Drone.objects.filter(organisation=organisation).exists(),
+            "filters": [(name, name.replace("_", " ")) for name in listing.FILTERS],
+            "fleet_config": config,
         },
     )
 
 
-def _live_config(request: HttpRequest, drones: object) -> dict:
+@login_required
+def drone_table(request: HttpRequest) -> JsonResponse:
+    """`GET ?q=&filter=online,airborne&page=2&page_size=50`: one page of the table."""
+    organisation = _organisation_or_404(request)
+    try:
+        query = listing.TableQuery.from_params(request.GET)
+    except listing.BadQuery as exc:
+        return JsonResponse({"error": str(exc)}, status=400)
+    return JsonResponse(listing.table_page(organisation.pk, query))
+
+
+def _live_config(request: HttpRequest, drones: object, drone_id: str | None = None) -> dict:
     """What the page scripts need: the map tiles, the websocket, the initial state."""
+    socket = f"/ws/fleet/?org={request.organisation.slug}"  # type: ignore[attr-defined]
     return {
         "tileUrl": settings.MAP_TILE_URL,
         "attribution": settings.MAP_TILE_ATTRIBUTION,
-        "socketPath": f"/ws/fleet/?org={request.organisation.slug}",  # type: ignore[attr-defined]
+        "socketPath": socket if drone_id is None else f"{socket}&drone={drone_id}",
         "droneUrl": "/drones/__ID__/",
+        "missionUrl": "/missions/__ID__/",
         "drones": drones,
     }
 
@@ -50,7 +75,9 @@ def drone_detail(request: HttpRequest, drone_id: str) -> HttpResponse:
     drone = get_object_or_404(Drone, organisation=organisation, drone_id=drone_id)
     events = drone.connection_events.all()[:50]
     commands = drone.commands.select_related("user")[:20]
-    config = _live_config(request, [DroneDetailSerializer(drone).data])
+    config = _live_config(
+        request, [describe(dict(DroneDetailSerializer(drone).data))], drone.drone_id
+    )
     config["commandUrl"] = f"/api/v1/drones/{drone.drone_id}/commands/"
     return render(
         request,
@@ -59,6 +86,8 @@ def drone_detail(request: HttpRequest, drone_id: str) -> HttpResponse:
             "drone": drone,
             "connection_events": events,
             "commands": commands,
+            "state": config["drones"][0]["state"],
+            "state_label": LABELS[config["drones"][0]["state"]],
             "fleet_config": config,
         },
     )

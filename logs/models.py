@@ -13,6 +13,7 @@ from django.conf import settings
 from django.core.exceptions import SuspiciousFileOperation
 from django.db import models
 from django.urls import reverse
+from django.utils import timezone
 from django.utils.text import get_valid_filename
 
 from fleet.models import Organisation
@@ -69,6 +70,12 @@ class FlightLog(models.Model):
     end_s = models.FloatField(null=True, blank=True)
     created_at = models.DateTimeField(auto_now_add=True)
     processed_at = models.DateTimeField(null=True, blank=True)
+    # Import attempts (logs/attempts.py): how many deliveries started the import, the
+    # delivery holding it, its last sign of life, and when the import was last queued.
+    attempts = models.PositiveSmallIntegerField(default=0)
+    import_task = models.CharField(max_length=64, blank=True)
+    heartbeat_at = models.DateTimeField(null=True, blank=True)
+    queued_at = models.DateTimeField(default=timezone.now)
 
     objects = FlightLogQuerySet.as_manager()
 

@@ -12,6 +12,7 @@ import os
 import shutil
 import threading
 import time
+import uuid
 from collections import OrderedDict
 from collections.abc import Callable
 
@@ -22,12 +23,13 @@ from channels.layers import get_channel_layer
 from django.conf import settings
 from django.db import transaction
 from django.utils import timezone
+from django.utils.module_loading import import_string
 
-from logs import units
+from logs import attempts, units
 from logs.analysis import trajectory_of, values_at, values_tree
 from logs.importers.base import Limits, LogFormatError
 from logs.models import FlightLog, LogStatus
-from logs.store import LogStore, import_to_store
+from logs.store import LogStore
 from logs.uploads import StoredUpload
 
 logger = logging.getLogger(__name__)
@@ -59,9 +61,9 @@ def create_log(*, organisation, owner, upload: StoredUpload) -> FlightLog:  # ty
     except BaseException:
         shutil.rmtree(log.directory, ignore_errors=True)
         raise
-    transaction.on_commit(
-        lambda: import_flight_log.apply_async((str(log.pk),), queue=settings.LOGS_IMPORT_QUEUE)
-    )
+    # Routed by config/queues.py to LOGS_IMPORT_QUEUE. Should the broker be away now, the
+    # sweep finds the log queued long ago and never started, and queues it again.
+    transaction.on_commit(lambda: import_flight_log.delay(str(log.pk)))
     return log
 
 
@@ -117,18 +119,30 @@ def fail(log: FlightLog, message: str) -> None:
         publish(log, {"type": "status", "status": LogStatus.FAILED, "error": message})
 
 
-def process_log(log_id: str) -> str:
+def process_log(log_id: str, task_id: str | None = None) -> str:
     """Parse an uploaded log into its columnar store; returns the final status.
 
-    Any bad file ends as `failed` with one sentence for the user and no store on disk;
-    the worker process always survives.
+    `task_id` names the delivery (a redelivery of the same message may take the log back);
+    a log another live delivery holds is left to it. Any bad file ends as `failed` with
+    one sentence for the user and no store on disk; a file that kills the worker process
+    instead is failed once it did so LOGS_IMPORT_REDELIVERY_LIMIT times.
     """
+    attempt = attempts.claim(log_id, task_id or f"direct-{uuid.uuid4()}")
     log = FlightLog.objects.filter(pk=log_id).first()
-    if log is None or log.status != LogStatus.PROCESSING:
+    if log is None or attempt is None:
         return log.status if log else "deleted"
+    if attempts.over_limit(attempt):
+        fail(log, attempts.crash_reason(attempt - 1))
+        return LogStatus.FAILED
     publish(log, {"type": "progress", "progress": 0.0, "status": LogStatus.PROCESSING})
+    with attempts.heartbeat(log.pk, log.import_task):
+        return _import(log)
+
+
+def _import(log: FlightLog) -> str:
+    importer = import_string(settings.LOGS_IMPORT_FUNCTION)
     try:
-        index = import_to_store(
+        index = importer(
             log.upload_path, log.store_path, limits=limits(), progress=_progress_reporter(log)
         ).index
     except LogFormatError as exc:
@@ -158,6 +172,24 @@ def process_log(log_id: str) -> str:
         return "deleted"
     publish(log, {"type": "status", "status": LogStatus.READY, "progress": 1.0})
     return LogStatus.READY
+
+
+def sweep_stuck() -> dict[str, list[str]]:
+    """Queue again, or fail, the logs processing with no worker (logs.attempts.stuck_logs):
+    failed when their attempts reached the limit, else queued once more."""
+    from logs.tasks import import_flight_log
+
+    done: dict[str, list[str]] = {"requeued": [], "failed": []}
+    for log in attempts.stuck_logs():
+        if log.attempts >= int(settings.LOGS_IMPORT_REDELIVERY_LIMIT):
+            fail(log, attempts.crash_reason(log.attempts))
+            done["failed"].append(str(log.pk))
+        elif attempts.mark_requeued(log):
+            import_flight_log.delay(str(log.pk))
+            done["requeued"].append(str(log.pk))
+    if done["requeued"] or done["failed"]:
+        logger.warning("logs stuck in processing: %s", done)
+    return done
 
 
 # --- reading a ready log ---

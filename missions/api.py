@@ -22,9 +22,10 @@ from rest_framework.response import Response
 from fleet import envelopes
 from fleet.models import Drone, Membership, Organisation, Role
 from fleet.permissions import OrganisationRole, require_role
+from fleet.signals import note_refusal
 from fleet.tenancy import current_membership
 
-from . import hold, logs, panic, pictures, planning, qgc_plan
+from . import hold, logs, panic, pictures, plan_files, planning, qgc_plan
 from .models import Mission, Picture
 from .serializers import (
     MissionDetailSerializer,
@@ -33,6 +34,9 @@ from .serializers import (
     StepSerializer,
 )
 from .services import MissionError, create_mission, start_mission, stop_mission, validate_steps
+
+# A QGroundControl plan of thousands of items is a few MiB; anything bigger is not a plan.
+MAX_PLAN_BYTES = 8 * 1024 * 1024
 
 
 class Refused(exceptions.APIException):
@@ -62,6 +66,25 @@ def _body(request: Request) -> dict:
     if not isinstance(request.data, dict):
         raise Refused("body", "must be a JSON object")
     return request.data
+
+
+CONFIRM_FIELD = "confirm_beyond_defaults"
+CONFIRM_HELP = (
+    "The operator confirmed steps beyond the envelope's defaults (120 m high, 1000 m from "
+    "home); without it such a mission answers 409 confirmation_required naming the step."
+)
+
+
+def _confirmed(data: Any) -> bool:
+    """The body's confirmation flag: JSON true or false, or true/false (1/0, yes/no, on/off)
+    in a form; anything else is refused naming the field."""
+    value = data.get(CONFIRM_FIELD) if hasattr(data, "get") else None
+    if value is None or isinstance(value, bool):
+        return bool(value)
+    text = str(value).strip().lower()
+    if text not in ("true", "1", "yes", "on", "false", "0", "no", "off", ""):
+        raise Refused(CONFIRM_FIELD, "must be true or false")
+    return text in ("true", "1", "yes", "on")
 
 
 def _organisation_for_write(request: Request, slug: object = None) -> Organisation:
@@ -139,13 +162,31 @@ CreateRequest = inline_serializer(
             },
         ),
         "extensibility": serializers.DictField(required=False),
+        CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
     },
 )
 StartRequest = inline_serializer(
-    "MissionStartRequest", {"drone": serializers.CharField(required=False, allow_null=True)}
+    "MissionStartRequest",
+    {
+        "drone": serializers.CharField(required=False, allow_null=True),
+        CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
+    },
+)
+HoldRequest = inline_serializer(
+    "MissionHoldRequest",
+    {
+        "drone": serializers.CharField(
+            required=False, help_text="only this drone of the mission holds or resumes"
+        )
+    },
 )
 PanicRequest = inline_serializer(
-    "PanicRequest", {"lat": serializers.FloatField(), "lon": serializers.FloatField()}
+    "PanicRequest",
+    {
+        "lat": serializers.FloatField(),
+        "lon": serializers.FloatField(),
+        CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
+    },
 )
 
 
@@ -275,6 +316,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 altitude=altitude,
                 extensibility=extensibility,
                 user=request.user,
+                confirmed=_confirmed(body),
             )
         except MissionError as exc:
             raise refuse(exc) from None
@@ -296,8 +338,11 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             if drone is None:
                 raise Refused("drone", f"no drone {drone_id!r} in this organisation", 404)
         try:
-            start_mission(mission, drone=drone, user=request.user)
+            start_mission(mission, drone=drone, user=request.user, confirmed=_confirmed(body))
         except MissionError as exc:
+            note_refusal(
+                mission.organisation_id, request.user, "mission.start", mission, exc.message
+            )
             raise refuse(exc) from None
         mission.refresh_from_db()
         return Response(MissionDetailSerializer(mission).data)
@@ -314,17 +359,19 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         """Release a panic call: its drone returns home and lands; the call is completed."""
         return self._operate(pk, request, panic.release)
 
-    @extend_schema(request=None, responses=MissionDetailSerializer)
+    @extend_schema(request=HoldRequest, responses=MissionDetailSerializer)
     @action(detail=True, methods=["post"])
     def pause(self, request: Request, pk: str | None = None) -> Response:
-        """Pause a running mission: its drones hold where they are (409 unless running)."""
-        return self._operate(pk, request, hold.pause)
+        """Pause a running mission: its drones hold where they are (409 unless running);
+        with `drone`, only that drone holds."""
+        return self._operate(pk, request, _for_drone(request, hold.pause))
 
-    @extend_schema(request=None, responses=MissionDetailSerializer)
+    @extend_schema(request=HoldRequest, responses=MissionDetailSerializer)
     @action(detail=True, methods=["post"])
     def resume(self, request: Request, pk: str | None = None) -> Response:
-        """Resume a paused mission: each drone carries on from its step (409 unless paused)."""
-        return self._operate(pk, request, hold.resume)
+        """Resume a paused mission: each held drone carries on from its step (409 unless
+        one holds); with `drone`, only that drone."""
+        return self._operate(pk, request, _for_drone(request, hold.resume))
 
     def _operate(self, pk: str | None, request: Request, operation: Any) -> Response:
         """Run one operator action on a mission the user may change; a refusal is an error."""
@@ -332,6 +379,8 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         try:
             operation(mission, user=request.user)
         except MissionError as exc:
+            action = f"mission.{operation.__name__.removesuffix('_mission')}"
+            note_refusal(mission.organisation_id, request.user, action, mission, exc.message)
             raise refuse(exc) from None
         mission.refresh_from_db()
         return Response(MissionDetailSerializer(mission).data)
@@ -347,7 +396,8 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     @action(detail=False, methods=["post"], url_path="check-envelope")
     def check_envelope(self, request: Request) -> Response:
         """Every step of `steps` the flight envelope refuses (flown by `drone` when given),
-        for the planner to mark before anything is sent; nothing is stored or sent."""
+        for the planner to mark before anything is sent, and every step beyond the
+        envelope's defaults (`beyond_defaults`: to confirm); nothing is stored or sent."""
         body = _body(request)
         organisation = _organisation_for_write(request, body.get("organisation"))
         try:
@@ -362,12 +412,11 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             if drone is None:
                 raise Refused("drone", f"no drone {body['drone']!r} in this organisation", 404)
         found = envelopes.step_violations(organisation, steps, drone)
+        beyond = envelopes.steps_beyond_defaults(organisation, steps, drone)
         return Response(
             {
-                "violations": [
-                    {"index": v.index, "limit": v.violation.limit, "message": v.violation.message}
-                    for v in found
-                ],
+                "violations": [_violation_row(v) for v in found],
+                "beyond_defaults": [_violation_row(v) for v in beyond],
                 "envelope": envelopes.envelope_body(organisation),
             }
         )
@@ -384,6 +433,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 lat=body.get("lat"),
                 lon=body.get("lon"),
                 user=request.user,
+                confirmed=_confirmed(body),
             )
         except MissionError as exc:
             raise refuse(exc) from None
@@ -451,15 +501,8 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     def export_plan(self, request: Request, pk: str | None = None) -> HttpResponse:
         """The mission as a QGroundControl `.plan` file."""
         mission = self.get_object()
-        steps = [
-            {"index": s.index, "command": s.command, "params": s.params}
-            for s in mission.steps.order_by("index")
-        ]
         try:
-            fence = envelopes.envelope_body(mission.organisation)["geoFence"]
-            document = qgc_plan.export_plan(
-                steps, altitude=mission.altitude, geofence=qgc_plan.read_geofence(fence)
-            )
+            document = plan_files.export_document(mission)
         except planning.PlanningError as exc:
             raise refuse(exc) from None
         response = HttpResponse(qgc_plan.dumps(document), content_type="application/json")
@@ -469,9 +512,22 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     @extend_schema(
         request={
             "multipart/form-data": inline_serializer(
-                "PlanUpload", {"file": serializers.FileField()}
+                "PlanUpload",
+                {
+                    "file": serializers.FileField(),
+                    CONFIRM_FIELD: serializers.BooleanField(required=False, help_text=CONFIRM_HELP),
+                },
             )
         },
+        parameters=[
+            OpenApiParameter(
+                "fence",
+                str,
+                enum=list(plan_files.FENCE_SCOPES),
+                description="where the plan's geoFence goes: the mission (default) or, "
+                "for admins, the organisation's envelope",
+            )
+        ],
         responses={201: MissionDetailSerializer},
     )
     @action(detail=False, methods=["post"], url_path="import-plan")
@@ -481,31 +537,44 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         upload = request.FILES.get("file")
         organisation = _organisation_for_write(request, request.data.get("organisation"))
         if upload is not None:
+            if upload.size > MAX_PLAN_BYTES:
+                raise Refused("file", "is too large", 413)
             source: object = upload.read()
         elif isinstance(request.data, dict) and request.data.get("fileType"):
             source = dict(request.data)
         else:
             raise Refused("file", "attach the .plan file as `file`")
         try:
-            plan = qgc_plan.import_plan(source)  # type: ignore[arg-type]
-            mission = create_mission(
+            mission = plan_files.import_document(
+                source,  # type: ignore[arg-type]
                 organisation=organisation,
-                name=(upload.name if upload is not None else "") or "Imported plan",
-                steps=plan.steps,
-                altitude=_plan_altitude(plan.steps),
                 user=request.user,
-                home=plan.home,
-                fence=qgc_plan.geofence_json(plan.geofence),
+                name=upload.name if upload is not None else "",
+                fence_scope=request.query_params.get("fence", "mission"),
+                confirmed=_confirmed(request.data),
             )
-        except planning.PlanningError as exc:
-            raise refuse(exc) from None
-        except MissionError as exc:
+        except (planning.PlanningError, MissionError) as exc:
             raise refuse(exc) from None
         return Response(MissionDetailSerializer(mission).data, status=status.HTTP_201_CREATED)
 
 
-def _plan_altitude(steps: list[dict]) -> float:
-    for step in steps:
-        if step.get("command") == "takeoff":
-            return float(step["params"].get("altitude") or 10.0)
-    return 10.0
+def _for_drone(request: Request, operation: Any) -> Any:
+    """The pause or resume of the whole mission, or of the body's `drone` only."""
+    data = request.data if isinstance(request.data, dict) else {}
+    drone = data.get("drone")
+    if drone in (None, ""):
+        return operation
+    return lambda mission, user: operation(mission, user=user, drone=str(drone))
+
+
+def _violation_row(found: Any) -> dict:
+    """One refused step for the planner; `leg` ([[lat, lon], [lat, lon]]) when it is the
+    straight leg to the step's target, not the target, that breaks the fence."""
+    violation = found.violation
+    leg = [list(point) for point in violation.leg] if violation.leg else None
+    return {
+        "index": found.index,
+        "limit": violation.limit,
+        "message": violation.message,
+        "leg": leg,
+    }

@@ -72,7 +72,7 @@ def collaborate(
             extension, handover = _plan(mission, center, alarming, joining)
         except PlanningError as exc:
             return _decline(mission, f"extension impossible: {exc}", "collaboration_failed")
-        refusal = _outside_envelope(handover, [alarming.drone, *joining])
+        refusal = _outside_envelope(handover, [alarming.drone, *joining], mission.fence)
         if refusal is not None:
             return _decline(mission, f"extension refused: {refusal}", "collaboration_failed")
         plan_ms = (time.perf_counter() - plan_began) * 1000
@@ -91,12 +91,15 @@ def collaborate(
     return created
 
 
-def _outside_envelope(handover: Handover, drones: list[Drone]) -> str | None:
-    """Why a part would take its drone out of its envelope, or None: nothing is sent then."""
+def _outside_envelope(
+    handover: Handover, drones: list[Drone], fence: dict | None = None
+) -> str | None:
+    """Why a part would take its drone out of its envelope (or the mission's own fence),
+    or None: nothing is sent then."""
     by_id = {d.drone_id: d for d in drones}
     for part in handover.assignments:
         try:
-            envelopes.check_steps(by_id[part.drone_id], part.steps)
+            envelopes.check_steps(by_id[part.drone_id], part.steps, fence=fence)
         except envelopes.OutsideEnvelope as exc:
             return f"{part.drone_id}: {exc.message}"
     return None

@@ -106,6 +106,7 @@ def _assignment_row(a: Assignment) -> dict[str, Any]:
         "replaces": str(a.replaces_id) if a.replaces_id else None,
         "decode_ms": a.decode_ms,
         "created_at": _iso(a.created_at),
+        "held": a.held,
     }
 
 

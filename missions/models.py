@@ -101,6 +101,11 @@ class Mission(models.Model):
     ended_at = models.DateTimeField(null=True, blank=True)
     # Paused by an operator: its drones hold where they are until it is resumed.
     held = models.BooleanField(default=False)
+    # An imported plan's own geofence (QGroundControl geoFence shape), enforced on top of
+    # the organisation's envelope when the mission starts, and its planned home
+    # [lat, lon, AMSL altitude].
+    fence = models.JSONField(null=True, blank=True)
+    plan_home = models.JSONField(null=True, blank=True)
 
     objects = MissionQuerySet.as_manager()
 
@@ -180,6 +185,8 @@ class Assignment(models.Model):
     status = models.CharField(max_length=10, choices=Status.choices, default=Status.SENT)
     created_at = models.DateTimeField(auto_now_add=True)
     decode_ms = models.FloatField(null=True, blank=True)
+    # The drone holds where it is (its own page's Hold, or the mission's Pause) until resumed.
+    held = models.BooleanField(default=False)
     # The failing assignment this one replaces: one replacement per failure, by constraint.
     replaces = models.OneToOneField(
         "self", null=True, blank=True, on_delete=models.SET_NULL, related_name="replaced_by"

@@ -2,7 +2,7 @@
 flies to the caller and stays there "on station": the call runs until the caller or an
 operator releases it (the drone returns home, lands and disarms; the call is completed).
 A drone whose battery is down to the reserve on station is relieved: the replacement sends
-another drone to the caller and this one lands, as for a CRITICAL alarm."""
+another drone to the caller, as for a CRITICAL alarm, and this one returns home and lands."""
 
 from __future__ import annotations
 
@@ -43,8 +43,11 @@ def panic_steps(lat: float, lon: float, altitude: float) -> list[dict]:
     ]
 
 
-def call_drone(*, organisation: Organisation, lat: Any, lon: Any, user: Any = None) -> Started:
-    """Create and start a panic mission to the caller's position."""
+def call_drone(
+    *, organisation: Organisation, lat: Any, lon: Any, user: Any = None, confirmed: bool = False
+) -> Started:
+    """Create and start a panic mission to the caller's position; a caller beyond the
+    envelope's defaults from the drone needs `confirmed`."""
     try:
         lat = protocol.latitude(lat, "lat")
         lon = protocol.longitude(lon, "lon")
@@ -57,9 +60,10 @@ def call_drone(*, organisation: Organisation, lat: Any, lon: Any, user: Any = No
         steps=panic_steps(lat, lon, altitude),
         altitude=altitude,
         user=user,
+        confirmed=confirmed,
     )
     try:
-        return start_mission(mission, user=user)
+        return start_mission(mission, user=user, confirmed=confirmed)
     except MissionError:
         mission.delete()
         raise
@@ -110,10 +114,12 @@ def relieve_stations() -> list[str]:
             lock_mission(assignment.mission)
             event = _record_reserve(assignment)
         if event is not None:
+            # It returns home to land: landing on station would put it down by the caller.
             replacement.replace_drone(
                 mission_id=str(assignment.mission_id),
                 assignment_id=str(assignment.pk),
                 alarm_event_id=event.pk,
+                then="return",
             )
             relieved.append(assignment.drone.drone_id)
     return relieved

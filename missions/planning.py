@@ -158,10 +158,15 @@ def _latlon(value: Any, field: str) -> tuple[float, float]:
     return lat, lon
 
 
-def _step(step_distance: Any) -> float:
-    step = _finite(step_distance, "step_distance")
+def parse_point(value: Any, field: str) -> tuple[float, float]:
+    """[lat, lon] checked for range; PlanningError naming `field` otherwise."""
+    return _latlon(value, field)
+
+
+def _step(step_distance: Any, field: str = "step_distance") -> float:
+    step = _finite(step_distance, field)
     if step <= 0:
-        raise PlanningError("step_distance", f"must be greater than 0, got {step:g}")
+        raise PlanningError(field, f"must be greater than 0, got {step:g}")
     return step
 
 
@@ -191,14 +196,21 @@ def _shape_of(v: NDArray, w: NDArray, field: str = "vertices") -> tuple[float, f
 
 
 def _serpentine_ne(
-    origin: NDArray, v_hat: NDArray, w_hat: NDArray, n_v: int, n_w: int, step: float
+    origin: NDArray,
+    v_hat: NDArray,
+    w_hat: NDArray,
+    n_v: int,
+    n_w: int,
+    step: float,
+    row_step: float | None = None,
 ) -> tuple[NDArray, NDArray]:
-    """North/east of an n_w × n_v grid, rows along v, alternate rows reversed."""
+    """North/east of an n_w × n_v grid, rows along v `step` apart point to point and
+    `row_step` (default `step`) apart row to row, alternate rows reversed."""
     rows = np.repeat(np.arange(n_w), n_v)
     cols = np.tile(np.arange(n_v), n_w)
     cols = np.where(rows % 2 == 1, n_v - 1 - cols, cols)
     along_v = cols * step
-    along_w = rows * step
+    along_w = rows * (step if row_step is None else row_step)
     north = origin[0] + along_v * v_hat[0] + along_w * w_hat[0]
     east = origin[1] + along_v * v_hat[1] + along_w * w_hat[1]
     return north, east
@@ -228,21 +240,25 @@ def coverage(
     step_distance: float,
     *,
     max_waypoints: int = DEFAULT_MAX_WAYPOINTS,
+    line_spacing: float | None = None,
 ) -> Coverage:
-    """Serpentine waypoints covering the parallelogram of three consecutive vertices."""
+    """Serpentine waypoints covering the parallelogram of three consecutive vertices: lines
+    along A→B with waypoints `step_distance` apart, lines `line_spacing` (default the same)
+    apart towards C."""
     if not (isinstance(vertices, Sequence) and len(vertices) == 3):
         raise PlanningError("vertices", "must be exactly three [lat, lon] points")
     points = [_latlon(vertex, f"vertices[{i}]") for i, vertex in enumerate(vertices)]
     step = _step(step_distance)
+    row_step = step if line_spacing is None else _step(line_spacing, "line_spacing")
     frame = LocalFrame(*points[0])
     north, east = frame.to_ne([p[0] for p in points], [p[1] for p in points])
     a, b, c = np.column_stack((north, east))
     v, w = b - a, c - b
     len_v, len_w, sin_angle = _shape_of(v, w)
     n_v = _waypoints_per_side(len_v, step)
-    n_w = _waypoints_per_side(len_w, step)
+    n_w = _waypoints_per_side(len_w, row_step)
     _check_count(n_v * n_w, max_waypoints)
-    grid_n, grid_e = _serpentine_ne(a, v / len_v, w / len_w, n_v, n_w, step)
+    grid_n, grid_e = _serpentine_ne(a, v / len_v, w / len_w, n_v, n_w, step, row_step)
     return Coverage(
         waypoints=_points(frame, grid_n, grid_e),
         area_m2=round(len_v * len_w * sin_angle, 3),

@@ -1,17 +1,27 @@
 """QGroundControl `.plan` files (JSON, fileType "Plan", version 1) ↔ our mission steps.
 
-Mission items map onto mission steps (docs/protocol.md), altitudes relative to home
-(frame 3). A survey or corridor scan is read from the items QGroundControl generated for
-it and saved inside it (TransectStyleComplexItem.Items); it re-exports as those simple items.
+Mission items map onto mission steps (docs/protocol.md), altitudes relative to home. A
+survey or corridor scan is flattened into the simple items QGroundControl generated for
+it and saved inside it (TransectStyleComplexItem.Items); a complex item without them is
+refused. It re-exports as those simple items.
 
 | item | steps |
 |---|---|
-| 22 NAV_TAKEOFF | arm, takeoff(altitude) — QGC missions start disarmed on the ground |
+| 22 NAV_TAKEOFF, 84 NAV_VTOL_TAKEOFF | arm, takeoff(altitude) — QGC missions start disarmed on the ground |
 | 16 NAV_WAYPOINT | navigate(lat, lon, altitude_delta), wait_for_flight(acceptance radius), sleep(hold) if hold > 0 |
 | 19 NAV_LOITER_TIME | navigate, wait_for_flight, sleep(time) |
-| 21 NAV_LAND | land, preceded by navigate + wait_for_flight when it is not where the drone already is |
+| 21 NAV_LAND, 85 NAV_VTOL_LAND | land, preceded by navigate + wait_for_flight when it is not where the drone already is |
 | 20 NAV_RETURN_TO_LAUNCH | navigate(home), wait_for_flight, land |
+| 178 DO_CHANGE_SPEED | `speed` on every following navigate (a speed of -1 or 0 keeps the current one) |
+| 201 DO_SET_ROI (mode location), 195 DO_SET_ROI_LOCATION | `roi` [lat, lon] on every following navigate |
+| 197 DO_SET_ROI_NONE, 201 with mode none | following navigates carry no `roi` |
+| 206 DO_SET_CAM_TRIGG_DIST | `photo_distance` on every following wait_for_flight (0 stops); "trigger once" is a takepic |
 | 2000 IMAGE_START_CAPTURE, 203 DO_DIGICAM_CONTROL | takepic |
+
+Altitudes: relative (frame 3, AltitudeMode 1) as they are; AMSL (frame 0, AltitudeMode 2)
+minus plannedHomePosition's altitude; terrain (AltitudeMode 3 "calculated above terrain",
+or frame 10 / AltitudeMode 4) from the item's AMSLAltAboveTerrain minus home's altitude —
+we have no terrain data, so an item without that value is refused.
 
 Where the step list cannot tell two items apart (a hold waypoint from a loiter, RTL from
 a land at home, the two camera commands) or has no place for a value (takeoff
@@ -32,7 +42,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from missions.planning import PlanningError
-from onboard.envelope import EnvelopeError, parse_geofence
+from onboard.envelope import (
+    Circle,
+    Envelope,
+    EnvelopeError,
+    Polygon,
+    geofence_dict,
+    parse_geofence,
+)
 from onboard.protocol import ProtocolError, validate_command
 
 NAV_WAYPOINT = 16
@@ -40,17 +57,44 @@ NAV_LOITER_TIME = 19
 NAV_RETURN_TO_LAUNCH = 20
 NAV_LAND = 21
 NAV_TAKEOFF = 22
+NAV_VTOL_TAKEOFF = 84
+NAV_VTOL_LAND = 85
+DO_CHANGE_SPEED = 178
+DO_SET_ROI_LOCATION = 195
+DO_SET_ROI_NONE = 197
+DO_SET_ROI = 201
 DO_DIGICAM_CONTROL = 203
+DO_SET_CAM_TRIGG_DIST = 206
 IMAGE_START_CAPTURE = 2000
+MAV_ROI_NONE = 0
+MAV_ROI_LOCATION = 3
 
 FRAME_GLOBAL = 0  # altitude above mean sea level
 FRAME_MISSION = 2  # the item has no coordinate
 FRAME_GLOBAL_RELATIVE_ALT = 3
+FRAME_GLOBAL_TERRAIN_ALT = 10
+# QGroundControl's AltitudeFrame (QGroundControlQmlGlobal): what an item's Altitude means.
 ALTITUDE_MODE_RELATIVE = 1
+ALTITUDE_MODE_ABSOLUTE = 2
+ALTITUDE_MODE_CALC_ABOVE_TERRAIN = 3
+ALTITUDE_MODE_TERRAIN = 4
+TERRAIN_MODES = (ALTITUDE_MODE_CALC_ABOVE_TERRAIN, ALTITUDE_MODE_TERRAIN)
 
-COORDINATE_COMMANDS = (NAV_WAYPOINT, NAV_LOITER_TIME, NAV_LAND, NAV_TAKEOFF)
+TAKEOFF_COMMANDS = (NAV_TAKEOFF, NAV_VTOL_TAKEOFF)
+LAND_COMMANDS = (NAV_LAND, NAV_VTOL_LAND)
+COORDINATE_COMMANDS = (NAV_WAYPOINT, NAV_LOITER_TIME) + LAND_COMMANDS + TAKEOFF_COMMANDS
 CAMERA_COMMANDS = (IMAGE_START_CAPTURE, DO_DIGICAM_CONTROL)
-SUPPORTED_COMMANDS = COORDINATE_COMMANDS + (NAV_RETURN_TO_LAUNCH,) + CAMERA_COMMANDS
+# Items that change how the following legs are flown, not where.
+SETTING_COMMANDS = (
+    DO_CHANGE_SPEED,
+    DO_SET_ROI,
+    DO_SET_ROI_LOCATION,
+    DO_SET_ROI_NONE,
+    DO_SET_CAM_TRIGG_DIST,
+)
+SUPPORTED_COMMANDS = (
+    COORDINATE_COMMANDS + (NAV_RETURN_TO_LAUNCH,) + CAMERA_COMMANDS + SETTING_COMMANDS
+)
 
 # params 1-4 as QGroundControl writes them for a new item (yaw NaN is written as null).
 _DEFAULT_P = {
@@ -58,6 +102,8 @@ _DEFAULT_P = {
     NAV_LOITER_TIME: [0, 0, 0, None],
     NAV_LAND: [0, 0, 0, None],
     NAV_TAKEOFF: [0, 0, 0, None],
+    NAV_VTOL_TAKEOFF: [0, 0, 0, None],
+    NAV_VTOL_LAND: [0, 0, 0, None],
 }
 # Camera items have no coordinate: all seven params are theirs (CameraSection "Take photo").
 _DEFAULT_CAMERA = {
@@ -65,10 +111,6 @@ _DEFAULT_CAMERA = {
     DO_DIGICAM_CONTROL: [0, 0, 0, 0, 1, 0, 0],
 }
 DEFAULT_ALTITUDE = 10.0
-_ADVICE = {
-    206: "; choose Hover and Capture in the survey's camera settings (a picture per waypoint)",
-    178: "; our drones fly at their configured speed",
-}
 
 
 class QgcPlanError(PlanningError):
@@ -152,29 +194,51 @@ def _latlon(lat: Any, lon: Any, where: str) -> tuple[float, float]:
 
 
 class _Reader:
-    """Turns mission items into steps, tracking the altitude and where the drone is."""
+    """Turns mission items into steps, tracking the altitude, where the drone is and the
+    settings (speed, region of interest, camera trigger distance) of the legs to come."""
 
     def __init__(self, home: list[float] | None) -> None:
         self.home = home
         self.altitude: float | None = None
         self.position: tuple[float, float] | None = None
         self.armed = False
+        self.speed: float | None = None
+        self.roi: list[float] | None = None
+        self.photo_distance: float | None = None
         self.body: list[tuple[str, dict]] = []
         self.sources: list[str] = []  # the item each step came from, for error messages
         self.where = ""
 
     def add(self, command: str, params: dict) -> None:
+        if command == "wait_for_flight" and self.photo_distance:
+            params = {**params, "photo_distance": self.photo_distance}
         self.body.append((command, params))
         self.sources.append(self.where)
 
-    def relative_altitude(self, item: Mapping, alt: float, where: str) -> float:
-        frame = item.get("frame")
+    def amsl_to_relative(self, amsl: float, where: str) -> float:
+        if self.home is None:
+            raise QgcPlanError(where, "an AMSL altitude needs plannedHomePosition")
+        return amsl - self.home[2]
+
+    def relative_altitude(self, item: Mapping, alt: float | None, where: str) -> float:
+        """The item's altitude above home, whatever frame QGroundControl wrote it in."""
+        frame, mode = item.get("frame"), item.get("AltitudeMode")
+        if mode in TERRAIN_MODES or frame == FRAME_GLOBAL_TERRAIN_ALT:
+            amsl = item.get("AMSLAltAboveTerrain")
+            if amsl is None:
+                raise QgcPlanError(
+                    where,
+                    "its altitude is above terrain and the plan holds no AMSL altitude for it "
+                    "(AMSLAltAboveTerrain); without terrain data it cannot be flown — let "
+                    "QGroundControl calculate it, or use relative altitudes",
+                )
+            return self.amsl_to_relative(_num(amsl, f"{where}.AMSLAltAboveTerrain"), where)
+        if alt is None:
+            raise QgcPlanError(f"{where}.params[6]", "the altitude is missing")
         if frame == FRAME_GLOBAL_RELATIVE_ALT:
             return alt
         if frame == FRAME_GLOBAL:
-            if self.home is None:
-                raise QgcPlanError(where, "an AMSL altitude needs plannedHomePosition")
-            return alt - self.home[2]
+            return self.amsl_to_relative(alt, where)
         raise QgcPlanError(where, f"frame {frame!r} is not supported (use relative altitude)")
 
     def navigate(self, lat: float, lon: float, alt: float | None, hint: dict | None) -> None:
@@ -183,65 +247,100 @@ class _Reader:
             if self.altitude is not None and alt != self.altitude:
                 params["altitude_delta"] = alt - self.altitude
             self.altitude = alt
+        if self.speed is not None:
+            params["speed"] = self.speed
+        if self.roi is not None:
+            params["roi"] = list(self.roi)
         if hint:
             params["qgc"] = hint
         self.add("navigate", params)
         self.position = (lat, lon)
 
-    def complex_item(self, item: Mapping, where: str) -> None:
+    def complex_item(self, item: Mapping, where: str, number: int | None) -> None:
         """A survey or corridor scan: QGroundControl saves the items it generated; fly those."""
         transect = item.get("TransectStyleComplexItem")
         inner = transect.get("Items") if isinstance(transect, Mapping) else None
         if not isinstance(inner, list):
             raise QgcPlanError(
                 where,
-                f"complex item {item.get('complexItemType')!r} is not supported; "
-                "convert it to waypoints in QGroundControl first",
+                f"complex item {item.get('complexItemType')!r} holds no generated items "
+                "(TransectStyleComplexItem.Items) to fly; convert it to waypoints in "
+                "QGroundControl first",
             )
         for j, raw in enumerate(inner):
             inner_where = f"{where}.TransectStyleComplexItem.Items[{j}]"
-            self.item(_obj(raw, inner_where), inner_where)
+            self.item(_obj(raw, inner_where), inner_where, number)
 
-    def item(self, item: Mapping, where: str) -> None:
-        """One mission item as Skyhive steps; what Skyhive would not restore by itself is
-        kept in a `qgc` hint so the plan exports back as it came."""
+    def item(self, item: Mapping, where: str, number: int | None) -> None:
+        """One mission item (`number`: its 1-based place in the plan) as Skyhive steps."""
         self.where = where
         kind = item.get("type")
         if kind == "ComplexItem":
-            self.complex_item(item, where)
+            self.complex_item(item, where, number)
             return
         if kind != "SimpleItem":
             raise QgcPlanError(where, f"unknown item type {kind!r}")
         command = item.get("command")
-        p, hint = self.simple_params(item, command, where)
-        if command in CAMERA_COMMANDS:
+        p, hint = self.simple_params(item, command, where, number)
+        if command in SETTING_COMMANDS:
+            self.setting(command, p, where)
+        elif command in CAMERA_COMMANDS:
             if p != _DEFAULT_CAMERA[IMAGE_START_CAPTURE] or command != IMAGE_START_CAPTURE:
                 hint["p"] = p
             self.add("takepic", {"qgc": hint} if len(hint) > 1 else {})
-            return
-        if command == NAV_RETURN_TO_LAUNCH:
+        elif command == NAV_RETURN_TO_LAUNCH:
             self.return_to_launch(p, hint, where)
-            return
+        else:
+            self.coordinate_item(item, command, p, hint, where)
+
+    def coordinate_item(self, item: Mapping, command: int, p: list, hint: dict, where: str) -> None:
         coordinate = None if p[4] is None and p[5] is None else _latlon(p[4], p[5], where)
-        alt = self.relative_altitude(item, _num(p[6], f"{where}.params[6]"), where)
-        if command == NAV_TAKEOFF:
+        alt = self.relative_altitude(item, p[6], where)
+        if command in TAKEOFF_COMMANDS:
             self.takeoff(p, hint, coordinate, alt, where)
             return
         if coordinate is None:
             raise QgcPlanError(where, "needs a latitude and longitude")
-        if command == NAV_LAND:
+        if command in LAND_COMMANDS:
             self.land(p, hint, coordinate, alt)
             return
         self.waypoint(command, p, hint, coordinate, alt, where)
 
-    def simple_params(self, item: Mapping, command: Any, where: str) -> tuple[list, dict]:
+    def setting(self, command: int, p: list, where: str) -> None:
+        """Speed, region of interest and distance camera: they apply to the legs after."""
+        if command == DO_CHANGE_SPEED:
+            speed = p[1]
+            if speed is not None and speed > 0:
+                self.speed = speed
+        elif command == DO_SET_ROI_NONE or (command == DO_SET_ROI and p[0] == MAV_ROI_NONE):
+            self.roi = None
+        elif command == DO_SET_ROI and p[0] != MAV_ROI_LOCATION:
+            raise QgcPlanError(
+                where, f"region of interest mode {p[0]!r} is not supported (only a location)"
+            )
+        elif command in (DO_SET_ROI, DO_SET_ROI_LOCATION):
+            self.roi = list(_latlon(p[4], p[5], where))
+        else:  # DO_SET_CAM_TRIGG_DIST
+            distance = p[0] or 0
+            if distance < 0:
+                raise QgcPlanError(
+                    f"{where}.params[0]", "the trigger distance must not be negative"
+                )
+            self.photo_distance = distance or None
+            if p[2] == 1:
+                self.add("takepic", {})
+
+    def simple_params(
+        self, item: Mapping, command: Any, where: str, number: int | None
+    ) -> tuple[list, dict]:
         """A supported command's seven params and the hint of what differs from defaults."""
         if command not in SUPPORTED_COMMANDS:
-            advice = _ADVICE.get(command, "") if isinstance(command, int) else ""
+            place = f"item {number}" if number is not None else "an item"
+            name = _command_name(command) if isinstance(command, int) else repr(command)
             raise QgcPlanError(
                 where,
-                f"{_command_name(command) if isinstance(command, int) else repr(command)} "
-                f"(doJumpId {item.get('doJumpId')}) is not supported{advice}",
+                f"{place} ({name}, command {command!r}, doJumpId {item.get('doJumpId')}) is "
+                "not supported; remove it or replace it in QGroundControl",
             )
         params = _list(item.get("params"), f"{where}.params")
         if len(params) != 7:
@@ -250,8 +349,6 @@ class _Reader:
         hint: dict = {"command": command}
         if item.get("autoContinue", True) is not True:
             hint["autoContinue"] = item.get("autoContinue")
-        if "AltitudeMode" in item and item["AltitudeMode"] != ALTITUDE_MODE_RELATIVE:
-            hint["AltitudeMode"] = item["AltitudeMode"]
         if command not in COORDINATE_COMMANDS and item.get("frame") != FRAME_MISSION:
             hint["frame"] = item.get("frame")
         return p, hint
@@ -344,27 +441,20 @@ def read_geofence(data: Any) -> dict:
 
 
 def geofence_json(fence: Mapping | None) -> dict:
-    """A geofence as `QgcPlan.geofence` holds it → QGroundControl's `geoFence` object."""
+    """A geofence as `QgcPlan.geofence` holds it → QGroundControl's `geoFence` object,
+    written by the flight envelope's own writer."""
     fence = fence or {}
-    return {
-        "circles": [
-            {
-                "circle": {"center": list(c["center"]), "radius": c["radius"]},
-                "inclusion": c.get("inclusion", True),
-                "version": 1,
-            }
-            for c in fence.get("circles", [])
-        ],
-        "polygons": [
-            {
-                "inclusion": p.get("inclusion", True),
-                "polygon": [list(v) for v in p["polygon"]],
-                "version": 1,
-            }
+    shapes = Envelope(
+        polygons=tuple(
+            Polygon(p.get("inclusion", True), tuple(tuple(v) for v in p["polygon"]))
             for p in fence.get("polygons", [])
-        ],
-        "version": 2,
-    }
+        ),
+        circles=tuple(
+            Circle(c.get("inclusion", True), tuple(c["center"]), c["radius"])
+            for c in fence.get("circles", [])
+        ),
+    )
+    return geofence_dict(shapes)
 
 
 def _read_rally(data: Any) -> list[list[float]]:
@@ -410,7 +500,7 @@ def import_plan(source: str | bytes | Mapping) -> QgcPlan:
     reader = _Reader(home)
     items = _list(mission.get("items"), "mission.items")
     for i, raw in enumerate(items):
-        reader.item(_obj(raw, f"mission.items[{i}]"), f"mission.items[{i}]")
+        reader.item(_obj(raw, f"mission.items[{i}]"), f"mission.items[{i}]", number=i + 1)
     if not reader.body:
         raise QgcPlanError("mission.items", "holds no mission item")
     steps = []
@@ -443,7 +533,8 @@ def _coordinate_item(
     return {
         "AMSLAltAboveTerrain": None,
         "Altitude": alt,
-        "AltitudeMode": hint.get("AltitudeMode", ALTITUDE_MODE_RELATIVE),
+        # Exported altitudes are always relative to home (frame 3).
+        "AltitudeMode": ALTITUDE_MODE_RELATIVE,
         "autoContinue": hint.get("autoContinue", True),
         "command": command,
         "frame": FRAME_GLOBAL_RELATIVE_ALT,
@@ -462,15 +553,34 @@ def _plain_item(command: int, params: list, hint: Mapping) -> dict:
     }
 
 
+def planned_home(steps: Sequence[Mapping], home: Sequence[float] | None) -> list[float]:
+    """plannedHomePosition [lat, lon, AMSL alt]: the given home (a drone's, an imported
+    plan's, the organisation's; altitude 0 when unknown), else the first waypoint's spot.
+    QGroundControl refuses a plan without one."""
+    if home is not None and len(home) >= 2:
+        return [float(home[0]), float(home[1]), float(home[2]) if len(home) > 2 else 0.0]
+    for step in steps:
+        params = step.get("params") or {}
+        if step.get("command") == "navigate":
+            return [float(params["lat"]), float(params["lon"]), 0.0]
+    raise QgcPlanError(
+        "plannedHomePosition",
+        "the mission has no waypoint and no home is known; fly it once or set the "
+        "organisation's home first",
+    )
+
+
 class _Writer:
-    def __init__(
-        self, steps: Sequence[Mapping], home: Sequence[float] | None, altitude: float
-    ) -> None:
+    def __init__(self, steps: Sequence[Mapping], home: Sequence[float], altitude: float) -> None:
         self.steps = [dict(s) for s in steps]
         self.home = home
         self.altitude = altitude
         self.position: tuple[float, float] | None = None
         self.items: list[dict] = []
+        # The leg settings QGroundControl items have set so far.
+        self.speed: float | None = None
+        self.roi: list[float] | None = None
+        self.photo_distance: float | None = None
 
     def _at(self, i: int, command: str) -> bool:
         return i < len(self.steps) and self.steps[i]["command"] == command
@@ -494,9 +604,10 @@ class _Writer:
             return i + 1
         if command == "takeoff":
             self.altitude = float(params.get("altitude", DEFAULT_ALTITUDE))
-            lat, lon = hint.get("coordinate") or (self.home[:2] if self.home else (0, 0))
-            p4 = hint.get("p", _DEFAULT_P[NAV_TAKEOFF])
-            self.items.append(_coordinate_item(NAV_TAKEOFF, p4, lat, lon, self.altitude, hint))
+            lat, lon = hint.get("coordinate") or self.home[:2]
+            code = hint.get("command", NAV_TAKEOFF)
+            p4 = hint.get("p", _DEFAULT_P[code])
+            self.items.append(_coordinate_item(code, p4, lat, lon, self.altitude, hint))
             return i + 1
         if command == "takepic":
             code = hint.get("command", IMAGE_START_CAPTURE)
@@ -504,9 +615,10 @@ class _Writer:
             self.items.append(_plain_item(code, list(p), hint))
             return i + 1
         if command == "land":
-            lat, lon, alt = hint.get("coordinate") or (*(self.position or (0, 0)), 0)
-            p4 = hint.get("p", _DEFAULT_P[NAV_LAND])
-            self.items.append(_coordinate_item(NAV_LAND, p4, lat, lon, alt, hint))
+            lat, lon, alt = hint.get("coordinate") or (*(self.position or self.home[:2]), 0)
+            code = hint.get("command", NAV_LAND)
+            p4 = hint.get("p", _DEFAULT_P[code])
+            self.items.append(_coordinate_item(code, p4, lat, lon, alt, hint))
             self.altitude = 0.0
             return i + 1
         if command == "navigate":
@@ -520,6 +632,27 @@ class _Writer:
             return i + 1
         raise QgcPlanError(where, f"the {command!r} step has no QGroundControl mission item")
 
+    def settings(self, params: Mapping, wait: Mapping) -> None:
+        """The speed, region of interest and camera trigger items a leg needs first."""
+        speed = params.get("speed")
+        if speed is not None and speed != self.speed:
+            self.items.append(_plain_item(DO_CHANGE_SPEED, [1, speed, -1, 0, 0, 0, 0], {}))
+            self.speed = speed
+        roi = params.get("roi")
+        roi = list(roi) if roi is not None else None
+        if roi != self.roi:
+            if roi is None:
+                self.items.append(_plain_item(DO_SET_ROI_NONE, [0] * 7, {}))
+            else:
+                item = _coordinate_item(DO_SET_ROI_LOCATION, [0, 0, 0, 0], *roi, 0, {})
+                self.items.append(item)
+            self.roi = roi
+        distance = wait.get("photo_distance")
+        if distance != self.photo_distance:
+            params7 = [distance or 0, 0, 0, 0, 0, 0, 0]
+            self.items.append(_plain_item(DO_SET_CAM_TRIGG_DIST, params7, {}))
+            self.photo_distance = distance
+
     def navigate(self, i: int, params: dict, hint: Mapping) -> int:
         lat, lon = float(params["lat"]), float(params["lon"])
         code = hint.get("command", NAV_WAYPOINT)
@@ -528,13 +661,14 @@ class _Writer:
         if self._at(j, "wait_for_flight"):
             wait = self.steps[j].get("params") or {}
             j += 1
-        if code in (NAV_RETURN_TO_LAUNCH, NAV_LAND) and self._at(j, "land"):
+        self.settings(params, wait)
+        if code in (NAV_RETURN_TO_LAUNCH, *LAND_COMMANDS) and self._at(j, "land"):
             if code == NAV_RETURN_TO_LAUNCH:
                 self.items.append(_plain_item(NAV_RETURN_TO_LAUNCH, hint.get("p", [0] * 7), hint))
             else:
                 _, _, alt = hint.get("coordinate", (lat, lon, 0))
-                p4 = hint.get("p", _DEFAULT_P[NAV_LAND])
-                self.items.append(_coordinate_item(NAV_LAND, p4, lat, lon, alt, hint))
+                p4 = hint.get("p", _DEFAULT_P[code])
+                self.items.append(_coordinate_item(code, p4, lat, lon, alt, hint))
             self.position, self.altitude = (lat, lon), 0.0
             return j + 1
         self.altitude += float(params.get("altitude_delta") or 0.0)
@@ -569,21 +703,23 @@ def export_plan(
 ) -> dict:
     """Our steps (in flying order) → a .plan document (a dict; `dumps` writes the file).
 
-    `altitude` is the height the drone is at if the steps do not start with a takeoff.
-    Steps with no QGroundControl item (sense, changeN, virtualalarm, …) raise QgcPlanError.
+    `home` is [lat, lon(, AMSL alt)] (see planned_home). `altitude` is the height the drone
+    is at if the steps do not start with a takeoff. Steps with no QGroundControl item
+    (sense, changeN, virtualalarm, …) raise QgcPlanError.
     """
-    items = _Writer(steps, home, altitude).run()
+    planned = planned_home(steps, home)
+    items = _Writer(steps, planned, altitude).run()
     return {
         "fileType": "Plan",
         "geoFence": geofence_json(geofence),
         "groundStation": "Skyhive",
         "mission": {
-            "cruiseSpeed": cruise_speed,
+            "cruiseSpeed": 15 if cruise_speed is None else cruise_speed,
             "firmwareType": firmware_type,
             "globalPlanAltitudeMode": ALTITUDE_MODE_RELATIVE,
-            "hoverSpeed": hover_speed,
+            "hoverSpeed": 5 if hover_speed is None else hover_speed,
             "items": items,
-            "plannedHomePosition": list(home) if home is not None else None,
+            "plannedHomePosition": planned,
             "vehicleType": vehicle_type,
             "version": 2,
         },

@@ -72,10 +72,15 @@ def _stop_position(alarm: Event | None, failing: Assignment) -> tuple[float, flo
 
 
 def replace_drone(
-    *, mission_id: str, assignment_id: str, alarm_event_id: int | None = None
+    *,
+    mission_id: str,
+    assignment_id: str,
+    alarm_event_id: int | None = None,
+    then: str = "land",
 ) -> Assignment | None:
-    """Stop and land the failing drone, then hand its remaining steps to the nearest
-    available one; pause the mission when there is none. Returns the new assignment."""
+    """Stop the failing drone and land it (`then`: "land" where it is, or "return" home
+    first), then hand its remaining steps to the nearest available one; pause the mission
+    when there is none. Returns the new assignment."""
     began = time.perf_counter()
     with transaction.atomic():
         mission, failing = _lock(mission_id, assignment_id)
@@ -87,7 +92,7 @@ def replace_drone(
         if not _replaceable(mission, failing):
             return None
         alarm = Event.objects.filter(pk=alarm_event_id, mission=mission).first()
-        _stop_failing(mission, failing)
+        _stop_failing(mission, failing, then)
         own = set(failing.step_indexes) | set(failing.preparation)
         view = planner_view(mission, own, _raising_step(mission, alarm))
         stop_position = _stop_position(alarm, failing)
@@ -152,8 +157,9 @@ def _replaceable(mission: Mission, failing: Assignment) -> bool:
     return failing.status not in (Assignment.Status.COMPLETED, Assignment.Status.REJECTED)
 
 
-def _stop_failing(mission: Mission, failing: Assignment) -> None:
-    """Tell a drone still flying its assignment to stop and land (after the commit)."""
+def _stop_failing(mission: Mission, failing: Assignment, then: str = "land") -> None:
+    """Tell a drone still flying its assignment to stop and land, where it is or back
+    home (after the commit)."""
     if failing.status not in Assignment.ACTIVE:
         return
     failing_id = failing.drone.drone_id
@@ -162,10 +168,14 @@ def _stop_failing(mission: Mission, failing: Assignment) -> None:
     record(
         mission,
         Event.Kind.DECISION,
-        f"{failing_id} told to stop and land",
+        f"{failing_id} told to stop and {'return home' if then == 'return' else 'land'}",
         drone=failing.drone,
-        data={"decision": "stop_failing", "assignment": str(failing.pk)},
+        data={"decision": "stop_failing", "assignment": str(failing.pk), "then": then},
     )
+    if then == "return":
+        # The stop itself sends it home: return, land, disarm (docs/failsafe.md).
+        transaction.on_commit(lambda: send_stop(failing_id, str(mission.pk), then="return"))
+        return
     transaction.on_commit(lambda: send_stop(failing_id, str(mission.pk)))
     transaction.on_commit(lambda: send_control(failing_id, "land"))
 
@@ -200,7 +210,7 @@ def _plan_handover(
         handover = plan_replacement(
             view, stop_position=stop_position, altitude=mission.altitude, drone_id=drone.drone_id
         )
-        envelopes.check_steps(drone, handover.assignments[0].steps)
+        envelopes.check_steps(drone, handover.assignments[0].steps, fence=mission.fence)
     except PlanningError as exc:
         record(
             mission,

@@ -41,6 +41,7 @@ class AssignmentSerializer(serializers.ModelSerializer):
             "replaces",
             "decode_ms",
             "created_at",
+            "held",
         ]
         read_only_fields = fields
 

@@ -55,9 +55,10 @@ class MissionError(ValueError):
         self.code = code
 
 
-def outside_envelope(exc: envelopes.OutsideEnvelope) -> MissionError:
-    """The 409 for a mission step the envelope refuses (nothing is sent)."""
-    return MissionError("steps", exc.message, 409, envelopes.OUTSIDE_ENVELOPE)
+def outside_envelope(exc: envelopes.EnvelopeRefusal) -> MissionError:
+    """The 409 for a mission step the envelope refuses, or that goes beyond its defaults
+    unconfirmed (nothing is sent)."""
+    return MissionError("steps", exc.message, 409, exc.code)
 
 
 # ---------------------------------------------------------------------------------------
@@ -102,16 +103,20 @@ def create_mission(
     user: Any = None,
     home: Sequence[float] | None = None,
     fence: Mapping | None = None,
+    confirmed: bool = False,
 ) -> Mission:
     """A draft mission with validated steps (nothing is sent until `start_mission`).
 
     The steps must keep to the organisation's envelope, and to `fence` (an imported
-    plan's own geoFence), flown from `home` (a plan's home; else fleet.envelopes.plan_home).
+    plan's own geoFence), flown from `home` (a plan's home; else fleet.envelopes.plan_home);
+    steps beyond the envelope's defaults need `confirmed`.
     """
     clean = validate_steps(steps)
     try:
         envelopes.check_plan(organisation, clean, home, fence)
-    except envelopes.OutsideEnvelope as exc:
+        if not confirmed:
+            envelopes.confirm_steps(organisation, clean, home=home)
+    except envelopes.EnvelopeRefusal as exc:
         raise outside_envelope(exc) from None
     name = (name or "").strip() or f"Mission {timezone.now():%Y-%m-%d %H:%M}"
     with transaction.atomic():
@@ -121,6 +126,10 @@ def create_mission(
             altitude=altitude,
             extensibility=dict(extensibility) if extensibility else None,
             created_by=user if getattr(user, "is_authenticated", False) else None,
+            fence=dict(fence)
+            if fence and (fence.get("polygons") or fence.get("circles"))
+            else None,
+            plan_home=list(home) if home is not None else None,
         )
         Step.objects.bulk_create(
             Step(mission=mission, index=s["index"], command=s["command"], params=s["params"])
@@ -320,8 +329,13 @@ class Started:
     select_ms: float
 
 
-def start_mission(mission: Mission, *, drone: Drone | None = None, user: Any = None) -> Started:
-    """Give every step to one drone (the chosen one, or the nearest available) and send."""
+def start_mission(
+    mission: Mission, *, drone: Drone | None = None, user: Any = None, confirmed: bool = False
+) -> Started:
+    """Give every step to one drone (the chosen one, or the nearest available) and send.
+
+    Steps beyond the envelope's defaults, flown from that drone, need `confirmed`.
+    """
     began = time.perf_counter()
     with transaction.atomic():
         mission = Mission.objects.select_for_update().get(pk=mission.pk)
@@ -341,8 +355,10 @@ def start_mission(mission: Mission, *, drone: Drone | None = None, user: Any = N
             drone = found[0]
             how = "nearest available"
         try:
-            envelopes.check_steps(drone, plain)
-        except envelopes.OutsideEnvelope as exc:
+            envelopes.check_steps(drone, plain, fence=mission.fence)
+            if not confirmed:
+                envelopes.confirm_steps(mission.organisation, plain, drone)
+        except envelopes.EnvelopeRefusal as exc:
             raise outside_envelope(exc) from None
         envelopes.forget_target(drone)
         assignment = Assignment.objects.create(
@@ -603,11 +619,18 @@ def _apply_mission_status(
         if assignment is not None and message.status == "rejected":
             _rejected(mission, drone, assignment, message.error)
         if message.status in ("paused", "resumed"):
-            # A drone held by its own page pauses the mission it flies: the mission
-            # page then offers Resume.
-            held = message.status == "paused"
-            Mission.objects.filter(pk=mission.pk, status=MissionStatus.RUNNING).update(held=held)
+            _held_reported(mission, drone, message.status == "paused")
     return None
+
+
+def _held_reported(mission: Mission, drone: Drone, held: bool) -> None:
+    """A drone says it holds (its own page's Hold, or a pause it obeyed) or flies on: only
+    its own assignment changes, never its companions'. The mission's Pause ends when
+    none of its drones holds any more."""
+    mission.assignments.filter(drone=drone, status__in=Assignment.ACTIVE).update(held=held)
+    flying = (Assignment.Status.SENT, Assignment.Status.ACCEPTED)
+    if not held and not mission.assignments.filter(status__in=flying, held=True).exists():
+        Mission.objects.filter(pk=mission.pk, held=True).update(held=False)
 
 
 def _move_assignment(assignment: Assignment, message: protocol.MissionProgress) -> None:

@@ -29,21 +29,26 @@ def _steps(mission: str) -> list:
     return data
 
 
-def start_from_control(*, drone: Drone, user: Any, mission: str) -> dict:
+def start_from_control(*, drone: Drone, user: Any, mission: str, confirmed: bool = False) -> dict:
+    """Create the chain's mission and start it on the drone; a refusal by the envelope
+    (or for want of a confirmation beyond its defaults) keeps its 409 and code."""
     try:
         created = create_mission(
             organisation=drone.organisation,
             name=f"Chain on {drone.drone_id}",
             steps=_steps(mission),
             user=user,
+            confirmed=confirmed,
         )
     except MissionError as exc:
+        if exc.code is not None:
+            raise CommandRefused(exc.status, exc.message, "mission", exc.code) from None
         raise CommandRefused(400, f"mission: {exc}", "mission") from None
     try:
-        started = start_mission(created, drone=drone, user=user)
+        started = start_mission(created, drone=drone, user=user, confirmed=confirmed)
     except MissionError as exc:
         created.delete()
-        raise CommandRefused(exc.status, exc.message, exc.field) from None
+        raise CommandRefused(exc.status, exc.message, exc.field, exc.code) from None
     return {
         "mission_id": str(started.mission.pk),
         "assignment_id": str(started.assignment.pk),

@@ -9,6 +9,7 @@ from django.http import FileResponse, Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, render
 from django.urls import reverse
 
+from fleet import envelopes
 from fleet.models import Role
 from fleet.permissions import require_role
 from onboard.protocol import STEP_COMMANDS
@@ -82,6 +83,8 @@ def mission_detail(request: HttpRequest, pk: str) -> HttpResponse:
                 missionApi=reverse("api:mission-detail", args=[mission.pk]),
                 logApi=reverse("api:mission-log", args=[mission.pk]),
                 socket=f"/ws/missions/{mission.pk}/",
+                fence=envelopes.envelope_body(mission.organisation).get("geoFence"),
+                reserve=settings.MISSIONS_BATTERY_RESERVE,
             ),
         },
     )
@@ -99,6 +102,9 @@ def planner(request: HttpRequest) -> HttpResponse:
             "planner_config": _map_config(
                 organisation,
                 coverageUrl=reverse("api:mission-coverage"),
+                surveyUrl=reverse("api:mission-survey"),
+                camerasUrl=reverse("api:mission-survey-cameras"),
+                dronesUrl=reverse("api:drone-list"),
                 createUrl=reverse("api:mission-list"),
                 checkUrl=reverse("api:mission-check-envelope"),
                 envelopeUrl=reverse("api:organisation-envelope", args=[organisation.slug]),

@@ -147,6 +147,9 @@ class UAVTalkReceiverSwitch:
     CHANNELS = 8
     # The channels come over the telemetry link itself, not a radio: full signal strength.
     RSSI = 65535
+    # The board's receiver group these channels arrive in: the driver checks on connect
+    # that the board reads its sticks from it (onboard.uavtalk.receiver_setup).
+    receiver_group = "UAVTalk"
 
     def __init__(self, fc: Any = None, *, rate_hz: float = 25.0, frames: Any = None) -> None:
         if frames is None:

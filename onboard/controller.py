@@ -12,15 +12,15 @@ from typing import Any
 
 from . import protocol
 from .fc.base import FlightController, FlightControllerError
-from .navigation import NavigationError, NavigationProcessor
+from .navigation import NavigationError, NavigationProcessor, current_ned
 
 log = logging.getLogger(__name__)
 
 # Called with (kind, details) for the logger: "command", "response", "arming".
 EventSink = Callable[[str, dict], None]
-# Called with (command, target kind, target NED, vehicle state, is a mission step): a
-# refusal sentence or None.
-Guard = Callable[[str, str, tuple, Any, bool], str | None]
+# Called with (command, target kind, target NED, vehicle state, is a mission step, where
+# the leg starts: the last target, else the position): a refusal sentence or None.
+Guard = Callable[[str, str, tuple, Any, bool, tuple | None], str | None]
 
 
 class CommandError(Exception):
@@ -127,9 +127,12 @@ class Controller:
         if not self.fc.state.armed:
             raise CommandError(f"The drone is not armed; arm it before {command}.")
         if self.guard is not None:  # the flight envelope, checked before the target is sent
-            planned = self.navigation.plan(command, params, self.fc.state)
             state = self.fc.state
-            refusal = self.guard(command, planned.kind, planned.ned, state, "mission_id" in context)
+            planned = self.navigation.plan(command, params, state)
+            last = self.navigation.last_target
+            start = last.ned if last is not None else current_ned(state)
+            in_mission = "mission_id" in context
+            refusal = self.guard(command, planned.kind, planned.ned, state, in_mission, start)
             if refusal is not None:
                 raise CommandError(refusal)
         target = self.navigation.execute(command, params)

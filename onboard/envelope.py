@@ -12,12 +12,13 @@ same local frame. Standard library only: the ground imports this module too.
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import math
 import os
 import threading
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -110,10 +111,14 @@ class Move:
 
 @dataclass(frozen=True)
 class Violation:
-    """A refused move: which limit (`max_height`, `geofence`, ...) and a sentence naming it."""
+    """A refused move: which limit (`max_height`, `geofence`, ...) and a sentence naming it.
+
+    `leg` is the straight leg (from, to) as (lat, lon) when the leg, not its end, is refused.
+    """
 
     limit: str
     message: str
+    leg: tuple[LatLon, LatLon] | None = None
 
 
 # -- parsing ------------------------------------------------------------------------------
@@ -319,6 +324,157 @@ def fence_breach(envelope: Envelope, point: LatLon) -> str | None:
     return None
 
 
+# -- legs ---------------------------------------------------------------------------------
+# A leg is the straight line the drone flies between two targets, in the local frame
+# about home. The fence's borders cut it into pieces; each piece is wholly inside or
+# outside a zone, so testing its midpoint with the point rules decides it.
+
+NE = tuple[float, float]
+# Legs shorter than this (horizontally) are vertical: the point check covers them.
+MIN_LEG = 1e-3
+
+
+def _edge_crossing(a: NE, b: NE, p: NE, q: NE) -> float | None:
+    """Where along a→b (0..1) it meets the edge p→q, or None."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    ex, ey = q[0] - p[0], q[1] - p[1]
+    denominator = dx * ey - dy * ex
+    if denominator == 0:
+        return None
+    t = ((p[0] - a[0]) * ey - (p[1] - a[1]) * ex) / denominator
+    u = ((p[0] - a[0]) * dy - (p[1] - a[1]) * dx) / denominator
+    return t if 0 < t < 1 and 0 <= u <= 1 else None
+
+
+def _circle_crossings(a: NE, b: NE, center: NE, radius: float) -> list[float]:
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    fx, fy = a[0] - center[0], a[1] - center[1]
+    qa, qb, qc = dx * dx + dy * dy, 2 * (fx * dx + fy * dy), fx * fx + fy * fy - radius * radius
+    discriminant = qb * qb - 4 * qa * qc
+    if discriminant <= 0:
+        return []
+    root = math.sqrt(discriminant)
+    return [t for t in ((-qb - root) / (2 * qa), (-qb + root) / (2 * qa)) if 0 < t < 1]
+
+
+@dataclass(frozen=True)
+class _LocalZone:
+    """A zone in the local frame about home: its ring (polygon) or centre and radius
+    (circle), and its bounding box (min north, min east, max north, max east)."""
+
+    ring: tuple[NE, ...]
+    center: NE
+    radius: float
+    box: tuple[float, float, float, float]
+
+
+@functools.lru_cache(maxsize=1024)
+def _local_zone(zone: Polygon | Circle, home: LatLon) -> _LocalZone:
+    if isinstance(zone, Circle):
+        c = latlon_to_ne(*zone.center, home)
+        r = zone.radius
+        return _LocalZone((), c, r, (c[0] - r, c[1] - r, c[0] + r, c[1] + r))
+    ring = tuple(_to_local(zone.points, home))
+    norths, easts = [p[0] for p in ring], [p[1] for p in ring]
+    return _LocalZone(ring, (0.0, 0.0), 0.0, (min(norths), min(easts), max(norths), max(easts)))
+
+
+def _near(zone: _LocalZone, a: NE, b: NE) -> bool:
+    """The leg's bounding box meets the zone's: else no part of the leg is in the zone."""
+    n0, e0, n1, e1 = zone.box
+    return not (
+        max(a[0], b[0]) < n0 or min(a[0], b[0]) > n1 or max(a[1], b[1]) < e0 or min(a[1], b[1]) > e1
+    )
+
+
+def _borders(zone: _LocalZone, a: NE, b: NE) -> list[float]:
+    if not zone.ring:
+        return _circle_crossings(a, b, zone.center, zone.radius)
+    ring = list(zone.ring)
+    found = (_edge_crossing(a, b, p, q) for p, q in zip(ring, ring[1:] + ring[:1], strict=True))
+    return [t for t in found if t is not None]
+
+
+def _inside(zone: _LocalZone, point: NE) -> bool:
+    """The point rules (_inside_circle, _inside_polygon) in the local frame about home."""
+    n, e = point
+    if not zone.ring:
+        return math.hypot(n - zone.center[0], e - zone.center[1]) <= zone.radius
+    inside = False
+    ring = zone.ring
+    for (n1, e1), (n2, e2) in zip(ring, ring[1:] + ring[:1], strict=True):
+        if (e1 > e) != (e2 > e) and n < n1 + (n2 - n1) * (e - e1) / (e2 - e1):
+            inside = not inside
+    return inside
+
+
+def _pieces(zones: Sequence[_LocalZone], a: NE, b: NE) -> list[NE]:
+    """The midpoint of every piece the zones' borders cut the leg a→b into; none when no
+    border crosses it (the whole leg is then on the same side as its start)."""
+    crossings = {t for zone in zones for t in _borders(zone, a, b)}
+    if not crossings:
+        return []
+    cuts = sorted({0.0, 1.0, *crossings})
+    middles = ((t0 + t1) / 2 for t0, t1 in zip(cuts, cuts[1:], strict=False))
+    return [(a[0] + m * (b[0] - a[0]), a[1] + m * (b[1] - a[1])) for m in middles]
+
+
+def leg_breach(envelope: Envelope, home: Sequence[float], start: NED, end: NED) -> str | None:
+    """Why the straight leg start→end leaves the inclusion zones or crosses an exclusion
+    zone, or None.
+
+    A zone the leg starts in the wrong side of is not held against it: a drone put outside
+    (a fence drawn around it, wind) must be able to fly back; its end is checked anyway.
+    """
+    a, b = (start[0], start[1]), (end[0], end[1])
+    if math.hypot(b[0] - a[0], b[1] - a[1]) < MIN_LEG:
+        return None
+    origin = _ll(home)
+    inclusions = [
+        local
+        for zone in (*envelope.polygons, *envelope.circles)
+        if zone.inclusion and _near(local := _local_zone(zone, origin), a, b)
+    ]
+    if any(_inside(zone, a) for zone in inclusions):
+        for point in _pieces(inclusions, a, b):
+            if not any(_inside(zone, point) for zone in inclusions):
+                return "leaves the geofence's inclusion zones"
+    for kind, group in (("polygon", envelope.polygons), ("circle", envelope.circles)):
+        for index, zone in enumerate(group):
+            local = _local_zone(zone, origin)
+            if zone.inclusion or not _near(local, a, b) or _inside(local, a):
+                continue
+            if any(_inside(local, point) for point in _pieces([local], a, b)):
+                return f"crosses the geofence's exclusion {kind} {index}"
+    return None
+
+
+def local_fence_breach(envelope: Envelope, home: Sequence[float], point: NE) -> str | None:
+    """fence_breach for a point given in metres from home: the zones are taken in the
+    local frame about home once (cached), as the legs are."""
+    origin = _ll(home)
+    zones = [(z, _local_zone(z, origin)) for z in (*envelope.polygons, *envelope.circles)]
+    inclusions = [local for zone, local in zones if zone.inclusion]
+    if inclusions and not any(_near(z, point, point) and _inside(z, point) for z in inclusions):
+        return "outside the geofence's inclusion zones"
+    for kind, group in (("polygon", envelope.polygons), ("circle", envelope.circles)):
+        for index, zone in enumerate(group):
+            local = _local_zone(zone, origin)
+            if not zone.inclusion and _near(local, point, point) and _inside(local, point):
+                return f"inside the geofence's exclusion {kind} {index}"
+    return None
+
+
+def _leg_violation(
+    envelope: Envelope, home: Sequence[float], start: NED, target: Move
+) -> Violation | None:
+    breach = leg_breach(envelope, home, start, target.ned)
+    if breach is None:
+        return None
+    leg = (ned_to_latlon(start[0], start[1], home), ned_to_latlon(*target.ned[:2], home))
+    return Violation("geofence", f"The straight leg to the target {breach}.", leg)
+
+
 # -- the check ----------------------------------------------------------------------------
 
 
@@ -332,10 +488,12 @@ def check(
     target: Move,
     airborne: bool,
     battery: float | None,
+    start: NED | None = None,
 ) -> Violation | None:
     """The first limit `target` breaks, as a sentence naming it, or None.
 
-    `home` is (lat, lon) of the drone's home; `battery` the remaining charge in percent.
+    `home` is (lat, lon) of the drone's home; `battery` the remaining charge in percent;
+    `start` where the drone flies the leg from (its current target), when known.
     Landing is always allowed: refusing it could only keep the drone in the air.
     """
     if target.kind == "land":
@@ -367,9 +525,11 @@ def check(
             f"{envelope.min_move_height:g} m above home; the target is at {height:.1f} m.",
         )
     if home is not None:
-        breach = fence_breach(envelope, ned_to_latlon(north, east, home))
+        breach = local_fence_breach(envelope, home, (north, east))
         if breach is not None:
             return Violation("geofence", f"The target is {breach}.")
+        if start is not None and target.kind == "goto":
+            return _leg_violation(envelope, home, start, target)
     return None
 
 
@@ -416,6 +576,25 @@ class StepViolation:
     violation: Violation
 
 
+def _walk(
+    home: Sequence[float] | None,
+    steps: Sequence[Mapping[str, Any]],
+    start: NED | None,
+    airborne: bool,
+) -> Iterator[tuple[int, Move, NED | None, bool]]:
+    """Each moving step of a mission flown from `start`: (index, move, the leg's start,
+    airborne before it). Refused steps are walked as if flown."""
+    target = start
+    for index, step in enumerate(steps):
+        move = resolve(step["command"], step.get("params") or {}, target, target, home)
+        if move is None:
+            continue
+        yield index, move, target, airborne
+        target = move.ned
+        # Only a takeoff lifts a drone off and only a land puts it down; a move does not.
+        airborne = {"takeoff": True, "land": False}.get(move.kind, airborne)
+
+
 def step_violations(
     envelope: Envelope,
     home: Sequence[float] | None,
@@ -424,23 +603,55 @@ def step_violations(
     airborne: bool,
     battery: float | None,
 ) -> list[StepViolation]:
-    """Walk a mission's steps from `start`: every step whose move breaks the envelope.
+    """Walk a mission's steps from `start`: every step whose move (or leg) breaks the
+    envelope.
 
     The walk goes on past a refused step as if it had been flown, so a planner can mark
     every offending step at once.
     """
     found = []
-    target = start
-    for index, step in enumerate(steps):
-        move = resolve(step["command"], step.get("params") or {}, target, target, home)
-        if move is None:
-            continue
-        violation = check(envelope, home, move, airborne, battery)
+    for index, move, leg_start, flying in _walk(home, steps, start, airborne):
+        violation = check(envelope, home, move, flying, battery, leg_start)
         if violation is not None:
             found.append(StepViolation(index, violation))
-        target = move.ned
-        # Only a takeoff lifts a drone off and only a land puts it down; a move does not.
-        airborne = {"takeoff": True, "land": False}.get(move.kind, airborne)
+    return found
+
+
+def beyond_defaults(target: Move) -> Violation | None:
+    """The default limit a move goes beyond, or None.
+
+    An organisation may raise its limits above the defaults (DEFAULT_MAX_HEIGHT,
+    DEFAULT_MAX_DISTANCE); a move beyond them is then allowed, but only once an operator
+    has confirmed it. Landing never needs a confirmation.
+    """
+    if target.kind == "land":
+        return None
+    north, east, down = target.ned
+    height, distance = -down, math.hypot(north, east)
+    if height > DEFAULT_MAX_HEIGHT:
+        return Violation(
+            "max_height",
+            f"The target is {height:.1f} m above home, above the default maximum height "
+            f"of {DEFAULT_MAX_HEIGHT:g} m; confirm to fly beyond the defaults.",
+        )
+    if distance > DEFAULT_MAX_DISTANCE:
+        return Violation(
+            "max_distance",
+            f"The target is {distance:.0f} m from home, beyond the default maximum "
+            f"distance of {DEFAULT_MAX_DISTANCE:g} m; confirm to fly beyond the defaults.",
+        )
+    return None
+
+
+def steps_beyond_defaults(
+    home: Sequence[float] | None, steps: Sequence[Mapping[str, Any]], start: NED | None
+) -> list[StepViolation]:
+    """Every step of a mission flown from `start` whose move goes beyond the defaults."""
+    found = []
+    for index, move, _, _ in _walk(home, steps, start, False):
+        beyond = beyond_defaults(move)
+        if beyond is not None:
+            found.append(StepViolation(index, beyond))
     return found
 
 
@@ -496,9 +707,15 @@ class EnvelopeGuard:
         return envelope
 
     def refusal(
-        self, command: str, kind: str, ned: NED, state: Any, in_mission: bool = False
+        self,
+        command: str,
+        kind: str,
+        ned: NED,
+        state: Any,
+        in_mission: bool = False,
+        start: NED | None = None,
     ) -> str | None:
-        """Why the drone refuses to fly to `ned` for `command`, or None.
+        """Why the drone refuses to fly to `ned` for `command` (the leg from `start`), or None.
 
         The battery reserve is checked on control commands, not on the steps of a mission
         already flying: there the fail-safe's battery alarm decides, and the ground hands
@@ -507,7 +724,7 @@ class EnvelopeGuard:
         home = None if state.home is None else state.home[:2]
         move = Move(kind, ned, command in HORIZONTAL_COMMANDS)
         battery = None if in_mission else _percent(state)
-        violation = check(self.envelope, home, move, state.airborne, battery)
+        violation = check(self.envelope, home, move, state.airborne, battery, start)
         return None if violation is None else f"Outside the flight envelope: {violation.message}"
 
     def breach(self, ned: NED | None, state: Any) -> Violation | None:

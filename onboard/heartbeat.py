@@ -72,6 +72,7 @@ def build_heartbeat(
         mission=mission,
         fc_protocol=state.protocol,
         fc_connected=state.connected,
+        fc_setup=state.setup,
     )
 
 

@@ -3,8 +3,10 @@
 For links too weak for step-by-step control, the flying steps of a mission (take-off,
 navigate, changeN/changeE/altitude, wait_for_flight, sleep, land) are turned into
 MISSION_ITEM_INTs, uploaded with the mission protocol (MISSION_COUNT → MISSION_REQUEST_INT
-→ MISSION_ITEM_INT … → MISSION_ACK) and flown in AUTO; MISSION_ITEM_REACHED marks each
-step completed, so the ground sees the same step progress as for a step-by-step mission.
+→ MISSION_ITEM_INT … → MISSION_ACK) and flown in AUTO (PX4: AUTO.MISSION) after
+MAV_CMD_MISSION_START; MISSION_ITEM_REACHED marks each step completed, so the ground sees
+the same step progress as for a step-by-step mission. ArduPilot keeps home in item 0 and
+flies from item 1, so its uploads carry a home item first; PX4's start at item 0.
 Steps the autopilot cannot do (arm, takepic, sense, virtualalarm, ...) still run in the
 agent between native runs, exactly as the ordinary Mission Worker runs them.
 
@@ -108,8 +110,9 @@ def plan_native_run(
     for step in steps:
         command, params = step.command, step.params
         if command == "takeoff":
+            # Where it stands: PX4 reads a take-off item's position, ArduCopter ignores it.
             down = -params["altitude"]
-            items.append(MissionItem(mavlink.MAV_CMD_NAV_TAKEOFF, z=-down))
+            items.append(waypoint(mavlink.MAV_CMD_NAV_TAKEOFF))
         elif command == "changeN":
             north += params["value"]
             items.append(waypoint(mavlink.MAV_CMD_NAV_WAYPOINT))
@@ -171,10 +174,29 @@ class MissionUploader:
         self.retries = retries
         self.stats = {"uploads": 0, "items_sent": 0, "resends": 0, "failures": 0}
 
+    @property
+    def first_seq(self) -> int:
+        """Where the uploaded items start: ArduPilot keeps home in item 0, PX4 does not."""
+        return 0 if self.fc.is_px4 else 1
+
+    def _home_item(self) -> MissionItem:
+        # ArduPilot overwrites item 0 with its home; send the home it has, as QGC does.
+        lat, lon, alt = self.fc.state.home or (0.0, 0.0, 0.0)
+        return MissionItem(
+            mavlink.MAV_CMD_NAV_WAYPOINT,
+            frame=mavlink.MAV_FRAME_GLOBAL,
+            x=round(lat * 1e7),
+            y=round(lon * 1e7),
+            z=alt,
+        )
+
     def upload(self, items: list[MissionItem]) -> None:
         """MISSION_COUNT, one MISSION_ITEM_INT per request, until MISSION_ACK; raise
-        MissionUploadError naming the MAV_MISSION_RESULT on refusal, or on silence."""
+        MissionUploadError naming the MAV_MISSION_RESULT on refusal, or on silence.
+        On ArduPilot a home item goes first, so `items` start at `first_seq`."""
         fc = self.fc
+        if self.first_seq:
+            items = [self._home_item(), *items]
         done = threading.Event()
         progress = threading.Event()
         outcome: dict[str, int] = {}
@@ -290,7 +312,7 @@ class MissionUploader:
                 lambda: fc.send("mission_request_list", fc.target_system, fc.target_component, 0),
             ).count
             items = []
-            for seq in range(count):
+            for seq in range(self.first_seq, count):
                 msg = wait_for(
                     "MISSION_ITEM_INT",
                     seq,
@@ -381,7 +403,10 @@ class NativeMissionWorker(MissionWorker):
             follower = ProgressFollower()
             self.mav_fc.add_message_handler(follower)
             try:
-                self.mav_fc.command_long(mavlink.MAV_CMD_MISSION_START, 0, len(plan.items) - 1)
+                first = self.uploader.first_seq
+                self.mav_fc.command_long(
+                    mavlink.MAV_CMD_MISSION_START, first, first + len(plan.items) - 1
+                )
                 self._follow(mission, run, plan, follower, started)
             finally:
                 self.mav_fc.remove_message_handler(follower)
@@ -438,6 +463,7 @@ class NativeMissionWorker(MissionWorker):
                     ) from None
                 continue
             last_progress = time.monotonic()
+            seq -= self.uploader.first_seq  # the autopilot's numbering → the plan's
             while position < len(run) and plan.completes_at[position] <= seq:
                 step = run[position]
                 self._record_step(

@@ -10,6 +10,7 @@ progress piles up in the agent's outbox.
 from __future__ import annotations
 
 import logging
+import math
 import queue
 import threading
 import time
@@ -20,11 +21,14 @@ from typing import Any
 from . import protocol
 from .controller import CommandError, Controller
 from .fc.base import FlightController, VehicleState
-from .navigation import NavigationProcessor, current_ned, inside_cylinder
+from .navigation import NED, NavigationProcessor, current_ned, inside_cylinder
 
 log = logging.getLogger(__name__)
 
 Publish = Callable[[Any], None]
+# Flight seconds between two targets of a paced leg (each is one write to the flight
+# controller).
+PACE_INTERVAL_S = 0.2
 # (level, message, sensor, value) → raise an alarm with the current mission context.
 RaiseAlarm = Callable[..., None]
 EventSink = Callable[[str, dict], None]
@@ -62,6 +66,52 @@ class RunningMission:
     saved_target: Any = None
     # When each step was first started (monotonic), so a re-flown step is announced once.
     started: dict[int, float] = field(default_factory=dict)
+    # The paced leg being flown (a navigate step with a speed), and whether the mission
+    # has the drone facing a region of interest, undone when it ends.
+    leg: PacedLeg | None = None
+    roi_set: bool = False
+
+
+@dataclass
+class PacedLeg:
+    """A leg flown at a set speed: the agent moves the target along the straight line
+    from `start` to `end` at `speed` (m/s, flight time), so any flight controller flies
+    it at that pace. The envelope checked the leg's end; every point fed lies on the leg."""
+
+    start: NED
+    end: NED
+    speed: float
+    flown_s: float = 0.0  # flight seconds since the leg began
+
+    @property
+    def length(self) -> float:
+        return math.dist(self.start, self.end)
+
+    def advance(self, flight_seconds: float) -> NED:
+        """Where the target is after another `flight_seconds` of the leg."""
+        self.flown_s += flight_seconds
+        length = self.length
+        if length <= 0 or self.flown_s * self.speed >= length:
+            return self.end
+        share = self.flown_s * self.speed / length
+        return tuple(a + (b - a) * share for a, b in zip(self.start, self.end, strict=True))  # type: ignore[return-value]
+
+    @property
+    def done(self) -> bool:
+        return self.flown_s * self.speed >= self.length
+
+
+def unsupported_step(payload: protocol.MissionPayload, fc: FlightController) -> str | None:
+    """Why this drone cannot fly the mission (a step asks for what its flight controller
+    cannot do), or None. Checked when the mission arrives, so it is refused whole."""
+    for step in payload.steps:
+        if step.command == "navigate" and "roi" in step.params and not hasattr(fc, "point_at"):
+            protocol_name = getattr(fc, "protocol", "this")
+            return (
+                f"Step {step.index} (navigate) asks the drone to face a region of interest, "
+                f"which the {protocol_name} flight controller driver cannot do."
+            )
+    return None
 
 
 def position_of(state: VehicleState) -> protocol.Position | None:
@@ -205,6 +255,10 @@ class MissionWorker:
             payload, decode_ms = decode_mission(start)
         except protocol.ProtocolError as exc:
             self._mission_status(protocol.mission_reply(start, "rejected", error=str(exc)))
+            return
+        refusal = unsupported_step(payload, self.fc)
+        if refusal is not None:
+            self._mission_status(protocol.mission_reply(start, "rejected", error=refusal))
             return
         self.events(
             "mission",
@@ -365,6 +419,13 @@ class MissionWorker:
         # Drain what is left so a stopped mission never runs another step.
         while not mission.steps.empty():
             mission.steps.get_nowait()
+        if mission.roi_set:
+            try:
+                self.fc.point_at(None)  # type: ignore[attr-defined]
+            except Exception:
+                log.exception("the region of interest of %s was not cleared", payload.mission_id)
+            mission.roi_set = False
+        mission.leg = None
         self.events("mission", {"event": status, "mission_id": payload.mission_id, "error": error})
         self._mission_status(
             protocol.MissionProgress(
@@ -455,7 +516,7 @@ class MissionWorker:
             "index": step.index,
         }
         if step.command == "wait_for_flight":
-            return self._wait_for_flight(mission, **step.params)
+            return self._wait_for_flight(mission, **step.params, context=context)
         if step.command == "sleep":
             self._wait(mission, step.params["value"] / self.time_scale)
             return {}
@@ -466,7 +527,29 @@ class MissionWorker:
             return {"level": step.params["level"]}
         if step.command == "sense":
             return self._sense(step.params["sensor"], context)
+        if step.command == "navigate":
+            return self._navigate(mission, step.params, context)
         return self.controller.execute(step.command, step.params, context=context)
+
+    def _navigate(self, mission: RunningMission, params: dict, context: dict) -> dict:
+        """A mission leg: face its region of interest (or stop facing one), then fly to
+        the target, paced at the leg's speed when it has one."""
+        roi = params.get("roi")
+        if roi is not None or mission.roi_set:
+            self.fc.point_at(tuple(roi) if roi is not None else None)  # type: ignore[attr-defined]
+            mission.roi_set = roi is not None
+        start = self.navigation.last_target
+        here = start.ned if start is not None else current_ned(self.fc.state)
+        move = {k: v for k, v in params.items() if k not in ("speed", "roi")}
+        result = self.controller.execute("navigate", move, context=context)
+        mission.leg = None
+        speed = params.get("speed")
+        if speed is not None and here is not None:
+            end = self.navigation.last_target
+            assert end is not None
+            mission.leg = PacedLeg(here, end.ned, speed)
+            self.navigation.hold_at(here)
+        return result
 
     def _sense(self, sensor: str, context: dict) -> dict:
         if self.gear is None:
@@ -479,30 +562,50 @@ class MissionWorker:
         return {"sensor": sensor, "reading": reading}
 
     def _wait_for_flight(
-        self, mission: RunningMission, *, horizontal_tolerance: float, vertical_tolerance: float
+        self,
+        mission: RunningMission,
+        *,
+        horizontal_tolerance: float,
+        vertical_tolerance: float,
+        photo_distance: float | None = None,
+        context: dict | None = None,
     ) -> dict:
+        leg = mission.leg
         target = self.navigation.last_target
         if target is None:
             raise StepFailed("No position has been requested yet, so there is nothing to reach.")
+        goal = leg.end if leg is not None else target.ned
+        camera = _DistanceCamera(photo_distance, current_ned(self.fc.state))
         deadline = time.monotonic() + self.flight_timeout / self.time_scale
+        last = time.monotonic()
+        pace = max(self.poll_interval, PACE_INTERVAL_S / self.time_scale)
         while True:
             state = self.fc.state
             actual = current_ned(state)
+            now = time.monotonic()
+            if leg is not None and not leg.done and now - last >= pace:
+                self.navigation.hold_at(leg.advance((now - last) * self.time_scale))
+                last = now
+            if camera.due(actual):
+                self.controller.execute("takepic", {}, context=context)
             # A landing is reached on the ground, not 2 m above it: the next step is
             # usually disarm, which is refused while airborne.
             landed = target.kind != "land" or not state.airborne
             if (
                 actual is not None
                 and landed
+                and (leg is None or leg.done)
                 and inside_cylinder(
                     actual,
-                    target.ned,
+                    goal,
                     horizontal_tolerance=horizontal_tolerance,
                     vertical_tolerance=vertical_tolerance,
                 )
             ):
-                return {"target": dict(zip(("north", "east", "down"), target.ned, strict=True))}
-            if time.monotonic() > deadline:
+                mission.leg = None
+                result = {"target": dict(zip(("north", "east", "down"), goal, strict=True))}
+                return result | ({"pictures": camera.taken} if photo_distance else {})
+            if now > deadline:
                 raise StepFailed(
                     f"The drone did not reach the target within {self.flight_timeout:g} s."
                 )
@@ -546,3 +649,29 @@ class MissionWorker:
                 error=error,
             )
         )
+
+
+class _DistanceCamera:
+    """Pictures every `distance` metres flown (None: never), the first `distance` from
+    where the wait began. Positions arrive in steps (about 1 Hz over UAVTalk): each next
+    spot is counted from where the last picture was due, not where it was taken, so a late
+    position does not push every later picture back."""
+
+    def __init__(self, distance: float | None, start: NED | None) -> None:
+        self.distance = distance
+        self.last = start
+        self.taken = 0
+
+    def due(self, here: NED | None) -> bool:
+        if self.distance is None or here is None:
+            return False
+        if self.last is None:
+            self.last = here
+            return False
+        gap = math.dist(self.last[:2], here[:2])
+        if gap < self.distance:
+            return False
+        share = self.distance / gap
+        self.last = tuple(a + (b - a) * share for a, b in zip(self.last, here, strict=True))  # type: ignore[assignment]
+        self.taken += 1
+        return True

@@ -443,11 +443,14 @@ def validate_command(
         params = {}
     elif not isinstance(params, dict):
         raise ProtocolError(prefix + "params", f"must be a JSON object, got {_type_name(params)}")
-    if not prefix:
-        return _PARAMS[command](params, "params.")
     try:
-        return _PARAMS[command](params, "params.")
+        result = _PARAMS[command](params, "params.")
+        if mission and command in _STEP_EXTRAS:
+            result.update(_STEP_EXTRAS[command](params, "params."))
+        return result
     except ProtocolError as exc:
+        if not prefix:
+            raise
         raise ProtocolError(prefix + exc.field, exc.message) from None
 
 
@@ -838,6 +841,8 @@ class Heartbeat:
     fc_protocol: str
     fc_connected: bool
     type: str = "heartbeat"
+    # (optional) what to change on the flight controller before it can fly (sentences).
+    fc_setup: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         return {
@@ -850,7 +855,11 @@ class Heartbeat:
             "airborne": self.airborne,
             "flight_mode": self.flight_mode,
             "mission": None if self.mission is None else self.mission.to_dict(),
-            "fc": {"protocol": self.fc_protocol, "connected": self.fc_connected},
+            "fc": {
+                "protocol": self.fc_protocol,
+                "connected": self.fc_connected,
+                **({"setup": list(self.fc_setup)} if self.fc_setup else {}),
+            },
         }
 
 
@@ -892,7 +901,16 @@ def parse_heartbeat(obj: Any) -> Heartbeat:
         mission=_mission_ref(obj.get("mission")),
         fc_protocol=_string(fc.get("protocol") or "unknown", "fc.protocol"),
         fc_connected=_boolean(fc.get("connected", False), "fc.connected"),
+        fc_setup=_setup_list(fc.get("setup")),
     )
+
+
+def _setup_list(value: Any) -> tuple[str, ...]:
+    if value is None:
+        return ()
+    if not isinstance(value, list) or len(value) > 64:
+        raise ProtocolError("fc.setup", "must be a list of at most 64 sentences")
+    return tuple(_string(item, f"fc.setup[{i}]") for i, item in enumerate(value))
 
 
 @dataclass(frozen=True)
@@ -1320,3 +1338,34 @@ OPERATOR_COMMANDS = ("hold", "return")
 CONTROL_COMMANDS = (*CONTROL_COMMANDS, *OPERATOR_COMMANDS)
 _CONTROL_SET = frozenset(CONTROL_COMMANDS)
 _PARAMS.update({command: _no_params for command in OPERATOR_COMMANDS})
+
+
+# Optional step params (docs/protocol.md "Mission"): a mission leg's speed, the point the
+# drone faces while flying it, and pictures by distance while it flies. Only mission steps
+# carry them; a drone whose flight controller cannot do one refuses the whole mission.
+MAX_SPEED = 50.0  # m/s
+
+
+def _navigate_extras(params: dict, prefix: str) -> dict:
+    extras: dict = {}
+    if params.get("speed") is not None:
+        extras["speed"] = number(params["speed"], prefix + "speed", lo=0.1, hi=MAX_SPEED)
+    roi = params.get("roi")
+    if roi is not None:
+        if not isinstance(roi, list | tuple) or len(roi) != 2:
+            raise ProtocolError(prefix + "roi", "must be [lat, lon]")
+        extras["roi"] = [latitude(roi[0], prefix + "roi[0]"), longitude(roi[1], prefix + "roi[1]")]
+    return extras
+
+
+def _wait_extras(params: dict, prefix: str) -> dict:
+    distance = params.get("photo_distance")
+    if distance is None:
+        return {}
+    return {"photo_distance": number(distance, prefix + "photo_distance", lo=0.1, hi=1e4)}
+
+
+_STEP_EXTRAS: dict[str, Callable[[dict, str], dict]] = {
+    "navigate": _navigate_extras,
+    "wait_for_flight": _wait_extras,
+}

@@ -5,8 +5,8 @@ the process's name; each process's whole output goes to .data/run/logs/<name>.lo
 (scripts/runlog.py).
 
 Starts the project's services if they are not running, migrates, creates the demo account,
-then web (ASGI), the MQTT gateway, telemetry ingest, a Celery worker and beat, and
-optionally N simulated drones. Ctrl-C stops everything this script started, and nothing
+then web (ASGI), the MQTT gateway, telemetry ingest, one Celery worker per queue
+(safety, logs, default) and beat, and optionally N simulated drones. Ctrl-C stops everything this script started, and nothing
 else.
 """
 
@@ -39,6 +39,14 @@ from workers.ground import (  # noqa: E402
 PY = str(ROOT / ".venv" / "bin" / "python")
 COLOURS = ["36", "33", "35", "32", "34", "31", "96", "93"]
 WIDTH = 8  # the name column of the prefixed output
+# One Celery worker per queue (config/queues.py routes tasks; docs/scaling.md): safety
+# work never waits behind a log import, and a log that crashes its worker touches nothing
+# else. The names are the settings' defaults unless the environment gives others.
+WORKERS = [
+    ("safety", os.environ.get("SAFETY_TASK_QUEUE") or "safety", 2),
+    ("logs", os.environ.get("LOGS_IMPORT_QUEUE") or "logs", 1),
+    ("worker", os.environ.get("CELERY_TASK_DEFAULT_QUEUE") or "celery", 1),
+]
 
 
 def command_exists(name: str) -> bool:
@@ -114,8 +122,9 @@ def start_platform(run: Foreground, web_port: int, drones: int) -> None:
     if command_exists("ingest_telemetry"):
         run.start("ingest", with_python(ingest_argv()))
     run.start("pastview", with_python(pastview_argv()))
-    run.start("worker", with_python(worker_argv("worker@%h", loglevel="info", pool="prefork",
-                                                 concurrency=2)))  # fmt: skip
+    for name, queue, concurrency in WORKERS:
+        run.start(name, with_python(worker_argv(f"{name}@%h", queue=queue, loglevel="info",
+                                                pool="prefork", concurrency=concurrency)))  # fmt: skip
     run.start("beat", with_python(beat_argv(ROOT / ".data" / "run" / "celerybeat-schedule")))
     if drones > 0:
         if command_exists("run_simulated_drones"):

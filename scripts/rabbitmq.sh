@@ -11,9 +11,11 @@
 #
 # Everything lives in .data/<profile>/rabbitmq/<I>/ (or $DATA_DIR); profiles other than
 # `run` start empty when none of their nodes is running. Ports of node I:
-#   run:  MQTT ${MQTT_PORT:-1883}+I-1, AMQP 56720+I, management 15680+I, distribution 25680+I
+#   run:  MQTT ${MQTT_PORT:-1883}+I-1, AMQP 56720+I, management 15680+I, distribution 25680+I,
+#   epmd 25680
 #   other profiles: base ${RABBIT_PORT_BASE:-18900}: MQTT base+I, AMQP base+10+I,
-#   management base+20+I, distribution base+30+I
+#   management base+20+I, distribution base+30+I, epmd base+30
+# Every port, epmd's included, listens on 127.0.0.1 only.
 # so a test cluster never collides with `make run`. Nothing here touches a system RabbitMQ.
 set -euo pipefail
 
@@ -40,6 +42,9 @@ amqp_port() { if [ "$PROFILE" = run ]; then echo $(( 56720 + $1 )); else echo $(
 mgmt_port() { if [ "$PROFILE" = run ]; then echo $(( 15680 + $1 )); else echo $(( BASE + 20 + $1 )); fi; }
 dist_port() { if [ "$PROFILE" = run ]; then echo $(( 25680 + $1 )); else echo $(( BASE + 30 + $1 )); fi; }
 node_name() { echo "skyhive-$PROFILE-${BASE}-$1@localhost"; }
+# The profile's own epmd, on the port just below its nodes' distribution ports: a system
+# Erlang's epmd (all interfaces) is never used, and ours listens on loopback only.
+epmd_port() { dist_port 0; }
 
 secret() { # the same secrets services.sh keeps, so the ground's MQTT password is shared
   local file="$DATA/secrets/$1"
@@ -61,6 +66,12 @@ node_env() { # node_env I: the environment of node I's server and of rabbitmqctl
   export RABBITMQ_CONFIG_FILE="$dir/rabbitmq.conf" RABBITMQ_ENABLED_PLUGINS_FILE="$dir/enabled_plugins"
   export RABBITMQ_PID_FILE="$dir/pid"
   export RABBITMQ_DIST_PORT; RABBITMQ_DIST_PORT=$(dist_port "$i")
+  # Erlang distribution (node to node, and rabbitmqctl) and epmd on loopback only: the
+  # nodes of a local profile are all on this machine, and the port would otherwise accept
+  # anyone holding the cookie from any network.
+  export ERL_EPMD_ADDRESS=127.0.0.1 ERL_EPMD_PORT; ERL_EPMD_PORT=$(epmd_port)
+  export RABBITMQ_SERVER_ADDITIONAL_ERL_ARGS="-kernel inet_dist_use_interface {127,0,0,1}"
+  export RABBITMQ_CTL_ERL_ARGS="-kernel inet_dist_use_interface {127,0,0,1}"
 }
 
 ctl() { # ctl I ARGS...: rabbitmqctl against node I
@@ -90,6 +101,9 @@ log.console = false
 # A laptop's disk is never "full" for a few messages; the default 50 MB check is fine.
 vm_memory_high_watermark.relative = 0.3
 cluster_partition_handling = autoheal
+# No message larger than Mosquitto forwards (message_size_limit, 16 MiB). RabbitMQ 3.10's
+# MQTT plugin has no packet limit of its own; its publishes pass through this check.
+max_message_size = 16777216
 CONF
 }
 
@@ -216,7 +230,11 @@ case "$ACTION" in
         log "stopping node $i"
         ctl "$i" stop >/dev/null 2>&1 || kill "$(cat "$BASE_DIR/$i/pid")" 2>/dev/null || true
       fi
-    done ;;
+    done
+    # The profile's own epmd outlives its nodes; once they are gone it has nothing to do
+    # (it refuses to stop while a node is still registered).
+    for _ in $(seq 1 100); do any_node_running || break; sleep 0.1; done
+    ERL_EPMD_PORT=$(epmd_port) epmd -kill >/dev/null 2>&1 || true ;;
   status)
     for i in $(seq 1 "$(count_nodes)"); do
       if node_running "$i" && port_open "$(mqtt_port "$i")"; then echo "RabbitMQ node $i up on $(mqtt_port "$i")"

@@ -141,6 +141,47 @@ redis_stop() {
   rm -f "$dir/redis.pid"
 }
 
+# Mosquitto started as root drops to this user (Debian's `mosquitto`, else `nobody`).
+mosquitto_user() { if id -u mosquitto >/dev/null 2>&1; then echo mosquitto; else echo nobody; fi; }
+
+# An optional TLS listener: MQTT_TLS_PORT with MQTT_TLS_CERT and MQTT_TLS_KEY (PEM files),
+# on MQTT_TLS_BIND (every interface for `run`, loopback for `test`). The plain listener
+# stays on 127.0.0.1 for the ground's own processes.
+mosquitto_tls_config() {
+  local dir=$1
+  [ -n "${MQTT_TLS_PORT:-}" ] || return 0
+  if [ ! -r "${MQTT_TLS_CERT:-}" ] || [ ! -r "${MQTT_TLS_KEY:-}" ]; then
+    log "MQTT_TLS_PORT needs MQTT_TLS_CERT and MQTT_TLS_KEY (readable PEM files)"; return 1
+  fi
+  # Copies the broker's user may read, whoever owns the originals.
+  mkdir -p "$dir/tls"
+  cp "$MQTT_TLS_CERT" "$dir/tls/cert.pem"; cp "$MQTT_TLS_KEY" "$dir/tls/key.pem"
+  chmod 640 "$dir/tls/cert.pem" "$dir/tls/key.pem"
+  local bind=${MQTT_TLS_BIND:-$([ "$PROFILE" = test ] && echo 127.0.0.1 || echo 0.0.0.0)}
+  printf 'listener %s %s\ncertfile %s\nkeyfile %s\ntls_version tlsv1.2\n' \
+    "$MQTT_TLS_PORT" "$bind" "$dir/tls/cert.pem" "$dir/tls/key.pem"
+}
+
+# Root: the broker's files belong to its user, and files rewritten later (passwd and acl,
+# by provisioning, as root) stay readable by its group (setgid directory, mode 0640).
+mosquitto_own_files() {
+  local dir=$1 user; user=$(mosquitto_user)
+  [ "$(id -u)" = 0 ] || return 0
+  chown -R "$user:$(id -gn "$user")" "$dir"
+  # It must reach the directory: folders above it that it may not enter (/root is 0700)
+  # get the execute bit for others only, so nothing in them can be listed.
+  local parent; parent=$(cd "$dir" && pwd -P)
+  while [ "$parent" != / ]; do
+    parent=$(dirname "$parent")
+    if ! runuser -u "$user" -- test -x "$parent"; then
+      log "letting $user pass through $parent (chmod o+x) to reach $dir"
+      chmod o+x "$parent"
+    fi
+  done
+  chmod 2770 "$dir"
+  chmod 640 "$dir/passwd" "$dir/acl"
+}
+
 mosquitto_start() {
   local dir="$DATA/mosquitto"; mkdir -p "$dir"
   # The ground's own credentials; drone entries are added by `manage.py provision_drone`,
@@ -170,8 +211,11 @@ max_queued_messages 100000
 message_size_limit 16777216
 # Sessions of clients gone for good (a retired gateway instance) stop queueing.
 persistent_client_expiration 1d
-$([ "$(id -u)" = 0 ] && echo "user root")
+# Started as root, it runs as an unprivileged user once its ports are open.
+user $(mosquitto_user)
 CONF
+  mosquitto_tls_config "$dir" >>"$dir/mosquitto.conf"
+  mosquitto_own_files "$dir"
   if port_open "$MQTT_PORT"; then log "Mosquitto already up on $MQTT_PORT"; return 0; fi
   log "starting Mosquitto on 127.0.0.1:$MQTT_PORT"
   "$MOSQUITTO" -c "$dir/mosquitto.conf" -d

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The whole suite against the test profile's own services (never the ones `make run` uses).
 set -uo pipefail
+STARTED_AT=$(date +%s)
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 cd "$ROOT"
 PY=.venv/bin/python
@@ -30,8 +31,10 @@ if [ -f firmware/arming_switch/Makefile ]; then
 fi
 set +e
 echo "[test] pytest"
-$PY -m pytest "$@"
+# The slowest tests are listed at the end: where the suite's time goes.
+$PY -m pytest --durations=25 "$@"
 rc=$?
+echo "[test] the whole run took $(( $(date +%s) - STARTED_AT )) s"
 # pytest exit 5 means no tests ran: that is a failure for us.
 if [ $rc -eq 5 ]; then echo "[test] no tests ran"; exit 1; fi
 exit $rc

@@ -8,6 +8,7 @@ from typing import Any
 
 from django.contrib.auth.decorators import login_required
 from django.core.exceptions import PermissionDenied
+from django.core.paginator import Paginator
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, render
 from drf_spectacular.types import OpenApiTypes
@@ -16,6 +17,7 @@ from rest_framework.decorators import api_view
 from rest_framework.request import Request
 from rest_framework.response import Response
 
+from fleet import listing
 from fleet.models import Drone, Membership, Role
 from workers import operations
 from workers.ingest_status import drone_refusals
@@ -35,9 +37,16 @@ def _organisation_or_404(request: HttpRequest):  # type: ignore[no-untyped-def]
 
 @login_required
 def overview(request: HttpRequest) -> HttpResponse:
-    """Every drone of the organisation with its battery and link quality."""
+    """The organisation's drones with their battery and link quality, a page at a time,
+    searchable and filtered like the fleet table (fleet.listing)."""
     organisation = _organisation_or_404(request)
-    drones = list(Drone.objects.filter(organisation=organisation))
+    try:
+        query = listing.TableQuery.from_params(request.GET)
+    except listing.BadQuery:
+        query = listing.TableQuery()
+    matching = listing.matching(Drone.objects.filter(organisation=organisation), query)
+    page = Paginator(matching.order_by("drone_id"), query.page_size).get_page(query.page)
+    drones = list(page.object_list)
     latest = queries.latest_for_drones([d.pk for d in drones], OVERVIEW_OBJECTS)
     rows = []
     for drone in drones:
@@ -53,7 +62,22 @@ def overview(request: HttpRequest) -> HttpResponse:
                 "last": datetime.fromtimestamp(last, UTC) if last is not None else None,
             }
         )
-    return render(request, "telemetry/overview.html", {"rows": rows})
+    params = request.GET.copy()
+    params.pop("page", None)
+    context = {
+        "rows": rows,
+        "page": page,
+        "q": query.search,
+        "filters": [(n, n.replace("_", " "), n in query.filters) for n in listing.FILTERS],
+        "keep": params.urlencode(),
+        # The page's drones, live: their state and battery as their heartbeats arrive.
+        "overview_config": {
+            "socketPath": f"/ws/fleet/?org={organisation.slug}"
+            f"&drone={','.join(d.drone_id for d in drones)}",
+            "drones": [],
+        },
+    }
+    return render(request, "telemetry/overview.html", context)
 
 
 @login_required

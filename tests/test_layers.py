@@ -2,7 +2,9 @@
 
 onboard (installed alone on drones, no Django) <- workers (broker, counters, outbox,
 gateway, operations figures) <- fleet <- missions; telemetry, logs and pastview import
-fleet, workers and onboard. Every import statement counts, including ones inside
+fleet, workers and onboard; accounts imports fleet and workers, and nothing imports
+accounts but config (fleet reaches it through signals and settings); alerts listens to
+fleet and missions and reads accounts' recipients, and nothing imports alerts but config. Every import statement counts, including ones inside
 functions; a handler named by a dotted path string (workers/dispatch.py) is not an import.
 Migrations and tests are left out. No Django needed: the sources are parsed, not imported.
 
@@ -18,10 +20,20 @@ from pathlib import Path
 
 ROOT = Path(os.environ.get("SKYHIVE_LAYERS_ROOT") or Path(__file__).resolve().parents[1])
 
-DJANGO_APPS = ("fleet", "missions", "telemetry", "logs", "pastview", "workers", "tiles")
+DJANGO_APPS = (
+    "fleet",
+    "missions",
+    "telemetry",
+    "logs",
+    "pastview",
+    "workers",
+    "accounts",
+    "alerts",
+    "tiles",
+)
 PLAIN_PACKAGES = ("onboard", "firmware")
 PACKAGES = DJANGO_APPS + PLAIN_PACKAGES
-DOMAIN_APPS = ("fleet", "missions", "telemetry", "logs", "pastview")
+DOMAIN_APPS = ("fleet", "missions", "telemetry", "logs", "pastview", "accounts", "alerts")
 # Our own top-level packages that onboard must not import: it runs on drones without them.
 NOT_FOR_ONBOARD = (*DOMAIN_APPS, "workers", "config", "firmware", "tests")
 
@@ -138,3 +150,21 @@ def test_every_allowed_exception_is_still_needed() -> None:
     graph = import_graph()
     stale = [f"{a} -> {b}" for a, b in ALLOWED if b not in graph[a]]
     assert not stale, f"no longer imported, remove from ALLOWED: {', '.join(stale)}"
+
+
+def test_no_app_imports_accounts() -> None:
+    """Accounts sits on top of the domain apps: they send signals it listens to."""
+    graph = import_graph()
+    # alerts sits above accounts and reads the recipients its admins set.
+    importers = [app for app in PACKAGES if "accounts" in graph[app] and app != "alerts"]
+    assert not importers, "imports accounts:\n" + "\n".join(
+        _shown(graph, app, "accounts") for app in importers
+    )
+
+
+def test_nothing_but_config_imports_alerts() -> None:
+    graph = import_graph()
+    found = [package for package in PACKAGES if "alerts" in graph[package]]
+    assert not found, "alerts is imported by:\n" + "\n".join(
+        _shown(graph, package, "alerts") for package in found
+    )

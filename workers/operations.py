@@ -108,9 +108,10 @@ def ingest_figures() -> dict[str, Any]:
 
 def _celery_queue_names() -> list[str]:
     names = [getattr(settings, "CELERY_TASK_DEFAULT_QUEUE", "celery")]
-    logs_queue = getattr(settings, "LOGS_IMPORT_QUEUE", None)
-    if logs_queue and logs_queue not in names:
-        names.append(logs_queue)
+    for setting in ("SAFETY_TASK_QUEUE", "LOGS_IMPORT_QUEUE"):
+        queue = getattr(settings, setting, None)
+        if queue and queue not in names:
+            names.append(queue)
     return names
 
 

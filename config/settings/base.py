@@ -33,6 +33,7 @@ INSTALLED_APPS = [
 
 MIDDLEWARE = [
     "django.middleware.security.SecurityMiddleware",
+    "config.bodylimits.BodyLimitMiddleware",
     "whitenoise.middleware.WhiteNoiseMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",
     "django.middleware.common.CommonMiddleware",
@@ -129,8 +130,30 @@ MEDIA_URL = "/media/"
 
 # Uploads are streamed to disk (never held in memory) beyond this size.
 FILE_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
-DATA_UPLOAD_MAX_MEMORY_SIZE = 10 * 1024 * 1024
+# Form fields (not files) of one request: the largest non-file body any address takes
+# (a mission of MISSIONS_MAX_WAYPOINTS steps), and no more fields or files than a form has.
+DATA_UPLOAD_MAX_MEMORY_SIZE = 16 * 1024 * 1024
+DATA_UPLOAD_MAX_NUMBER_FIELDS = 1000
+DATA_UPLOAD_MAX_NUMBER_FILES = 10
 LOG_UPLOAD_MAX_BYTES = env.int("LOG_UPLOAD_MAX_BYTES", 2 * 1024**3)
+# Request bodies (config/bodylimits.py): HTTP 413 past these, before any view runs. The
+# first matching pattern wins; None leaves the limit to the endpoint itself.
+REQUEST_BODY_MAX_BYTES = env.int("REQUEST_BODY_MAX_BYTES", 1024 * 1024)
+REQUEST_BODY_LIMITS = [
+    # Flight logs stream to disk with their own limit (LOG_UPLOAD_MAX_BYTES, logs/asgi.py).
+    (r"^/api/v1/logs/$", None),
+    # A mission log to view (missions/logs.py reads up to 50 MiB) and its multipart framing.
+    (r"^/api/v1/missions/logs/check/$", 51 * 1024 * 1024),
+    # Missions with their steps, QGroundControl plans and envelope checks of a mission,
+    # up to MISSIONS_MAX_WAYPOINTS waypoints.
+    (r"^/api/v1/missions/", 16 * 1024 * 1024),
+    # An organisation's envelope: a geofence of a few thousand vertices.
+    (r"^/api/v1/organisations/[^/]+/envelope/", 2 * 1024 * 1024),
+    (r"^/organisation/envelope/$", 2 * 1024 * 1024),
+    # `/control` and a drone's commands: one command with its parameters.
+    (r"^/control$", 64 * 1024),
+    (r"^/api/v1/drones/[^/]+/commands/$", 64 * 1024),
+]
 
 REST_FRAMEWORK = {
     "DEFAULT_AUTHENTICATION_CLASSES": [
@@ -259,10 +282,17 @@ MQTT_SERVICE_USERS = env.list("MQTT_SERVICE_USERS", cast=str.strip, default=["gr
 # What provision_drone tells a drone to connect to (default: MQTT_URL's host and port).
 MQTT_PUBLIC_HOST = env.str("MQTT_PUBLIC_HOST", "")
 MQTT_PUBLIC_PORT = env.int("MQTT_PUBLIC_PORT", 0)
+# Drones are told mqtts:// URLs: MQTT_PUBLIC_PORT is then Mosquitto's TLS listener
+# (MQTT_TLS_PORT of scripts/services.sh).
+MQTT_PUBLIC_TLS = env.bool("MQTT_PUBLIC_TLS", False)
 
 # --- missions ---
 # Coverage requests above this many waypoints are refused, so one request cannot tie up a worker.
 MISSIONS_MAX_WAYPOINTS = env.int("MISSIONS_MAX_WAYPOINTS", 50_000)
+# Survey estimates: cruise speed between photos, and the flight time of a full battery for
+# a drone whose gear does not state its ENDURANCE_MIN.
+MISSIONS_SURVEY_SPEED_M_S = env.float("MISSIONS_SURVEY_SPEED_M_S", 5.0)
+MISSIONS_SURVEY_ENDURANCE_MIN = env.float("MISSIONS_SURVEY_ENDURANCE_MIN", 20.0)
 # A drone at or below this battery fraction is never chosen for a mission.
 MISSIONS_BATTERY_RESERVE = env.float("MISSIONS_BATTERY_RESERVE", 0.3)
 # Drones brought in by an OUT_MEASURE alarm: two, as in the collaborative-sensing
@@ -298,9 +328,9 @@ MISSION_START_STOP_HANDLERS = {
 # --- flight logs ---
 # Uploaded logs and their columnar stores, one folder per organisation and log.
 LOGS_DIR = env.str("LOGS_DIR", f"{DATA_DIR}/logs")
-# The Celery queue the import task goes to (a worker started with `-Q celery,logs` keeps
-# long imports away from the fleet's short periodic tasks when this is set to "logs").
-LOGS_IMPORT_QUEUE = env.str("LOGS_IMPORT_QUEUE", "celery")
+# The Celery queue the import task goes to, served by workers of its own (docs/scaling.md):
+# a 30-minute import never delays the fleet's work. Empty: the default queue.
+LOGS_IMPORT_QUEUE = env.str("LOGS_IMPORT_QUEUE", "logs")
 # ZIP archives (DFI): total uncompressed size and per-member compression ratio (ZIP bombs).
 LOGS_MAX_UNCOMPRESSED_BYTES = env.int("LOGS_MAX_UNCOMPRESSED_BYTES", 2 * 1024**3)
 LOGS_MAX_COMPRESSION_RATIO = env.float("LOGS_MAX_COMPRESSION_RATIO", 200.0)
@@ -316,6 +346,77 @@ INSTALLED_APPS += ["pastview"]  # app label "pastview"
 PASTVIEW_PUSH_HZ = env.float("PASTVIEW_PUSH_HZ", 30.0)
 PASTVIEW_TELEOP_HZ = env.float("PASTVIEW_TELEOP_HZ", 4.0)
 PASTVIEW_TELEOP_STEP_M = env.float("PASTVIEW_TELEOP_STEP_M", 0.5)
+
+# --- queues by urgency (config/queues.py routes; docs/scaling.md lists who serves them) ---
+# Work that keeps drones safe (replacing a failing drone, bringing in helpers, handling a
+# drone gone offline, relieving a panic station) has a queue and workers of its own, so
+# it never waits behind a log import or any other slow task. Empty: the default queue.
+SAFETY_TASK_QUEUE = env.str("SAFETY_TASK_QUEUE", "safety")
+SAFETY_TASKS = [
+    "missions.replace_drone",
+    "missions.collaborate",
+    "missions.replace_offline",
+    "missions.resume_paused",
+    "missions.relieve_panic_stations",
+    "fleet.sweep_offline",
+]
+CELERY_TASK_ROUTES = ["config.queues.route_task"]
+# Imports: a log whose import stopped its worker (a crash, the kernel's OOM killer) this
+# many times is marked failed instead of being delivered again.
+LOGS_IMPORT_REDELIVERY_LIMIT = env.int("LOGS_IMPORT_REDELIVERY_LIMIT", 3)
+# A running import shows it is alive this often; one silent for LOGS_STUCK_AFTER_S, or
+# queued LOGS_UNSTARTED_AFTER_S ago and never started (its message lost), is retried or
+# failed by the sweep, which runs every LOGS_SWEEP_INTERVAL_S.
+LOGS_HEARTBEAT_INTERVAL_S = env.float("LOGS_HEARTBEAT_INTERVAL_S", 10.0)
+LOGS_STUCK_AFTER_S = env.float("LOGS_STUCK_AFTER_S", 300.0)
+LOGS_UNSTARTED_AFTER_S = env.float("LOGS_UNSTARTED_AFTER_S", 3600.0)
+LOGS_SWEEP_INTERVAL_S = env.float("LOGS_SWEEP_INTERVAL_S", 60.0)
+CELERY_BEAT_SCHEDULE["logs.sweep_stuck"] = {
+    "task": "logs.sweep_stuck",
+    "schedule": LOGS_SWEEP_INTERVAL_S,
+    "options": {"expires": LOGS_SWEEP_INTERVAL_S},
+}
+# What parses an uploaded file into its store (path, store directory, limits=, progress=).
+LOGS_IMPORT_FUNCTION = env.str("LOGS_IMPORT_FUNCTION", "logs.store.import_to_store")
+# --- accounts ---
+INSTALLED_APPS += ["django_otp", "django_otp.plugins.otp_totp", "accounts"]
+# The token class first: its refusals answer 401 with `WWW-Authenticate: Token`.
+REST_FRAMEWORK["DEFAULT_AUTHENTICATION_CLASSES"] = [
+    "accounts.authentication.TokenAuthentication",
+    "accounts.authentication.SessionAuthentication",
+]
+# Personal API tokens: their default and longest life. DRF's older unnamed tokens are
+# accepted until API_TOKEN_DEFAULT_DAYS after they were made.
+API_TOKEN_DEFAULT_DAYS = env.int("API_TOKEN_DEFAULT_DAYS", 90)
+API_TOKEN_MAX_DAYS = env.int("API_TOKEN_MAX_DAYS", 365)
+# Invitation links expire this many days after they are sent.
+INVITATION_DAYS = env.int("INVITATION_DAYS", 7)
+# Outgoing mail (invitations, password resets): any SMTP server, from the environment.
+EMAIL_BACKEND = env.str("EMAIL_BACKEND", "django.core.mail.backends.smtp.EmailBackend")
+EMAIL_HOST = env.str("EMAIL_HOST", "localhost")
+EMAIL_PORT = env.int("EMAIL_PORT", 25)
+EMAIL_HOST_USER = env.str("EMAIL_HOST_USER", "")
+EMAIL_HOST_PASSWORD = env.str("EMAIL_HOST_PASSWORD", "")
+EMAIL_USE_TLS = env.bool("EMAIL_USE_TLS", False)
+EMAIL_USE_SSL = env.bool("EMAIL_USE_SSL", False)
+DEFAULT_FROM_EMAIL = env.str("DEFAULT_FROM_EMAIL", "skyhive@localhost")
+# The audit trail records the caller of the request being served (accounts/audit.py).
+MIDDLEWARE += ["accounts.audit.AuditContextMiddleware"]
+# Sign-in: the second factor's state on every page (a reminder to enrol when required).
+TEMPLATES[0]["OPTIONS"]["context_processors"].append("accounts.twofactor.context")
+OTP_TOTP_ISSUER = "Skyhive"
+# Sign-ins and failures are listed on each user's security page for this many days.
+SIGN_IN_HISTORY_DAYS = env.int("SIGN_IN_HISTORY_DAYS", 90)
+
+# --- alerts ---
+INSTALLED_APPS += ["alerts"]
+# Alerts raised in the last ALERT_RECENT_S are shown to a page that opens afterwards.
+ALERT_RECENT_S = env.int("ALERT_RECENT_S", 600)
+# Each e-mail or webhook delivery is tried up to this many times, waiting
+# ALERT_RETRY_BASE_S, then twice as long each time.
+ALERT_MAX_ATTEMPTS = env.int("ALERT_MAX_ATTEMPTS", 6)
+ALERT_RETRY_BASE_S = env.float("ALERT_RETRY_BASE_S", 30.0)
+ALERT_WEBHOOK_TIMEOUT_S = env.float("ALERT_WEBHOOK_TIMEOUT_S", 10.0)
 
 # --- map tiles (offline first) ---
 INSTALLED_APPS += ["tiles", "drf_spectacular_sidecar"]
@@ -339,3 +440,5 @@ SPECTACULAR_SETTINGS.update(
 # Teleoperation from the past view only while the drone's camera frames and tracked poses
 # are this fresh (the page offers it and the server accepts moves on the same rule).
 PASTVIEW_TELEOP_FRESH_S = env.float("PASTVIEW_TELEOP_FRESH_S", 3.0)
+# The admin's map-tile upload has its own limit (TILES_UPLOAD_MAX_BYTES, config/asgi.py).
+REQUEST_BODY_LIMITS.insert(0, (r"^/admin/tiles/tileset/add/$", None))

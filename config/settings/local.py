@@ -8,3 +8,5 @@ from .base import *  # noqa: E402,F403
 
 # Error pages with tracebacks while developing; DEBUG=false previews production's.
 DEBUG = env.bool("DEBUG", True)
+# Mail is printed by `make run` instead of sent (invitations, password resets).
+EMAIL_BACKEND = env.str("EMAIL_BACKEND", "django.core.mail.backends.console.EmailBackend")

@@ -15,6 +15,10 @@ os.environ.setdefault("TILES_DIR", str(BASE_DIR / ".data" / "test" / "tiles"))
 # set the production rates themselves.
 os.environ.setdefault("AUTH_TOKEN_RATE", "10000/min")
 os.environ.setdefault("LOGIN_RATE", "10000/min")
+# Each test that runs a worker gives it a queue of its own (shared Redis): safety work and
+# imports go to the default queue unless a test names theirs (tests/config/test_queues.py).
+os.environ.setdefault("SAFETY_TASK_QUEUE", "")
+os.environ.setdefault("LOGS_IMPORT_QUEUE", "")
 
 from .base import *  # noqa: E402,F403
 from .base import DATABASES  # noqa: E402
@@ -28,3 +32,5 @@ ALLOWED_HOSTS = ["*"]
 # A Celery worker started by a test must read the database pytest-django created.
 if env.str("TEST_WORKER_DB_NAME", ""):
     DATABASES["default"]["NAME"] = env.str("TEST_WORKER_DB_NAME")
+# Mail stays in memory (pytest-django's outbox; the live test server keeps its own).
+EMAIL_BACKEND = "django.core.mail.backends.locmem.EmailBackend"

@@ -44,6 +44,13 @@ def _param(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError("a parameter is NAME=NUMBER") from None
 
 
+def _setting(text: str) -> tuple[str, str]:
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError("a setting is FIELD[.ELEMENT]=VALUE")
+    return name.strip(), value.strip()
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m firmware.sim", description=__doc__)
     p.add_argument("--home", type=_home, default=(38.736946, -9.142685, 100.0), help="LAT,LON,ALT")
@@ -87,6 +94,15 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NAME=VALUE",
         help="mavlink parameter at boot, e.g. SIM_CMD_MUTE=400 or BATT_CRT_PCT=30 (repeatable)",
     )
+    p.add_argument(
+        "--receiver-setting",
+        type=_setting,
+        action="append",
+        default=[],
+        metavar="FIELD[.ELEMENT]=VALUE",
+        help="uavtalk: a ManualControlSettings value other than what arming through "
+        "UAVTalkReceiver needs, e.g. ChannelGroups.Throttle=PWM (repeatable)",
+    )
     p.add_argument("-v", "--verbose", action="store_true")
     return p
 
@@ -103,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         session = _session(args)
-    except UnknownParameter as exc:
+    except (UnknownParameter, KeyError, ValueError) as exc:
         print(exc, file=sys.stderr)
         return 2
     if args.fc == "mavlink" and args.tcp is None and not args.serial:
@@ -152,6 +168,7 @@ def _session(args: argparse.Namespace) -> BoardSession | MavlinkSession:
             time_scale=args.time_scale,
             arming_line=args.arming_line,
             link_timeout_s=args.link_timeout,
+            receiver_settings=dict(args.receiver_setting),
         )
     session = MavlinkSession(
         vehicle=vehicle,

@@ -16,8 +16,17 @@ UAVTalk personality; only the language differs:
 - SET_POSITION_TARGET_GLOBAL_INT / LOCAL_NED in GUIDED;
 - the mission protocol (upload and download, MISSION_ITEM_INT and legacy MISSION_ITEM),
   AUTO mode flying the items, MISSION_CURRENT and MISSION_ITEM_REACHED;
-- with `autopilot="px4"`: PX4's HEARTBEAT and main/sub modes, NAV_TAKEOFF from any mode
-  to an AMSL altitude, DO_REPOSITION into hold, setpoints ignored (no OFFBOARD);
+- each autopilot's preconditions, refused with its result and STATUSTEXT: ArduPilot's
+  take-off only armed in GUIDED, setpoints only in GUIDED, no arming in AUTO/RTL/LAND, AUTO
+  only with a mission (item 0 is home; armed on the ground it must start with a take-off);
+- with `autopilot="px4"`: PX4's HEARTBEAT and main/sub modes, default streams without
+  requests, NAV_TAKEOFF from any mode to an AMSL altitude (Takeoff mode, then Hold),
+  DO_REPOSITION into Hold, OFFBOARD only on a setpoint stream already running (> 2 Hz for
+  a second) and left for Hold when it stops for COM_OF_LOSS_T, AUTO.MISSION only with a
+  mission (MISSION_START arms);
+- both: position modes and arming in them need a GPS fix (SIM_GPS_DISABLE takes it away),
+  RTL climbs to RTL_ALT / RTL_RETURN_ALT, flies home, lands and disarms, AUTOPILOT_VERSION
+  and EXTENDED_SYS_STATE;
 - parameters (PARAM_SET/READ/LIST), including fault knobs in the style of SITL's SIM_*:
   SIM_CMD_MUTE (a command id never answered), SIM_JUNK_RATE (bad-CRC and unknown-id
   frames per second sent to the ground), SIM_MSGINT_OFF (answer SET_MESSAGE_INTERVAL as
@@ -52,20 +61,46 @@ UPLOAD_RETRIES = 6
 ACCEPTANCE_RADIUS_M = 1.0
 BOOT_TIME_S = 2.0
 MODE_NAMES = {number: name for name, number in COPTER_MODES.items()}
-FLYING_MODES = ("GUIDED", "AUTO", "LOITER", "RTL", "LAND", "BRAKE", "POSHOLD")
+FLYING_MODES = (
+    "GUIDED",
+    "AUTO",
+    "LOITER",
+    "RTL",
+    "LAND",
+    "BRAKE",
+    "POSHOLD",
+    "TAKEOFF",
+    "OFFBOARD",
+)
 NOT_ARMABLE = ("AUTO", "RTL", "LAND")
-# The PX4 flavour: internal (ArduCopter) mode ↔ PX4 (main mode, sub mode).
+# Modes that need a position estimate (a GPS fix) to be entered, on both autopilots.
+POSITION_MODES = ("GUIDED", "AUTO", "LOITER", "RTL", "BRAKE", "POSHOLD", "TAKEOFF", "OFFBOARD")
+# The PX4 flavour: internal mode ↔ PX4 (main mode, sub mode) in custom_mode bits 16-23/24-31.
 PX4_MODES = {
     "STABILIZE": (1, 0),  # MANUAL
+    "TAKEOFF": (4, 2),  # AUTO.TAKEOFF: climbs to MIS_TAKEOFF_ALT, then holds
     "GUIDED": (4, 3),  # AUTO.LOITER, hold: where DO_REPOSITION flies
     "AUTO": (4, 4),  # AUTO.MISSION
     "RTL": (4, 5),
     "LAND": (4, 6),
+    "OFFBOARD": (6, 0),  # follows the SET_POSITION_TARGET_* stream
 }
 PX4_TO_INTERNAL = {pair: name for name, pair in PX4_MODES.items()} | {
     (3, 0): "GUIDED",  # POSCTL holds position like hold does here
-    (4, 2): "GUIDED",  # AUTO.TAKEOFF
 }
+PX4_MODE_NAMES = {
+    "STABILIZE": "Manual",
+    "TAKEOFF": "Takeoff",
+    "GUIDED": "Hold",
+    "AUTO": "Mission",
+    "RTL": "Return",
+    "LAND": "Land",
+    "OFFBOARD": "Offboard",
+}
+# PX4 leaves OFFBOARD when no setpoint came for COM_OF_LOSS_T, and enters it only on a
+# stream faster than 2 Hz that has run for a second (wall clock: the link is real).
+OFFBOARD_MAX_GAP_S = 0.5
+OFFBOARD_WARMUP_S = 1.0
 STREAM_GROUPS = {
     mavlink.MAV_DATA_STREAM_RAW_SENSORS: ("HIGHRES_IMU", "GPS_RAW_INT"),
     mavlink.MAV_DATA_STREAM_EXTENDED_STATUS: ("SYS_STATUS", "BATTERY_STATUS", "MISSION_CURRENT"),
@@ -82,17 +117,48 @@ STREAMABLE = (
     "GPS_RAW_INT",
     "HOME_POSITION",
     "MISSION_CURRENT",
+    "EXTENDED_SYS_STATE",
+    "AUTOPILOT_VERSION",
 )
 STREAM_IDS = {getattr(mavlink, f"MAVLINK_MSG_ID_{name}"): name for name in STREAMABLE}
 DEFAULT_PARAMS = {
     "BATT_CRT_PCT": 15.0,
     "DISARM_DELAY": 2.0,
     "SIM_CMD_MUTE": 0.0,
+    "SIM_GPS_DISABLE": 0.0,
     "SIM_JUNK_RATE": 0.0,
     "SIM_MSGINT_OFF": 0.0,
     "SIM_LOSS_PCT": 0.0,
-    "WPNAV_SPEED": 1000.0,
 }
+# Each autopilot's own names for what the simulator models (their documented defaults).
+AUTOPILOT_PARAMS = {
+    "ardupilot": {"WPNAV_SPEED": 1000.0, "RTL_ALT": 1500.0},  # cm/s, cm
+    "px4": {"MIS_TAKEOFF_ALT": 2.5, "RTL_RETURN_ALT": 60.0, "COM_OF_LOSS_T": 1.0},  # m, m, s
+}
+# Streams PX4 sends on a link without being asked (Hz), as its "normal" MAVLink mode does.
+PX4_DEFAULT_RATES = {
+    "SYS_STATUS": 1.0,
+    "EXTENDED_SYS_STATE": 1.0,
+    "GLOBAL_POSITION_INT": 5.0,
+    "LOCAL_POSITION_NED": 1.0,
+    "ATTITUDE": 10.0,
+    "GPS_RAW_INT": 1.0,
+    "BATTERY_STATUS": 0.5,
+    "HOME_POSITION": 0.5,
+    "MISSION_CURRENT": 1.0,
+}
+# MAV_PROTOCOL_CAPABILITY bits both autopilots report in AUTOPILOT_VERSION.
+CAPABILITIES = (
+    mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+    | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+)
+# flight_sw_version: major, minor, patch, FIRMWARE_VERSION_TYPE_OFFICIAL.
+SOFTWARE_VERSIONS = {"ardupilot": (4, 5, 7, 255), "px4": (1, 15, 4, 255)}
 NAV_POSITION_ITEMS = (
     mavlink.MAV_CMD_NAV_WAYPOINT,
     mavlink.MAV_CMD_NAV_LOITER_TIME,
@@ -158,11 +224,19 @@ class MavlinkSession:
     stats: SimStats = field(default_factory=SimStats)
 
     def __post_init__(self) -> None:
+        if self.autopilot not in AUTOPILOT_PARAMS:
+            raise ValueError(f"unknown autopilot {self.autopilot!r}")
         self.codec = MavlinkCodec(SYSTEM_ID, COMPONENT_ID)
         self.decoder = self.codec  # the name serve()/__main__ log stats from
-        self.params = dict(DEFAULT_PARAMS)
+        self.params = DEFAULT_PARAMS | AUTOPILOT_PARAMS[self.autopilot]
         self.mode = "STABILIZE"
         self.intervals: dict[str, float] = {}  # message → simulated seconds between sends
+        self._default_streams()
+        # The setpoint stream (wall clock): when it last arrived and since when unbroken.
+        self.setpoint_at = -math.inf
+        self.setpoint_stream_since = -math.inf
+        self.rtl_phase = "climb"
+        self.takeoff_target = (0.0, 0.0, 0.0)  # north, east, altitude above home
         self.next_due: dict[str, float] = {}
         self.last_sent_wall: dict[str, float] = {}
         self.mission: list[MissionItem] = []
@@ -189,6 +263,16 @@ class MavlinkSession:
     @property
     def armed(self) -> bool:
         return self.vehicle.receiver.state == ARMED
+
+    @property
+    def has_position(self) -> bool:
+        """A GPS fix, hence a global position estimate (SIM_GPS_DISABLE takes it away)."""
+        return not self.params["SIM_GPS_DISABLE"]
+
+    def _default_streams(self) -> None:
+        # PX4 streams on every link unasked; ArduPilot waits for SRx_/interval requests.
+        if self.autopilot == "px4":
+            self.intervals.update({name: 1.0 / hz for name, hz in PX4_DEFAULT_RATES.items()})
 
     @property
     def booting(self) -> bool:
@@ -220,20 +304,117 @@ class MavlinkSession:
         self._send_heartbeat_now = True
 
     def set_mode(self, mode: str) -> None:
+        """Enter a mode unconditionally (the autopilot's own switches, failsafes)."""
         before = self.mode
         self.mode = mode
         v = self.vehicle
-        if mode in ("GUIDED", "LOITER", "BRAKE", "POSHOLD") and before != mode:
+        if mode in ("GUIDED", "LOITER", "BRAKE", "POSHOLD", "OFFBOARD") and before != mode:
             v.target = PathTarget("HoldPosition", (v.ned[0], v.ned[1], v.ned[2]))
         elif mode == "LAND":
             v.target = PathTarget("Land", (v.ned[0], v.ned[1], 0.0))
         elif mode == "RTL":
-            v.target = PathTarget("Endpoint", (0.0, 0.0, min(v.ned[2], -10.0)))
+            self._start_rtl()
         elif mode == "AUTO" and before != "AUTO":
             self.item_started = False
             self.mission_done = False
         self._sync_vehicle_mode()
         self._send_heartbeat_now = True
+
+    def mode_refusal(self, mode: str) -> str | None:
+        """Why the autopilot would not enter `mode` now (None: it would), in its words."""
+        if mode in POSITION_MODES and not self.has_position:
+            if self.px4:
+                return f"{PX4_MODE_NAMES.get(mode, mode)} mode not available: no global position"
+            return f"Mode change to {mode} failed: requires position"
+        if mode == "OFFBOARD" and not self._offboard_signal(self._rx_now):
+            return "Offboard mode not available: no setpoint stream (> 2 Hz) yet"
+        if mode == "AUTO":
+            return self._auto_refusal()
+        return None
+
+    def _auto_refusal(self) -> str | None:
+        if len(self.mission) <= self.first_seq:
+            if self.px4:
+                return "Mission mode not available: no valid mission"
+            return "Mode change to AUTO failed: no mission"
+        first = self.mission[self.first_seq]
+        if (
+            not self.px4
+            and self.armed
+            and not self.vehicle.airborne
+            and first.command != mavlink.MAV_CMD_NAV_TAKEOFF
+        ):
+            # ArduCopter's guard against flips: armed on the ground, AUTO must take off.
+            return "Auto: Missing Takeoff Cmd"
+        return None
+
+    def request_mode(self, mode: str) -> int:
+        """A ground station's mode change: the refusal result and STATUSTEXT, or the mode."""
+        reason = self.mode_refusal(mode)
+        if reason is not None:
+            self.statustext(mavlink.MAV_SEVERITY_CRITICAL, reason)
+            # PX4 answers a mode it cannot enter now as temporarily rejected, ArduPilot failed.
+            return (
+                mavlink.MAV_RESULT_TEMPORARILY_REJECTED if self.px4 else mavlink.MAV_RESULT_FAILED
+            )
+        self.set_mode(mode)
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    @property
+    def first_seq(self) -> int:
+        """The first flyable mission item: ArduPilot keeps home in item 0, PX4 does not."""
+        return 0 if self.px4 else 1
+
+    def _rtl_altitude(self) -> float:
+        if self.px4:
+            return self.params["RTL_RETURN_ALT"]
+        return self.params["RTL_ALT"] / 100.0
+
+    def _start_rtl(self) -> None:
+        # Both autopilots: climb to the return altitude, fly home at it, land, disarm.
+        v = self.vehicle
+        if not v.airborne:
+            self.rtl_phase = "land"
+            v.target = PathTarget("Land", (0.0, 0.0, 0.0))
+            return
+        self.rtl_phase = "climb"
+        down = min(v.ned[2], -self._rtl_altitude())
+        v.target = PathTarget("Endpoint", (v.ned[0], v.ned[1], down))
+
+    def _run_rtl(self) -> None:
+        v = self.vehicle
+        if self.mode != "RTL" or not self.armed or self.rtl_phase == "land":
+            return
+        if math.dist(v.ned, v.target.end) >= ACCEPTANCE_RADIUS_M:
+            return
+        if self.rtl_phase == "climb":
+            self.rtl_phase = "return"
+            v.target = PathTarget("Endpoint", (0.0, 0.0, v.target.end[2]))
+        else:
+            self.rtl_phase = "land"
+            v.target = PathTarget("Land", (0.0, 0.0, 0.0))
+
+    def _run_takeoff(self) -> None:
+        # PX4's Takeoff mode climbs once armed, then holds (AUTO.LOITER) at the altitude.
+        v = self.vehicle
+        if self.mode != "TAKEOFF" or not self.armed:
+            return
+        north, east, altitude = self.takeoff_target
+        v.target = PathTarget("Endpoint", (north, east, -altitude))
+        if abs(v.ned[2] + altitude) < 0.2:
+            self.set_mode("GUIDED")
+
+    def _offboard_signal(self, now: float) -> bool:
+        """PX4's offboard "proof of life": setpoints > 2 Hz, unbroken for a second."""
+        fresh = now - self.setpoint_at <= OFFBOARD_MAX_GAP_S
+        return fresh and now - self.setpoint_stream_since >= OFFBOARD_WARMUP_S
+
+    def _offboard_watch(self, now: float) -> None:
+        if self.mode != "OFFBOARD" or now - self.setpoint_at <= self.params["COM_OF_LOSS_T"]:
+            return
+        # COM_OF_LOSS_T without a setpoint: PX4 leaves OFFBOARD for its loss action (hold).
+        self.statustext(mavlink.MAV_SEVERITY_CRITICAL, "Failsafe: offboard signal lost, holding")
+        self.set_mode("GUIDED" if self.has_position else "LAND")
 
     def _sync_vehicle_mode(self) -> None:
         # The kinematic model flies its target in any of its autonomous modes.
@@ -300,9 +481,9 @@ class MavlinkSession:
             params = [msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z]
             self._command(msg.command, params, msg.frame)
         elif kind == "SET_MODE":
-            name = MODE_NAMES.get(msg.custom_mode)
+            name = self._custom_mode_name(msg.custom_mode)
             if name is not None:
-                self.set_mode(name)
+                self.request_mode(name)  # no ACK for SET_MODE: the HEARTBEAT tells
         elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
             self._setpoint(
                 msg.coordinate_frame, msg.type_mask, msg.lat_int / 1e7, msg.lon_int / 1e7, msg.alt
@@ -327,11 +508,12 @@ class MavlinkSession:
             mavlink.MAV_CMD_DO_SET_MODE: self._cmd_set_mode,
             mavlink.MAV_CMD_NAV_TAKEOFF: self._cmd_takeoff,
             mavlink.MAV_CMD_NAV_LAND: self._cmd_land,
-            mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: lambda p, f: self._mode_result("RTL"),
+            mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: lambda p, f: self.request_mode("RTL"),
             mavlink.MAV_CMD_MISSION_START: self._cmd_mission_start,
             mavlink.MAV_CMD_DO_REPOSITION: self._cmd_reposition,
             mavlink.MAV_CMD_SET_MESSAGE_INTERVAL: self._cmd_interval,
             mavlink.MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
+            mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: self._cmd_capabilities,
             mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN: self._cmd_reboot,
         }.get(command)
         if handler is None:
@@ -346,15 +528,9 @@ class MavlinkSession:
         if p[0] >= 0.5:
             if self.armed:
                 return mavlink.MAV_RESULT_ACCEPTED
-            percent = self.vehicle.remaining * 100
-            if not force and percent < self.params["BATT_CRT_PCT"]:
-                self.statustext(
-                    mavlink.MAV_SEVERITY_CRITICAL,
-                    f"PreArm: Battery critical {percent:.0f}% < {self.params['BATT_CRT_PCT']:g}%",
-                )
-                return mavlink.MAV_RESULT_DENIED
-            if not force and self.mode in NOT_ARMABLE:
-                self.statustext(mavlink.MAV_SEVERITY_CRITICAL, f"Arm: Mode {self.mode} not armable")
+            reason = None if force else self.arming_refusal()
+            if reason is not None:
+                self.statustext(mavlink.MAV_SEVERITY_CRITICAL, reason)
                 return mavlink.MAV_RESULT_DENIED
             self._set_armed(True)
             self.statustext(mavlink.MAV_SEVERITY_INFO, "Arming motors")
@@ -368,36 +544,48 @@ class MavlinkSession:
         self.statustext(mavlink.MAV_SEVERITY_INFO, "Disarming motors")
         return mavlink.MAV_RESULT_ACCEPTED
 
+    def arming_refusal(self) -> str | None:
+        """The failing pre-arm check, worded as the autopilot words it (None: arms)."""
+        percent = self.vehicle.remaining * 100
+        limit = self.params["BATT_CRT_PCT"]
+        if self.px4:
+            if percent < limit:
+                return f"Arming denied: battery critical {percent:.0f}% < {limit:g}%"
+            if self.mode in POSITION_MODES and not self.has_position:
+                return f"Arming denied: {PX4_MODE_NAMES[self.mode]} mode needs global position"
+            return None
+        if percent < limit:
+            return f"PreArm: Battery critical {percent:.0f}% < {limit:g}%"
+        if self.mode in NOT_ARMABLE:
+            return f"Arm: Mode {self.mode} not armable"
+        if self.mode in POSITION_MODES and not self.has_position:
+            return "PreArm: Need Position Estimate"
+        return None
+
     @property
     def px4(self) -> bool:
         return self.autopilot == "px4"
+
+    def _custom_mode_name(self, custom_mode: int) -> str | None:
+        if self.px4:
+            return PX4_TO_INTERNAL.get(((custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF))
+        return MODE_NAMES.get(custom_mode)
 
     def _cmd_set_mode(self, p: list[float], frame: int | None) -> int:
         if self.px4:
             internal = PX4_TO_INTERNAL.get((int(p[1]), int(p[2])))
             if not int(p[0]) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED or internal is None:
                 return mavlink.MAV_RESULT_DENIED
-            return self._mode_result(internal)
+            return self.request_mode(internal)
         name = MODE_NAMES.get(int(p[1]))
         if not int(p[0]) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED or name is None:
             return mavlink.MAV_RESULT_DENIED
-        return self._mode_result(name)
-
-    def _mode_result(self, name: str) -> int:
-        # ArduCopter accepts AUTO on the ground too: the mission starts once armed.
-        self.set_mode(name)
-        return mavlink.MAV_RESULT_ACCEPTED
+        return self.request_mode(name)
 
     def _cmd_takeoff(self, p: list[float], frame: int | None) -> int:
-        if self.px4 and self.armed and not self.vehicle.airborne:
-            # PX4: from any mode, param7 metres above mean sea level (NaN: 2.5 m up).
-            altitude = p[6] - self.vehicle.home[2] if math.isfinite(p[6]) else 2.5
-            if not altitude > 0:
-                return mavlink.MAV_RESULT_DENIED
-            self.set_mode("GUIDED")
-            v = self.vehicle
-            v.target = PathTarget("Endpoint", (v.ned[0], v.ned[1], -altitude))
-            return mavlink.MAV_RESULT_ACCEPTED
+        if self.px4:
+            return self._px4_takeoff(p[6])
+        # ArduCopter: a take-off only in GUIDED, armed, on the ground, to param7 above home.
         if self.mode != "GUIDED" or not self.armed:
             self.statustext(mavlink.MAV_SEVERITY_WARNING, "Takeoff: arm in GUIDED first")
             return mavlink.MAV_RESULT_FAILED
@@ -408,6 +596,25 @@ class MavlinkSession:
             return mavlink.MAV_RESULT_DENIED
         v = self.vehicle
         v.target = PathTarget("Endpoint", (v.ned[0], v.ned[1], -altitude))
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _px4_takeoff(self, altitude_msl: float) -> int:
+        """PX4: Takeoff mode from any mode, to param7 metres above mean sea level (NaN:
+        MIS_TAKEOFF_ALT above home); disarmed it waits in Takeoff mode for the arming."""
+        v = self.vehicle
+        if math.isfinite(altitude_msl):
+            altitude = altitude_msl - v.home[2]
+        else:
+            altitude = self.params["MIS_TAKEOFF_ALT"]
+        if not altitude > 0:
+            return mavlink.MAV_RESULT_DENIED
+        if self.mode_refusal("TAKEOFF") is not None:
+            self.statustext(
+                mavlink.MAV_SEVERITY_CRITICAL, "Takeoff denied! Please disarm and retry"
+            )
+            return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+        self.takeoff_target = (v.ned[0], v.ned[1], altitude)
+        self.set_mode("TAKEOFF")
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _cmd_land(self, p: list[float], frame: int | None) -> int:
@@ -421,25 +628,44 @@ class MavlinkSession:
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _cmd_mission_start(self, p: list[float], frame: int | None) -> int:
-        if not self.mission:
-            self.statustext(mavlink.MAV_SEVERITY_WARNING, "Mission: no items")
-            return mavlink.MAV_RESULT_FAILED
-        self.current = min(int(p[0]), len(self.mission) - 1)
+        reason = self.mode_refusal("AUTO")
+        if self.px4 and reason is None and not self.armed:
+            # PX4 arms on MISSION_START, through its pre-arm checks.
+            reason = self.arming_refusal()
+        if reason is not None:
+            self.statustext(mavlink.MAV_SEVERITY_CRITICAL, reason)
+            # PX4 denies a mission start; ArduPilot's failed AUTO switch is FAILED.
+            return mavlink.MAV_RESULT_DENIED if self.px4 else mavlink.MAV_RESULT_FAILED
+        first = int(p[0]) if math.isfinite(p[0]) and p[0] >= 0 else self.current
+        self.current = min(max(first, self.first_seq), len(self.mission) - 1)
+        if self.px4 and not self.armed:
+            self._set_armed(True)
         self.set_mode("AUTO")
         self.item_started = False
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _cmd_reposition(self, p: list[float], frame: int | None) -> int:
-        change_mode = int(p[1]) & mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
-        if self.armed and change_mode and self.mode != "GUIDED":
-            self.set_mode("GUIDED")
+        """PX4's MAV_CMD_DO_REPOSITION: with the CHANGE_MODE flag it switches to Hold,
+        and in Hold while armed it flies to the position (lat/lon 0 or NaN: stay)."""
+        flags = int(p[1]) if math.isfinite(p[1]) else 0
+        change_mode = flags & mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
+        if change_mode and self.mode != "GUIDED":
+            result = self.request_mode("GUIDED")
+            if result != mavlink.MAV_RESULT_ACCEPTED:
+                return result
         if not self.armed or self.mode != "GUIDED":
-            return mavlink.MAV_RESULT_FAILED
+            # PX4 takes the command and keeps the point for Hold; nothing moves meanwhile.
+            return mavlink.MAV_RESULT_ACCEPTED
         lat, lon = (p[4] / 1e7, p[5] / 1e7) if frame is not None else (p[4], p[5])
-        north, east, down = self._ned_of(
-            frame if frame is not None else mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT, lat, lon, p[6]
-        )
-        self.vehicle.set_path_desired("Endpoint", (north, east, down))
+        if not (math.isfinite(lat) and math.isfinite(lon)):
+            lat = lon = 0.0
+        frame = mavlink.MAV_FRAME_GLOBAL if frame is None else frame  # COMMAND_LONG: AMSL
+        z = p[6]
+        if not math.isfinite(z):  # NaN altitude: keep the current one
+            z = -self.vehicle.ned[2]
+            if frame in (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT):
+                z += self.vehicle.home[2]
+        self.vehicle.set_path_desired("Endpoint", self._ned_of(frame, lat, lon, z))
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _cmd_interval(self, p: list[float], frame: int | None) -> int:
@@ -464,6 +690,11 @@ class MavlinkSession:
         self._emit(name)
         return None
 
+    def _cmd_capabilities(self, p: list[float], frame: int | None) -> int | None:
+        self._ack(mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, mavlink.MAV_RESULT_ACCEPTED)
+        self._emit("AUTOPILOT_VERSION")
+        return None
+
     def _cmd_reboot(self, p: list[float], frame: int | None) -> int | None:
         if int(p[0]) != 1:
             return mavlink.MAV_RESULT_UNSUPPORTED
@@ -481,6 +712,7 @@ class MavlinkSession:
         self._booting_until = self.vehicle.time + BOOT_TIME_S
         self.mode = "STABILIZE"
         self.intervals.clear()
+        self._default_streams()
         self.next_due.clear()
         self.upload = None
         self.codec = MavlinkCodec(SYSTEM_ID, COMPONENT_ID)
@@ -491,13 +723,24 @@ class MavlinkSession:
         self._out.clear()
 
     def _setpoint(self, frame: int, mask: int, x: float, y: float, z: float) -> None:
-        # PX4 follows setpoints only in OFFBOARD, which this simulator does not fly.
-        if self.px4 or not self.armed or self.mode != "GUIDED" or mask & 0b111:
+        """SET_POSITION_TARGET_*: ArduCopter flies them in GUIDED; PX4 only in OFFBOARD,
+        and every one it gets (any mode) keeps its offboard signal alive."""
+        if self.px4:
+            self._note_setpoint(self._rx_now)
+            flying = self.mode == "OFFBOARD"
+        else:
+            flying = self.mode == "GUIDED"
+        if not flying or not self.armed or mask & 0b111:
             self.stats.setpoints_ignored += 1
             return
         self.stats.setpoints += 1
         north, east, down = self._ned_of(frame, x, y, z)
         self.vehicle.set_path_desired("Endpoint", (north, east, down))
+
+    def _note_setpoint(self, now: float) -> None:
+        if now - self.setpoint_at > OFFBOARD_MAX_GAP_S:
+            self.setpoint_stream_since = now  # a new stream: its second of warm-up starts
+        self.setpoint_at = now
 
     def _data_stream(self, stream: int, rate: int, start: int) -> None:
         if stream == mavlink.MAV_DATA_STREAM_ALL:
@@ -553,9 +796,7 @@ class MavlinkSession:
                     self._mission_ack(mavlink.MAV_MISSION_UNSUPPORTED, msg.mission_type)
             return
         if kind == "MISSION_COUNT":
-            if self.mode == "AUTO" and self.armed:
-                self._mission_ack(mavlink.MAV_MISSION_DENIED)
-                return
+            # Both autopilots take a new mission in flight, AUTO too: it runs from its start.
             self.upload = _Upload(msg.count)
             if msg.count == 0:
                 self._finish_upload()
@@ -569,11 +810,11 @@ class MavlinkSession:
             self._send_item(msg.seq, legacy=kind == "MISSION_REQUEST")
         elif kind == "MISSION_CLEAR_ALL":
             self.mission = []
-            self.current = 0
+            self.current = self.first_seq
             self._mission_ack(mavlink.MAV_MISSION_ACCEPTED)
         elif kind == "MISSION_SET_CURRENT":
             if 0 <= msg.seq < len(self.mission):
-                self.current = msg.seq
+                self.current = max(msg.seq, self.first_seq)
                 self.item_started = False
                 self._emit("MISSION_CURRENT")
 
@@ -641,7 +882,7 @@ class MavlinkSession:
         assert upload is not None
         self.mission = upload.items
         self.upload = None
-        self.current = 0
+        self.current = self.first_seq
         self.item_started = False
         self.mission_done = False
         self.stats.mission_uploads += 1
@@ -652,7 +893,7 @@ class MavlinkSession:
         if not 0 <= seq < len(self.mission):
             self._mission_ack(mavlink.MAV_MISSION_INVALID_SEQUENCE)
             return
-        item = self.mission[seq]
+        item = self.mission[seq] if seq >= self.first_seq else self._home_item()
         wire = item.wire()
         common = (
             wire["frame"],
@@ -665,6 +906,13 @@ class MavlinkSession:
             self._send("mission_item", *self.gcs, seq, *common, item.x, item.y, item.z, 0)
         else:
             self._send("mission_item_int", *self.gcs, seq, *common, wire["x"], wire["y"], item.z, 0)
+
+    def _home_item(self) -> MissionItem:
+        """ArduPilot's item 0: home, whatever was uploaded there, at its altitude AMSL."""
+        lat, lon, alt = self.vehicle.home
+        return MissionItem(
+            0, mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_CMD_NAV_WAYPOINT, (0, 0, 0, 0), lat, lon, alt
+        )
 
     def _upload_watchdog(self, now: float) -> None:
         upload = self.upload
@@ -680,8 +928,10 @@ class MavlinkSession:
 
     # --- AUTO mode --------------------------------------------------------------------
     def _run_mission(self) -> None:
-        if self.mode != "AUTO" or not self.armed or self.mission_done or not self.mission:
+        if self.mode != "AUTO" or not self.armed or self.mission_done:
             return
+        if self.current >= len(self.mission):
+            return  # nothing flyable on board (cleared, or ArduPilot's home alone)
         v = self.vehicle
         item = self.mission[self.current]
         if not self.item_started:
@@ -750,12 +1000,15 @@ class MavlinkSession:
         while sim_dt > 1e-9:
             dt = min(sim_dt, 0.05)
             self._run_mission()
+            self._run_takeoff()
+            self._run_rtl()
             self.vehicle.step(dt)
             self._auto_disarm()
             sim_dt -= dt
         if self.booting:
             return
         self._upload_watchdog(now)
+        self._offboard_watch(now)
         self._battery_watch()
         if self._send_heartbeat_now or now - self._last_heartbeat >= HEARTBEAT_S:
             self._send_heartbeat_now = False
@@ -768,11 +1021,15 @@ class MavlinkSession:
 
     def _auto_disarm(self) -> None:
         v = self.vehicle
-        landing = self.mode == "LAND" or (
-            self.mode == "AUTO"
-            and self.mission
-            and self.mission[self.current].command
-            in (mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+        landing = (
+            self.mode == "LAND"
+            or (self.mode == "RTL" and self.rtl_phase == "land")
+            or (
+                self.mode == "AUTO"
+                and self.current < len(self.mission)
+                and self.mission[self.current].command
+                in (mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+            )
         )
         if not self.armed or not landing or v.airborne:
             self._landed_at = None
@@ -791,7 +1048,7 @@ class MavlinkSession:
 
     def _heartbeat(self) -> None:
         base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
-        if self.mode in ("GUIDED", "AUTO", "RTL", "LAND"):
+        if self.mode in ("GUIDED", "AUTO", "RTL", "LAND", "TAKEOFF", "OFFBOARD"):
             base |= mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
         if self.mode == "AUTO":
             base |= mavlink.MAV_MODE_FLAG_AUTO_ENABLED
@@ -800,10 +1057,11 @@ class MavlinkSession:
         status = mavlink.MAV_STATE_ACTIVE if self.armed else mavlink.MAV_STATE_STANDBY
         if self._was_critical:
             status = mavlink.MAV_STATE_CRITICAL
-        autopilot, custom = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, COPTER_MODES[self.mode]
         if self.px4:
             main, sub = PX4_MODES.get(self.mode, PX4_MODES["GUIDED"])
             autopilot, custom = mavlink.MAV_AUTOPILOT_PX4, (main << 16) | (sub << 24)
+        else:
+            autopilot, custom = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, COPTER_MODES[self.mode]
         self._send("heartbeat", mavlink.MAV_TYPE_QUADROTOR, autopilot, base, custom, status)
 
     def _stream(self, now: float) -> None:
@@ -841,11 +1099,12 @@ class MavlinkSession:
     def _emit_sys_status(self) -> None:
         v = self.vehicle
         sensors = 0x0020_FC2F
+        healthy = sensors if self.has_position else sensors & ~mavlink.MAV_SYS_STATUS_SENSOR_GPS
         self._send(
             "sys_status",
             sensors,
             sensors,
-            sensors,
+            healthy,
             200,
             round(v.voltage * 1000),
             round(v.current_a * 100),
@@ -877,6 +1136,8 @@ class MavlinkSession:
         )
 
     def _emit_global_position_int(self) -> None:
+        if not self.has_position:
+            return  # no fix, no global position estimate to send
         v = self.vehicle
         boot_ms = int(v.time * 1000) & 0xFFFFFFFF
         lat, lon, alt_msl = v.lla()
@@ -942,7 +1203,7 @@ class MavlinkSession:
         self._send(
             "gps_raw_int",
             int(v.time * 1e6),
-            3,
+            3 if self.has_position else 1,
             round(lat * 1e7),
             round(lon * 1e7),
             round(alt_msl * 1000),
@@ -950,7 +1211,7 @@ class MavlinkSession:
             110,
             round(math.hypot(*v.velocity[:2]) * 100),
             round(v.yaw * 100) % 36000,
-            v.config.satellites,
+            v.config.satellites if self.has_position else 0,
         )
 
     def _emit_home_position(self) -> None:
@@ -972,6 +1233,40 @@ class MavlinkSession:
 
     def _emit_mission_current(self) -> None:
         self._send("mission_current", self.current, len(self.mission))
+
+    def _emit_extended_sys_state(self) -> None:
+        v = self.vehicle
+        if not v.airborne:
+            climbing = self.armed and v.target.end[2] < -0.5 and v.target.mode != "Land"
+            state = (
+                mavlink.MAV_LANDED_STATE_TAKEOFF if climbing else mavlink.MAV_LANDED_STATE_ON_GROUND
+            )
+        elif v.target.mode == "Land":
+            state = mavlink.MAV_LANDED_STATE_LANDING
+        else:
+            state = mavlink.MAV_LANDED_STATE_IN_AIR
+        self._send("extended_sys_state", mavlink.MAV_VTOL_STATE_UNDEFINED, state)
+
+    def _emit_autopilot_version(self) -> None:
+        major, minor, patch, kind = SOFTWARE_VERSIONS[self.autopilot]
+        version = (major << 24) | (minor << 16) | (patch << 8) | kind
+        capabilities = CAPABILITIES
+        if not self.px4:
+            capabilities |= mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
+        self._send(
+            "autopilot_version",
+            capabilities,
+            version,
+            0,
+            0,
+            0,
+            [0] * 8,
+            [0] * 8,
+            [0] * 8,
+            0,
+            0,
+            0x5348495645,  # a fixed hardware uid for this simulated board
+        )
 
 
 def _text(value: Any) -> str:

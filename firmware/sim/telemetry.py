@@ -26,6 +26,7 @@ from onboard.uavtalk import (
     ObjectRegistry,
     encode_frame,
     metadata_for,
+    receiver_setup,
     unpack_metadata,
 )
 
@@ -84,6 +85,9 @@ class BoardSession:
     link_timeout_s: float = LINK_TIMEOUT_S
     on_reboot: Callable[[], None] | None = None
     stats: SimStats = field(default_factory=SimStats)
+    # ManualControlSettings changes from the settings a board armed through UAVTalkReceiver
+    # needs ("ChannelGroups.Throttle" → "PWM"), to play a board set up wrong.
+    receiver_settings: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.codec = Codec(self.registry)
@@ -96,6 +100,8 @@ class BoardSession:
         self._reset_link_state()
         self._receiver: list[int] | None = None
         self._receiver_at = -math.inf
+        self._judged_settings: dict | None = None
+        self._receiver_ok = True
         self._line_value: str | None = None
         self._iap_step = 0
         self._iap_at = 0.0
@@ -117,6 +123,12 @@ class BoardSession:
                 self.values[(obj.name, 0)] = obj.defaults()
         desc = list(b"skyhive-sim".ljust(100, b"\0"))
         self.values[("FirmwareIAPObj", 0)].update(Description=desc, BoardType=0x7F)
+        if receiver_setup.SETTINGS in self.registry:
+            key = (receiver_setup.SETTINGS, 0)
+            self.values[key] = apply_settings(
+                receiver_setup.correct_settings(self.values[key], self.frames),
+                self.receiver_settings,
+            )
         self._set_home(*self.vehicle.home)
 
     def _set_home(self, lat: float, lon: float, alt: float) -> None:
@@ -307,9 +319,24 @@ class BoardSession:
         line = self._read_arming_line()
         if line is not None and line[0] == "1":
             return self.frames.disarm_frame_us if line[1:2] == "1" else self.frames.arm_frame_us
-        if self._receiver is not None and now - self._receiver_at <= RECEIVER_FRESH_S:
+        if (
+            self._receiver is not None
+            and now - self._receiver_at <= RECEIVER_FRESH_S
+            and self._reads_uavtalk_receiver()
+        ):
             return self._receiver
         return self.frames.safe_frame_us
+
+    def _reads_uavtalk_receiver(self) -> bool:
+        """A board set up otherwise ignores UAVTalkReceiver channels, as dRonin does
+        (judged again whenever ManualControlSettings is written)."""
+        settings = self.values.get((receiver_setup.SETTINGS, 0))
+        if settings is not self._judged_settings:
+            self._judged_settings = settings
+            self._receiver_ok = settings is None or not receiver_setup.problems(
+                settings, self.frames
+            )
+        return self._receiver_ok
 
     def _read_arming_line(self) -> str | None:
         if self.arming_line is None:
@@ -452,3 +479,22 @@ class BoardSession:
             )
         elif name == "FlightTelemetryStats":
             values.update(Status=self.link_status)
+
+
+def apply_settings(values: dict, changes: dict) -> dict:
+    """Object values with `changes` applied: "Field" or "Field.Element" → value (numbers
+    as text are converted to the field's type); KeyError or ValueError for an unknown
+    field or element."""
+    values = {k: list(v) if isinstance(v, list) else v for k, v in values.items()}
+    for key, raw in changes.items():
+        name, _, element = key.partition(".")
+        current = values[name]
+        if element:
+            index = receiver_setup.ELEMENTS.index(element)
+            current = current[index]
+        value = type(current)(raw) if isinstance(current, int | float) else raw
+        if element:
+            values[name][receiver_setup.ELEMENTS.index(element)] = value
+        else:
+            values[name] = value
+    return values

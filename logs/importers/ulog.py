@@ -1,22 +1,17 @@
-"""PX4 ULog through pyulog, which already decodes each topic with one np.frombuffer call.
-
-Measured (bench/bench_logs.py): our import costs pyulog's parse plus a cheap re-labelling,
-well under the 1.5x goal, so a second reader would only add risk.
-"""
+"""PX4 ULog, read by the vectorised reader in ulog_reader (same values as pyulog, the parser
+PX4 Flight Review uses; bench/bench_logs.py times both on the same file)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
-from pyulog import ULog
-from pyulog.core import ULogException
 
 from logs.importers.base import Limits, LogFormatError, Progress, describe
+from logs.importers.ulog_reader import MAGIC, UlogError, read_ulog
 from logs.series import LogData, Series, join
 from logs.units import ulog_unit
 
-MAGIC = b"ULog\x01\x12\x35"
 LOG_LEVELS = {
     ord("0") + n: name
     for n, name in enumerate(
@@ -53,8 +48,8 @@ class UlogImporter:
 
     def read(self, path: Path, *, limits: Limits, progress: Progress) -> LogData:
         try:
-            ulog = ULog(str(path))
-        except ULogException as exc:
+            ulog = read_ulog(path)
+        except UlogError as exc:
             raise LogFormatError(
                 f"The file {path.name!r} is not a valid PX4 ULog: {describe(exc)}."
             ) from exc
@@ -66,7 +61,7 @@ class UlogImporter:
             "start_timestamp_us": int(ulog.start_timestamp),
         }
         if ulog.file_corruption:
-            log.warnings.append("pyulog found corrupt data and skipped it.")
+            log.warnings.append("The log has corrupt data; the readable messages were kept.")
         counts: dict[str, int] = {}
         for d in ulog.data_list:
             counts[d.name] = counts.get(d.name, 0) + 1

@@ -52,6 +52,9 @@ class VehicleState:
     gps_fix: bool = False
     satellites: int = 0
     updated_at: float = 0.0  # time.monotonic() of the newest object
+    # What to change on the flight controller before the agent can fly it (sentences,
+    # e.g. "set ManualControlSettings.Arming to …"); empty when nothing is known wrong.
+    setup: tuple[str, ...] = ()
 
     @property
     def airborne(self) -> bool:

@@ -30,7 +30,10 @@ SET_POSITION_TARGET_GLOBAL_INT (or LOCAL_NED with `goto_frame="local"`). A COMMA
 that is not ACCEPTED raises `CommandRejected` naming the MAV_RESULT; no ACK raises
 `CommandTimeout`. Flight modes are ArduCopter's custom modes (GUIDED, AUTO, LAND, ...);
 with a PX4 autopilot (told by its HEARTBEAT) the driver uses PX4's main/sub modes, takes
-off to an AMSL altitude and flies to points with MAV_CMD_DO_REPOSITION in hold (LOITER).
+off to an AMSL altitude and flies to points with MAV_CMD_DO_REPOSITION (COMMAND_INT,
+AMSL, CHANGE_MODE flag) in hold (LOITER). PX4 is not flown in OFFBOARD: that mode drops
+to its fail-safe whenever a > 2 Hz setpoint stream pauses, while a reposition is one
+acknowledged command that PX4 keeps flying on its own (onboard/README.md says more).
 """
 
 from __future__ import annotations
@@ -367,12 +370,13 @@ class MavlinkFlightController(LinkDriver):
         if self.target_system and source != self.target_system:
             self.stats["foreign"] += 1
             return
-        if kind == "HEARTBEAT":
-            self._on_heartbeat(msg, now)
         fields = message_fields(msg)
         with self._values_lock:
             self._latest[kind] = fields
+        # State first: whoever waits for "connected" then finds the mode already known.
         self._update_state(kind, msg, now)
+        if kind == "HEARTBEAT":
+            self._on_heartbeat(msg, now)
         if self._listeners:
             self._queue_event(kind, fields)
         # Platform objects are kept even without listeners: objrequest answers from them.
@@ -856,13 +860,17 @@ class MavlinkFlightController(LinkDriver):
         whose setpoints need OFFBOARD, MAV_CMD_DO_REPOSITION (acknowledged) instead."""
         self._require_connected()
         if self.is_px4:
+            home = self.state.home
+            if home is None:
+                raise FlightControllerError("PX4 goto needs the home position first")
+            # AMSL in MAV_FRAME_GLOBAL_INT: the frame every PX4 release reads for this command.
             self.command_int(
                 mavlink.MAV_CMD_DO_REPOSITION,
-                mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                mavlink.MAV_FRAME_GLOBAL_INT,
                 (-1.0, float(mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE), 0.0, math.nan),
                 lat,
                 lon,
-                relative_alt,
+                home[2] + relative_alt,
             )
             return
         self._ensure_guided()

@@ -40,6 +40,7 @@ from onboard.uavtalk import (
     MessageType,
     ObjectRegistry,
     encode_frame,
+    receiver_setup,
 )
 
 log = logging.getLogger(__name__)
@@ -224,6 +225,43 @@ class UAVTalkFlightController(LinkDriver):
                 self.request_object(name, timeout=1.0)
             except FlightControllerError as exc:
                 log.debug("initial %s request failed: %s", name, exc)
+        if getattr(self.arming_switch, "receiver_group", None) == receiver_setup.GROUP:
+            self.check_receiver_setup()
+
+    def check_receiver_setup(self) -> tuple[str, ...]:
+        """Read the board's receiver settings and say what to change before the agent can
+        arm it through UAVTalkReceiver; the answer is logged and kept in `state.setup`
+        (heartbeats carry it to the ground)."""
+        found: list[str] = []
+        for name in ("UAVTalkReceiver", receiver_setup.SETTINGS):
+            if name not in self.registry:
+                continue
+            try:
+                values = self.request_object(name, timeout=2.0)
+            except CommandTimeout:
+                log.warning(
+                    "the flight controller did not send %s; receiver set-up unchecked", name
+                )
+                return self.state.setup
+            except FlightControllerError:
+                found.append(self._unknown_object(name))
+                continue
+            if name == receiver_setup.SETTINGS:
+                found += receiver_setup.problems(values)
+        for problem in found:
+            log.warning("flight controller set-up: %s", problem)
+        self._holder.update(setup=tuple(found))
+        return tuple(found)
+
+    def _unknown_object(self, name: str) -> str:
+        obj = self.registry[name]
+        message = (
+            f"the flight controller does not know {name} as defined here (id {obj.id:#010x}); "
+            "its firmware is not dRonin Release-20180729"
+        )
+        if name == receiver_setup.SETTINGS:
+            message += ": check by hand that " + "; ".join(receiver_setup.by_hand())
+        return message
 
     def _set_disconnected(self) -> None:
         self._link_status = "Disconnected"
@@ -326,7 +364,10 @@ class UAVTalkFlightController(LinkDriver):
         wire = self.codec.encode_request(name, instance_id=instance_id)
         self._wait(waiter, lambda: self._send(wire), timeout, tries=2)
         if waiter.nacked:
-            raise FlightControllerError(f"the flight controller does not know {name} (NACK)")
+            raise FlightControllerError(
+                f"the flight controller does not know {name} (id {obj.id:#010x}, NACK): "
+                "this definition differs from its firmware's"
+            )
         assert waiter.frame is not None
         return waiter.frame.fields()
 
@@ -379,8 +420,11 @@ class UAVTalkFlightController(LinkDriver):
             waiter = _Waiter(obj.id, "ack")
             self._wait(waiter, lambda: self._send(wire), timeout, tries=self.write_retries)
             if waiter.nacked:
+                # A board NACKs an acked write of an id it does not know: say so at once.
                 raise FlightControllerError(
-                    f"the flight controller refused the {name} write (NACK)"
+                    f"the flight controller refused the {name} write (NACK): it does not "
+                    f"know {name} with id {obj.id:#010x}, so this definition differs from "
+                    "its firmware's"
                 )
         with self._values_lock:
             self._values[(name, instance_id)] = values

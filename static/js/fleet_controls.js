@@ -1,10 +1,24 @@
 /* The fleet table's one-click controls: Hold, Return home and Land, each posted to the
    drone's commands API; the drone's answer is shown in its row. None starts a motor, so
-   none asks for a confirmation. */
+   none asks for a confirmation up front; should the ground answer that a move goes beyond
+   the envelope's defaults (409 confirmation_required), it is sent again only once the
+   drone's id has been typed. */
 (function () {
   "use strict";
   const meta = document.querySelector('meta[name="csrf-token"]');
   const csrf = meta ? meta.content : "";
+
+  async function post(droneId, command, confirmed) {
+    const request = { command, params: {} };
+    if (confirmed) request.confirm_beyond_defaults = true;
+    const response = await fetch(`/api/v1/drones/${encodeURIComponent(droneId)}/commands/`, {
+      method: "POST",
+      credentials: "same-origin",
+      headers: { "Content-Type": "application/json", "X-CSRFToken": csrf, Accept: "application/json" },
+      body: JSON.stringify(request),
+    });
+    return [response, await response.json().catch(() => ({}))];
+  }
 
   async function send(button) {
     const row = button.closest("tr[data-drone]");
@@ -14,13 +28,11 @@
     button.disabled = true;
     out.textContent = `${command}…`;
     try {
-      const response = await fetch(`/api/v1/drones/${encodeURIComponent(droneId)}/commands/`, {
-        method: "POST",
-        credentials: "same-origin",
-        headers: { "Content-Type": "application/json", "X-CSRFToken": csrf, Accept: "application/json" },
-        body: JSON.stringify({ command, params: {} }),
-      });
-      const body = await response.json().catch(() => ({}));
+      let [response, body] = await post(droneId, command, false);
+      if (response.status === 409 && body.code === "confirmation_required") {
+        const typed = window.prompt(`${body.error}\nType ${droneId} to send ${command} anyway.`);
+        if ((typed || "").trim() === droneId) [response, body] = await post(droneId, command, true);
+      }
       const ok = response.ok && body.ok;
       out.textContent = ok ? `${command}: ok` : `${command}: ${body.error || response.status}`;
       out.dataset.status = ok ? "ok" : "error";
@@ -32,7 +44,12 @@
     }
   }
 
-  for (const button of document.querySelectorAll("#drone-table button[data-command]")) {
-    button.addEventListener("click", () => send(button));
+  // Rows come and go with the table's pages and searches: one listener on the table.
+  const table = document.getElementById("drone-table");
+  if (table) {
+    table.addEventListener("click", (event) => {
+      const button = event.target.closest("button[data-command]");
+      if (button && table.contains(button)) send(button);
+    });
   }
 })();

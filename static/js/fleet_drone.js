@@ -12,19 +12,51 @@
     const badge = document.getElementById("drone-state");
     badge.textContent = drone.online ? "online" : "offline";
     badge.className = `badge ${drone.online ? "ok" : "off"}`;
-    const set = (field, text) => { const el = document.querySelector(`#drone-status [data-field="${field}"]`); if (el) el.textContent = text; };
+    const field = (name) => document.querySelector(`#drone-status [data-field="${name}"]`);
+    const set = (name, text) => { const el = field(name); if (el) el.textContent = text; };
     set("armed", drone.armed ? "yes" : "no");
     set("airborne", drone.airborne ? "yes" : "no");
     set("flight_mode", drone.flight_mode || "–");
-    set("battery", live.percent(drone.battery));
+    const state = field("state");
+    if (state) state.innerHTML = `<span class="state-badge state-${drone.state}">${live.stateLabel(drone.state)}</span>`;
+    const b = drone.battery;
+    const volts = b && b.voltage !== null && b.voltage !== undefined ? ` (${Number(b.voltage).toFixed(2)} V)` : "";
+    set("battery", `${live.batteryText(drone)}${volts}`);
     const p = drone.position;
     set("position", p ? `${live.position(p)}, ${Number(p.alt).toFixed(1)} m` : "no fix");
+    set("alt", live.altitude(p));
+    set("speed", live.speed(drone.ground_speed));
+    set("heading", live.heading(drone.heading));
     missionId = drone.mission ? drone.mission.mission_id : null;
     set("mission", drone.mission ? `${drone.mission.mission_id} step ${live.missionStep(drone.mission)}` : "–");
+    const clock = field("clock");
+    if (clock) {
+      const c = live.clockText(drone.fc);
+      clock.textContent = c.text;
+      if (!c.trusted) clock.insertAdjacentHTML("beforeend", ' <span class="badge off">not trusted</span>');
+    }
     set("last_seen", live.clock(drone.last_seen));
   }
 
-  live.connect(config, show);
+  /* Recent commands: each new command on top, its outcome filled in when it ends. */
+  const history = document.getElementById("command-history");
+  function showCommand(message) {
+    if (message.type !== "command" || message.drone_id !== droneId || !history) return;
+    const c = message.command;
+    let item = history.querySelector(`[data-command-id="${c.id}"]`);
+    if (!item) {
+      item = document.createElement("li");
+      item.dataset.commandId = c.id;
+      history.querySelectorAll(".empty").forEach((e) => e.remove());
+      history.prepend(item);
+      while (history.children.length > 20) history.lastElementChild.remove();
+    }
+    item.dataset.outcome = c.outcome;
+    const at = c.sent_at ? new Date(c.sent_at).toLocaleTimeString([], { hour12: false }) : "";
+    item.textContent = `${at} ${c.command} — ${c.outcome_label}${c.user ? ` by ${c.user}` : ""}${c.error ? `: ${c.error}` : ""}`;
+  }
+
+  live.connect(config, show, null, showCommand);
 
   // The mission the drone reports flying, for Resume; kept current by the live updates.
   let missionId = config.drones[0].mission ? config.drones[0].mission.mission_id : null;
@@ -56,44 +88,92 @@
       result.dataset.status = "error";
       return;
     }
+    // Only this drone resumes: its companions in the mission hold or fly as they were.
     const response = await fetch(`/api/v1/missions/${encodeURIComponent(missionId)}/resume/`, {
       method: "POST",
       credentials: "same-origin",
-      headers: { "X-CSRFToken": csrf, Accept: "application/json" },
+      headers: { "Content-Type": "application/json", "X-CSRFToken": csrf, Accept: "application/json" },
+      body: JSON.stringify({ drone: droneId }),
     });
     const body = await response.json().catch(() => ({}));
-    result.textContent = response.ok ? "resume: the mission carries on" : `resume: ${response.status} ${body.error || ""}`;
+    result.textContent = response.ok ? "resume: the drone carries on with its mission" : `resume: ${response.status} ${body.error || ""}`;
     result.dataset.status = response.ok ? "ok" : "error";
   }
 
-  async function send(form) {
-    const command = form.dataset.command;
-    if (!confirmed(form, command)) return;
-    if (form.dataset.confirm && !window.confirm(form.dataset.confirm)) return;
-    const buttons = form.querySelectorAll("button");
+  /* Post one command; a move beyond the envelope's defaults comes back 409
+     confirmation_required and is sent again only once the drone's id has been typed. */
+  async function post(command, params, buttons, confirmed) {
     buttons.forEach((b) => { b.disabled = true; });
     result.textContent = `${command}: waiting for ${droneId}…`;
     try {
+      const body = { command, params };
+      if (confirmed) body.confirm_beyond_defaults = true;
       const response = await fetch(config.commandUrl, {
         method: "POST",
         credentials: "same-origin",
         headers: { "Content-Type": "application/json", "X-CSRFToken": csrf, Accept: "application/json" },
-        body: JSON.stringify({ command, params: params(form) }),
+        body: JSON.stringify(body),
       });
-      const body = await response.json().catch(() => ({ error: response.statusText }));
-      if (response.ok) {
-        const verdict = body.ok ? "ok" : `refused: ${body.error}`;
-        result.textContent = `${command}: ${verdict}\n${JSON.stringify(body.result || {}, null, 2)}`;
-      } else {
-        result.textContent = `${command}: ${response.status} ${body.error || ""}`;
+      const answer = await response.json().catch(() => ({ error: response.statusText }));
+      if (response.status === 409 && answer.code === "confirmation_required") {
+        askBeyondDefaults(command, params, answer.error);
+        result.textContent = `${command}: not sent, waiting for your confirmation.`;
+        result.dataset.status = "error";
+        return;
       }
-      result.dataset.status = response.ok && body.ok ? "ok" : "error";
+      if (response.ok) {
+        const verdict = answer.ok ? "ok" : `refused: ${answer.error}`;
+        result.textContent = `${command}: ${verdict}\n${JSON.stringify(answer.result || {}, null, 2)}`;
+      } else {
+        result.textContent = `${command}: ${response.status} ${answer.error || ""}`;
+      }
+      result.dataset.status = response.ok && answer.ok ? "ok" : "error";
     } catch (error) {
       result.textContent = `${command}: ${error}`;
       result.dataset.status = "error";
     } finally {
       buttons.forEach((b) => { b.disabled = false; });
     }
+  }
+
+  const beyond = document.getElementById("beyond-defaults");
+  const beyondTyped = document.getElementById("beyond-defaults-typed");
+  let pending = null;
+
+  function askBeyondDefaults(command, params, message) {
+    pending = { command, params };
+    document.getElementById("beyond-defaults-message").textContent = `${command}: ${message}`;
+    beyondTyped.value = "";
+    beyond.hidden = false;
+    beyondTyped.focus();
+  }
+
+  if (beyond) {
+    document.getElementById("beyond-defaults-send").addEventListener("click", () => {
+      if (!pending) return;
+      if (beyondTyped.value.trim() !== beyondTyped.dataset.confirmTyped) {
+        result.textContent = `${pending.command}: not sent. Type ${beyondTyped.dataset.confirmTyped} to confirm.`;
+        result.dataset.status = "error";
+        beyondTyped.focus();
+        return;
+      }
+      const { command, params } = pending;
+      pending = null;
+      beyond.hidden = true;
+      post(command, params, beyond.querySelectorAll("button"), true);
+    });
+    document.getElementById("beyond-defaults-cancel").addEventListener("click", () => {
+      if (pending) result.textContent = `${pending.command}: not sent.`;
+      pending = null;
+      beyond.hidden = true;
+    });
+  }
+
+  async function send(form) {
+    const command = form.dataset.command;
+    if (!confirmed(form, command)) return;
+    if (form.dataset.confirm && !window.confirm(form.dataset.confirm)) return;
+    await post(command, params(form), form.querySelectorAll("button"), false);
   }
 
   for (const form of document.querySelectorAll("form[data-command]")) {

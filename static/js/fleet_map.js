@@ -1,82 +1,287 @@
-/* The fleet page: every drone of the organisation on a Leaflet map and in the table,
-   moving as heartbeats arrive. */
+/* The fleet page: every drone on a Leaflet map (clustered, so thousands stay fluid) with
+   its state, heading and altitude, and a paged, searchable table; both follow the live
+   updates. */
 (function () {
   "use strict";
   const config = JSON.parse(document.getElementById("fleet-config").textContent);
   const live = window.SkyhiveLive;
-  const map = SkyhiveMap.create("fleet-map", { zoomControl: true });
+  // The cluster needs a maximum zoom even when no tile layer sets one (offline, no tiles).
+  const map = SkyhiveMap.create("fleet-map", { zoomControl: true, maxZoom: 19 });
   map.setView([38.7369, -9.1427], 13);
-  const markers = new Map();
+  L.control.scale({ imperial: false }).addTo(map);
+  // States from least to most urgent: a cluster takes the colour of its most urgent drone.
+  const URGENCY = ["on_ground", "armed", "airborne", "returning", "low_battery", "lost_link"];
+  const readiness = new Set();
+  let snapshotSeen = false;
   let fitted = false;
+  const positions = new Map(); // drone id → [lon, lat, urgency]: what the cluster index holds
+  const shown = new Map(); // key (drone id or "c" + cluster id) → the marker on the map
+  const layer = L.layerGroup().addTo(map);
+  // No clusters below zoom 3 (a continent) nor above 15 (closer, every drone in view is
+  // drawn): fewer levels to index.
+  const index = new Supercluster({
+    radius: 45,
+    minZoom: 3,
+    maxZoom: 15,
+    map: (props) => ({ u: props.u }),
+    reduce: (acc, props) => { if (props.u > acc.u) acc.u = props.u; },
+  });
+
+  function iconKey(drone) {
+    const p = drone.position || {};
+    const h = drone.heading === null || drone.heading === undefined ? "" : Math.round(drone.heading / 5) * 5;
+    return `${drone.state}|${h}|${p.alt === null || p.alt === undefined ? "" : Math.round(p.alt)}`;
+  }
 
   function icon(drone) {
-    const state = drone.online ? "online" : "offline";
-    const armed = drone.armed ? " armed" : "";
+    const p = drone.position || {};
+    const hasHeading = drone.heading !== null && drone.heading !== undefined;
+    const arrow = hasHeading ? `<span class="arrow" style="transform: rotate(${Math.round(drone.heading)}deg)"></span>` : "";
+    const alt = p.alt === null || p.alt === undefined ? "" : ` · ${Math.round(p.alt)} m`;
     return L.divIcon({
-      className: `drone-marker ${state}${armed}`,
-      html: `<span class="dot"></span><span class="label">${escapeHtml(drone.drone_id)}</span>`,
+      className: `drone-marker state-${drone.state || "lost_link"}`,
+      html: `${arrow}<span class="dot"></span><span class="label">${live.escapeHtml(drone.drone_id)}${alt}</span>`,
       iconSize: [18, 18],
       iconAnchor: [9, 9],
     });
   }
 
   function tooltip(drone) {
-    return `<strong>${escapeHtml(drone.drone_id)}</strong><br>` +
-      `${drone.online ? "online" : "offline"} · ${drone.armed ? "armed" : "disarmed"}<br>` +
-      `battery ${live.percent(drone.battery)} · step ${escapeHtml(live.missionStep(drone.mission))}`;
+    return `<strong>${live.escapeHtml(drone.drone_id)}</strong> · ${live.stateLabel(drone.state)}<br>` +
+      `${live.altitude(drone.position)} · ${live.speed(drone.ground_speed)} · ${live.heading(drone.heading)}<br>` +
+      `battery ${live.batteryText(drone)} · step ${live.escapeHtml(live.missionStep(drone.mission))}`;
   }
 
-  function escapeHtml(text) {
-    return String(text).replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" }[c]));
+  function droneUrl(id) { return config.droneUrl.replace("__ID__", encodeURIComponent(id)); }
+
+  function droneMarker(drone) {
+    const p = drone.position;
+    const marker = L.marker([p.lat, p.lon], { icon: icon(drone), title: drone.drone_id, keyboard: false });
+    marker.iconKey = iconKey(drone);
+    marker.on("click", () => { location.href = droneUrl(drone.drone_id); });
+    marker.on("mouseover", () => {
+      const now = live.drones.get(drone.drone_id);
+      if (now) marker.bindTooltip(tooltip(now)).openTooltip();
+    });
+    return marker;
+  }
+
+  function clusterMarker(feature) {
+    const n = feature.properties.point_count;
+    const state = URGENCY[feature.properties.u] || "on_ground";
+    const [lon, lat] = feature.geometry.coordinates;
+    const marker = L.marker([lat, lon], {
+      icon: L.divIcon({ className: `drone-cluster state-${state}`, html: `<span>${n}</span>`, iconSize: [36, 36] }),
+      title: `${n} drones`,
+    });
+    marker.on("click", () => map.setView([lat, lon], Math.min(index.getClusterExpansionZoom(feature.id), 18)));
+    return marker;
+  }
+
+  /* Only what is in view becomes a marker: clusters, and the drones standing alone. */
+  function render() {
+    const b = map.getBounds().pad(0.25);
+    const zoom = Math.round(map.getZoom());
+    const wanted = new Set();
+    for (const f of index.getClusters([b.getWest(), b.getSouth(), b.getEast(), b.getNorth()], zoom)) {
+      const cluster = f.properties.cluster;
+      const key = cluster ? `c${f.id}:${f.properties.point_count}:${f.properties.u}` : f.properties.id;
+      wanted.add(key);
+      if (shown.has(key)) continue;
+      const drone = cluster ? null : live.drones.get(key);
+      const marker = cluster ? clusterMarker(f) : drone && droneMarker(drone);
+      if (marker) { shown.set(key, marker); layer.addLayer(marker); }
+    }
+    for (const [key, marker] of shown) {
+      if (!wanted.has(key)) { layer.removeLayer(marker); shown.delete(key); }
+    }
+  }
+
+  // The index is rebuilt at most this often while drones move (10 000 take ~0.1 s).
+  let reindexTimer = null;
+  let reindexEvery = 1000;
+  function reindex() {
+    reindexTimer = null;
+    const started = performance.now();
+    const features = [];
+    for (const [id, [lon, lat, u]] of positions) {
+      features.push({ type: "Feature", properties: { id, u }, geometry: { type: "Point", coordinates: [lon, lat] } });
+    }
+    index.load(features);
+    reindexEvery = Math.max(1000, 10 * (performance.now() - started));
+    if (!fitted && positions.size) fit();
+    render();
+    if (snapshotSeen) markReady("markers");
+  }
+  function scheduleReindex(now) {
+    if (now) { clearTimeout(reindexTimer); reindex(); return; }
+    if (!reindexTimer) reindexTimer = setTimeout(reindex, reindexEvery);
+  }
+
+  function fit() {
+    fitted = true;
+    let south = 90, north = -90, west = 180, east = -180;
+    for (const [lon, lat] of positions.values()) {
+      south = Math.min(south, lat); north = Math.max(north, lat);
+      west = Math.min(west, lon); east = Math.max(east, lon);
+    }
+    if (positions.size === 1) map.setView([south, west], 16);
+    else map.fitBounds(L.latLngBounds([south, west], [north, east]).pad(0.1), { maxZoom: 17 });
   }
 
   function updateMarker(drone) {
     const p = drone.position;
-    let marker = markers.get(drone.drone_id);
-    if (!p) return;
-    if (!marker) {
-      marker = L.marker([p.lat, p.lon], { icon: icon(drone), title: drone.drone_id }).addTo(map);
-      marker.on("click", () => { location.href = config.droneUrl.replace("__ID__", encodeURIComponent(drone.drone_id)); });
-      markers.set(drone.drone_id, marker);
-    } else {
-      marker.setLatLng([p.lat, p.lon]);
-      marker.setIcon(icon(drone));
+    if (!p || p.lat === null || p.lat === undefined) return;
+    const u = Math.max(0, URGENCY.indexOf(drone.state));
+    const before = positions.get(drone.drone_id);
+    positions.set(drone.drone_id, [p.lon, p.lat, u]);
+    const marker = shown.get(drone.drone_id);
+    if (marker) {
+      // A drone drawn on its own follows at once; clusters catch up at the next re-index.
+      const at = marker.getLatLng();
+      if (at.lat !== p.lat || at.lng !== p.lon) marker.setLatLng([p.lat, p.lon]);
+      const key = iconKey(drone);
+      if (key !== marker.iconKey) { marker.iconKey = key; marker.setIcon(icon(drone)); }
     }
-    marker.bindTooltip(tooltip(drone));
-    if (!fitted) {
-      map.setView([p.lat, p.lon], 16);
-      fitted = true;
+    if (!before || before[0] !== p.lon || before[1] !== p.lat || before[2] !== u) scheduleReindex();
+  }
+  map.on("moveend", render);
+
+  /* ---- the table: one page from the table API, kept live by the socket's diffs ---- */
+  const body = document.querySelector("#drone-table tbody");
+  const controls = document.getElementById("row-controls");
+  const form = document.getElementById("fleet-filters");
+  const rows = new Map();
+  let page = 1, pages = 1, requestSeq = 0;
+
+  function cells(drone) {
+    const mission = drone.mission;
+    const missionCell = mission
+      ? `<a href="${config.missionUrl.replace("__ID__", encodeURIComponent(mission.mission_id))}" title="${live.escapeHtml(mission.mission_id)}">${live.escapeHtml(String(mission.mission_id).slice(0, 8))}</a> · ${live.escapeHtml(live.missionStep(mission))}`
+      : "–";
+    return {
+      state: `<span class="state-badge state-${drone.state}">${live.stateLabel(drone.state)}</span>`,
+      alt: live.altitude(drone.position),
+      speed: live.speed(drone.ground_speed),
+      heading: live.heading(drone.heading),
+      battery: live.batteryText(drone),
+      mission: missionCell,
+      link: live.age(drone.last_seen),
+    };
+  }
+
+  const LABELS = { state: "State", alt: "Alt.", speed: "Speed", heading: "Heading", battery: "Battery", mission: "Mission · step", link: "Link" };
+
+  function buildRow(drone) {
+    const row = document.createElement("tr");
+    row.dataset.drone = drone.drone_id;
+    let html = `<td class="drone-id" data-label="Drone"><a href="${droneUrl(drone.drone_id)}">${live.escapeHtml(drone.drone_id)}</a></td>`;
+    for (const field of Object.keys(LABELS)) html += `<td data-field="${field}" data-label="${LABELS[field]}"></td>`;
+    row.innerHTML = html;
+    if (controls) row.append(controls.content.cloneNode(true));
+    fillRow(row, drone);
+    return row;
+  }
+
+  function fillRow(row, drone) {
+    const values = cells(drone);
+    for (const [field, html] of Object.entries(values)) {
+      const cell = row.querySelector(`[data-field="${field}"]`);
+      if (cell && cell.innerHTML !== html) cell.innerHTML = html;
+    }
+    row.dataset.state = drone.state || "";
+  }
+
+  async function loadPage() {
+    const seq = ++requestSeq;
+    const params = new URLSearchParams();
+    const q = form.elements.q.value.trim();
+    if (q) params.set("q", q);
+    const filters = Array.from(form.querySelectorAll("input[name=filter]:checked"), (i) => i.value);
+    if (filters.length) params.set("filter", filters.join(","));
+    params.set("page", String(page));
+    let data;
+    try {
+      const response = await fetch(`${config.tableUrl}?${params}`, { credentials: "same-origin", headers: { Accept: "application/json" } });
+      if (!response.ok) return;
+      data = await response.json();
+    } catch (error) { return; }
+    if (seq !== requestSeq) return; // a newer search is on its way
+    pages = data.pages;
+    if (page > pages) { page = pages; loadPage(); return; }
+    rows.clear();
+    const fresh = data.results.map((d) => {
+      const merged = live.absorb(d);
+      const row = buildRow(merged);
+      rows.set(d.drone_id, row);
+      return row;
+    });
+    body.replaceChildren(...fresh);
+    document.getElementById("fleet-count").textContent = `${data.count} drone${data.count === 1 ? "" : "s"}`;
+    document.getElementById("page-info").textContent = `page ${data.page} of ${data.pages}`;
+    document.getElementById("page-prev").disabled = page <= 1;
+    document.getElementById("page-next").disabled = page >= pages;
+    markReady("table");
+  }
+
+  /* The page is usable once the first table page is drawn and every drone of the first
+     snapshot is on the map: noted on <html data-fleet-ready> in ms since navigation start
+     (for the benchmark and tests). */
+  function markReady(part) {
+    readiness.add(part);
+    const root = document.documentElement;
+    if (readiness.has("table") && readiness.has("markers") && !root.dataset.fleetReady) {
+      root.dataset.fleetReady = String(performance.now());
     }
   }
 
-  function updateRow(drone) {
-    const row = document.querySelector(`#drone-table tr[data-drone="${CSS.escape(drone.drone_id)}"]`);
-    if (!row) return;
-    const set = (field, text) => { const cell = row.querySelector(`[data-field="${field}"]`); if (cell) cell.textContent = text; };
-    const badge = row.querySelector('[data-field="state"] .badge');
-    if (badge) { badge.textContent = drone.online ? "online" : "offline"; badge.className = `badge ${drone.online ? "ok" : "off"}`; }
-    set("battery", live.percent(drone.battery));
-    set("armed", drone.armed ? "armed" : "disarmed");
-    set("mission", live.missionStep(drone.mission));
-    set("position", live.position(drone.position));
-    set("last_seen", live.clock(drone.last_seen));
-  }
+  let searchTimer = null;
+  form.addEventListener("input", () => {
+    clearTimeout(searchTimer);
+    searchTimer = setTimeout(() => { page = 1; loadPage(); }, 200);
+  });
+  document.getElementById("page-prev").addEventListener("click", () => { if (page > 1) { page -= 1; loadPage(); } });
+  document.getElementById("page-next").addEventListener("click", () => { if (page < pages) { page += 1; loadPage(); } });
 
   function onChange(drone) {
     updateMarker(drone);
-    updateRow(drone);
+    const row = rows.get(drone.drone_id);
+    if (row) fillRow(row, drone);
   }
 
   const status = document.getElementById("live-status");
-  const drones = live.connect(config, onChange, (up) => {
+  live.drones = live.connect(config, onChange, (up) => {
     status.textContent = up ? "live" : "reconnecting…";
     status.className = `badge ${up ? "ok" : "off"}`;
+  }, null, () => {
+    snapshotSeen = true;
+    scheduleReindex(true); // the snapshot is drawn at once
   });
-  drones.forEach(onChange);
+  live.absorb = (drone) => {
+    const merged = Object.assign({}, live.drones.get(drone.drone_id) || {}, drone);
+    live.drones.set(drone.drone_id, merged);
+    updateMarker(merged);
+    return merged;
+  };
+  loadPage();
+  // Link ages tick every second; which drones match a filter is asked again now and then.
+  setInterval(() => {
+    const now = Date.now();
+    for (const [id, row] of rows) {
+      const drone = live.drones.get(id);
+      const cell = row.querySelector('[data-field="link"]');
+      if (drone && cell) cell.textContent = live.age(drone.last_seen, now);
+    }
+  }, 1000);
+  setInterval(loadPage, 15000);
 
-  // For tests and the console: where each marker is now.
+  // For tests and the console: where each drone's marker is, and what it shows.
   window.skyhiveFleet = {
-    markerPosition(id) { const m = markers.get(id); return m ? m.getLatLng() : null; },
-    markerIds() { return Array.from(markers.keys()); },
+    markerPosition(id) { const p = positions.get(id); return p ? { lat: p[1], lng: p[0] } : null; },
+    markerIds() { return Array.from(positions.keys()); },
+    markerState(id) { const d = live.drones.get(id); return positions.has(id) && d ? d.state : null; },
+    markerHtml(id) { const d = live.drones.get(id); return d && positions.has(id) ? icon(d).options.html : null; },
+    shownMarkers() { return shown.size; },
+    map,
   };
 })();

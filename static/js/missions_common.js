@@ -24,6 +24,7 @@
       const error = new Error(message);
       error.status = response.status;
       error.fields = (data && data.fields) || {};
+      error.code = (data && data.code) || null;
       throw error;
     }
     return data;

@@ -27,9 +27,15 @@
   map.setView(config.center, 18);
   const layer = L.layerGroup().addTo(map);
   const fenceLayer = L.layerGroup().addTo(map);
+  // Legs the envelope refuses (the straight line between two targets crosses the fence).
+  const legLayer = L.layerGroup().addTo(map);
   let vertices = [];
   let area = null;
   let steps = [];
+  // The operator's confirmation of steps beyond the defaults, and the draft already
+  // created for this plan (a start refused is retried on it, not on a new mission).
+  let confirmedBeyond = false;
+  let draftId = null;
 
   function showError(message) {
     const box = $("planner-error");
@@ -88,7 +94,20 @@
     return label;
   }
 
+  // One line for the whole list: the long list itself is one click away.
+  function summarise() {
+    const navigations = steps.filter((s) => s.command === "navigate").length;
+    const photos = steps.filter((s) => s.command === "takepic").length;
+    const parts = [`${steps.length} steps`];
+    if (navigations) parts.push(`${navigations} waypoints`);
+    if (photos) parts.push(`${photos} photos`);
+    $("step-summary").textContent = steps.length ? parts.join(" · ") : "none yet";
+  }
+
   function renderSteps() {
+    confirmedBeyond = false;
+    draftId = null;
+    summarise();
     const list = $("step-list");
     list.replaceChildren();
     steps.forEach((step, i) => {
@@ -142,13 +161,26 @@
     $("area").textContent = area.area_m2.toFixed(0);
   }
 
+  // With a camera survey switched on, the spacings and the height come from the camera.
+  async function areaFor(points) {
+    const survey = window.skyhiveSurvey;
+    if (survey && survey.active()) {
+      const planned = await survey.plan(points, $("drone-choice").value || null);
+      $("altitude").value = planned.geometry.height_m.toFixed(1);
+      $("step-distance").value = planned.coverage.step_distance.toFixed(1);
+      $("intermediate-action").value = "takepic";
+      return planned.coverage;
+    }
+    return M.api("POST", config.coverageUrl, {
+      vertices: points, step_distance: Number($("step-distance").value), altitude: Number($("altitude").value),
+    });
+  }
+
   async function requestCoverage() {
     if (vertices.length !== 3) return;
     showError("");
     try {
-      area = await M.api("POST", config.coverageUrl, {
-        vertices, step_distance: Number($("step-distance").value), altitude: Number($("altitude").value),
-      });
+      area = await areaFor(vertices);
       buildSteps();
     } catch (error) {
       area = null;
@@ -165,6 +197,7 @@
   });
   $("clear-area").addEventListener("click", () => { vertices = []; area = null; steps = []; renderSteps(); drawArea(); });
   $("step-distance").addEventListener("change", requestCoverage);
+  document.addEventListener("skyhive:survey-change", requestCoverage);
   $("altitude").addEventListener("change", () => (area ? buildSteps() : null));
   $("intermediate-action").addEventListener("change", () => {
     const kind = $("intermediate-action").value;
@@ -175,6 +208,7 @@
   });
   $("action-param").addEventListener("change", () => (area ? buildSteps() : null));
   $("add-step").addEventListener("click", () => {
+    $("step-details").open = true;
     const command = $("new-step-command").value;
     steps.push({ command, params: defaults(command) });
     renderSteps();
@@ -189,56 +223,105 @@
   }
   M.api("GET", config.envelopeUrl).then((envelope) => drawFence(envelope.geoFence)).catch(() => null);
 
-  // Ask the ground which steps the envelope refuses and mark them; true when none.
-  async function insideEnvelope(drone) {
+  /* Ask the ground which steps the envelope refuses and mark them (an offending leg is
+     drawn in red on the map too); which steps go beyond the envelope's defaults. */
+  async function checkEnvelope(drone) {
     const answer = await M.api("POST", config.checkUrl, { steps, drone });
     drawFence(answer.envelope.geoFence);
+    legLayer.clearLayers();
     const items = Array.from($("step-list").children);
-    items.forEach((item) => { item.classList.remove("outside-envelope"); item.removeAttribute("title"); });
+    items.forEach((item) => { item.classList.remove("outside-envelope", "beyond-defaults"); item.removeAttribute("title"); });
+    (answer.beyond_defaults || []).forEach((v) => {
+      const item = items[v.index];
+      if (item) { item.classList.add("beyond-defaults"); item.title = v.message; }
+    });
     answer.violations.forEach((v) => {
       const item = items[v.index];
-      if (item) { item.classList.add("outside-envelope"); item.title = v.message; }
+      if (item) { item.classList.remove("beyond-defaults"); item.classList.add("outside-envelope"); item.title = v.message; }
+      if (v.leg) L.polyline(v.leg, { color: "#c33", weight: 4, dashArray: "6 4", className: "offending-leg" }).addTo(legLayer).bindTooltip(`Step ${v.index}: ${v.message}`);
     });
+    // The marks are in the step list: open it so they are seen.
+    if (answer.violations.length || (answer.beyond_defaults || []).length) $("step-details").open = true;
     if (answer.violations.length) {
       const first = answer.violations[0];
       showError(`Outside the flight envelope (${answer.violations.length} step(s) marked). Step ${first.index}: ${first.message}`);
     }
-    return answer.violations.length === 0;
+    return { inside: answer.violations.length === 0, beyond: answer.beyond_defaults || [] };
+  }
+
+  /* Steps beyond the envelope's defaults (allowed by raised limits) are sent only once
+     CONFIRM has been typed; the mission and its start then carry the confirmation. */
+  function askBeyondDefaults(message) {
+    $("beyond-defaults-message").textContent = `${message} Type CONFIRM to send anyway.`;
+    $("beyond-defaults-typed").value = "";
+    $("beyond-defaults").hidden = false;
+    $("beyond-defaults-typed").focus();
+  }
+  $("beyond-defaults-send").addEventListener("click", () => {
+    if ($("beyond-defaults-typed").value.trim() !== "CONFIRM") {
+      showError("Not sent: type CONFIRM to fly beyond the envelope's defaults.");
+      return;
+    }
+    confirmedBeyond = true;
+    $("beyond-defaults").hidden = true;
+    $("planner-form").requestSubmit();
+  });
+  $("beyond-defaults-cancel").addEventListener("click", () => {
+    $("beyond-defaults").hidden = true;
+    showError("Not sent.");
+  });
+
+  async function createAndStart(drone) {
+    const confirm = confirmedBeyond ? { confirm_beyond_defaults: true } : {};
+    if (!draftId) {
+      const body = { name: $("mission-name").value, altitude: Number($("altitude").value), steps, ...confirm };
+      if (area) {
+        body.extensibility = { vertices, vectors: area.vectors, step_distance: area.step_distance,
+                               intermediate_action: intermediateAction() };
+      }
+      draftId = (await M.api("POST", config.createUrl, body)).id;
+    }
+    try {
+      await M.api("POST", config.startUrl.replace(config.placeholder, draftId), { drone, ...confirm });
+    } catch (error) {
+      if (error.code === "confirmation_required") { askBeyondDefaults(error.message); return; }
+      showError(`Saved as a draft, not started: ${error.message}`);
+      return;
+    }
+    location.href = config.missionUrl.replace(config.placeholder, draftId);
   }
 
   $("planner-form").addEventListener("submit", async (event) => {
     event.preventDefault();
     showError("");
     if (!steps.length) { showError("Click three corners or add steps first."); return; }
+    const drone = $("drone-choice").value || null;
+    let checked;
     try {
-      if (!(await insideEnvelope($("drone-choice").value || null))) return;
+      checked = await checkEnvelope(drone);
     } catch (error) {
       showError(error.message);
       return;
     }
-    const body = { name: $("mission-name").value, altitude: Number($("altitude").value), steps };
-    if (area) {
-      body.extensibility = { vertices, vectors: area.vectors, step_distance: area.step_distance,
-                             intermediate_action: intermediateAction() };
+    if (!checked.inside) return;
+    if (checked.beyond.length && !confirmedBeyond) {
+      const first = checked.beyond[0];
+      askBeyondDefaults(`${checked.beyond.length} step(s) go beyond the envelope's defaults (marked). Step ${first.index}: ${first.message}`);
+      return;
     }
     $("send-mission").disabled = true;
     try {
-      const mission = await M.api("POST", config.createUrl, body);
-      const drone = $("drone-choice").value || null;
-      try {
-        await M.api("POST", config.startUrl.replace(config.placeholder, mission.id), { drone });
-      } catch (error) {
-        showError(`Saved as a draft, not started: ${error.message}`);
-        $("send-mission").disabled = false;
-        return;
-      }
-      location.href = config.missionUrl.replace(config.placeholder, mission.id);
+      await createAndStart(drone);
     } catch (error) {
-      showError(error.message);
-      $("send-mission").disabled = false;
+      if (error.code === "confirmation_required") askBeyondDefaults(error.message);
+      else showError(error.message);
     }
+    $("send-mission").disabled = false;
   });
 
+  // A changed plan is a new mission: its confirmation and draft do not carry over.
+  $("step-list").addEventListener("change", () => { confirmedBeyond = false; draftId = null; });
+
   // For tests and the console.
-  window.skyhivePlanner = { map, get steps() { return steps; }, get area() { return area; } };
+  window.skyhivePlanner = { map, get steps() { return steps; }, get area() { return area; }, get vertices() { return vertices; } };
 })();

@@ -44,6 +44,27 @@ ROUTES: dict[str, str | None] = {
     "api/redoc/": "/api/redoc/",
     "api/v1/": "/api/v1/",  # the browsable API
     "admin/": "/admin/",  # a non-staff user gets the admin's sign-in page
+    "accounts/security/": "/accounts/security/",
+    "accounts/security/two-factor/": "/accounts/security/two-factor/",
+    "accounts/audit/": "/accounts/audit/",
+    "accounts/password/reset/": "/accounts/password/reset/",
+    "accounts/password/reset/sent/": "/accounts/password/reset/sent/",
+    "accounts/password/reset/done/": "/accounts/password/reset/done/",
+    "accounts/members/": None,  # admins only: 403 for the operator signed in here
+    "accounts/organisation/": None,  # admins only
+    "accounts/login/code/": None,  # only during a sign-in with a second factor
+    "accounts/invitation/<str:key>/": None,  # needs an invitation's secret key
+    "accounts/password/reset/<uidb64>/<token>/": None,  # needs a reset token
+    "accounts/audit.csv": None,  # a CSV download
+    "accounts/security/tokens/": None,  # POST only
+    "accounts/security/tokens/<int:pk>/revoke/": None,  # POST only
+    "accounts/security/tokens/legacy/revoke/": None,  # POST only
+    "accounts/security/two-factor/disable/": None,  # POST only
+    "accounts/members/invite/": None,  # POST only
+    "accounts/members/<int:pk>/role/": None,  # POST only
+    "accounts/members/<int:pk>/remove/": None,  # POST only
+    "accounts/invitations/<int:pk>/revoke/": None,  # POST only
+    "fleet/table/": None,  # JSON for the fleet page's table
     "accounts/login/": None,  # opened signed out, before the rest
     "accounts/logout/": None,  # POST only
     "organisation/switch/": None,  # POST only

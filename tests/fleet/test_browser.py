@@ -85,8 +85,8 @@ def test_an_operator_watches_two_drones_move_and_commands_one(
                 arg=[drone_id, start[drone_id]["lat"]],
                 timeout=15_000,
             )
-        row = page.locator(f'#drone-table tr[data-drone="{IDS[0]}"] [data-field="armed"]')
-        assert row.inner_text() == "armed"
+        row = page.locator(f'#drone-table tr[data-drone="{IDS[0]}"] [data-field="state"]')
+        assert row.inner_text() == "airborne"
 
         page.goto(f"{url}/drones/{IDS[0]}/")
         page.fill('form[data-command="changeE"] input[name=value]', "10")

@@ -75,7 +75,7 @@ def test_a_draft_mission_cannot_be_paused_and_only_its_operators_may(world, outb
     assert outbox.items() == []
 
 
-def test_a_drone_held_from_its_page_marks_its_mission_paused_until_resumed(world, running):
+def test_a_drone_held_from_its_page_holds_its_assignment_until_resumed(world, running):
     mission = Mission.objects.get(pk=running)
     assignment = mission.assignments.get()
     drone = Drone.objects.get(drone_id="ACME_1")
@@ -83,8 +83,9 @@ def test_a_drone_held_from_its_page_marks_its_mission_paused_until_resumed(world
         message = protocol.MissionProgress(running, str(assignment.pk), status)
         assert apply_progress(drone, message) is None
         mission.refresh_from_db()
-        assert (mission.held, mission.status) == (held, "running")
-    assignment.refresh_from_db()
+        assignment.refresh_from_db()
+        # The drone holds, not the mission: the operator did not pause it.
+        assert (assignment.held, mission.held, mission.status) == (held, False, "running")
     assert assignment.status == "sent"  # a pause is no assignment state
 
 

@@ -50,7 +50,10 @@ def test_the_planner_turns_three_clicks_into_45_waypoints_and_sends_the_mission(
     # arm, takeoff, 45 × (navigate, wait, takepic), land
     assert page.locator("#step-list .step").count() == 2 + 45 * 3 + 1
 
-    # Drag take-off above arm, then back: the list is editable by drag and drop.
+    # The list is summarised, one click away; open it and drag take-off above arm, then
+    # back: the list is editable by drag and drop.
+    assert "45 waypoints" in page.locator("#step-summary").inner_text()
+    page.click("#step-details summary")
     commands = page.locator("#step-list .step select.command")
     steps = page.locator("#step-list .step")
     steps.nth(1).locator(".handle").drag_to(steps.nth(0).locator(".handle"))

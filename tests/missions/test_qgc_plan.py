@@ -66,18 +66,18 @@ def test_geofence_and_rally_points_come_back_as_plain_values():
 
 def test_an_unknown_command_is_refused_naming_the_item():
     plan = load("survey_photos_rtl.plan")
-    plan["mission"]["items"][3]["command"] = 178
+    plan["mission"]["items"][3]["command"] = 177
     with pytest.raises(QgcPlanError) as caught:
         import_plan(plan)
     assert caught.value.field == "mission.items[3]"
-    assert "MAV_CMD_DO_CHANGE_SPEED" in caught.value.message
+    assert "item 4 (MAV_CMD_DO_JUMP, command 177" in caught.value.message
     assert "doJumpId 4" in caught.value.message
 
 
 def test_a_complex_item_without_generated_items_is_refused_with_a_way_out():
     plan = load("survey_photos_rtl.plan")
     plan["mission"]["items"][1] = {"type": "ComplexItem", "complexItemType": "StructureScan"}
-    with pytest.raises(QgcPlanError, match="convert it to waypoints") as caught:
+    with pytest.raises(QgcPlanError, match="no generated items") as caught:
         import_plan(plan)
     assert caught.value.field == "mission.items[1]"
 
@@ -89,7 +89,7 @@ def test_a_complex_item_without_generated_items_is_refused_with_a_way_out():
         (lambda p: p["mission"].update(version=1), "mission.version"),
         (lambda p: p["mission"]["items"][1]["params"].pop(), "mission.items[1].params"),
         (lambda p: p["mission"]["items"][1]["params"].__setitem__(4, 123.0), "mission.items[1]"),
-        (lambda p: p["mission"]["items"][1].update(frame=10), "mission.items[1]"),
+        (lambda p: p["mission"]["items"][1].update(frame=10), "mission.items[1]"),  # no terrain
         (lambda p: p["mission"]["items"][3]["params"].__setitem__(0, 1e9), "mission.items[3]"),
         (lambda p: p["mission"].update(items=[]), "mission.items"),
         (lambda p: p["rallyPoints"]["points"].append([1, 2]), "rallyPoints.points[2]"),
@@ -159,7 +159,7 @@ def test_a_hover_and_capture_survey_flies_the_items_qgroundcontrol_generated():
         assert ours["doJumpId"] == theirs["doJumpId"]
 
 
-def test_a_survey_triggering_the_camera_by_distance_is_refused_with_advice():
+def test_a_survey_triggering_the_camera_by_distance_takes_pictures_while_flying():
     plan = load("hover_survey.plan")
     inner = plan["mission"]["items"][1]["TransectStyleComplexItem"]["Items"]
     inner[1] = {
@@ -170,6 +170,6 @@ def test_a_survey_triggering_the_camera_by_distance_is_refused_with_advice():
         "params": [25, 0, 1, 0, 0, 0, 0],
         "type": "SimpleItem",
     }
-    with pytest.raises(QgcPlanError, match="Hover and Capture") as caught:
-        import_plan(plan)
-    assert caught.value.field == "mission.items[1].TransectStyleComplexItem.Items[1]"
+    steps = import_plan(plan).steps
+    waits = [s["params"] for s in steps if s["command"] == "wait_for_flight"]
+    assert waits[0] == {} and waits[1]["photo_distance"] == 25

@@ -202,7 +202,9 @@ def _locked(directory: Path) -> Iterator[None]:
 
 
 def _write_atomically(path: Path, text: str) -> None:
-    mode = path.stat().st_mode & 0o777 if path.exists() else 0o600
+    # A new file is readable by its group too: the broker runs unprivileged, in the group
+    # of its setgid folder, and must read what provisioning (as root) writes there.
+    mode = path.stat().st_mode & 0o777 if path.exists() else 0o640
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
     try:
         with os.fdopen(fd, "w") as handle:

@@ -23,9 +23,19 @@ def wait_for(predicate: Callable[[], Any], timeout: float, interval: float = 0.0
 
 
 @pytest.fixture
-def mav_sim(tmp_path) -> Iterator[Any]:  # type: ignore[no-untyped-def]
+def autopilot() -> str:
+    """The simulator's MAVLink flavour; parametrize a test over it to fly both autopilots."""
+    return "ardupilot"
+
+
+@pytest.fixture
+def mav_sim(tmp_path, autopilot) -> Iterator[Any]:  # type: ignore[no-untyped-def]
     sim = start_simulator(
-        home=HOME, time_scale=TIME_SCALE, fc="mavlink", log_file=tmp_path / "sim.log"
+        home=HOME,
+        time_scale=TIME_SCALE,
+        fc="mavlink",
+        extra_args=["--autopilot", autopilot],
+        log_file=tmp_path / "sim.log",
     )
     try:
         yield sim

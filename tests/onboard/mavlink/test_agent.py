@@ -30,12 +30,13 @@ def broker(tmp_path: Path):  # type: ignore[no-untyped-def]
 
 
 @pytest.fixture
-def fly(tmp_path: Path, broker):  # type: ignore[no-untyped-def]
-    """fly(*sim_params, agent_args=()) → Ground talking to an agent flying a MAVLink sim."""
+def fly(tmp_path: Path, broker, autopilot):  # type: ignore[no-untyped-def]
+    """fly(*sim_params, agent_args=()) → Ground talking to an agent flying a MAVLink sim
+    (ArduPilot, or PX4 where the test parametrizes `autopilot`)."""
     started: list = []
 
     def start(*params: str, agent_args: tuple[str, ...] = (), **sim_kwargs) -> Ground:  # type: ignore[no-untyped-def]
-        extra = [arg for p in params for arg in ("--param", p)]
+        extra = [arg for p in params for arg in ("--param", p)] + ["--autopilot", autopilot]
         sim = start_simulator(
             home=HOME,
             time_scale=TIME_SCALE,
@@ -77,6 +78,7 @@ def agent_log(tmp_path: Path) -> str:
     return (tmp_path / "agent.log").read_text(errors="replace")
 
 
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_the_ground_flies_a_mavlink_drone_through_the_agent(fly, tmp_path):
     ground = fly()
     beat = ground.on("heartbeats")[-1]
@@ -156,6 +158,7 @@ def test_junk_frames_from_the_vehicle_are_counted_and_the_agent_keeps_flying(fly
     ground.wait_for("heartbeats", lambda m: m["airborne"] and m["position"]["alt"] > 4.5, 10)
 
 
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_the_agent_flies_a_mission_natively_when_asked(fly):
     ground = fly(agent_args=("--native-missions",))
     steps = [

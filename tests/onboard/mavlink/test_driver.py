@@ -281,7 +281,7 @@ def test_a_px4_autopilot_is_flown_with_its_own_modes_and_reposition(tmp_path):
         assert wait_for(lambda: fc.state.home is not None, 5)
         assert fc.is_px4 and fc.state.flight_mode == "MANUAL"
         fly_up(fc, 12.0)  # NAV_TAKEOFF to home + 12 m above mean sea level
-        assert fc.state.flight_mode == "LOITER"
+        assert wait_for(lambda: fc.state.flight_mode == "LOITER", 3)  # Takeoff ends in Hold
         fc.goto_ned(25.0, -10.0, -15.0)  # MAV_CMD_DO_REPOSITION, acknowledged
         assert wait_for(
             lambda: (
@@ -291,8 +291,9 @@ def test_a_px4_autopilot_is_flown_with_its_own_modes_and_reposition(tmp_path):
             ),
             15,
         ), fc.state
-        fc.set_mode("AUTO")
-        assert wait_for(lambda: fc.state.flight_mode == "MISSION", 3)
+        # PX4 enters Mission mode only with a valid mission on board.
+        with pytest.raises(CommandRejected, match="TEMPORARILY_REJECTED.*no valid mission"):
+            fc.set_mode("AUTO")
         fc.land()
         assert wait_for(lambda: not fc.state.armed, 15), fc.state
         assert fc.state.flight_mode == "LAND"
@@ -321,3 +322,30 @@ def test_a_plain_pymavlink_script_connects_to_the_simulator_as_to_sitl(mav_sim):
         )
     finally:
         conn.close()
+
+
+def test_px4_refusals_reach_the_driver_with_the_result_and_the_autopilots_words(tmp_path):
+    sim = start_simulator(
+        home=HOME,
+        time_scale=TIME_SCALE,
+        fc="mavlink",
+        extra_args=["--autopilot", "px4", "--param", "SIM_GPS_DISABLE=1"],
+        log_file=tmp_path / "sim.log",
+    )
+    fc = MavlinkFlightController(sim.link_url)
+    try:
+        fc.start()
+        assert fc.wait_connected(5)
+        assert wait_for(lambda: fc.state.home is not None, 5)
+        assert not fc.state.gps_fix
+        fc.arm(timeout=5)  # Manual needs no global position
+        with pytest.raises(CommandRejected) as takeoff:
+            fc.takeoff(10.0)
+        assert takeoff.value.result_name == "MAV_RESULT_TEMPORARILY_REJECTED"
+        assert "Takeoff denied! Please disarm and retry" in str(takeoff.value)
+        with pytest.raises(CommandRejected, match="Hold mode not available: no global position"):
+            fc.goto_ned(10.0, 0.0, -5.0)
+        assert fc.state.ned[2] == pytest.approx(0.0, abs=0.05) and fc.state.flight_mode == "MANUAL"
+    finally:
+        fc.stop()
+        sim.stop()

@@ -93,7 +93,7 @@ def test_an_uploaded_mission_reads_back_item_for_item(fc):
     uploader = MissionUploader(fc)
     uploader.upload(items)
     assert uploader.download() == items
-    assert uploader.stats["items_sent"] == len(items)
+    assert uploader.stats["items_sent"] == len(items) + 1  # ArduPilot's home item 0 first
 
 
 def test_a_refused_mission_names_the_mav_mission_result(fc):
@@ -133,7 +133,8 @@ def worker(fc):  # type: ignore[no-untyped-def]
     worker.close()
 
 
-def test_the_worker_flies_a_survey_natively_and_reports_every_step(worker, fc):
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_the_worker_flies_a_survey_natively_and_reports_every_step(worker, fc, autopilot):
     mission = steps(
         ("arm", {}),
         ("takeoff", {"altitude": 10.0}),
@@ -152,7 +153,10 @@ def test_the_worker_flies_a_survey_natively_and_reports_every_step(worker, fc):
     outbox = worker.outbox
     assert wait_for(lambda: outbox.missions()[-1:] == ["completed"], 30), list(outbox)
     assert outbox.steps("completed") == [(s.index, s.command) for s in mission]
-    assert reached == [0, 1, 2, 3, 4]  # takeoff, two waypoints, loiter, land
+    # Takeoff, two waypoints, loiter, land: from item 1 on ArduPilot, which keeps home in
+    # item 0; from item 0 on PX4 (AUTO.MISSION).
+    first = 0 if autopilot == "px4" else 1
+    assert reached == [first + i for i in range(5)]
     assert not fc.state.armed
     assert fc.state.ned[:2] == pytest.approx((30.0, 20.0), abs=1.0)
     loiter = next(
@@ -161,7 +165,8 @@ def test_the_worker_flies_a_survey_natively_and_reports_every_step(worker, fc):
     assert loiter.duration_s >= 3.0  # simulated seconds hovering
 
 
-def test_stopping_a_native_mission_leaves_auto_and_holds(worker, fc):
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_stopping_a_native_mission_leaves_auto_and_holds(worker, fc, autopilot):
     mission = steps(
         ("arm", {}),
         ("takeoff", {"altitude": 10.0}),
@@ -176,7 +181,7 @@ def test_stopping_a_native_mission_leaves_auto_and_holds(worker, fc):
     worker.stop_current("stopped by the ground")
     assert wait_for(lambda: outbox.missions()[-1:] == ["stopped"], 10), list(outbox)
     assert outbox.steps("failed") == [(2, "changeN")]
-    assert fc.state.flight_mode == "GUIDED"
+    assert fc.state.flight_mode == fc.guided_mode  # GUIDED, or PX4's hold (LOITER)
     north = fc.state.ned[0]
     time.sleep(0.5)
     assert fc.state.ned[0] < 400 - 50 and abs(fc.state.ned[0] - north) < 15

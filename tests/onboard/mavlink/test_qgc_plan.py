@@ -30,8 +30,11 @@ def mission_items(steps: list[protocol.Step], home: tuple[float, float, float]):
     return items
 
 
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 @pytest.mark.parametrize("name", ["hover_survey", "loiter_digicam_land", "survey_photos_rtl"])
-def test_a_qgroundcontrol_plan_is_uploaded_to_a_mavlink_vehicle_and_read_back(name, tmp_path):
+def test_a_qgroundcontrol_plan_is_uploaded_to_a_mavlink_vehicle_and_read_back(
+    name, autopilot, tmp_path
+):
     plan = qgc_plan.import_plan((FIXTURES / f"{name}.plan").read_text())
     steps = [
         protocol.Step(
@@ -53,7 +56,11 @@ def test_a_qgroundcontrol_plan_is_uploaded_to_a_mavlink_vehicle_and_read_back(na
     assert items[-1].command == mavlink.MAV_CMD_NAV_LAND
 
     sim = start_simulator(
-        home=home, time_scale=TIME_SCALE, fc="mavlink", log_file=tmp_path / "sim.log"
+        home=home,
+        time_scale=TIME_SCALE,
+        fc="mavlink",
+        extra_args=["--autopilot", autopilot],
+        log_file=tmp_path / "sim.log",
     )
     fc = MavlinkFlightController(sim.link_url)
     try:

@@ -1,0 +1,378 @@
+"""A vectorised reader of PX4 ULog files that returns what pyulog's `ULog` returns.
+
+The file format is PX4's "ULog File Format": a 16-byte header, then messages of
+`uint16 size, uint8 type, payload`. pyulog decodes every message in Python and appends each
+data payload to a buffer; here one tight loop only follows the message sizes, and every data
+message of a subscription is then gathered at once through a numpy view whose records start
+at any byte (stride 1), so the per-message Python work is a few operations.
+
+The file is read in chunks of CHUNK_BYTES, so memory stays bounded by the decoded data plus
+one chunk and its message offsets.
+Corruption is handled like pyulog: an impossible header moves on by one byte (or to the
+next sync sequence when the log has them), a data message of an unknown subscription or an
+impossible size is skipped, and the log is flagged corrupt.
+"""
+
+from __future__ import annotations
+
+import struct
+from array import array
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import BinaryIO
+
+import numpy as np
+
+MAGIC = b"ULog\x01\x12\x35"
+SYNC = b"\x2f\x73\x13\x20\x25\x0c\xbb\x12"
+HEADER_BYTES = 16
+CHUNK_BYTES = 64 << 20
+# The same corruption heuristic as pyulog: a header this implausible is not a message.
+MAX_PLAUSIBLE_SIZE = 10_000
+KNOWN_TYPES = np.frombuffer(b"FDIMPQARSOLCB", dtype=np.uint8)
+DATA = ord("D")
+DATA_SECTION_STARTS = (ord("A"), ord("L"), ord("C"))
+
+# ULog field type -> (numpy type, struct code); bool and char decode as int8 like pyulog.
+TYPES: dict[str, tuple[str, str]] = {
+    "int8_t": ("i1", "b"),
+    "uint8_t": ("u1", "B"),
+    "int16_t": ("<i2", "h"),
+    "uint16_t": ("<u2", "H"),
+    "int32_t": ("<i4", "i"),
+    "uint32_t": ("<u4", "I"),
+    "int64_t": ("<i8", "q"),
+    "uint64_t": ("<u8", "Q"),
+    "float": ("<f4", "f"),
+    "double": ("<f8", "d"),
+    "bool": ("i1", "?"),
+    "char": ("i1", "c"),
+}
+
+
+class UlogError(ValueError):
+    """The file is not a ULog this reader can parse."""
+
+
+@dataclass
+class Dataset:
+    """One topic instance: its fields as numpy arrays, `timestamp` among them."""
+
+    name: str
+    multi_id: int
+    msg_id: int
+    data: dict[str, np.ndarray]
+
+
+@dataclass
+class LoggedMessage:
+    timestamp: int
+    log_level: int
+    message: str
+
+
+@dataclass
+class Subscription:
+    name: str
+    multi_id: int
+    msg_id: int
+    dtype: np.dtype
+    max_size: int
+    parts: list[np.ndarray] = field(default_factory=list)
+
+
+@dataclass
+class UlogFile:
+    start_timestamp: int = 0
+    msg_info_dict: dict[str, object] = field(default_factory=dict)
+    initial_parameters: dict[str, object] = field(default_factory=dict)
+    changed_parameters: list[tuple[str, object]] = field(default_factory=list)
+    logged_messages: list[LoggedMessage] = field(default_factory=list)
+    data_list: list[Dataset] = field(default_factory=list)
+    file_corruption: bool = False
+    dropouts_ms: int = 0
+
+
+def read_ulog(path: Path) -> UlogFile:
+    """Parse the whole file at `path`; raises UlogError when it is not a ULog."""
+    with open(path, "rb") as handle:
+        return _Reader(handle).read()
+
+
+def _text(raw: bytes) -> str:
+    return raw.split(b"\0", 1)[0].decode("utf-8", "ignore")
+
+
+class _Reader:
+    def __init__(self, handle: BinaryIO) -> None:
+        self.file = handle
+        self.size = handle.seek(0, 2)
+        self.out = UlogFile()
+        self.formats: dict[str, list[tuple[str, int, str]]] = {}
+        self.subscriptions: dict[int, Subscription] = {}
+        self.finished: list[Subscription] = []
+        self.in_data = False
+        self.has_sync = True
+
+    def read(self) -> UlogFile:
+        head = self._bytes(0, HEADER_BYTES)
+        if len(head) < HEADER_BYTES:
+            raise UlogError("the header is too short")
+        if head[:7] != MAGIC:
+            raise UlogError("the header does not start with the ULog magic bytes")
+        self.out.start_timestamp = struct.unpack_from("<Q", head, 8)[0]
+        start = HEADER_BYTES
+        for end in self._segment_ends():
+            self._read_segment(start, end)
+            start = end
+        self._finish()
+        return self.out
+
+    def _segment_ends(self) -> list[int]:
+        """Appended data (a flag bit and offsets in the first message) is read as separate
+        segments: the main data up to the first offset, then each appended part."""
+        size = self.size
+        flags = self._bytes(HEADER_BYTES, 3 + 40)
+        if len(flags) < 3 + 40 or flags[2] != ord("B"):
+            return [size]
+        incompat = flags[3 + 8 : 3 + 16]
+        if incompat[0] & ~1 or any(incompat[1:]):
+            raise UlogError("the log sets incompatible flags this reader does not know")
+        offsets = [o for o in struct.unpack_from("<3Q", flags, 3 + 16) if o]
+        if not incompat[0] & 1 or not offsets:
+            return [size]
+        if any(o > size for o in offsets):
+            self.out.file_corruption = True
+            offsets = [o for o in offsets if o <= size]
+        return [*offsets, size]
+
+    def _read_segment(self, pos: int, end: int) -> None:
+        span = CHUNK_BYTES
+        while pos < end:
+            chunk_end = min(end, pos + span)
+            chunk = self._bytes(pos, chunk_end - pos)
+            offsets, stop = _walk(chunk, 0, len(chunk))
+            good, resume = self._check(chunk, offsets)
+            self._process(chunk, good)
+            if resume is not None:
+                pos, span = self._recover(pos + resume, end), CHUNK_BYTES
+            elif chunk_end == end:
+                return  # what is left is a message cut off by the end of the file
+            elif stop == 0:
+                span *= 2  # one message longer than a chunk
+            else:
+                pos, span = pos + stop, CHUNK_BYTES
+
+    def _check(self, chunk: bytes, offsets: np.ndarray) -> tuple[np.ndarray, int | None]:
+        """Keep the messages before the first impossible header; say where it was."""
+        if not len(offsets):
+            return offsets, None
+        raw = np.frombuffer(chunk, dtype=np.uint8)
+        types = raw[offsets + 2]
+        sizes = raw[offsets] | (raw[offsets + 1].astype(np.int64) << 8)
+        bad = ~np.isin(types, KNOWN_TYPES) & (
+            (types == 0) | (sizes == 0) | (sizes > MAX_PLAUSIBLE_SIZE)
+        )
+        if not bad.any():
+            return offsets, None
+        first = int(np.argmax(bad))
+        self.out.file_corruption = True
+        return offsets[:first], int(offsets[first]) + 1
+
+    def _recover(self, pos: int, end: int) -> int:
+        """After a corrupt header: the next sync sequence if the log has them, else the
+        next byte."""
+        if not self.has_sync:
+            return pos
+        at = pos
+        while at < end:
+            window = self._bytes(at, min(CHUNK_BYTES, end - at))
+            found = window.find(SYNC)
+            if found >= 0:
+                return at + found + len(SYNC)
+            if at + len(window) >= end:
+                break
+            at += len(window) - len(SYNC) + 1
+        self.has_sync = False
+        return pos
+
+    def _bytes(self, pos: int, count: int) -> bytes:
+        self.file.seek(pos)
+        return self.file.read(count)
+
+    def _process(self, chunk: bytes, offsets: np.ndarray) -> None:
+        """Handle the few non-data messages in order; gather the data messages between two
+        subscriptions in bulk."""
+        raw = np.frombuffer(chunk, dtype=np.uint8)
+        types = raw[offsets + 2]
+        others = np.flatnonzero(types != DATA)
+        first = 0
+        for index in others.tolist():
+            at = int(offsets[index])
+            kind = chunk[at + 2]
+            if kind == ord("A") or kind == ord("R"):
+                self._gather(chunk, raw, offsets[first:index], types[first:index])
+                first = index + 1
+            size = chunk[at] | chunk[at + 1] << 8
+            self._message(kind, chunk[at + 3 : at + 3 + size])
+        self._gather(chunk, raw, offsets[first:], types[first:])
+
+    def _gather(self, chunk: bytes, raw: np.ndarray, offsets: np.ndarray, types: np.ndarray):
+        data = offsets[types == DATA]
+        if not len(data):
+            return
+        ids = raw[data + 3] | (raw[data + 4].astype(np.int64) << 8)
+        sizes = (raw[data] | (raw[data + 1].astype(np.int64) << 8)) - 2
+        for msg_id in np.flatnonzero(np.bincount(ids)).tolist():
+            mine = ids == msg_id
+            sub = self.subscriptions.get(msg_id)
+            if sub is None:
+                self.out.file_corruption = True
+                continue
+            fits = mine & (sizes >= sub.dtype.itemsize) & (sizes <= sub.max_size)
+            if int(fits.sum()) != int(mine.sum()):
+                self.out.file_corruption = True
+            starts = data[fits] + 5
+            if len(starts):
+                sub.parts.append(_records(chunk, sub.dtype)[starts])
+
+    def _message(self, kind: int, payload: bytes) -> None:
+        handler = _HANDLERS.get(kind)
+        if kind in DATA_SECTION_STARTS:
+            self.in_data = True
+        if handler is not None:
+            try:
+                handler(self, payload)
+            except (IndexError, KeyError, ValueError, struct.error):
+                self.out.file_corruption = True
+
+    def _format(self, payload: bytes) -> None:
+        name, _, fields = _text(payload).partition(":")
+        self.formats[name] = [_field(f) for f in fields.split(";") if f]
+
+    def _info(self, payload: bytes) -> None:
+        key, value = _key_value(payload)
+        if key is not None:
+            self.out.msg_info_dict[key] = value
+
+    def _parameter(self, payload: bytes) -> None:
+        key, value = _key_value(payload)
+        if key is None:
+            return
+        if self.in_data:
+            self.out.changed_parameters.append((key, value))
+        else:
+            self.out.initial_parameters[key] = value
+
+    def _subscribe(self, payload: bytes) -> None:
+        multi_id, msg_id = payload[0], struct.unpack_from("<H", payload, 1)[0]
+        name = _text(payload[3:])
+        fields = _flatten(self.formats, name, "")
+        while fields and fields[-1][0].startswith("_padding"):
+            fields.pop()  # PX4 leaves trailing padding out of the data messages
+        dtype = np.dtype([(n, TYPES[t][0]) for n, t in fields])
+        max_size = sum(np.dtype(TYPES[t][0]).itemsize for _, t in _flatten(self.formats, name, ""))
+        self._retire(msg_id)
+        self.subscriptions[msg_id] = Subscription(name, multi_id, msg_id, dtype, max_size)
+
+    def _unsubscribe(self, payload: bytes) -> None:
+        self._retire(struct.unpack_from("<H", payload)[0])
+
+    def _retire(self, msg_id: int) -> None:
+        old = self.subscriptions.pop(msg_id, None)
+        if old is not None:
+            self.finished.append(old)
+
+    def _logging(self, payload: bytes) -> None:
+        level, timestamp = struct.unpack_from("<BQ", payload)
+        self.out.logged_messages.append(LoggedMessage(timestamp, level, _text(payload[9:])))
+
+    def _dropout(self, payload: bytes) -> None:
+        self.out.dropouts_ms += struct.unpack_from("<H", payload)[0]
+
+    def _finish(self) -> None:
+        subs = [*self.finished, *self.subscriptions.values()]
+        merged: dict[tuple[str, int, int], list[np.ndarray]] = {}
+        for sub in subs:
+            if sub.parts:
+                merged.setdefault((sub.name, sub.multi_id, sub.msg_id), []).extend(sub.parts)
+        for (name, multi_id, msg_id), parts in merged.items():
+            records = parts[0] if len(parts) == 1 else np.concatenate(parts)
+            data = {n: records[n] for n in records.dtype.names}
+            self.out.data_list.append(Dataset(name, multi_id, msg_id, data))
+        self.out.data_list.sort(key=lambda d: (d.name, d.multi_id))
+
+
+_HANDLERS = {
+    ord("F"): _Reader._format,
+    ord("I"): _Reader._info,
+    ord("P"): _Reader._parameter,
+    ord("A"): _Reader._subscribe,
+    ord("R"): _Reader._unsubscribe,
+    ord("L"): _Reader._logging,
+    ord("O"): _Reader._dropout,
+}
+
+
+def _walk(buf: bytes, pos: int, end: int) -> tuple[np.ndarray, int]:
+    """Start offsets of the whole messages in buf[pos:end], and where the walk stopped.
+    This loop is the only per-message Python work of the reader."""
+    offsets = array("q")
+    add = offsets.append
+    limit = end - 3
+    while pos <= limit:
+        nxt = pos + 3 + (buf[pos] | buf[pos + 1] << 8)
+        if nxt > end:
+            break
+        add(pos)
+        pos = nxt
+    return np.frombuffer(offsets, dtype=np.int64), pos
+
+
+def _records(chunk: bytes, dtype: np.dtype) -> np.ndarray:
+    """Every byte of `chunk` as the start of a record of `dtype` (overlapping, read-only):
+    indexing it with message offsets copies exactly those records."""
+    count = len(chunk) - dtype.itemsize + 1
+    return np.ndarray((max(count, 0),), dtype=dtype, buffer=chunk, strides=(1,))
+
+
+def _field(text: str) -> tuple[str, int, str]:
+    kind, name = text.split(" ", 1)
+    if "[" not in kind:
+        return kind, 0, name
+    base, _, rest = kind.partition("[")
+    length = int(rest.rstrip("]"))
+    if not 0 <= length <= 0xFFFF:
+        raise ValueError(f"invalid array size {length}")
+    return base, length, name
+
+
+def _flatten(formats: dict, name: str, prefix: str) -> list[tuple[str, str]]:
+    """Nested types flattened to `outer.inner` and arrays to `name[i]`, as pyulog names them."""
+    out: list[tuple[str, str]] = []
+    for kind, length, field_name in formats[name]:
+        names = (
+            [f"{prefix}{field_name}[{i}]" for i in range(length)]
+            if length
+            else [f"{prefix}{field_name}"]
+        )
+        for full in names:
+            if kind in TYPES:
+                out.append((full, kind))
+            else:
+                out.extend(_flatten(formats, kind, full + "."))
+    return out
+
+
+def _key_value(payload: bytes) -> tuple[str | None, object]:
+    """An info or parameter message: `uint8 key_len, "type name", value`."""
+    key_len = payload[0]
+    kind, _, key = _text(payload[1 : 1 + key_len]).partition(" ")
+    raw = payload[1 + key_len :]
+    if not key:
+        return None, None
+    if kind.startswith("char["):
+        return key, _text(raw)
+    if kind in TYPES:
+        return key, struct.unpack("<" + TYPES[kind][1], raw)[0]
+    return key, bytes(raw)

@@ -1,0 +1,4 @@
+"""The fleet tests' private Mosquitto and in-process gateway, for commands to a drone."""
+
+from tests.fleet.conftest import _shared_broker, broker, fresh_redis, gateway  # noqa: F401
+from tests.fleet.test_commands import online  # noqa: F401
