@@ -402,6 +402,8 @@ class Ingestor:
             log.debug("dropped telemetry from %s: %s", parts[0], exc)
             return False
         if not objects:
+            if settle is not None:
+                settle()  # nothing to store
             return True
         chunk = Chunk(
             received=time.monotonic(),

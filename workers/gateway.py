@@ -5,8 +5,11 @@ several gateways split the messages without processing one twice: on Mosquitto t
 shared subscriptions (`$share/gateway/...`) on its own MQTT connection, on RabbitMQ from
 the mirrored AMQP queue `skyhive.gateway` (workers.broker). It parses each message with
 `onboard.protocol` and hands it to the domain function named in
-`workers.dispatch.DISPATCH`. Anything malformed, oversized, unknown or unauthorised is
-dropped and counted, never raised. Outbound, it takes from the Redis outbox
+`workers.dispatch.DISPATCH`, on a lane of its drone (workers.lanes) off the MQTT network
+thread. A QoS 1 message is acknowledged to the broker only once its handler stored it
+(or refused it for good), retrying through database and Redis outages meanwhile
+(docs/architecture.md, "Store, then acknowledge"). Anything malformed, oversized,
+unknown or unauthorised is dropped and counted, never raised. Outbound, it takes from the Redis outbox
 (`workers.outbox`) and publishes to `<id>/<channel>/in`, moving to the next broker node when
 its node is lost; what it took stays on its own list until the broker acknowledges it,
 so a gateway killed in between loses nothing. Being connected anyway, it also writes the
@@ -64,10 +67,9 @@ SHARE_GROUP = "gateway"
 # Messages a RabbitMQ node hands one gateway before its acknowledgements: enough to keep
 # the handlers busy, few enough that a killed gateway's share is redelivered quickly.
 AMQP_PREFETCH = 200
-# A database that restarts, fails over or drops our connection is usually back within
-# seconds. Retrying a handler for this long (holding the rest of the messages back in the
-# broker) loses nothing, where dropping would lose a step report or an alarm. It stays
-# under 1.5 x the 30 s MQTT keep-alive, so the broker keeps our session meanwhile.
+# Heartbeats (QoS 0, a newer one every 5 s) are retried this long through a database
+# restart, then dropped and counted; every other message is retried on its lane for as
+# long as the outage lasts (see TRANSIENT).
 DB_RETRY_S = 20.0
 # What a handler writes to, while it is away: the database, Redis (the outbox, command
 # replies) and the Celery broker (an alarm's task). A message that meets one of these on
@@ -375,6 +377,8 @@ class Gateway:
         except Exception:  # noqa: BLE001 - the gateway must outlive any bug in a handler
             self.counters.incr("dropped.handler_error")
             log.exception("could not take %s", topic_name)
+            if settle is not None:
+                settle()  # dropped: it would fail the same way again
         self.counters.maybe_flush()
 
     def _queue_batch(self, topic_name: str, payload: bytes, settle: Settle | None) -> None:
