@@ -293,7 +293,9 @@ def message_key(drone: Drone, message: Any) -> str:
     elif isinstance(message, protocol.MissionProgress):
         kind, fields = "mission", (message.assignment_id, message.status)
     else:
-        kind, fields = "alarm", (message.level, message.mission_id, message.assignment_id)
+        # A drone raises one alarm of a level at a time: a copy rebuilt from the record
+        # (with the assignment the ground resolved) is still the same alarm.
+        kind, fields = "alarm", (message.level,)
     text = repr((drone.drone_id, *fields, message.ts))
     return f"{kind}:{hashlib.sha256(text.encode()).hexdigest()[:48]}"
 
