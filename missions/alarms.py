@@ -8,11 +8,13 @@ from django.db import transaction
 
 from fleet.models import Drone
 from missions import tasks
-from missions.models import Assignment, Event, MissionStatus
+from missions.models import Assignment, Event, Mission, MissionStatus
 from missions.services import (
+    already_recorded,
     find_assignment,
     find_mission,
     lock_mission,
+    message_key,
     position_dict,
     record,
     send_alarm_ack,
@@ -34,32 +36,53 @@ def _active_assignment(drone: Drone) -> Assignment | None:
 
 
 def apply_alarm(drone: Drone, alarm: protocol.Alarm) -> str | None:
-    """Record the alarm on its mission and enqueue what it asks for; None when taken."""
-    received_at = time.time()
+    """Record the alarm on its mission and enqueue what it asks for; None when taken.
+
+    A CRITICAL alarm is acknowledged to the drone (which repeats it until then,
+    onboard.failsafe) once the ground has decided on it: recorded with its task queued,
+    or refused. A copy of an alarm already recorded (a redelivery, a retry after an
+    outage) records and queues nothing, and is acknowledged again.
+    """
+    reason = _record_alarm(drone, alarm)
     if alarm.level == "CRITICAL":
-        # Acknowledged as soon as it is here, whatever it leads to: the drone repeats it
-        # until then (onboard.failsafe).
         send_alarm_ack(drone.drone_id, alarm.level)
+    return reason
+
+
+def _alarm_assignment(
+    drone: Drone, alarm: protocol.Alarm
+) -> tuple[Mission | None, Assignment | None, str | None]:
+    """The alarm's mission and assignment, or why there is none to record it on."""
     if alarm.mission_id is not None:
         mission = find_mission(drone, alarm.mission_id)
         if mission is None:
-            return "unknown_mission"
+            return None, None, "unknown_mission"
         assignment = find_assignment(mission, drone, alarm.assignment_id)
         if assignment is None:
             assignment = _active_assignment(drone)
             if assignment is not None and assignment.mission_id != mission.pk:
                 assignment = None
-    else:
-        # The fail-safe may fire between steps; the drone's current assignment is meant.
-        assignment = _active_assignment(drone)
-        if assignment is None:
-            return "alarm_outside_mission"
-        mission = assignment.mission
+        return mission, assignment, None
+    # The fail-safe may fire between steps; the drone's current assignment is meant.
+    assignment = _active_assignment(drone)
+    if assignment is None:
+        return None, None, "alarm_outside_mission"
+    return assignment.mission, assignment, None
+
+
+def _record_alarm(drone: Drone, alarm: protocol.Alarm) -> str | None:
+    received_at = time.time()
+    mission, assignment, reason = _alarm_assignment(drone, alarm)
+    if mission is None:
+        return reason
+    key = message_key(drone, alarm)
     with transaction.atomic():
         # The mission row first, as every writer does: the event's foreign keys are checked
         # at commit, and a replacement holding the mission (then the drone) meanwhile
         # would otherwise deadlock with this alarm (seen with two gateways).
         lock_mission(mission)
+        if already_recorded(mission, key):
+            return None
         event = record(
             mission,
             Event.Kind.ALARM,
@@ -76,6 +99,7 @@ def apply_alarm(drone: Drone, alarm: protocol.Alarm) -> str | None:
                 "received_at": received_at,
                 "assignment": None if assignment is None else str(assignment.pk),
             },
+            key=key,
         )
         if assignment is None:
             return None
@@ -85,8 +109,9 @@ def apply_alarm(drone: Drone, alarm: protocol.Alarm) -> str | None:
             "alarm_event_id": event.pk,
         }
         # Queued before the commit, not on it: a gateway killed in between would leave
-        # the alarm on record with nothing deciding on it, and its redelivery may come
-        # too late. The task waits for the alarm to be committed (missions.tasks).
+        # the alarm on record with nothing deciding on it. Should the broker be away, the
+        # alarm is rolled back with it and retried whole. The task waits for the alarm
+        # to be committed (missions.tasks).
         if alarm.level == "CRITICAL":
             tasks.replace_drone.delay(**kwargs)
         else:

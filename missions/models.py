@@ -241,10 +241,20 @@ class Event(models.Model):
     at = models.DateTimeField(default=timezone.now)
     message = models.CharField(max_length=300, blank=True)
     data = models.JSONField(default=dict, blank=True)
+    # Which drone message recorded it (drone, kind, its own fields and timestamp): a
+    # message delivered again, or retried after an outage, is recorded once.
+    message_key = models.CharField(max_length=255, blank=True, default="", editable=False)
 
     class Meta:
         ordering = ["at", "id"]
         indexes = [models.Index(fields=["mission", "at"])]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["mission", "message_key"],
+                condition=~models.Q(message_key=""),
+                name="missions_event_one_per_message",
+            )
+        ]
 
     def __str__(self) -> str:
         return f"{self.mission} {self.kind} {self.message}"

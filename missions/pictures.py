@@ -1,5 +1,9 @@
 """Mission pictures: stored geotagged, thumbnailed, zipped for OpenDroneMap.
 
+The gateway stores them on lanes of their own (workers.gateway), so decoding a large
+picture holds up no other drone's messages; an image declaring more than
+workers.images.MAX_PIXELS is refused (`too_many_pixels`) before it is decoded.
+
 Geotagging writes an EXIF GPS block into the JPEG without re-encoding it (the APP1
 segment is replaced), so pictures keep their quality. The optional barrel-distortion
 correction is ImageMagick's `-distort barrel 'A B C D'` ([Paula 2018], listing 5.1) done
@@ -28,6 +32,7 @@ from missions import live
 from missions.models import Mission, Picture
 from missions.services import find_mission
 from onboard import protocol
+from workers.images import ImageRefused, open_image
 
 log = logging.getLogger(__name__)
 
@@ -164,7 +169,8 @@ def undistort(
 
 
 def _thumbnail(jpeg: bytes) -> bytes:
-    with Image.open(io.BytesIO(jpeg)) as image:
+    # Refuses a decompression bomb (workers.images) before decoding a pixel.
+    with open_image(jpeg) as image:
         image = ImageOps.exif_transpose(image.convert("RGB"))
         image.thumbnail(THUMBNAIL_SIZE)
         buffer = io.BytesIO()
@@ -192,6 +198,9 @@ def store_picture(drone: Drone, picture: protocol.Picture) -> str | None:
         if position is not None:
             jpeg = with_exif(jpeg, exif_gps(position.lat, position.lon, position.alt, taken_at))
         thumbnail = _thumbnail(jpeg)
+    except ImageRefused as exc:
+        log.warning("picture from %s refused: %s", drone.drone_id, exc)
+        return exc.reason
     except (OSError, ValueError, struct.error, SyntaxError):
         return "unreadable_picture"
     name = safe_name(picture.name)

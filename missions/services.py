@@ -8,6 +8,7 @@ progress report can never arrive for a row that is not there yet.
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import time
 import uuid
@@ -275,9 +276,16 @@ def record(
     drone: Drone | None = None,
     data: Mapping | None = None,
     push: bool = True,
+    key: str | None = None,
 ) -> Event:
+    """`key` (`message_key`): the drone message recorded, so it is never recorded twice."""
     event = Event.objects.create(
-        mission=mission, drone=drone, kind=kind, message=message[:300], data=dict(data or {})
+        mission=mission,
+        drone=drone,
+        kind=kind,
+        message=message[:300],
+        data=dict(data or {}),
+        message_key=key or "",
     )
     if kind == Event.Kind.ALARM:
         eventlog.note(f"alarm, mission {mission.name!r}: {event.message}")
@@ -285,6 +293,27 @@ def record(
         payload = event_payload(event)
         transaction.on_commit(lambda: live.push(mission.pk, payload))
     return event
+
+
+def message_key(drone: Drone, message: Any) -> str:
+    """What identifies a drone's progress report or alarm: its drone, kind, own fields and
+    timestamp. The same message delivered twice (a QoS 1 redelivery, a retry through an
+    outage) has the same key; a repeated alarm carries a new timestamp."""
+    if isinstance(message, protocol.StepProgress):
+        kind, fields = "step", (message.assignment_id, message.index, message.status)
+    elif isinstance(message, protocol.MissionProgress):
+        kind, fields = "mission", (message.assignment_id, message.status)
+    else:
+        # A drone raises one alarm of a level at a time: a copy rebuilt from the record
+        # (with the assignment the ground resolved) is still the same alarm.
+        kind, fields = "alarm", (message.level,)
+    text = repr((drone.drone_id, *fields, message.ts))
+    return f"{kind}:{hashlib.sha256(text.encode()).hexdigest()[:48]}"
+
+
+def already_recorded(mission: Mission, key: str) -> bool:
+    """True when the message of `key` is on record (call with the mission locked)."""
+    return Event.objects.filter(mission=mission, message_key=key).exists()
 
 
 def event_payload(event: Event) -> dict:
@@ -483,8 +512,12 @@ def _apply_step(
     if message.index not in given:
         return "step_not_assigned"
     position = position_dict(message.position)
+    key = message_key(drone, message)
     with transaction.atomic():
         _lock(mission)
+        if already_recorded(mission, key):
+            _replay_accepted(mission, drone, message)
+            return None
         step = Step.objects.select_for_update().filter(mission=mission, index=message.index).first()
         if step is None:
             return "unknown_step"
@@ -515,24 +548,31 @@ def _apply_step(
             Event.Kind.STEP,
             f"step {message.index} {message.command} {message.status}",
             drone=drone,
-            data={
-                "index": message.index,
-                "command": message.command,
-                "status": message.status,
-                "ts": message.ts,
-                "position": position,
-                "duration_s": message.duration_s,
-                "result": message.result,
-                "error": message.error,
-                "assignment": str(assignment.pk),
-                "ignored": duplicate,
-            },
+            data=_step_data(message, position, assignment, duplicate),
+            key=key,
         )
         if message.status == StepStatus.COMPLETED and not duplicate:
             complete_if_done(mission)
         elif duplicate:
             _replay_accepted(mission, drone, message)
     return None
+
+
+def _step_data(
+    message: protocol.StepProgress, position: dict | None, assignment: Assignment, ignored: bool
+) -> dict:
+    return {
+        "index": message.index,
+        "command": message.command,
+        "status": message.status,
+        "ts": message.ts,
+        "position": position,
+        "duration_s": message.duration_s,
+        "result": message.result,
+        "error": message.error,
+        "assignment": str(assignment.pk),
+        "ignored": ignored,
+    }
 
 
 def _replay_accepted(mission: Mission, drone: Drone, message: protocol.StepProgress) -> None:
@@ -588,8 +628,11 @@ def _apply_mission_status(
     assignment: Assignment | None,
     message: protocol.MissionProgress,
 ) -> str | None:
+    key = message_key(drone, message)
     with transaction.atomic():
         _lock(mission)
+        if already_recorded(mission, key):
+            return None
         if assignment is not None:
             assignment = Assignment.objects.select_for_update().get(pk=assignment.pk)
             _move_assignment(assignment, message)
@@ -606,6 +649,7 @@ def _apply_mission_status(
                 "error": message.error,
                 "assignment": None if assignment is None else str(assignment.pk),
             },
+            key=key,
         )
         if assignment is not None and message.status == "completed":
             # A drone reports its mission completed only after every step succeeded, so

@@ -16,16 +16,15 @@ one copy per frame.
 from __future__ import annotations
 
 import enum
-import io
 import logging
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from PIL import Image
 
 from pastview.evaluation import FrameSet
 from pastview.geometry import InvalidPose, Pose, yaw
+from workers.images import open_image
 
 log = logging.getLogger(__name__)
 
@@ -76,9 +75,8 @@ def is_valid_jpeg(data: bytes, *, decode: bool = True) -> bool:
     if not decode:
         return True
     try:
-        with Image.open(io.BytesIO(body)) as image:
-            if image.format != "JPEG":
-                return False
+        # A frame declaring more pixels than any camera has is refused before decoding.
+        with open_image(body) as image:
             image.load()
     except Exception:  # Pillow raises OSError, SyntaxError, ValueError... on bad data
         return False

@@ -6,6 +6,10 @@ reader feeding the buffer — see mqtt_reader for why not paho — or, on Rabbit
 consumer of the shared queue `skyhive.ingest`, and a writer thread that COPYs it,
 retrying through a database restart). No Django here: the management command wires settings, the drone map
 and the live publisher in.
+
+A message is acknowledged to the broker (an AMQP ack; the PUBACK of a QoS 1 delivery)
+only once its rows are committed, or once it is refused for good: an ingest killed with
+messages buffered gets them again from RabbitMQ's queue.
 """
 
 from __future__ import annotations
@@ -162,6 +166,7 @@ class Chunk:
     text: str
     days: frozenset[int]  # UTC days since the epoch, for the partitions they need
     drone: str = ""  # who sent it, to count a refusal against
+    settle: Callable[[], None] | None = None  # acknowledges it to the broker
 
 
 class SampleBuffer:
@@ -220,6 +225,12 @@ class SampleBuffer:
         with self._cond:
             self.held -= rows
             self._cond.notify_all()
+
+
+def _settle(chunks: list[Chunk]) -> None:
+    for chunk in chunks:
+        if chunk.settle is not None:
+            chunk.settle()
 
 
 # ---------------------------------------------------------------------------------------
@@ -361,10 +372,18 @@ class Ingestor:
             mqtt_url=self.config.mqtt_url,
             prefetch=self.config.amqp_prefetch,
             counters=self.counters,
+            manual_ack=True,
         )
 
-    def handle(self, topic: str, payload: bytes) -> bool:
-        """One message from the broker: validate, buffer; False if it was dropped."""
+    def handle(self, topic: str, payload: bytes, settle: Callable[[], None] | None = None) -> bool:
+        """One message from the broker: validate, buffer; False if it was dropped. It is
+        settled with the broker once committed (or at once, when dropped)."""
+        accepted = self._accept(topic, payload, settle)
+        if not accepted and settle is not None:
+            settle()
+        return accepted
+
+    def _accept(self, topic: str, payload: bytes, settle: Callable[[], None] | None) -> bool:
         counters = self.counters
         counters.incr("received")
         parts = topic.split("/")
@@ -383,6 +402,8 @@ class Ingestor:
             log.debug("dropped telemetry from %s: %s", parts[0], exc)
             return False
         if not objects:
+            if settle is not None:
+                settle()  # nothing to store
             return True
         chunk = Chunk(
             received=time.monotonic(),
@@ -390,6 +411,7 @@ class Ingestor:
             text="".join(storage.copy_line(ts, drone_pk, name, f) for name, ts, f in objects),
             days=frozenset(int(ts // 86400) for _, ts, _ in objects),
             drone=parts[0],
+            settle=settle,
         )
         if not self.buffer.put(chunk, self.config.put_wait):
             counters.incr("overflow")
@@ -483,6 +505,7 @@ class Ingestor:
         for chunk in refused:
             self.counters.incr("dropped.db_rejected", chunk.rows)
             self.counters.refused(chunk.drone, "telemetry.db_rejected", chunk.rows)
+        _settle(refused)
         if refused:
             drones = ", ".join(sorted({c.drone for c in refused}))
             log.error(
@@ -538,6 +561,7 @@ class Ingestor:
         return [c for c in pending if id(c) not in landed]
 
     def _record_stored(self, chunks: list[Chunk]) -> None:
+        _settle(chunks)  # committed: the broker may forget them
         self._landed.extend(chunks)
         rows = sum(c.rows for c in chunks)
         now = time.monotonic()

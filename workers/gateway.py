@@ -5,8 +5,11 @@ several gateways split the messages without processing one twice: on Mosquitto t
 shared subscriptions (`$share/gateway/...`) on its own MQTT connection, on RabbitMQ from
 the mirrored AMQP queue `skyhive.gateway` (workers.broker). It parses each message with
 `onboard.protocol` and hands it to the domain function named in
-`workers.dispatch.DISPATCH`. Anything malformed, oversized, unknown or unauthorised is
-dropped and counted, never raised. Outbound, it takes from the Redis outbox
+`workers.dispatch.DISPATCH`, on a lane of its drone (workers.lanes) off the MQTT network
+thread. A QoS 1 message is acknowledged to the broker only once its handler stored it
+(or refused it for good), retrying through database and Redis outages meanwhile
+(docs/architecture.md, "Store, then acknowledge"). Anything malformed, oversized,
+unknown or unauthorised is dropped and counted, never raised. Outbound, it takes from the Redis outbox
 (`workers.outbox`) and publishes to `<id>/<channel>/in`, moving to the next broker node when
 its node is lost; what it took stays on its own list until the broker acknowledges it,
 so a gateway killed in between loses nothing. Being connected anyway, it also writes the
@@ -25,10 +28,11 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import kombu.exceptions
 import paho.mqtt.client as mqtt
 import redis
 from django.db import close_old_connections, connection
-from django.db.utils import InterfaceError, OperationalError
+from django.db.utils import DatabaseError, InterfaceError, OperationalError
 from django.utils.module_loading import import_string
 
 from onboard import protocol
@@ -37,6 +41,7 @@ from workers import broker, outbox
 from workers.broker.figures import RabbitMQPoller
 from workers.broker.mosquitto_sys import SYS_FILTER, SysView
 from workers.counters import Counters, is_alive
+from workers.lanes import Lanes
 
 from .dispatch import (
     BATCH_DISPATCH,
@@ -48,6 +53,13 @@ from .dispatch import (
 )
 
 QUEUED = "queued"
+# Handing a message back unacknowledged: the gateway stopped (or gave up) before storing
+# it, so the broker delivers it again (to this session on reconnect, or to a peer).
+HELD_BACK = "held_back"
+
+# Settles one delivery with the broker (a PUBACK, an AMQP ack): called once the message
+# is stored, its task queued, or it is refused for good; never before.
+Settle = Callable[[], None]
 
 log = logging.getLogger("gateway")
 
@@ -55,17 +67,41 @@ SHARE_GROUP = "gateway"
 # Messages a RabbitMQ node hands one gateway before its acknowledgements: enough to keep
 # the handlers busy, few enough that a killed gateway's share is redelivered quickly.
 AMQP_PREFETCH = 200
-# A database that restarts, fails over or drops our connection is usually back within
-# seconds. Retrying a handler for this long (holding the rest of the messages back in the
-# broker) loses nothing, where dropping would lose a step report or an alarm. It stays
-# under 1.5 x the 30 s MQTT keep-alive, so the broker keeps our session meanwhile.
+# Heartbeats (QoS 0, a newer one every 5 s) are retried this long through a database
+# restart, then dropped and counted; every other message is retried on its lane for as
+# long as the outage lasts (see TRANSIENT).
 DB_RETRY_S = 20.0
+# What a handler writes to, while it is away: the database, Redis (the outbox, command
+# replies) and the Celery broker (an alarm's task). A message that meets one of these on
+# a lane is retried, unacknowledged, until it passes: an outage of minutes loses nothing.
+DB_ERRORS: tuple[type[BaseException], ...] = (OperationalError, InterfaceError)
+TRANSIENT: tuple[type[BaseException], ...] = (
+    *DB_ERRORS,
+    redis.RedisError,
+    kombu.exceptions.OperationalError,
+)
+# The waits between attempts on a lane: short at first (a dropped connection), then every
+# few seconds through a restart or an outage.
+LANE_BACKOFF = (0.05, 3.0)
+# Lanes for everything but heartbeats (batched) and pictures; lanes of their own decode
+# pictures, so a drone sending large pictures holds up no other drone's messages.
+DRONE_LANES = 4
+PICTURE_LANES = 2
+APART_CHANNELS = frozenset({"pictures"})
 # A broker that has not acknowledged a publish in this long has lost us: the message goes
 # back to the outbox (paho may still deliver its own copy; drones ignore the repeat).
 PUBACK_WAIT_S = 5.0
 # How often a gateway looks for outbox messages that a dead gateway had taken. A gateway
 # is dead once its heartbeat expires (workers.counters, 10 s).
 RECLAIM_EVERY_S = 2.0
+
+
+def _close_connection() -> None:
+    """A lane's own database connection, at its end (a test may share one: left open)."""
+    try:
+        connection.close()
+    except DatabaseError:
+        pass
 
 
 def subscription(channel: str) -> str:
@@ -98,8 +134,19 @@ class Gateway:
         self.taken = outbox.taken_key(self.outbox, self.owner)
         self.db_retry_s = db_retry_s
         self._load_handlers(dispatch, batch_dispatch)
-        self._queue: queue.Queue[tuple[str, str, Any]] = queue.Queue(maxsize=MAX_QUEUED)
+        self._queue: queue.Queue[tuple[str, str, Any, Settle | None]] = queue.Queue(
+            maxsize=MAX_QUEUED
+        )
         self._finish = threading.Event()
+        # Set by stop(): take nothing new; then, if the lanes do not drain in time, give up
+        # retrying (what is left stays unacknowledged with the broker).
+        self._closing = threading.Event()
+        self._abandon = threading.Event()
+        self._generation = 0
+        self.lanes = Lanes("gateway-lane", DRONE_LANES, self._work, on_exit=_close_connection)
+        self.picture_lanes = Lanes(
+            "gateway-pictures", PICTURE_LANES, self._work, on_exit=_close_connection
+        )
         self._batch_thread = threading.Thread(
             target=self._run_batches, name="gateway-batches", daemon=True
         )
@@ -112,6 +159,7 @@ class Gateway:
         persistent = persistent and self.consumer is None
         if persistent and not stable_id:
             raise ValueError("a persistent gateway session needs a stable client_id")
+        self.persistent = persistent
         self.client = self._mqtt_client(client_id, persistent)
         self.failover = broker.attach_failover(self.client, self.urls)
         self.sys_view, self.rabbitmq_poller = self._broker_watch()
@@ -148,6 +196,7 @@ class Gateway:
             client_id=client_id,
             amqp_urls=list(amqp_urls) if amqp_urls is not None else broker.amqp_urls(),
             prefetch=AMQP_PREFETCH,
+            manual_ack=True,
             counters=self.counters,
         )
 
@@ -156,8 +205,13 @@ class Gateway:
         # drones' QoS 1 messages (mission progress, alarms, replies) while this gateway
         # restarts, instead of dropping them. Mosquitto expires abandoned sessions
         # (`persistent_client_expiration`), so a retired instance does not keep its share.
+        # Manual acknowledgement: a QoS 1 message is acknowledged once stored (or refused
+        # for good), so a gateway killed with it in hand gets it again on reconnect.
         client = mqtt.Client(
-            mqtt.CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=not persistent
+            mqtt.CallbackAPIVersion.VERSION2,
+            client_id=client_id,
+            clean_session=not persistent,
+            manual_ack=True,
         )
         # Not the 1 s paho default: a lost node should cost a fraction of a second.
         client.reconnect_delay_set(min_delay=0.2, max_delay=10)  # type: ignore[arg-type]
@@ -198,6 +252,8 @@ class Gateway:
         # connect_async + loop_start: paho retries the first connection too, with backoff.
         self.client.connect_async(self.host, self.port, keepalive=30)
         self.client.loop_start()
+        self.lanes.start()
+        self.picture_lanes.start()
         if self.consumer is not None:
             self.consumer.start()
         if self.rabbitmq_poller is not None:
@@ -206,23 +262,34 @@ class Gateway:
         self._batch_thread.start()
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Drain: stop taking outbox work, finish the message in hand, disconnect."""
+        """Drain: stop taking outbox work and new messages, store what is in hand (given
+        `timeout`; the rest stays unacknowledged for redelivery), settle, disconnect."""
         self.stopping.set()
         self._outbox_thread.join(timeout)
+        self._closing.set()
+        self._drain(timeout)
+        self._finish.set()  # nothing new arrives now: the batch thread empties the queue
+        self._batch_thread.join(timeout)
         if self.consumer is not None:
-            self.consumer.stop(timeout)  # acknowledges what was handed over
+            self.consumer.stop(timeout)  # sends the acknowledgements settled so far
         if self.rabbitmq_poller is not None:
             self.rabbitmq_poller.stop(timeout)
         self.failover.stopping = True
-        self.client.disconnect()
+        self.client.disconnect()  # after the PUBACKs the lanes queued
         self.client.loop_stop()
-        self._finish.set()  # nothing new arrives now: the batch thread empties the queue
-        self._batch_thread.join(timeout)
         if self.sys_view is not None:
             self.sys_view.reset()
             self.sys_view.flush()
         self.counters.flush()
         close_old_connections()
+
+    def _drain(self, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        for lanes in (self.lanes, self.picture_lanes):
+            if not lanes.stop(max(0.1, deadline - time.monotonic())):
+                # A database or Redis still away: what is in hand is not acknowledged.
+                self._abandon.set()
+                lanes.stop(2.0)
 
     def wait_connected(self, timeout: float) -> bool:
         """Publishing and receiving: the MQTT connection and, on RabbitMQ, the consumer."""
@@ -251,6 +318,7 @@ class Gateway:
                 self.sys_view.link_up(self.address)
                 filters.append((SYS_FILTER, 0))
             client.subscribe(filters)
+        self._generation += 1
         self.counters.incr("connects")
         self.connected.set()
         log.info("connected to %s:%s", self.host, self.port)
@@ -274,23 +342,84 @@ class Gateway:
             if self.sys_view is not None:
                 self.sys_view.remember(message.topic, message.payload)
             return
-        self._on_consumed(message.topic, message.payload)
+        settle = None
+        if message.qos > 0:
+            mid, qos, generation = message.mid, message.qos, self._generation
 
-    def _on_consumed(self, topic_name: str, payload: bytes) -> None:
+            def settle() -> None:
+                self._ack_mqtt(mid, qos, generation)
+
+        self._on_consumed(message.topic, message.payload, settle)
+
+    def _ack_mqtt(self, mid: int, qos: int, generation: int) -> None:
+        # A persistent session gets the unacknowledged message again, under the same
+        # packet id, after a reconnect: acknowledging that id is right. A clean session
+        # reuses ids for new messages: an old one must not acknowledge them.
+        if generation == self._generation or self.persistent:
+            self.client.ack(mid, qos)
+
+    def _on_consumed(self, topic_name: str, payload: bytes, settle: Settle | None = None) -> None:
+        """From the broker's thread: hand the message to its lane (heartbeats to the
+        batch queue) and return at once; it is settled once stored."""
+        if self._closing.is_set():
+            return  # stopping: left unacknowledged, the broker delivers it again
+        parts = topic_name.split("/")
+        channel = parts[1] if len(parts) == 3 else ""
         try:
-            self.handle(topic_name, payload)
+            if channel in self.batch_handlers:
+                self._queue_batch(topic_name, payload, settle)
+            elif settle is None and self.lanes.backlog() >= MAX_QUEUED:
+                self._count("overload")  # QoS 0 only: QoS 1 is bounded by the broker
+                self._count_against_drone(topic_name, "overload")
+            else:
+                lanes = self.picture_lanes if channel in APART_CHANNELS else self.lanes
+                lanes.submit(parts[0], (topic_name, payload, settle))
+        except Exception:  # noqa: BLE001 - the gateway must outlive any bug in a handler
+            self.counters.incr("dropped.handler_error")
+            log.exception("could not take %s", topic_name)
+            if settle is not None:
+                settle()  # dropped: it would fail the same way again
+        self.counters.maybe_flush()
+
+    def _queue_batch(self, topic_name: str, payload: bytes, settle: Settle | None) -> None:
+        reason = self.handle(topic_name, payload, settle=settle)
+        if reason != QUEUED and settle is not None:
+            settle()  # refused: never to be stored
+
+    def _work(self, item: tuple[str, bytes, Settle | None]) -> None:
+        """On a lane: handle the message, retrying through outages; settle it unless the
+        gateway stopped first."""
+        topic_name, payload, settle = item
+        try:
+            reason = self.handle(topic_name, payload, patient=True)
+        except TRANSIENT:
+            reason = HELD_BACK
+            self.counters.incr("held_back")
+            log.warning("stopping with %s not stored: left to the broker", topic_name)
         except Exception:  # noqa: BLE001 - the gateway must outlive any bug in a handler
             self.counters.incr("dropped.handler_error")
             self._count_against_drone(topic_name, "handler_error")
             log.exception("handler failed on %s", topic_name)
+            reason = "handler_error"
+        if settle is not None and reason != HELD_BACK:
+            settle()
         self.counters.maybe_flush()
 
     # -- inbound ----------------------------------------------------------------------------
 
-    def handle(self, topic_name: str, payload: bytes) -> str | None:
-        """Process one message; returns None if handled, else why it was dropped/skipped."""
+    def handle(
+        self,
+        topic_name: str,
+        payload: bytes,
+        *,
+        patient: bool = False,
+        settle: Settle | None = None,
+    ) -> str | None:
+        """Process one message; returns None if handled, else why it was dropped/skipped
+        (QUEUED: handed to the batch thread with its `settle`). `patient` retries through
+        database and Redis outages until the gateway stops (see `with_db_retry`)."""
         self.counters.incr("received")
-        reason = self._handle(topic_name, payload)
+        reason = self._handle(topic_name, payload, patient, settle)
         if reason != QUEUED:
             self._count(reason)
             self._count_against_drone(topic_name, reason)
@@ -314,7 +443,9 @@ class Gateway:
         if len(parts) == 3 and parts[1] in protocol.OUT_CHANNELS and protocol.is_drone_id(parts[0]):
             self.counters.refused(parts[0], f"{parts[1]}.{reason}")
 
-    def _handle(self, topic_name: str, payload: bytes) -> str | None:
+    def _handle(
+        self, topic_name: str, payload: bytes, patient: bool, settle: Settle | None
+    ) -> str | None:
         try:
             drone_id, channel, direction = protocol.split_topic(topic_name)
         except protocol.ProtocolError:
@@ -333,44 +464,51 @@ class Gateway:
             return exc.reason
         if channel in self.batch_handlers:
             try:
-                self._queue.put_nowait((channel, drone_id, message))
+                self._queue.put_nowait((channel, drone_id, message, settle))
             except queue.Full:
                 return "overload"
             return QUEUED
         assert handler is not None
-        return self.with_db_retry(handler, drone_id, message)
+        return self.with_db_retry(handler, drone_id, message, patient=patient)
 
-    def with_db_retry(self, fn: Callable[..., Any], *args: Any) -> Any:
+    def with_db_retry(self, fn: Callable[..., Any], *args: Any, patient: bool = False) -> Any:
         """`fn(*args)`, called again on a fresh connection while the database is
-        unreachable (for up to `db_retry_s`); other errors are raised at once. Handlers
-        are transactions that decide by compare-and-set, so a retry decides nothing twice.
-        """
+        unreachable (for up to `db_retry_s`); other errors are raised at once. `patient`:
+        also while Redis or the Celery broker is, with no time limit until stop() gives
+        up. Handlers are transactions that decide by compare-and-set or by the message's
+        own key, so a retry (or a redelivery) stores and decides nothing twice."""
         deadline = time.monotonic() + self.db_retry_s
+        errors = TRANSIENT if patient else DB_ERRORS
 
         def attempt() -> Any:
             try:
                 return fn(*args)
-            except (OperationalError, InterfaceError):
+            except DB_ERRORS:
                 # The connection is unusable now: Django opens a fresh one on next use.
                 connection.close()
                 raise
 
         def give_up(exc: BaseException, delay: float) -> bool:
+            if patient:
+                return self._abandon.is_set()
             if self.stopping.is_set() or time.monotonic() + delay > deadline:
                 self.counters.incr("db_unavailable")
                 return True
             return False
 
         def on_retry(exc: BaseException, delay: float) -> None:
-            self.counters.incr("db_retries")
-            log.warning("database unavailable (%s); retrying in %.2f s", exc, delay)
+            database = isinstance(exc, DB_ERRORS)
+            self.counters.incr("db_retries" if database else "redis_retries")
+            what = "database" if database else "Redis"
+            log.warning("%s unavailable (%s); retrying in %.2f s", what, exc, delay)
 
         return retry_call(
             attempt,
-            errors=(OperationalError, InterfaceError),
-            backoff=Backoff(0.05, 1.0),
+            errors=errors,
+            backoff=Backoff(*LANE_BACKOFF) if patient else Backoff(0.05, 1.0),
             give_up=give_up,
             on_retry=on_retry,
+            sleep=self._abandon.wait,
         )
 
     def _run_batches(self) -> None:
@@ -386,10 +524,13 @@ class Gateway:
                 except queue.Empty:
                     break
             by_channel: dict[str, list[tuple[str, Any]]] = {}
-            for channel, drone_id, message in items:
+            for channel, drone_id, message, _settle in items:
                 by_channel.setdefault(channel, []).append((drone_id, message))
             for channel, batch in by_channel.items():
                 self._run_batch(channel, batch)
+            for *_, settle in items:
+                if settle is not None:
+                    settle()  # stored, or dropped for good (a newer heartbeat follows)
             self.counters.maybe_flush()
         connection.close()
 

@@ -28,6 +28,7 @@ OUTBOX_PREFIX = "skyhive:gateway:outbox:"
 TAKEN_PREFIX = "skyhive:gateway:taken:"
 PENDING_PREFIX = "skyhive:pending:"
 REPLY_PREFIX = "skyhive:reply:"
+ANSWERED_PREFIX = "skyhive:answered:"
 # A reply nobody waits for any more is kept this long, then Redis forgets it.
 REPLY_TTL_S = 60
 
@@ -113,25 +114,36 @@ async def arequest(
     return json.loads(popped[1])
 
 
+# Hands a reply over in one step: nothing half done when Redis goes away in between, so
+# the gateway may retry it. A copy of a reply already handed over (a QoS 1 redelivery, a
+# retry) is recognised by the answered marker and changes nothing.
+_DELIVER_REPLY = """
+local asked = redis.call('GET', KEYS[1])
+if not asked then
+  if redis.call('GET', KEYS[3]) == ARGV[1] then return 'again' end
+  return 'unexpected_reply'
+end
+redis.call('DEL', KEYS[1])
+if asked ~= ARGV[1] then return 'reply_from_wrong_drone' end
+redis.call('RPUSH', KEYS[2], ARGV[2])
+redis.call('EXPIRE', KEYS[2], ARGV[3])
+redis.call('SET', KEYS[3], ARGV[1], 'EX', ARGV[3])
+return 'ok'
+"""
+
+
 def deliver_reply(drone_id: str, request_id: str, reply: dict) -> str | None:
     """Gateway side: hand a drone's answer to whoever waits for it.
 
-    Returns None when delivered, else the reason it was dropped: no such request pending,
-    or the answer came from another drone than the one asked (a drone must not be able to
-    answer for another).
+    Returns None when delivered (or delivered already: the same reply again), else the
+    reason it was dropped: no such request pending, or the answer came from another drone
+    than the one asked (a drone must not be able to answer for another).
     """
-    client = sync_redis()
-    asked = client.getdel(PENDING_PREFIX + request_id)
-    if asked is None:
-        return "unexpected_reply"
-    if asked.decode() != drone_id:
-        return "reply_from_wrong_drone"
-    key = REPLY_PREFIX + request_id
-    pipe = client.pipeline(transaction=False)
-    pipe.rpush(key, json.dumps(reply, separators=(",", ":")))
-    pipe.expire(key, REPLY_TTL_S)
-    pipe.execute()
-    return None
+    keys = [PENDING_PREFIX + request_id, REPLY_PREFIX + request_id, ANSWERED_PREFIX + request_id]
+    body = json.dumps(reply, separators=(",", ":"))
+    outcome = sync_redis().eval(_DELIVER_REPLY, len(keys), *keys, drone_id, body, REPLY_TTL_S)
+    outcome = outcome.decode() if isinstance(outcome, bytes) else outcome
+    return None if outcome in ("ok", "again") else outcome
 
 
 def taken_key(outbox: str, owner: str) -> str:

@@ -14,7 +14,10 @@ but delivers nothing to them, so there the competing consumers read a durable AM
 
 Either way the consumer hands `(topic_with_slashes, payload_bytes)` to one callback and
 acknowledges a message only after that callback returned, so a process that dies with
-messages in hand gets them redelivered to its peers.
+messages in hand gets them redelivered to its peers. With `manual_ack`, the callback gets
+a third argument, `settle` (None for a QoS 0 delivery): the message is acknowledged only
+once `settle()` is called, from any thread, so the gateway and the ingest acknowledge
+what they have stored, not what they have read.
 """
 
 from __future__ import annotations
@@ -114,6 +117,7 @@ def competing_consumer(
     qos: int = 1,
     prefetch: int = 1000,
     counters: object | None = None,
+    manual_ack: bool = False,
 ) -> Consumer:
     """One member of consumer group `group` for the drones' `<id>/<channel>/out` messages.
 
@@ -131,9 +135,17 @@ def competing_consumer(
             prefetch=prefetch,
             name=client_id,
             counters=counters,
+            manual_ack=manual_ack,
         )
     if len(channels) != 1:
         raise ValueError("the MQTT shared-subscription reader takes one channel")
     if not mqtt_url:
         raise ValueError("an MQTT shared subscription needs the broker's URL")
-    return Subscriber(mqtt_url, client_id, share_filter(group, channels[0]), on_message, qos=qos)
+    return Subscriber(
+        mqtt_url,
+        client_id,
+        share_filter(group, channels[0]),
+        on_message,
+        qos=qos,
+        manual_ack=manual_ack,
+    )

@@ -12,6 +12,7 @@ import logging
 import socket
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from urllib.parse import unquote, urlsplit
 
@@ -27,7 +28,11 @@ QUEUE_PREFIX = "skyhive."
 # messages, dropping the oldest: heartbeats and telemetry from hours ago are worthless.
 QUEUE_MAX_LENGTH = 1_000_000
 
-OnMessage = Callable[[str, bytes], object]
+OnMessage = Callable[..., object]
+# A settled delivery stuck behind one still in hand (another drone's message retried
+# through an outage) is acknowledged on its own after this long, so the prefetch window
+# does not fill up with finished work.
+STRAGGLER_ACK_S = 1.0
 
 
 def routing_key(topic: str) -> str:
@@ -48,6 +53,11 @@ class AmqpConsumer:
     Acknowledgements are batched (`multiple=True`) and sent once the callback returned,
     every `ack_every` messages or when the queue goes quiet, so a crash redelivers only
     what was not yet handed over. A lost node makes it move to the next URL.
+
+    With `manual_ack`, the callback is `on_message(topic, payload, settle)` and a message
+    is acknowledged only once `settle()` was called (from any thread): the contiguous
+    settled run at once (`multiple=True`), settled ones behind a message still in hand
+    one by one after STRAGGLER_ACK_S.
     """
 
     def __init__(
@@ -63,6 +73,7 @@ class AmqpConsumer:
         name: str = "",
         heartbeat: int = 10,
         counters: object | None = None,
+        manual_ack: bool = False,
     ) -> None:
         if not urls:
             raise ValueError("AMQP_URLS is empty: the RabbitMQ broker needs its AMQP listeners")
@@ -89,6 +100,11 @@ class AmqpConsumer:
         self._unacked_tag: int | None = None
         self._unacked = 0
         self._last_ack = 0.0
+        self.manual_ack = manual_ack
+        # (session, tag) of settled deliveries, appended from any thread.
+        self._settled: deque[tuple[int, int]] = deque()
+        # This session's deliveries not acknowledged yet, in tag order: when settled.
+        self._outstanding: dict[int, float | None] = {}
 
     @property
     def url(self) -> str:
@@ -175,6 +191,7 @@ class AmqpConsumer:
         self.subscribed.set()
         log.info("%s consuming %s on %s", self.name, self.queue, _safe(self.url))
         self._unacked_tag, self._unacked = None, 0
+        self._outstanding.clear()
         self._last_ack = time.monotonic()
         last_beat = time.monotonic()
         while not self._stop.is_set():
@@ -183,7 +200,9 @@ class AmqpConsumer:
             except TimeoutError:
                 pass
             now = time.monotonic()
-            if self._unacked and (
+            if self.manual_ack:
+                self._ack_settled(channel, now)
+            elif self._unacked and (
                 self._unacked >= self.ack_every or now - self._last_ack >= self.ack_interval
             ):
                 self._ack(channel)
@@ -191,7 +210,10 @@ class AmqpConsumer:
                 # Send our heartbeats and notice a silent node.
                 conn.heartbeat_tick()
                 last_beat = now
-        self._ack(channel)
+        if self.manual_ack:
+            self._ack_settled(channel, time.monotonic(), everything=True)
+        else:
+            self._ack(channel)
 
     def _deliver(self, message: amqp.Message) -> None:
         info = message.delivery_info
@@ -202,14 +224,55 @@ class AmqpConsumer:
             self._count("amqp.redelivered")
         body = message.body
         payload = body if isinstance(body, bytes) else bytes(body, "utf-8")
+        tag = info["delivery_tag"]
+        args: tuple = ()
+        if self.manual_ack:
+            session = self.sessions
+            self._outstanding[tag] = None
+
+            def settle() -> None:
+                self._settled.append((session, tag))
+
+            args = (settle,)
         try:
-            self.on_message(topic_of(info["routing_key"]), payload)
+            self.on_message(topic_of(info["routing_key"]), payload, *args)
         except Exception:  # noqa: BLE001 - a bad message must not stop the queue
             self.callback_errors += 1
             self._count("amqp.callback_errors")
             log.exception("%s: callback failed on %s", self.name, info.get("routing_key"))
-        self._unacked_tag = info["delivery_tag"]
+            if args:
+                args[0]()
+        self._unacked_tag = tag
         self._unacked += 1
+
+    def _ack_settled(self, channel: amqp.Channel, now: float, everything: bool = False) -> None:
+        """Acknowledge what was settled: the settled run from the oldest delivery at once,
+        later settled ones when they have waited STRAGGLER_ACK_S behind one in hand."""
+        outstanding = self._outstanding
+        while self._settled:
+            session, tag = self._settled.popleft()
+            # A settle from a previous session: RabbitMQ has redelivered that message.
+            if session == self.sessions and tag in outstanding:
+                outstanding[tag] = now
+        run: list[int] = []
+        for tag, settled_at in outstanding.items():
+            if settled_at is None:
+                break
+            run.append(tag)
+        if run:
+            channel.basic_ack(run[-1], multiple=True)
+            for tag in run:
+                del outstanding[tag]
+        if not outstanding:
+            return
+        stragglers = [
+            tag
+            for tag, settled_at in outstanding.items()
+            if settled_at is not None and (everything or now - settled_at >= STRAGGLER_ACK_S)
+        ]
+        for tag in stragglers:
+            channel.basic_ack(tag)
+            del outstanding[tag]
 
     def _ack(self, channel: amqp.Channel) -> None:
         if self._unacked_tag is not None and self._unacked:

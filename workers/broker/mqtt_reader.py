@@ -8,6 +8,10 @@ paho client (170 000 vs 42 000), which leaves headroom above the 10 000 messages
 256 KiB reads in one loop. It does only what the ingest needs: one
 subscription, QoS 0 and 1 deliveries (PUBACK sent), keep-alive pings, reconnect with
 backoff. A blocking `on_message` stops the reading, which is the back-pressure.
+
+With `manual_ack`, `on_message(topic, payload, settle)` gets a `settle` for each QoS 1
+delivery (None for QoS 0) and the PUBACK goes out only when it is called, from any
+thread: the ingest calls it once the message's rows are committed.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ class Subscriber:
         *,
         qos: int = 1,
         keepalive: int = 30,
+        manual_ack: bool = False,
     ) -> None:
         parts = urlsplit(url)
         self.host = parts.hostname or "127.0.0.1"
@@ -58,6 +63,9 @@ class Subscriber:
         self.keepalive = keepalive
         self.subscribed = threading.Event()
         self.sessions = 0  # subscriptions granted so far: 2 after one reconnect
+        self.manual_ack = manual_ack
+        self._connection = 0  # which TCP connection a packet id belongs to
+        self._send_lock = threading.Lock()
         self._stop = threading.Event()
         self._sock: socket.socket | None = None
         self._thread: threading.Thread | None = None
@@ -100,6 +108,7 @@ class Subscriber:
         sock = socket.create_connection((self.host, self.port), timeout=10)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._sock = sock
+        self._connection += 1
         sock.sendall(
             connect_packet(
                 self.client_id,
@@ -117,7 +126,7 @@ class Subscriber:
         while not self._stop.is_set():
             ready, _, _ = select.select([sock], [], [], 1.0)
             if time.monotonic() - last_sent > self.keepalive / 2:
-                sock.sendall(b"\xc0\x00")  # PINGREQ
+                self._send(sock, b"\xc0\x00")  # PINGREQ
                 last_sent = time.monotonic()
             if not ready:
                 continue
@@ -142,10 +151,17 @@ class Subscriber:
                 topic = buffer[i + 2 : i + 2 + topic_len].decode("utf-8", "replace")
                 start = i + 2 + topic_len
                 qos = (header >> 1) & 0x03
-                if qos:
-                    acks += b"\x40\x02" + buffer[start : start + 2]  # PUBACK
-                    start += 2
-                self.on_message(topic, bytes(buffer[start:stop]))
+                if not self.manual_ack:
+                    if qos:
+                        acks += b"\x40\x02" + buffer[start : start + 2]  # PUBACK
+                        start += 2
+                    self.on_message(topic, bytes(buffer[start:stop]))
+                else:
+                    settle = None
+                    if qos:
+                        settle = self._settler(sock, bytes(buffer[start : start + 2]))
+                        start += 2
+                    self.on_message(topic, bytes(buffer[start:stop]), settle)
             elif kind == 2:  # CONNACK
                 if stop - i < 2 or buffer[i + 1] != 0:
                     raise ProtocolViolation(f"broker refused the connection (code {buffer[i + 1]})")
@@ -158,5 +174,25 @@ class Subscriber:
                 log.info("ingest subscribed to %s", self.topic_filter)
             pos = stop
         if acks:
-            sock.sendall(bytes(acks))
+            self._send(sock, bytes(acks))
         return pos, connected
+
+    def _send(self, sock: socket.socket, data: bytes) -> None:
+        with self._send_lock:
+            sock.sendall(data)
+
+    def _settler(self, sock: socket.socket, packet_id: bytes) -> Callable[[], None]:
+        """The PUBACK of one delivery, for whoever stores it. Not sent on a later
+        connection: the clean session's packet ids there name other messages, and the
+        unacknowledged one is not redelivered."""
+        connection = self._connection
+
+        def settle() -> None:
+            if connection != self._connection or self._sock is not sock:
+                return
+            try:
+                self._send(sock, b"\x40\x02" + packet_id)
+            except OSError:
+                pass  # the link is gone: the reader reconnects
+
+        return settle
