@@ -6,7 +6,7 @@ from django.db import migrations, models
 class Migration(migrations.Migration):
     dependencies = [
         ("fleet", "0003_drone_id_not_reserved"),
-        ("missions", "0003_mission_held"),
+        ("missions", "0005_assignment_held"),
     ]
 
     operations = [
