@@ -26,7 +26,7 @@ from django.conf import settings
 from django.db import connection
 from django.http import HttpRequest, JsonResponse
 
-from onboard.mqtt import parse_broker_url
+from onboard.mqtt import parse_broker_url, secure
 from workers.broker import mosquitto_sys
 from workers.broker.figures import mosquitto_figures
 
@@ -81,6 +81,7 @@ def check_broker_node(url: str, timeout: float = 2.0) -> str | None:
     client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="", clean_session=True)
     if parts.username:
         client.username_pw_set(unquote(parts.username), unquote(parts.password or ""))
+    secure(client, parts.scheme == "mqtts")
     result: dict[str, object] = {}
     client.on_connect = lambda c, u, f, rc, p: result.setdefault("rc", rc)
     try:

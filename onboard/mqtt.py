@@ -109,6 +109,17 @@ def _point_at(client: paho.Client, broker: BrokerUrl) -> None:
         client.username_pw_set(broker.username, broker.password)
 
 
+def secure(client: paho.Client, tls: bool) -> None:
+    """For an mqtts:// broker: TLS with the system's trust store (SSL_CERT_FILE names a
+    private CA). A client already set up for TLS is left as it is."""
+    if not tls:
+        return
+    try:
+        client.tls_set()
+    except ValueError:
+        pass  # paho: "SSL/TLS has already been configured"
+
+
 def attach_failover(client: paho.Client, urls: str | Sequence[str]) -> Failover:
     """Make `client` try the nodes of `urls` in turn; call after setting its callbacks.
 
@@ -116,6 +127,7 @@ def attach_failover(client: paho.Client, urls: str | Sequence[str]) -> Failover:
     disconnect that the caller did not ask for, and each failed connect, moves it on.
     """
     failover = Failover(client, parse_broker_urls(urls))
+    secure(client, failover.current.tls)
     _point_at(client, failover.current)
     own_disconnect = client.on_disconnect
     own_connect_fail = client.on_connect_fail
@@ -174,8 +186,6 @@ class MqttLink:
             clean_session=False,
             protocol=paho.MQTTv311,
         )
-        if self.brokers[0].tls:
-            self.client.tls_set()
         # paho types these as int but computes with floats; 0.1 s makes a restart cheap.
         self.client.reconnect_delay_set(min_delay=0.1, max_delay=max_backoff)  # type: ignore[arg-type]
         self.client.max_inflight_messages_set(100)

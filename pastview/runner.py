@@ -30,6 +30,7 @@ from channels.layers import get_channel_layer
 from django.conf import settings
 from django.db import close_old_connections
 
+from onboard.mqtt import secure
 from pastview.models import ViewSettings
 from pastview.selection import PastViewSettings
 from pastview.service import PastViewService, group_name
@@ -164,6 +165,7 @@ class PastViewProcess:
         )
         if url.username:
             self.client.username_pw_set(url.username, url.password)
+        secure(self.client, url.scheme == "mqtts")
         self.client.reconnect_delay_set(min_delay=1, max_delay=30)
         self.client.on_connect = self._on_connect
         self.client.on_disconnect = self._on_disconnect
