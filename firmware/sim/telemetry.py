@@ -338,9 +338,7 @@ class BoardSession:
         settings = self.values.get((receiver_setup.SETTINGS, 0))
         if settings is not self._judged_settings:
             self._judged_settings = settings
-            self._receiver_ok = settings is None or not receiver_setup.problems(
-                settings, self.frames
-            )
+            self._receiver_ok = settings is None or not receiver_setup.problems(settings)
         return self._receiver_ok
 
     def _read_arming_line(self) -> str | None:

@@ -218,7 +218,7 @@ def _scale_problems(settings: Mapping[str, object]) -> list[str]:
     return found
 
 
-def problems(settings: Mapping[str, object], frames: Frames | None = None) -> list[str]:
+def problems(settings: Mapping[str, object]) -> list[str]:
     """What to change on the board so the agent can arm it through UAVTalkReceiver
     (empty when nothing); each item names the setting, the value it needs and its value.
     Both families of `Arming` are accepted; an option that cannot arm is told to be
