@@ -165,6 +165,17 @@ def test_a_channel_with_no_data_arms_nothing():
     assert receiver_setup.gesture(settings, channels) is None
 
 
+def test_the_switch_falls_back_to_the_fixed_frames_when_the_settings_cannot_arm():
+    switch = UAVTalkReceiverSwitch()
+    fixed = switch.channels("arm")
+    assert fixed[:4] == [1500, 1500, 1000, 2000]
+    switch.configure(_settings({"Arming": "Always Disarmed"}))
+    assert switch.settings is None and switch.channels("arm") == fixed
+    switch.configure(_settings({**DRONIN_SWITCH, "Arming": "Roll Left+Throttle"}))
+    assert switch.channels("arm")[:5] == [1000, 1000, 5000, 5000, 5000]
+    assert switch.channels("disarm")[:5] == [1000, 9000, 5000, 5000, 5000]
+
+
 # -- the agent and the simulated board -----------------------------------------------------------
 
 
