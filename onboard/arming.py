@@ -9,7 +9,8 @@ Backends:
 - `GpiodLine(chip, request_line, mode_line)`: the Arduino arming-switch emulator's request
   and mode pins on a Linux GPIO character device (the `gpiod` package).
 - `UAVTalkReceiverSwitch(fc)`: for boards whose receiver group is UAVTalk, the arming
-  stick positions written as `UAVTalkReceiver` channel values at 25 Hz.
+  switch or stick positions written as `UAVTalkReceiver` channel values at 25 Hz, in the
+  board's own scale and channel numbers once its ManualControlSettings are known.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from .arming_frames import load_frames
+from .uavtalk import receiver_setup
 
 log = logging.getLogger(__name__)
 
@@ -134,7 +136,13 @@ class GpiodLine:
 
 
 class UAVTalkReceiverSwitch:
-    """Sends the arming stick positions as UAVTalkReceiver channels at 25 Hz until released.
+    """Sends the arming positions as UAVTalkReceiver channels at 25 Hz until released.
+
+    With the board's ManualControlSettings (`configure`, done by the driver on connect)
+    the channels follow its `Arming` option, channel numbers and scale
+    (onboard.uavtalk.receiver_setup): the arming channel high or low for the switch
+    family, the option's stick gesture otherwise. Without them (not readable) it sends
+    the fixed frames of arming_frames.json for `Yaw Right+Throttle`.
 
     A real board reads a receiver group that goes quiet as lost (it wants 20-50 Hz,
     docs/uavtalk.md "Arming"); the writes are not acknowledged, as the definition says.
@@ -147,6 +155,7 @@ class UAVTalkReceiverSwitch:
     CHANNELS = 8
     # The channels come over the telemetry link itself, not a radio: full signal strength.
     RSSI = 65535
+    SWITCH_LOW_TICKS = 5
     # The board's receiver group these channels arrive in: the driver checks on connect
     # that the board reads its sticks from it (onboard.uavtalk.receiver_setup).
     receiver_group = "UAVTalk"
@@ -158,6 +167,7 @@ class UAVTalkReceiverSwitch:
         self.frames = frames
         self.period = 1.0 / rate_hz
         self.retries = 0
+        self.settings: dict | None = None
         self._mode: str | None = None
         self._lock = threading.Lock()
         self._wake = threading.Event()
@@ -167,8 +177,24 @@ class UAVTalkReceiverSwitch:
         """Give the switch its flight controller (the driver is built after the switch)."""
         self.fc = fc
 
+    def configure(self, settings: dict | None) -> None:
+        """The board's ManualControlSettings (None: unknown, send the fixed frames)."""
+        known = settings is not None and (
+            settings.get("Arming") in receiver_setup.SWITCH_OPTIONS
+            or settings.get("Arming") in receiver_setup.GESTURES
+        )
+        self.settings = dict(settings) if known else None  # type: ignore[arg-type]
+
     def channels(self, frame: str) -> list[int]:
-        """Channel periods in microseconds for 'arm', 'disarm' or 'safe'."""
+        """Channel values for 'arm', 'disarm' or 'safe'."""
+        settings = self.settings
+        if settings is not None:
+            if frame == "safe" and settings["Arming"] in receiver_setup.SWITCH_OPTIONS:
+                # A switch board disarms on a low switch: at rest the switch stays where
+                # the board is, high while armed and low otherwise.
+                armed = bool(getattr(getattr(self.fc, "state", None), "armed", False))
+                frame = "arm" if armed else "safe"
+            return receiver_setup.channel_values(settings, frame)
         pulses = {
             "arm": self.frames.arm_frame_us,
             "disarm": self.frames.disarm_frame_us,
@@ -219,8 +245,24 @@ class UAVTalkReceiverSwitch:
             log.debug("UAVTalkReceiver write failed: %s", exc)
             return False
 
+    def _drop_switch(self) -> bool:
+        """A switch board arms only on a switch that went low since its last cancelled
+        attempt: hold it low for a moment before raising it. True when released."""
+        settings = self.settings
+        if settings is None or settings["Arming"] not in receiver_setup.SWITCH_OPTIONS:
+            return False
+        for _ in range(self.SWITCH_LOW_TICKS):
+            self._send("disarm")
+            if self._wake.wait(self.period):
+                return True
+        return False
+
     def _run(self) -> None:
         was_arming = False
+        with self._lock:
+            first = self._mode
+        if first == "arm" and self._drop_switch():
+            return
         while True:
             with self._lock:
                 mode = self._mode

@@ -100,8 +100,9 @@ def build_parser() -> argparse.ArgumentParser:
         action="append",
         default=[],
         metavar="FIELD[.ELEMENT]=VALUE",
-        help="uavtalk: a ManualControlSettings value other than what arming through "
-        "UAVTalkReceiver needs, e.g. ChannelGroups.Throttle=PWM (repeatable)",
+        help="uavtalk: a ManualControlSettings value other than the default set-up "
+        "(Yaw Right+Throttle on channels 1-4, 1000/1500/2000, an arming channel on 5), "
+        "e.g. Arming=Switch+Throttle or ChannelGroups.Throttle=PWM (repeatable)",
     )
     p.add_argument("-v", "--verbose", action="store_true")
     return p

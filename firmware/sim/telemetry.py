@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from firmware.sim.receiver import BoardChannels
 from firmware.sim.vehicle import Vehicle, euler_to_quaternion
 from onboard.arming_frames import Frames
 from onboard.uavtalk import (
@@ -85,8 +86,10 @@ class BoardSession:
     link_timeout_s: float = LINK_TIMEOUT_S
     on_reboot: Callable[[], None] | None = None
     stats: SimStats = field(default_factory=SimStats)
-    # ManualControlSettings changes from the settings a board armed through UAVTalkReceiver
-    # needs ("ChannelGroups.Throttle" → "PWM"), to play a board set up wrong.
+    # ManualControlSettings changes from the default set-up (Yaw Right+Throttle on the
+    # arming_frames.json channels, an arming channel ready on 5): "Arming" →
+    # "Switch+Throttle" plays a switch-armed board, "ChannelGroups.Throttle" → "PWM" one
+    # set up wrong.
     receiver_settings: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -225,8 +228,7 @@ class BoardSession:
         elif name == "Waypoint":
             self.vehicle.set_waypoint(inst, values["Mode"], values["Position"])
         elif name == "UAVTalkReceiver":
-            separator = self.frames.separator_us
-            self._receiver = [c - separator for c in values["Channel"]]
+            self._receiver = list(values["Channel"])
             self._receiver_at = now
         elif name == "HomeLocation":
             if values["Set"] == "TRUE":
@@ -324,7 +326,10 @@ class BoardSession:
             and now - self._receiver_at <= RECEIVER_FRESH_S
             and self._reads_uavtalk_receiver()
         ):
-            return self._receiver
+            settings = self.values.get((receiver_setup.SETTINGS, 0))
+            if settings is None:  # no ManualControlSettings: read as the fixed frames
+                return [c - self.frames.separator_us for c in self._receiver]
+            return BoardChannels(self._receiver, settings)
         return self.frames.safe_frame_us
 
     def _reads_uavtalk_receiver(self) -> bool:
@@ -333,9 +338,7 @@ class BoardSession:
         settings = self.values.get((receiver_setup.SETTINGS, 0))
         if settings is not self._judged_settings:
             self._judged_settings = settings
-            self._receiver_ok = settings is None or not receiver_setup.problems(
-                settings, self.frames
-            )
+            self._receiver_ok = settings is None or not receiver_setup.problems(settings)
         return self._receiver_ok
 
     def _read_arming_line(self) -> str | None:

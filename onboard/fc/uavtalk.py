@@ -248,6 +248,8 @@ class UAVTalkFlightController(LinkDriver):
                 continue
             if name == receiver_setup.SETTINGS:
                 found += receiver_setup.problems(values)
+                if hasattr(self.arming_switch, "configure"):
+                    self.arming_switch.configure(values)
         for problem in found:
             log.warning("flight controller set-up: %s", problem)
         self._holder.update(setup=tuple(found))

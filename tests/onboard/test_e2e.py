@@ -433,31 +433,6 @@ def test_the_launcher_starts_a_fleet_with_provisioned_credentials(tmp_path: Path
     assert (tmp_path / "fleet" / "SIM_B" / "gear" / "specs.json").exists()
 
 
-def test_the_drone_arms_through_uavtalk_receiver_channels(tmp_path: Path, broker) -> None:
-    sim = start_simulator(home=HOME, time_scale=SCALE, log_file=tmp_path / "sim.log")
-    process = start_agent(
-        tmp_path,
-        drone_id=DRONE,
-        link=sim.url,
-        broker_url=broker.url_for(DRONE),
-        arming_line=tmp_path / "unused",
-        time_scale=SCALE,
-        extra=["--arming", "uavtalk-receiver"],
-    )
-    ground = Ground(broker.port, DRONE)
-    try:
-        ground.wait_for("heartbeats", lambda m: m["fc"]["connected"], timeout=15)
-        assert ground.command("arm")["result"] == {"armed": True}
-        beat = ground.wait_for("heartbeats", lambda m: m["armed"])
-        assert beat["airborne"] is False
-        assert ground.command("disarm")["result"] == {"armed": False}
-        assert not (tmp_path / "unused").exists()  # no arming line was involved
-    finally:
-        ground.close()
-        process.stop()
-        sim.stop()
-
-
 def test_a_bridged_drone_lands_when_the_ground_link_is_lost(
     broker, agent_for, tmp_path: Path
 ) -> None:
