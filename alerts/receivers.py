@@ -8,6 +8,7 @@ from django.db.models.signals import post_save
 from fleet.models import Drone
 from fleet.signals import drones_went_offline
 from missions.models import Event, Mission, MissionStatus
+from missions.signals import critical_alarm_outside_mission
 
 from .models import Alert
 from .raising import raise_alert
@@ -16,6 +17,7 @@ from .raising import raise_alert
 def connect() -> None:
     post_save.connect(on_mission_event, sender=Event, dispatch_uid="alerts-mission-event")
     drones_went_offline.connect(on_drones_offline, dispatch_uid="alerts-drones-offline")
+    critical_alarm_outside_mission.connect(on_lone_alarm, dispatch_uid="alerts-lone-alarm")
 
 
 def on_mission_event(sender, instance: Event, created: bool, **kwargs) -> None:  # type: ignore[no-untyped-def]
@@ -41,6 +43,20 @@ def _critical_alarm(event: Event, data: dict) -> None:
         detail=f"Mission {mission.name}",
         drone_id=drone_id,
         mission_id=mission.pk,
+    )
+
+
+def on_lone_alarm(sender, drone: Drone, alarm, **kwargs) -> None:  # type: ignore[no-untyped-def]
+    """A CRITICAL alarm from a drone flying no mission (outside its envelope, say)."""
+    if drone.organisation is None:
+        return
+    raise_alert(
+        drone.organisation,
+        Alert.Kind.CRITICAL_ALARM,
+        f"CRITICAL alarm from {drone.drone_id}: {alarm.message or 'no message'}",
+        source=f"alarm:{drone.drone_id}:{alarm.ts}",
+        detail="Not in a mission.",
+        drone_id=drone.drone_id,
     )
 
 

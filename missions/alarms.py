@@ -19,6 +19,7 @@ from missions.services import (
     record,
     send_alarm_ack,
 )
+from missions.signals import critical_alarm_outside_mission
 from onboard import protocol
 
 
@@ -74,6 +75,8 @@ def _record_alarm(drone: Drone, alarm: protocol.Alarm) -> str | None:
     received_at = time.time()
     mission, assignment, reason = _alarm_assignment(drone, alarm)
     if mission is None:
+        if alarm.level == "CRITICAL":
+            critical_alarm_outside_mission.send(sender=None, drone=drone, alarm=alarm)
         return reason
     key = message_key(drone, alarm)
     with transaction.atomic():

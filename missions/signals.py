@@ -4,8 +4,14 @@ goes offline mid-mission (the mission shows it; a replacement follows the grace 
 from __future__ import annotations
 
 from django.db import transaction
+from django.dispatch import Signal
 
 from .models import Mission, MissionStatus
+
+# Sent for a CRITICAL alarm no mission could record (the drone flies none), so what
+# watches alarms still hears it. Arguments: drone (fleet.models.Drone), alarm
+# (onboard.protocol.Alarm).
+critical_alarm_outside_mission = Signal()
 
 
 def resume_when_drones_come_online(sender, organisation_ids, **kwargs) -> None:  # type: ignore[no-untyped-def]

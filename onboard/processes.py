@@ -15,12 +15,15 @@ import subprocess
 import sys
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
+# How many of a supervised process's last output lines `output()` keeps.
+ECHO_LINES = 10_000
 
 
 def wait_for(predicate: Callable[[], Any], timeout: float = 10.0, interval: float = 0.05) -> Any:
@@ -100,7 +103,8 @@ class Supervised:
     process: subprocess.Popen | None = None
     starts: int = 0
     _log_offset: int = field(default=0, repr=False)
-    _echoed: list[str] = field(default_factory=list, repr=False)
+    # The last lines only: a process that runs for days must not grow its supervisor.
+    _echoed: deque[str] = field(default_factory=lambda: deque(maxlen=ECHO_LINES), repr=False)
     _pump_thread: threading.Thread | None = field(default=None, repr=False)
 
     @property
@@ -134,7 +138,7 @@ class Supervised:
                 log.close()  # type: ignore[union-attr]
         self.starts += 1
         if self._read_lines:
-            self._echoed = []
+            self._echoed = deque(maxlen=ECHO_LINES)
             self._pump_thread = threading.Thread(target=self._pump, args=(self.process,))
             self._pump_thread.daemon = True
             self._pump_thread.start()

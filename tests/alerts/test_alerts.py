@@ -208,3 +208,18 @@ def test_the_alerts_api_lists_only_the_organisations_alerts(world):
     assert len(client.get("/api/v1/alerts/").json()["alerts"]) == 1
     client.force_authenticate(world.outsider)
     assert client.get("/api/v1/alerts/").json()["alerts"] == []
+
+
+def test_a_critical_alarm_from_a_drone_in_no_mission_still_raises_an_alert(world):
+    from missions.alarms import apply_alarm
+    from onboard import protocol
+
+    alarm = protocol.Alarm(level="CRITICAL", message="Outside the flight envelope: 130 m high")
+    assert apply_alarm(world.drone, alarm) == "alarm_outside_mission"
+    alert = Alert.objects.get()
+    assert alert.kind == Alert.Kind.CRITICAL_ALARM and "Outside the flight envelope" in alert.title
+    assert alert.mission_id is None and alert.drone_id == "ACME_1"
+    apply_alarm(world.drone, alarm)  # the same alarm again: no second alert
+    assert Alert.objects.count() == 1
+    apply_alarm(world.drone, protocol.Alarm(level="OUT_MEASURE", message="CO2"))
+    assert Alert.objects.count() == 1
