@@ -157,10 +157,12 @@ def test_the_ground_gateway_connects_over_tls(tmp_path, trusted):
     from workers.gateway import Gateway
 
     broker = start_broker(tmp_path / "mq", {"ground": "ground-pw"}, tls=trusted)
-    gateway = Gateway(broker.tls_url_for("ground"), dispatch={}, client_id="gateway-tls-test")
-    gateway.start()
     try:
-        assert gateway.wait_connected(10), "the gateway did not connect over mqtts://"
+        gateway = Gateway(broker.tls_url_for("ground"), dispatch={}, client_id="gateway-tls-test")
+        gateway.start()
+        try:
+            assert gateway.wait_connected(10), "the gateway did not connect over mqtts://"
+        finally:
+            gateway.stop()
     finally:
-        gateway.stop()
         broker.stop()
