@@ -10,5 +10,4 @@ urlpatterns = [
     path("organisation/envelope/", views.envelope, name="envelope"),
     path("organisation/switch/", views.switch_organisation, name="switch_organisation"),
     path("fleet/table/", views.drone_table, name="table"),
-    path("fleet/table/", views.drone_table, name="table"),
 ]
