@@ -6,7 +6,9 @@ table API's first page and the websocket's first message, as a user waits for th
 (the page notes the moment on <html data-fleet-ready>). The baseline is the same page of an
 organisation without drones, loaded in the same run (to its load event: it has nothing
 more to wait for). Median of several loads each; the bytes of the HTML, the table page and
-the snapshot are recorded beside.
+the snapshot are recorded beside, and the median moment of each step the page marks
+(`performance.mark`: its head's script runs and opens the socket, the socket is open, the
+snapshot is merged, the table page is drawn), to show where a slow load spends its time.
 
 Needs the test services (`scripts/services.sh start test`); creates and drops its own
 database. Run: .venv/bin/python -m bench.bench_portal
@@ -29,6 +31,8 @@ os.environ["TEST_DB_NAME"] = f"bench_portal_{os.getpid()}"
 
 ROUNDS = 5
 SIZES = (2000, 10000)
+# The page's own marks, in the order a load usually passes them (ms since navigation start).
+MARKS = ("fleet:early", "fleet:socket-open", "fleet:table", "fleet:snapshot")
 GOAL = "the fleet page usable in under 1 s with 2 000 and with 10 000 drones"
 PASSWORD = "correct horse battery staple"
 
@@ -107,6 +111,9 @@ def _one_load(page, base_url: str, size: int) -> dict:  # type: ignore[no-untype
             pass  # a periodic refresh cut short by the next navigation
 
     def on_socket(socket) -> None:  # type: ignore[no-untyped-def]
+        if "/ws/fleet/" not in socket.url:
+            return  # the alerts banner's socket
+
         def on_frame(payload) -> None:  # type: ignore[no-untyped-def]
             if not sizes["snapshot"]:
                 sizes["snapshot"] = len(payload)
@@ -121,12 +128,26 @@ def _one_load(page, base_url: str, size: int) -> dict:  # type: ignore[no-untype
         ready = float(page.evaluate("document.documentElement.dataset.fleetReady"))
         markers = page.evaluate("skyhiveFleet.markerIds().length")
         assert markers == size, f"{markers} of {size} drones on the map"
+        marks = page.evaluate(
+            "Object.fromEntries(performance.getEntriesByType('mark').map(m => [m.name, m.startTime]))"
+        )
+        sizes.update({name: marks.get(name) for name in MARKS})
     else:
         page.wait_for_load_state("load")
         ready = page.evaluate("performance.getEntriesByType('navigation')[0].loadEventEnd")
     page.remove_listener("response", on_response)
     page.remove_listener("websocket", on_socket)
     return {"ms": ready, **sizes}
+
+
+def _median_marks(loads: list[dict]) -> dict[str, float]:
+    """The median moment of each page mark over the loads that reached it."""
+    medians = {}
+    for name in MARKS:
+        seen = [load[name] for load in loads if load.get(name) is not None]
+        if seen:
+            medians[name.removeprefix("fleet:")] = round(statistics.median(seen), 1)
+    return medians
 
 
 def _measure(base_url: str) -> dict[int, dict]:
@@ -144,6 +165,7 @@ def _measure(base_url: str) -> dict[int, dict]:
                 results[size] = {
                     "s": statistics.median(load["ms"] for load in loads) / 1000,
                     **{k: loads[-1][k] for k in ("html", "table", "snapshot")},
+                    "marks_ms": _median_marks(loads),
                 }
         finally:
             browser.close()
@@ -161,7 +183,7 @@ def _server_times(size: int) -> dict:
     org = Organisation.objects.get(slug=f"fleet{size}")
     query = listing.TableQuery()
     return {
-        "snapshot_server_s": best_of(lambda: json.dumps(listing.marker_rows(org.pk))),
+        "snapshot_server_s": best_of(lambda: json.dumps(listing.marker_columns(org.pk))),
         "table_page_server_s": best_of(lambda: json.dumps(listing.table_page(org.pk, query))),
     }
 
@@ -198,8 +220,10 @@ def main() -> None:
                 table_page_bytes=got["table"],
                 snapshot_bytes=got["snapshot"],
                 baseline_html_bytes=bare["html"],
+                marks_ms=got["marks_ms"],
                 **_server_times(size),
             )
+            print(f"  {size} drones, median page marks (ms since navigation): {got['marks_ms']}")
     finally:
         if server is not None:
             server.stop()

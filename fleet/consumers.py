@@ -13,7 +13,7 @@ from typing import Any
 from channels.db import database_sync_to_async
 from channels.generic.websocket import AsyncJsonWebsocketConsumer
 
-from .listing import MARKER_FIELDS, marker_rows
+from .listing import marker_columns
 from .models import Drone, Membership
 from .serializers import DroneSerializer
 from .state import describe
@@ -120,8 +120,8 @@ def _named_drones(organisation_id: int, drone_ids: set[str]) -> list[dict]:
     return [describe(dict(d)) for d in DroneSerializer(drones, many=True).data]
 
 
-# Up to this many drones the first message carries each in full; a bigger fleet gets
-# compact marker rows (the table pages through the table API instead).
+# Up to this many drones the first message carries each in full; a bigger fleet gets the
+# map's columns only (the table pages through the table API instead).
 FULL_SNAPSHOT_LIMIT = 200
 
 
@@ -130,9 +130,8 @@ def _fleet_snapshot(organisation_id: int) -> dict:
     drones = Drone.objects.filter(organisation_id=organisation_id)
     if drones.count() <= FULL_SNAPSHOT_LIMIT:
         full = [describe(dict(d)) for d in DroneSerializer(drones, many=True).data]
-        return {"type": "snapshot", "drones": full, "fields": list(MARKER_FIELDS), "markers": []}
-    rows = marker_rows(organisation_id)
-    return {"type": "snapshot", "drones": [], "fields": list(MARKER_FIELDS), "markers": rows}
+        return {"type": "snapshot", "drones": full}
+    return {"type": "snapshot", "drones": [], "markers": marker_columns(organisation_id)}
 
 
 def changed_fields(before: dict | None, after: dict) -> dict:
@@ -149,7 +148,7 @@ _MISSING = object()
 
 class FleetConsumer(GroupConsumer):
     """`/ws/fleet/?org=<slug>[&drone=<id>,<id>…]`: the organisation's drones as compact
-    marker rows (or the named drones in full), then each change as only the fields that
+    marker columns (or the named drones in full), then each change as only the fields that
     changed since this socket last heard of the drone; with `drone`, also their commands."""
 
     drone_ids: set[str] | None = None

@@ -1,5 +1,5 @@
 """The fleet table and map of an organisation of any size: search, filters, pages, and
-compact marker rows, read with `values()` (no model instances: 10 000 drones in one
+the map's marker columns, read with `values()` (no model instances: 10 000 drones in one
 snapshot must stay cheap)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from django.db.models import Q, QuerySet
 
 from .models import Drone
-from .state import LOW_BATTERY_FRACTION, describe, drone_state
+from .state import LOW_BATTERY_FRACTION, STATES, describe, drone_state
 
 # Filters the table offers; each narrows the search (they combine with AND).
 FILTERS: dict[str, Q] = {
@@ -120,32 +120,39 @@ def table_page(organisation_id: int, query: TableQuery) -> dict:
     }
 
 
-# A marker row: [drone_id, lat, lon, alt, state]; what the map needs of every drone.
+# The map's columns: what it needs of every drone.
 MARKER_FIELDS = ("drone_id", "lat", "lon", "alt", "state")
 
 
-def marker_rows(organisation_id: int) -> list[list]:
-    """Every placed drone of the organisation, compactly, for the map's first draw."""
+def marker_columns(organisation_id: int) -> dict:
+    """Every placed drone of the organisation for the map's first draw, column by column
+    (a list per field, `state` as an index into `states`): a third fewer bytes than a
+    row per drone, and a page turns each column into one array without per-drone
+    objects."""
     drones = Drone.objects.filter(
         organisation_id=organisation_id, lat__isnull=False, lon__isnull=False
     )
     fields = ("drone_id", "lat", "lon", "alt", "online", "armed", "airborne", "flight_mode")
-    return [
-        [
-            drone_id,
-            round(lat, 7),  # about a centimetre: a third of the bytes of a full float
-            round(lon, 7),
-            None if alt is None else round(alt, 1),
-            drone_state(
-                online=online,
-                armed=armed,
-                airborne=airborne,
-                flight_mode=mode,
-                battery_remaining=remaining,
-            ),
-        ]
-        # Unordered: the map needs no order, and sorting 10 000 ids costs more than the rest.
-        for drone_id, lat, lon, alt, online, armed, airborne, mode, remaining in drones.order_by().values_list(
-            *fields, "battery_remaining"
+    code = {state: i for i, state in enumerate(STATES)}
+    ids: list[str] = []
+    lats: list[float] = []
+    lons: list[float] = []
+    alts: list[float | None] = []
+    states: list[int] = []
+    # Unordered: the map needs no order, and sorting 10 000 ids costs more than the rest.
+    rows = drones.order_by().values_list(*fields, "battery_remaining")
+    for drone_id, lat, lon, alt, online, armed, airborne, mode, remaining in rows:
+        ids.append(drone_id)
+        lats.append(round(lat, 7))  # about a centimetre: a third of the bytes of a full float
+        lons.append(round(lon, 7))
+        alts.append(None if alt is None else round(alt, 1))
+        state = drone_state(
+            online=online,
+            armed=armed,
+            airborne=airborne,
+            flight_mode=mode,
+            battery_remaining=remaining,
         )
-    ]
+        states.append(code[state])
+    columns = dict(zip(MARKER_FIELDS, (ids, lats, lons, alts, states), strict=True))
+    return {"count": len(ids), "states": list(STATES), "columns": columns}

@@ -4,6 +4,26 @@
 (function () {
   "use strict";
 
+  /* A socket the page opened before its scripts loaded (see the fleet page's head), if it
+     is for this path: taken once, with the messages that came before anyone listened. */
+  function earlySocket(path) {
+    const early = window.SkyhiveEarly;
+    if (!early || !early.socket || early.path !== path) return null;
+    const taken = { socket: early.socket, messages: early.messages };
+    early.socket = null;
+    return taken;
+  }
+
+  /* The map's columns of a big fleet's snapshot, as drones (only what a marker needs). */
+  function fromColumns(markers, each) {
+    const c = markers.columns, states = markers.states;
+    const ids = c.drone_id, lat = c.lat, lon = c.lon, alt = c.alt, state = c.state;
+    for (let i = 0; i < ids.length; i++) {
+      const s = states[state[i]];
+      each({ drone_id: ids[i], state: s, online: s !== "lost_link", position: { lat: lat[i], lon: lon[i], alt: alt[i] } });
+    }
+  }
+
   /* onSnapshot runs after each snapshot is merged (after a reconnection too). */
   function connect(config, onChange, onStatus, onOther, onSnapshot) {
     const drones = new Map();
@@ -11,32 +31,27 @@
     let delay = 500;
 
     function merge(update) {
-      const merged = Object.assign({}, drones.get(update.drone_id) || {}, update);
+      const before = drones.get(update.drone_id);
+      const merged = before ? Object.assign({}, before, update) : update;
       drones.set(update.drone_id, merged);
       onChange(merged, update);
     }
 
-    function fromMarkerRow(fields, values) {
-      const row = {};
-      fields.forEach((name, i) => { row[name] = values[i]; });
-      return { drone_id: row.drone_id, state: row.state, online: row.state !== "lost_link", position: { lat: row.lat, lon: row.lon, alt: row.alt } };
+    function receive(event) {
+      let message;
+      try { message = JSON.parse(event.data); } catch (e) { return; }
+      if (message.type === "snapshot") {
+        (message.drones || []).forEach(merge);
+        if (message.markers && message.markers.columns) fromColumns(message.markers, merge);
+        performance.mark("fleet:snapshot");
+        if (onSnapshot) onSnapshot(message);
+      } else if (message.type === "drone" && message.drone) merge(message.drone);
+      else if (onOther) onOther(message);
     }
 
-    function open() {
-      const scheme = location.protocol === "https:" ? "wss" : "ws";
-      const socket = new WebSocket(`${scheme}://${location.host}${config.socketPath}`);
+    function listen(socket) {
       socket.onopen = () => { delay = 500; onStatus && onStatus(true); };
-      socket.onmessage = (event) => {
-        let message;
-        try { message = JSON.parse(event.data); } catch (e) { return; }
-        if (message.type === "snapshot") {
-
-          (message.drones || []).forEach(merge);
-          for (const values of message.markers || []) merge(fromMarkerRow(message.fields, values));
-          if (onSnapshot) onSnapshot(message);
-        } else if (message.type === "drone" && message.drone) merge(message.drone);
-        else if (onOther) onOther(message);
-      };
+      socket.onmessage = receive;
       socket.onclose = () => {
         onStatus && onStatus(false);
         setTimeout(open, delay);
@@ -44,7 +59,22 @@
       };
     }
 
-    open();
+    function open() {
+      const scheme = location.protocol === "https:" ? "wss" : "ws";
+      listen(new WebSocket(`${scheme}://${location.host}${config.socketPath}`));
+    }
+
+    const early = earlySocket(config.socketPath);
+    // Taken over once the caller has its state in hand (after this returns); until then the
+    // head's handler keeps queueing, so no message is lost or reordered.
+    if (early) {
+      setTimeout(() => {
+        listen(early.socket);
+        early.messages.splice(0).forEach(receive); // and lets them go
+        if (early.socket.readyState === WebSocket.OPEN) early.socket.onopen();
+        else if (early.socket.readyState > WebSocket.OPEN) early.socket.onclose();
+      }, 0);
+    } else open();
     return drones;
   }
 

@@ -19,13 +19,21 @@
   const layer = L.layerGroup().addTo(map);
   // No clusters below zoom 3 (a continent) nor above 15 (closer, every drone in view is
   // drawn): fewer levels to index.
-  const index = new Supercluster({
-    radius: 45,
-    minZoom: 3,
-    maxZoom: 15,
-    map: (props) => ({ u: props.u }),
-    reduce: (acc, props) => { if (props.u > acc.u) acc.u = props.u; },
-  });
+  const MIN_CLUSTER_ZOOM = 3, MAX_CLUSTER_ZOOM = 15;
+  function clusterIndex(maxZoom) {
+    return new Supercluster({
+      radius: 45,
+      minZoom: MIN_CLUSTER_ZOOM,
+      maxZoom,
+      map: (props) => ({ u: props.u }),
+      reduce: (acc, props) => { if (props.u > acc.u) acc.u = props.u; },
+    });
+  }
+  let index = clusterIndex(MAX_CLUSTER_ZOOM);
+  let indexZoom = MAX_CLUSTER_ZOOM; // the highest zoom the current index clusters
+  let indexed = false; // the index has been loaded once
+  let quickDrawn = false; // the first snapshot was drawn (from a partial index)
+  let generation = 0; // a new index numbers its clusters anew: their markers are redrawn
 
   function iconKey(drone) {
     const p = drone.position || {};
@@ -80,12 +88,14 @@
 
   /* Only what is in view becomes a marker: clusters, and the drones standing alone. */
   function render() {
+    if (!indexed) return;
     const b = map.getBounds().pad(0.25);
-    const zoom = Math.round(map.getZoom());
+    // A partial index has nothing above its zoom: its closest clusters stand in meanwhile.
+    const zoom = Math.min(Math.round(map.getZoom()), indexZoom < MAX_CLUSTER_ZOOM ? indexZoom : Infinity);
     const wanted = new Set();
     for (const f of index.getClusters([b.getWest(), b.getSouth(), b.getEast(), b.getNorth()], zoom)) {
       const cluster = f.properties.cluster;
-      const key = cluster ? `c${f.id}:${f.properties.point_count}:${f.properties.u}` : f.properties.id;
+      const key = cluster ? `c${generation}:${f.id}:${f.properties.point_count}:${f.properties.u}` : f.properties.id;
       wanted.add(key);
       if (shown.has(key)) continue;
       const drone = cluster ? null : live.drones.get(key);
@@ -103,15 +113,29 @@
   function reindex() {
     reindexTimer = null;
     const started = performance.now();
+    if (!fitted && positions.size) fit();
     const features = [];
     for (const [id, [lon, lat, u]] of positions) {
       features.push({ type: "Feature", properties: { id, u }, geometry: { type: "Point", coordinates: [lon, lat] } });
     }
+    // The first draw clusters only the levels up to the view's zoom (about half the work:
+    // the closest levels cost the most); the full index follows when the page is idle.
+    const zoom = Math.max(MIN_CLUSTER_ZOOM, Math.round(map.getZoom()));
+    const first = snapshotSeen && !quickDrawn && zoom < MAX_CLUSTER_ZOOM;
+    if (snapshotSeen) quickDrawn = true;
+    const maxZoom = first ? zoom : MAX_CLUSTER_ZOOM;
+    if (maxZoom !== indexZoom) { index = clusterIndex(maxZoom); indexZoom = maxZoom; generation += 1; }
+    indexed = false;
     index.load(features);
-    reindexEvery = Math.max(1000, 10 * (performance.now() - started));
-    if (!fitted && positions.size) fit();
+    indexed = true;
+    if (first) whenIdle(() => scheduleReindex(true));
+    else reindexEvery = Math.max(1000, 10 * (performance.now() - started));
     render();
     if (snapshotSeen) markReady("markers");
+  }
+  function whenIdle(task) {
+    if (window.requestIdleCallback) requestIdleCallback(task, { timeout: 1000 });
+    else setTimeout(task, 200);
   }
   function scheduleReindex(now) {
     if (now) { clearTimeout(reindexTimer); reindex(); return; }
@@ -125,8 +149,9 @@
       south = Math.min(south, lat); north = Math.max(north, lat);
       west = Math.min(west, lon); east = Math.max(east, lon);
     }
-    if (positions.size === 1) map.setView([south, west], 16);
-    else map.fitBounds(L.latLngBounds([south, west], [north, east]).pad(0.1), { maxZoom: 17 });
+    // Without animation: the first index is built for the zoom the view lands on.
+    if (positions.size === 1) map.setView([south, west], 16, { animate: false });
+    else map.fitBounds(L.latLngBounds([south, west], [north, east]).pad(0.1), { maxZoom: 17, animate: false });
   }
 
   function updateMarker(drone) {
@@ -192,6 +217,17 @@
     row.dataset.state = drone.state || "";
   }
 
+  /* The first page the page's head already asked for, when that is the page wanted. */
+  function tableResponse(url) {
+    const early = window.SkyhiveEarly;
+    if (early && early.table && early.tableUrl === url) {
+      const response = early.table;
+      early.table = null;
+      return response;
+    }
+    return fetch(url, { credentials: "same-origin", headers: { Accept: "application/json" } });
+  }
+
   async function loadPage() {
     const seq = ++requestSeq;
     const params = new URLSearchParams();
@@ -202,7 +238,7 @@
     params.set("page", String(page));
     let data;
     try {
-      const response = await fetch(`${config.tableUrl}?${params}`, { credentials: "same-origin", headers: { Accept: "application/json" } });
+      const response = await tableResponse(`${config.tableUrl}?${params}`);
       if (!response.ok) return;
       data = await response.json();
     } catch (error) { return; }
@@ -221,6 +257,7 @@
     document.getElementById("page-info").textContent = `page ${data.page} of ${data.pages}`;
     document.getElementById("page-prev").disabled = page <= 1;
     document.getElementById("page-next").disabled = page >= pages;
+    performance.mark("fleet:table");
     markReady("table");
   }
 
@@ -282,6 +319,7 @@
     markerState(id) { const d = live.drones.get(id); return positions.has(id) && d ? d.state : null; },
     markerHtml(id) { const d = live.drones.get(id); return d && positions.has(id) ? icon(d).options.html : null; },
     shownMarkers() { return shown.size; },
+    clusterZoom() { return indexZoom; },
     map,
   };
 })();

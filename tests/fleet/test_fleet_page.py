@@ -7,6 +7,7 @@ import pytest
 from django.test import Client
 from django.utils import timezone
 
+from fleet import listing
 from fleet.consumers import changed_fields
 from fleet.models import Drone
 
@@ -82,6 +83,26 @@ def test_the_table_api_filters_searches_and_states(world) -> None:
     second = _table(client, q="1", filter="airborne", page_size="2", page="2")
     assert [d["drone_id"] for d in second["results"]] == ["LOW_1"]
     assert second["count"] == 3 and second["pages"] == 2
+
+
+def test_the_map_columns_hold_every_placed_drone_in_the_table_s_state(world) -> None:
+    make_fleet(world.org)
+    Drone.objects.create(organisation=world.org, drone_id="NOWHERE_1", online=True)
+    client = Client()
+    client.force_login(world.viewer)
+    table = {d["drone_id"]: d for d in _table(client)["results"]}
+    markers = listing.marker_columns(world.org.pk)
+    columns = markers["columns"]
+    assert list(columns) == list(listing.MARKER_FIELDS)
+    placed = {drone_id for drone_id, d in table.items() if d["position"]}
+    assert "NOWHERE_1" not in placed and len(placed) == 6
+    assert markers["count"] == len(columns["drone_id"]) and set(columns["drone_id"]) == placed
+    for i, drone_id in enumerate(columns["drone_id"]):
+        drone = table[drone_id]
+        assert markers["states"][columns["state"][i]] == drone["state"]
+        position = drone["position"]
+        assert (columns["lat"][i], columns["lon"][i]) == (position["lat"], position["lon"])
+        assert columns["alt"][i] == position["alt"]
 
 
 @pytest.mark.parametrize(

@@ -171,11 +171,23 @@ def big_fleet(org, count: int) -> None:  # type: ignore[no-untyped-def]
 def test_two_thousand_drones_cluster_and_page_with_search_and_filters(page, live_asgi, world_tx):
     big_fleet(world_tx.org, 2000)
     login(page, live_asgi, "viewer")
+    sockets: list[str] = []
+    page.on("websocket", lambda socket: sockets.append(socket.url))
     page.goto(f"{live_asgi.url}/")
     page.wait_for_function("document.documentElement.dataset.fleetReady", timeout=30_000)
     assert page.evaluate("skyhiveFleet.markerIds().length") == 2000
     # Clustered: a few hundred markers at most on the map, not 2 000.
     assert 0 < page.evaluate("skyhiveFleet.shownMarkers()") < 300
+    # The socket the page's head opened early is the one the map listens on.
+    assert len([url for url in sockets if "/ws/fleet/" in url]) == 1
+    assert page.evaluate("skyhiveFleet.markerState('SWARM_00003')") == "lost_link"
+    assert page.evaluate("skyhiveFleet.markerState('SWARM_00004')") == "airborne"
+    # The first draw's partial index is followed by the full one, for every zoom.
+    page.wait_for_function("skyhiveFleet.clusterZoom() === 15", timeout=10_000)
+    assert 0 < page.evaluate("skyhiveFleet.shownMarkers()") < 300
+    page.evaluate("skyhiveFleet.map.setZoom(17, { animate: false })")
+    page.wait_for_function("document.querySelectorAll('.drone-marker').length > 0")
+    assert page.locator(".drone-cluster").count() == 0
     assert page.locator("#drone-table tbody tr").count() == 50
     count = page.locator("#fleet-count")
     assert count.inner_text() == "2001 drones"  # and ACME_1
