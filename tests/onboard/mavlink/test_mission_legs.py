@@ -11,7 +11,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from onboard import protocol
 from onboard.controller import Controller
 from onboard.fc.mavlink import CommandRejected
-from onboard.mavlink_mission import MissionItem, native_runs, plan_native_run
+from onboard.mavlink_mission import MissionItem, MissionUploader, native_runs, plan_native_run
 from onboard.mission import MissionWorker
 from onboard.navigation import NavigationProcessor, ned_to_lla
 
@@ -208,3 +208,32 @@ def test_a_native_leg_with_a_speed_uploads_a_change_speed_item_and_flies_at_it(
         mavlink.MAV_CMD_DO_CHANGE_SPEED, mavlink.MAV_FRAME_MISSION, (1.0, 3.0, -1.0, 0.0)
     )
     assert (on_board[1].x, on_board[1].y) == (round(lat * 1e7), round(lon * 1e7))
+
+
+@pytest.mark.parametrize("autopilot", ["px4"])
+def test_the_simulator_triggers_the_camera_by_distance_in_a_mission(fc, autopilot):
+    triggers: list[int] = []
+    fc.add_message_handler(
+        lambda m: triggers.append(m.seq) if m.get_type() == "CAMERA_TRIGGER" else None
+    )
+    lat, lon = at(40.0, 0.0)
+    far = (round(lat * 1e7), round(lon * 1e7))
+    here = at(0.0, 0.0)
+    items = [
+        MissionItem(
+            mavlink.MAV_CMD_NAV_TAKEOFF, x=round(here[0] * 1e7), y=round(here[1] * 1e7), z=10.0
+        ),
+        MissionItem(
+            mavlink.MAV_CMD_DO_SET_CAM_TRIGG_DIST, mavlink.MAV_FRAME_MISSION, (10, 0, 1, 0)
+        ),
+        MissionItem(mavlink.MAV_CMD_NAV_WAYPOINT, x=far[0], y=far[1], z=10.0),
+        MissionItem(mavlink.MAV_CMD_DO_SET_CAM_TRIGG_DIST, mavlink.MAV_FRAME_MISSION),
+        MissionItem(mavlink.MAV_CMD_NAV_WAYPOINT, x=far[0] + 5000, y=far[1], z=10.0),
+    ]
+    MissionUploader(fc).upload(items)
+    fc.command_long(mavlink.MAV_CMD_MISSION_START, 0, len(items) - 1)
+    assert wait_for(lambda: fc.state.ned and fc.state.ned[0] > 60.0, 20), fc.state.ned
+    # A shot where the leg starts and at 10, 20 and 30 m; the waypoint counts as reached
+    # inside its acceptance radius, short of 40 m, and the stop item ends the shots there
+    # (none on the 55 m after it).
+    assert triggers == [0, 1, 2, 3], triggers
