@@ -71,6 +71,12 @@ def roi_commands(fc) -> list[tuple[int, int]]:  # type: ignore[no-untyped-def]
 def test_a_leg_with_a_region_of_interest_ends_facing_it(step_worker, fc, autopilot):
     roi = (30.0, 50.0)  # metres north, east of home: off to the side of the leg
     acks = roi_commands(fc)
+    yaws: list[float] = []  # every ATTITUDE yaw the simulator reported, for the record
+    fc.add_message_handler(
+        lambda m: (
+            yaws.append(round(math.degrees(m.yaw) % 360, 1)) if m.get_type() == "ATTITUDE" else None
+        )
+    )
     mission = steps(
         ("arm", {}),
         ("takeoff", {"altitude": 10.0}),
@@ -85,7 +91,8 @@ def test_a_leg_with_a_region_of_interest_ends_facing_it(step_worker, fc, autopil
     assert here == pytest.approx((60.0, 0.0), abs=3.0)
     # Flying north, the nose was turned to the ROI (south-east of the end point), as the
     # simulator's ATTITUDE reports it; the mission's end then cleared the ROI.
-    assert heading_error(fc.state.yaw, bearing(here, roi)) < 5.0, fc.state.yaw
+    facing = bearing(here, roi)
+    assert wait_for(lambda: heading_error(fc.state.yaw, facing) < 5.0, 3), (facing, yaws, acks)
     assert heading_error(fc.state.yaw, 0.0) > 90.0
     assert acks == [
         (mavlink.MAV_CMD_DO_SET_ROI_LOCATION, mavlink.MAV_RESULT_ACCEPTED),
@@ -110,7 +117,7 @@ def test_a_leg_without_one_after_a_roi_leg_faces_its_way_again(step_worker, fc):
     assert wait_for(lambda: outbox.missions()[-1:] == ["completed"], 30), list(outbox)
     assert fc.state.ned[:2] == pytest.approx((40.0, 50.0), abs=3.0)
     # The second leg cleared the ROI: the nose followed the flight east, not the ROI.
-    assert heading_error(fc.state.yaw, 90.0) < 5.0, fc.state.yaw
+    assert wait_for(lambda: heading_error(fc.state.yaw, 90.0) < 5.0, 3), fc.state.yaw
     assert [command for command, _ in acks] == [
         mavlink.MAV_CMD_DO_SET_ROI_LOCATION,
         mavlink.MAV_CMD_DO_SET_ROI_NONE,
