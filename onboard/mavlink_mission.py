@@ -10,6 +10,13 @@ flies from item 1, so its uploads carry a home item first; PX4's start at item 0
 Steps the autopilot cannot do (arm, takepic, sense, virtualalarm, ...) still run in the
 agent between native runs, exactly as the ordinary Mission Worker runs them.
 
+Leg settings: a `navigate` with a `speed` becomes a MAV_CMD_DO_CHANGE_SPEED item before its
+waypoint and opens a run of its own, so the speed lasts for that leg only (both autopilots
+go back to their default speed when they leave the mission). A leg with a region of
+interest, or one whose `wait_for_flight` takes pictures by distance, is flown step by step
+(the agent points the nose with the driver's `point_at` and takes each picture itself, so
+every picture is recorded as on any other drone).
+
 Enable it per drone with the agent's `--native-missions` flag (`install_native_missions`).
 """
 
@@ -123,6 +130,14 @@ def plan_native_run(
             down -= params["value"]
             items.append(waypoint(mavlink.MAV_CMD_NAV_WAYPOINT))
         elif command == "navigate":
+            if "roi" in params:
+                raise ValueError("a leg with a region of interest is flown step by step")
+            if params.get("speed") is not None:
+                # param1 1 = ground speed, param2 m/s, param3 -1 = throttle unchanged.
+                speed = (1.0, params["speed"], -1.0, 0.0)
+                items.append(
+                    MissionItem(mavlink.MAV_CMD_DO_CHANGE_SPEED, mavlink.MAV_FRAME_MISSION, speed)
+                )
             north, east, _ = lla_to_ned(params["lat"], params["lon"], 0.0, home)
             down -= params.get("altitude_delta", 0.0)
             items.append(waypoint(mavlink.MAV_CMD_NAV_WAYPOINT))
@@ -132,23 +147,43 @@ def plan_native_run(
             items.append(waypoint(mavlink.MAV_CMD_NAV_LAND))
         elif command == "sleep":
             items.append(waypoint(mavlink.MAV_CMD_NAV_LOITER_TIME, (params["value"], 0, 0, 0)))
+        elif command == "wait_for_flight" and params.get("photo_distance") is not None:
+            raise ValueError("pictures by distance are taken step by step")
         elif command != "wait_for_flight" or not items:
             raise ValueError(f"{command} cannot be flown as a native MAVLink mission item")
         completes_at.append(len(items) - 1)
     return NativePlan(items, completes_at, (north, east, down), lands)
 
 
+def flies_natively(step: protocol.Step, following: protocol.Step | None) -> bool:
+    """Whether an item command can be a mission item: not a leg facing a region of
+    interest, nor one whose wait takes pictures by distance."""
+    if step.command not in ITEM_COMMANDS or "roi" in step.params:
+        return False
+    return not (
+        following is not None
+        and following.command == "wait_for_flight"
+        and following.params.get("photo_distance") is not None
+    )
+
+
 def native_runs(steps: list[protocol.Step]) -> list[tuple[bool, list[protocol.Step]]]:
-    """Split steps into (native?, steps) runs: item commands and what follows them."""
+    """Split steps into (native?, steps) runs: item commands and what follows them. A
+    leg with a speed starts a run of its own and no item command joins it after."""
     runs: list[tuple[bool, list[protocol.Step]]] = []
-    for step in steps:
-        native = step.command in ITEM_COMMANDS or (
-            step.command in FOLLOWER_COMMANDS and bool(runs) and runs[-1][0]
-        )
-        if runs and runs[-1][0] == native and native:
+    paced = False  # the last run holds a leg with a speed
+    for position, step in enumerate(steps):
+        following = steps[position + 1] if position + 1 < len(steps) else None
+        follower = step.command in FOLLOWER_COMMANDS and bool(runs) and runs[-1][0]
+        native = flies_natively(step, following) or follower
+        has_speed = step.command == "navigate" and step.params.get("speed") is not None
+        joins = runs and runs[-1][0] and native and (follower or not (paced or has_speed))
+        if joins:
             runs[-1][1].append(step)
         else:
             runs.append((native, [step]))
+            paced = False
+        paced = paced or (native and has_speed)
     return runs
 
 
@@ -213,6 +248,7 @@ class MissionUploader:
             elif kind == "MISSION_ACK" and getattr(msg, "mission_type", 0) == 0:
                 outcome["result"] = msg.type
                 done.set()
+                progress.set()  # wake the waiting caller now, not an item timeout later
 
         def resend() -> None:
             # Silence after the count or after an item: send that one again.
@@ -398,6 +434,9 @@ class NativeMissionWorker(MissionWorker):
         started = time.monotonic()
         self._step_status(mission, first, "started")
         try:
+            if mission.roi_set:  # a step-by-step leg before this run faced a ROI
+                self.mav_fc.point_at(None)
+                mission.roi_set = False
             plan = self._plan(run)
             self.uploader.upload(plan.items)
             follower = ProgressFollower()

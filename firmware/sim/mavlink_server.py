@@ -258,6 +258,13 @@ class MavlinkSession:
         self._reboot_due: float | None = None
         self._rx_now = 0.0
         self._rng = random.Random(1)  # repeatable losses
+        # The waypoint speed the vehicle flies at unless a mission item changes it.
+        self.cruise_speed = self.vehicle.config.max_horizontal
+        # MAV_CMD_DO_SET_CAM_TRIGG_DIST in a mission: metres between shots (0: off), where
+        # the last one was taken, and how many were taken.
+        self.trigger_distance = 0.0
+        self.trigger_at: tuple[float, float] | None = None
+        self.camera_triggers = 0
 
     # --- helpers ------------------------------------------------------------------------
     @property
@@ -308,6 +315,8 @@ class MavlinkSession:
         before = self.mode
         self.mode = mode
         v = self.vehicle
+        if before != mode:
+            self._leave_mode(mode)
         if mode in ("GUIDED", "LOITER", "BRAKE", "POSHOLD", "OFFBOARD") and before != mode:
             v.target = PathTarget("HoldPosition", (v.ned[0], v.ned[1], v.ned[2]))
         elif mode == "LAND":
@@ -319,6 +328,15 @@ class MavlinkSession:
             self.mission_done = False
         self._sync_vehicle_mode()
         self._send_heartbeat_now = True
+
+    def _leave_mode(self, mode: str) -> None:
+        """What a mode change resets: the mission's speed and camera triggering, and the
+        region of interest (ArduCopter re-initialises its yaw in every mode it enters;
+        PX4 drops the ROI when it returns or lands)."""
+        self.vehicle.config.max_horizontal = self.cruise_speed
+        self.trigger_distance = 0.0
+        if not self.px4 or mode in ("RTL", "LAND"):
+            self.vehicle.roi = None
 
     def mode_refusal(self, mode: str) -> str | None:
         """Why the autopilot would not enter `mode` now (None: it would), in its words."""
@@ -515,6 +533,8 @@ class MavlinkSession:
             mavlink.MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
             mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: self._cmd_capabilities,
             mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN: self._cmd_reboot,
+            mavlink.MAV_CMD_DO_SET_ROI_LOCATION: self._cmd_roi_location,
+            mavlink.MAV_CMD_DO_SET_ROI_NONE: self._cmd_roi_none,
         }.get(command)
         if handler is None:
             self._ack(command, mavlink.MAV_RESULT_UNSUPPORTED)
@@ -666,6 +686,23 @@ class MavlinkSession:
             if frame in (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT):
                 z += self.vehicle.home[2]
         self.vehicle.set_path_desired("Endpoint", self._ned_of(frame, lat, lon, z))
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _cmd_roi_location(self, p: list[float], frame: int | None) -> int:
+        """MAV_CMD_DO_SET_ROI_LOCATION (COMMAND_INT or COMMAND_LONG): both autopilots take
+        it armed or not and turn the nose toward it while they fly; a location that is no
+        place on Earth is refused (ArduPilot FAILED, PX4 DENIED)."""
+        lat, lon = (p[4] / 1e7, p[5] / 1e7) if frame is not None else (p[4], p[5])
+        if not _valid_latlon(lat, lon):
+            self.statustext(mavlink.MAV_SEVERITY_WARNING, "ROI: invalid location")
+            return mavlink.MAV_RESULT_DENIED if self.px4 else mavlink.MAV_RESULT_FAILED
+        v = self.vehicle
+        north, east, _ = lla_to_ned(lat, lon, v.home[2], v.home)
+        v.roi = (north, east)
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _cmd_roi_none(self, p: list[float], frame: int | None) -> int:
+        self.vehicle.roi = None
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _cmd_interval(self, p: list[float], frame: int | None) -> int:
@@ -976,7 +1013,33 @@ class MavlinkSession:
             v.target = PathTarget("Land", (north, east, 0.0))
         elif command == mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             v.target = PathTarget("Land", (0.0, 0.0, 0.0))
-        # DO_* and CONDITION_* items take effect at once (camera triggers, speed, ...).
+        elif command == mavlink.MAV_CMD_DO_CHANGE_SPEED:
+            # param2: m/s from here on; -2 back to the default, -1 (or 0) no change.
+            speed = item.params[1]
+            if speed > 0:
+                v.config.max_horizontal = speed
+            elif speed == -2:
+                v.config.max_horizontal = self.cruise_speed
+        elif command == mavlink.MAV_CMD_DO_SET_CAM_TRIGG_DIST:
+            self.trigger_distance = max(item.params[0], 0.0)
+            self.trigger_at = None
+        elif command == mavlink.MAV_CMD_DO_SET_ROI_LOCATION:
+            self._cmd_roi_location([*item.params, item.x * 1e7, item.y * 1e7, item.z], item.frame)
+        elif command == mavlink.MAV_CMD_DO_SET_ROI_NONE:
+            v.roi = None
+        # Other DO_* and CONDITION_* items take effect at once and change nothing here.
+
+    def _camera_trigger(self) -> None:
+        """Distance triggering: a shot at the start and every `trigger_distance` metres
+        flown, reported as CAMERA_TRIGGER (image index counts from 0)."""
+        if self.trigger_distance <= 0 or self.mode != "AUTO":
+            return
+        here = (self.vehicle.ned[0], self.vehicle.ned[1])
+        if self.trigger_at is not None and math.dist(here, self.trigger_at) < self.trigger_distance:
+            return
+        self.trigger_at = here
+        self._send("camera_trigger", int(self.vehicle.time * 1e6), self.camera_triggers)
+        self.camera_triggers += 1
 
     def _item_reached(self, item: MissionItem) -> bool:
         v = self.vehicle
@@ -1003,6 +1066,7 @@ class MavlinkSession:
             self._run_takeoff()
             self._run_rtl()
             self.vehicle.step(dt)
+            self._camera_trigger()
             self._auto_disarm()
             sim_dt -= dt
         if self.booting:
@@ -1267,6 +1331,11 @@ class MavlinkSession:
             0,
             0x5348495645,  # a fixed hardware uid for this simulated board
         )
+
+
+def _valid_latlon(lat: float, lon: float) -> bool:
+    finite = math.isfinite(lat) and math.isfinite(lon)
+    return finite and abs(lat) <= 90 and abs(lon) <= 180 and (lat, lon) != (0.0, 0.0)
 
 
 def _text(value: Any) -> str:

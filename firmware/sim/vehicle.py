@@ -36,6 +36,7 @@ class VehicleConfig:
     ground_armed_current_a: float = 3.0  # motors idling on the ground
     internal_resistance_ohm: float = 0.02
     satellites: int = 12
+    max_yaw_rate: float = 60.0  # deg/s a multirotor turns its nose at in autonomous flight
 
 
 def interpolate(curve: Sequence[tuple[float, float]], x: float) -> float:
@@ -69,6 +70,9 @@ class Vehicle:
     # Waypoint instances (mode, NED) the path planner flies in order, and where it is.
     waypoints: dict[int, tuple[str, tuple[float, float, float]]] = field(default_factory=dict)
     plan_index: int | None = None
+    # A region of interest (north, east in m from home) the nose points at while flying;
+    # None: the nose follows the direction of travel.
+    roi: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         self.home = self.config.home
@@ -126,6 +130,7 @@ class Vehicle:
         self.velocity = [0.0, 0.0, 0.0]
         self.ned[2] = 0.0
         self.flight_mode = "Manual"
+        self.roi = None
         self.target = PathTarget("HoldPosition", (self.ned[0], self.ned[1], 0.0))
 
     # --- dynamics ---------------------------------------------------------------------
@@ -182,7 +187,20 @@ class Vehicle:
         if self.ned[2] > 0.0:
             self.ned[2] = 0.0
             self.velocity[2] = 0.0
-        if math.hypot(self.velocity[0], self.velocity[1]) > 0.5:
+        self._turn(dt)
+
+    def _turn(self, dt: float) -> None:
+        """Yaw toward the region of interest at the yaw rate limit, or else along the
+        horizontal velocity (once it is fast enough for a direction to mean anything)."""
+        if self.roi is not None:
+            dn, de = self.roi[0] - self.ned[0], self.roi[1] - self.ned[1]
+            if math.hypot(dn, de) < 0.5:
+                return  # straight above it: any heading faces it
+            goal = math.degrees(math.atan2(de, dn)) % 360.0
+            error = (goal - self.yaw + 180.0) % 360.0 - 180.0
+            turn = max(-self.config.max_yaw_rate * dt, min(self.config.max_yaw_rate * dt, error))
+            self.yaw = (self.yaw + turn) % 360.0
+        elif math.hypot(self.velocity[0], self.velocity[1]) > 0.5:
             self.yaw = math.degrees(math.atan2(self.velocity[1], self.velocity[0])) % 360.0
 
     def _fall_or_rest(self, dt: float) -> None:

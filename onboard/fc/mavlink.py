@@ -34,6 +34,8 @@ off to an AMSL altitude and flies to points with MAV_CMD_DO_REPOSITION (COMMAND_
 AMSL, CHANGE_MODE flag) in hold (LOITER). PX4 is not flown in OFFBOARD: that mode drops
 to its fail-safe whenever a > 2 Hz setpoint stream pauses, while a reposition is one
 acknowledged command that PX4 keeps flying on its own (onboard/README.md says more).
+`point_at` sets or clears a region of interest with MAV_CMD_DO_SET_ROI_LOCATION /
+MAV_CMD_DO_SET_ROI_NONE.
 """
 
 from __future__ import annotations
@@ -885,6 +887,30 @@ class MavlinkFlightController(LinkDriver):
             round(lon * 1e7),
             relative_alt,
             *([0.0] * 8),
+        )
+
+    def point_at(self, roi: tuple[float, float] | None) -> None:
+        """Face a region of interest (lat, lon) while flying, or stop facing one (None).
+
+        MAV_CMD_DO_SET_ROI_LOCATION goes as COMMAND_INT, the form both autopilots take a
+        location in (ArduPilot warns about locations in COMMAND_LONG), at ground level:
+        above home on ArduPilot, AMSL on PX4. MAV_CMD_DO_SET_ROI_NONE carries nothing, so
+        COMMAND_LONG. Both point the nose (and a gimbal, if one is set up) at the location
+        in the autopilot's own guided and mission flight.
+        """
+        if roi is None:
+            self.command_long(mavlink.MAV_CMD_DO_SET_ROI_NONE)
+            return
+        lat, lon = roi
+        home = self.state.home
+        if self.is_px4:
+            if home is None:
+                raise FlightControllerError("PX4 needs the home position to place a ROI")
+            frame, alt = mavlink.MAV_FRAME_GLOBAL_INT, home[2]
+        else:
+            frame, alt = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 0.0
+        self.command_int(
+            mavlink.MAV_CMD_DO_SET_ROI_LOCATION, frame, (0.0, 0.0, 0.0, 0.0), lat, lon, alt
         )
 
     def _boot_ms(self) -> int:

@@ -3,6 +3,7 @@ MAVLink personality over TCP, a private Mosquitto; the ground is a plain MQTT cl
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 
@@ -188,3 +189,46 @@ def test_the_agent_flies_a_mission_natively_when_asked(fly):
     north_m = (position["lat"] - HOME[0]) * 111_000
     # Touched down (the step reports the last position sample, one stream period late).
     assert 20 < north_m < 30 and position["alt"] < 0.5
+
+
+def latest_yaw(ground: Ground) -> float | None:
+    for message in reversed(ground.on("telemetry")):
+        for obj in message["objects"]:
+            if obj["name"] == "AttitudeActual":
+                return obj["fields"]["Yaw"] % 360.0
+    return None
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_a_mission_leg_facing_a_region_of_interest_flies_through_the_agent(fly):
+    """A `roi` leg is accepted on MAVLink: the agent points the nose step by step (also with
+    native missions, which fly the landing), and the drone ends facing the point."""
+    ground = fly(agent_args=("--native-missions",))
+    north_per_deg = 111_195.0
+    target = (HOME[0] + 40 / north_per_deg, HOME[1])
+    roi = (HOME[0], HOME[1] + 40 / (north_per_deg * math.cos(math.radians(HOME[0]))))
+    steps = [
+        {"index": 0, "command": "arm", "params": {}},
+        {"index": 1, "command": "takeoff", "params": {"altitude": 8}},
+        {"index": 2, "command": "wait_for_flight", "params": {}},
+        {
+            "index": 3,
+            "command": "navigate",
+            "params": {"lat": target[0], "lon": target[1], "roi": list(roi)},
+        },
+        {"index": 4, "command": "wait_for_flight", "params": {}},
+        {"index": 5, "command": "land", "params": {}},
+        {"index": 6, "command": "disarm", "params": {}},
+    ]
+    ground.send("mission", protocol.mission_start("RM1", "RA1", steps).to_dict())
+    done = ground.wait_for(
+        "mission",
+        lambda m: m["type"] == "mission" and m["status"] in ("completed", "stopped", "rejected"),
+        40,
+    )
+    assert done["status"] == "completed", ground.on("mission")[-4:]
+    # From 40 m north of home the ROI, 40 m east of home, lies to the south-east (135°);
+    # the flight itself went north (0°). The landing kept the heading.
+    assert wait_for(lambda: abs(((latest_yaw(ground) or 0.0) - 135.0 + 180) % 360 - 180) < 5, 5), (
+        latest_yaw(ground)
+    )
