@@ -100,6 +100,8 @@ class BoardSession:
         self.meta_overrides: dict[str, bytes] = {}
         self._out = bytearray()
         self._last_real: float | None = None
+        # Link figures of FlightTelemetryStats: bytes each way since the last report.
+        self._rate = LinkRate()
         self._reset_link_state()
         self._receiver: list[int] | None = None
         self._receiver_at = -math.inf
@@ -143,6 +145,7 @@ class BoardSession:
         """Bytes from the ground station, received at wall-clock time `now`."""
         if self.booting:
             return
+        self._rate.received(len(data), now)
         for frame in self.decoder.feed(data):
             self.stats.frames_in += 1
             self.last_heard = now
@@ -388,6 +391,7 @@ class BoardSession:
     # --- output -----------------------------------------------------------------------
     def _send(self, wire: bytes) -> None:
         self._out += wire
+        self._rate.sent(len(wire))
 
     def _send_object(self, name: str, *, acked: bool = False) -> None:
         self._refresh(name)
@@ -481,7 +485,37 @@ class BoardSession:
                 CPUTemp=40,
             )
         elif name == "FlightTelemetryStats":
-            values.update(Status=self.link_status)
+            rx, tx = self._rate.report()
+            values.update(Status=self.link_status, RxDataRate=rx, TxDataRate=tx)
+
+
+class LinkRate:
+    """Bytes per second each way over the link, as the board reports them in
+    FlightTelemetryStats: averaged since the previous report."""
+
+    def __init__(self) -> None:
+        self.rx = self.tx = 0
+        self.since: float | None = None
+        self.now: float | None = None
+        self.last = (0.0, 0.0)
+
+    def received(self, count: int, now: float) -> None:
+        self.rx += count
+        self.now = now
+        if self.since is None:
+            self.since = now
+
+    def sent(self, count: int) -> None:
+        self.tx += count
+
+    def report(self) -> tuple[float, float]:
+        if self.since is None or self.now is None or self.now - self.since < 1.0:
+            return self.last
+        span = self.now - self.since
+        self.last = (self.rx / span, self.tx / span)
+        self.rx = self.tx = 0
+        self.since = self.now
+        return self.last
 
 
 def apply_settings(values: dict, changes: dict) -> dict:

@@ -217,3 +217,23 @@ def test_writing_an_objects_metadata_changes_its_stream_rate(board):
     ground.send(CODEC.encode_request("AttitudeActual"))  # a plain request still answers
     assert ground.pump(2, lambda f: f.name == "AttitudeActual") is not None
     ground.close()
+
+
+def test_the_board_reports_its_link_rates_in_bytes_per_second(board):
+    ground = RawGround(board.pty_path)
+    ground.connect()
+    keepalive = CODEC.encode_object("GCSTelemetryStats", GCS | {"Status": "Connected"})
+    stats = None
+    deadline = time.monotonic() + 15
+    while stats is None and time.monotonic() < deadline:
+        ground.send(keepalive)
+        stats = ground.pump(
+            0.5,
+            lambda f: f.name == "FlightTelemetryStats" and f.fields()["TxDataRate"] > 0,
+        )
+    ground.close()
+    assert stats is not None, "no FlightTelemetryStats with a data rate"
+    fields = stats.fields()
+    # The board streams several objects many times a second; the ground sends keep-alives.
+    assert fields["TxDataRate"] > 100
+    assert 0 < fields["RxDataRate"] < fields["TxDataRate"]
