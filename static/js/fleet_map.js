@@ -8,7 +8,6 @@
   // The cluster needs a maximum zoom even when no tile layer sets one (offline, no tiles).
   const map = SkyhiveMap.create("fleet-map", { zoomControl: true, maxZoom: 19 });
   map.setView([38.7369, -9.1427], 13);
-  L.control.scale({ imperial: false }).addTo(map);
   // States from least to most urgent: a cluster takes the colour of its most urgent drone.
   const URGENCY = ["on_ground", "armed", "airborne", "returning", "low_battery", "lost_link"];
   const readiness = new Set();

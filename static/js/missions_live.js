@@ -11,7 +11,6 @@
   const pictureLayer = L.layerGroup().addTo(map);
   const fenceLayer = L.layerGroup().addTo(map);
   const droneLayer = L.layerGroup().addTo(map);
-  L.control.scale({ imperial: false }).addTo(map);
   let fitted = false;
   let pending = null;
   let lastLog = null;

@@ -13,6 +13,7 @@ from fleet.heartbeats import handle_heartbeat
 from fleet.models import CommandLog, Drone
 from onboard.protocol import Heartbeat, MissionRef, Position
 from tests.conftest import login
+from tests.support.screenshots import docs_screenshot
 
 from .test_fleet_page import FLEET, make_fleet
 
@@ -92,6 +93,7 @@ def test_markers_and_rows_show_each_state_and_follow_a_heartbeat(page, live_asgi
     assert row.locator("[data-field=heading]").inner_text().endswith(" N")
     assert 'class="arrow"' in page.evaluate("skyhiveFleet.markerHtml('GROUND_1')")
     assert page.evaluate("performance.getEntriesByType('navigation').length") == 1  # no reload
+    docs_screenshot(page, "fleet")
 
 
 def test_the_table_collapses_into_cards_on_a_phone(browser, live_asgi, world_tx):

@@ -3,7 +3,6 @@ on request every line normalised to one shared axis."""
 
 from __future__ import annotations
 
-import os
 import shutil
 from pathlib import Path
 
@@ -13,6 +12,7 @@ from playwright.sync_api import expect
 from tests.conftest import login
 from tests.logs.conftest import upload, wait_until_processed
 from tests.logs.test_api import client_for
+from tests.support.screenshots import docs_screenshot
 
 pytestmark = [pytest.mark.browser, pytest.mark.e2e, pytest.mark.usefixtures("logs_settings")]
 
@@ -50,10 +50,7 @@ def test_the_viewer_labels_units_and_gives_each_its_own_axis(
     assert max(abs(m) for m in metres) < 10_000  # metres above the ellipsoid, not millimetres
     legend = viewer.locator('[data-part="multi"] .u-legend').inner_text()
     assert "[V]" in legend and "[m]" in legend
-    if shots := os.environ.get("DOCS_SCREENSHOTS"):  # the README's picture of the viewer
-        page.set_viewport_size({"width": 1280, "height": 1000})
-        page.wait_for_timeout(500)
-        page.screenshot(path=f"{shots}/log-viewer.png", full_page=False)
+    docs_screenshot(page, "log-viewer", height=1000)
 
     viewer.locator('[data-part="normalise"]').check()
     page.wait_for_function(f"{chart}.axes.length === 2")

@@ -15,6 +15,7 @@ from fleet.models import Drone
 from missions.models import Assignment, Mission, Step, StepStatus
 from onboard.protocol import Heartbeat, MissionRef, Position
 from tests.conftest import login
+from tests.support.screenshots import docs_screenshot
 
 from .test_mission_page import north
 from .test_pictures import store_sample_picture
@@ -136,6 +137,7 @@ def test_the_mission_page_shows_live_progress_and_folds_the_steps(page, live_asg
     worker.join()
     assert stored == [None]
     page.locator("#odm-zip").wait_for(state="visible", timeout=10_000)
+    docs_screenshot(page, "mission")
 
 
 def test_the_progress_bar_fits_a_phone(browser, live_asgi, world_tx):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from tests.conftest import login
+from tests.support.screenshots import docs_screenshot
 
 from .conftest import online_drone, point_at, rectangle
 from .test_pages_browser import centre_map, click_at
@@ -38,6 +39,7 @@ def test_a_camera_survey_sets_spacings_height_and_estimates(page, live_asgi, wor
     assert "45.0 m" in result and "20.0 m" in result and "150.0 × 100.0 m" in result
     assert "2.74 cm/px" in result
     assert "Battery (ACME_1)" in result
+    docs_screenshot(page, "planner", height=1000)
     assert page.locator("#altitude").input_value() == "100.0"
     assert page.locator("#step-distance").input_value() == "20.0"
     # arm, takeoff, 18 × (navigate, wait, takepic), land — summarised, list one click away.
