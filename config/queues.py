@@ -22,6 +22,13 @@ def queue_for(name: str) -> str:
     return ""
 
 
+def all_queues() -> list[str]:
+    """Every queue a task may be routed to: the default one and each urgency class's."""
+    default = getattr(settings, "CELERY_TASK_DEFAULT_QUEUE", "celery")
+    named = {settings.SAFETY_TASK_QUEUE, settings.LOGS_IMPORT_QUEUE} - {""}
+    return sorted({default, *named})
+
+
 def route_task(
     name: str, args: Any, kwargs: Any, options: Any, task: Any = None, **kw: Any
 ) -> dict | None:

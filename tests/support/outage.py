@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import psycopg
-from django.conf import settings
 
+from config.queues import all_queues
 from onboard.processes import REPO_ROOT, Supervised, free_port, python_env
 from tests.telemetry.private_postgres import PrivatePostgres, start_private_postgres
 from workers.ground import gateway_argv, worker_argv
@@ -32,11 +32,7 @@ GROUND_PASSWORD = "outage-ground"
 
 def celery_queues() -> str:
     """Every queue a task may be routed to, so one worker here runs them all."""
-    queues = {getattr(settings, "CELERY_TASK_DEFAULT_QUEUE", "celery")}
-    for route in dict(getattr(settings, "CELERY_TASK_ROUTES", None) or {}).values():
-        if isinstance(route, dict) and route.get("queue"):
-            queues.add(route["queue"])
-    return ",".join(sorted(queues))
+    return ",".join(all_queues())
 
 
 @dataclass
