@@ -8,30 +8,18 @@ import threading
 import pytest
 
 from missions.models import Assignment, Mission
-from missions.services import apply_progress, create_mission, start_mission
+from missions.services import apply_progress
 from onboard import protocol
 from tests.conftest import login
 
-from .conftest import online_drone
-from .test_api import _mission_body
+from .test_hold_per_drone import two_drone_mission
 
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
 
 def test_the_mission_page_shows_the_one_held_drone_and_resumes_it(page, live_asgi, world_tx):
-    first = online_drone(world_tx.org, "ACME_A")
-    second = online_drone(world_tx.org, "ACME_B", north=20)
-    body = _mission_body()
-    mission = create_mission(organisation=world_tx.org, name="pair", steps=body["steps"])
-    held = start_mission(mission, drone=first).assignment
-    Assignment.objects.filter(pk=held.pk).update(step_indexes=[0, 1, 2])
-    Assignment.objects.create(
-        mission=mission,
-        drone=second,
-        step_indexes=[3, 4],
-        reason=Assignment.Reason.COLLABORATION,
-        status=Assignment.Status.ACCEPTED,
-    )
+    mission, held = two_drone_mission(world_tx.org)
+    first = held.drone
     login(page, live_asgi, "operator")
     page.goto(f"{live_asgi.url}/missions/{mission.pk}/")
     page.wait_for_selector("#live-status.ok")

@@ -18,13 +18,11 @@ from .conftest import online_drone
 from .test_api import _mission_body, client_for
 
 
-@pytest.fixture
-def pair(world, outbox, django_capture_on_commit_callbacks):  # type: ignore[no-untyped-def]
-    """A running mission flown by ACME_A (steps 0-2) and ACME_B (steps 3-4)."""
-    first = online_drone(world.org, "ACME_A")
-    second = online_drone(world.org, "ACME_B", north=20)
-    body = _mission_body()
-    mission = create_mission(organisation=world.org, name="pair", steps=body["steps"])
+def two_drone_mission(org):  # type: ignore[no-untyped-def]
+    """A running mission: ACME_A flies steps 0-2 (the returned assignment), ACME_B 3-4."""
+    first = online_drone(org, "ACME_A")
+    second = online_drone(org, "ACME_B", north=20)
+    mission = create_mission(organisation=org, name="pair", steps=_mission_body()["steps"])
     assignment = start_mission(mission, drone=first).assignment
     Assignment.objects.filter(pk=assignment.pk).update(step_indexes=[0, 1, 2])
     Assignment.objects.create(
@@ -34,6 +32,13 @@ def pair(world, outbox, django_capture_on_commit_callbacks):  # type: ignore[no-
         reason=Assignment.Reason.COLLABORATION,
         status=Assignment.Status.ACCEPTED,
     )
+    return mission, assignment
+
+
+@pytest.fixture
+def pair(world, outbox, django_capture_on_commit_callbacks):  # type: ignore[no-untyped-def]
+    """A running mission flown by ACME_A (steps 0-2) and ACME_B (steps 3-4)."""
+    mission, assignment = two_drone_mission(world.org)
     outbox.clear()
     return mission
 
