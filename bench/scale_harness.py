@@ -60,6 +60,7 @@ class LoadConfig:
     duration: float = 30.0  # seconds of measurement with the whole fleet streaming
     rate: float = 10.0  # telemetry Hz per drone
     heartbeat: float = 5.0  # seconds between heartbeats
+    per_message: int = 1  # samples per telemetry message (the period is per_message / rate)
     per_process: int = 250  # load drones per process
     webs: int = 1
     gateways: int = 1
@@ -89,6 +90,7 @@ class LoadResult:
     drones: int
     rate: float
     duration_s: float
+    per_message: int = 1
     online: int = 0
     connect_s: float = 0.0
     lag_p50_s: float | None = None
@@ -110,6 +112,12 @@ class LoadResult:
     rss_idle_mib: dict[str, float] = field(default_factory=dict)
     rss_loaded_mib: dict[str, float] = field(default_factory=dict)
     cores: dict[str, float] = field(default_factory=dict)  # CPU cores busy while measured
+    # Cores' worth of time each role's threads were runnable but waiting for a CPU:
+    # high means starved by the machine, not held back by its own design.
+    cpu_wait: dict[str, float] = field(default_factory=dict)
+    load_average: tuple[float, float] = (0.0, 0.0)  # 1-min load average at start, end
+    sent_per_s: float = 0.0  # samples the load drones sent per second while measured
+    broker_figures: dict = field(default_factory=dict)  # the broker's own, while measured
     kib_per_drone: float | None = None
     load_stats: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
@@ -126,13 +134,14 @@ class LoadResult:
             return "n/a" if v is None else f"{v * scale:.3g} {unit}"
 
         lines = [
-            f"{self.drones} load drones on {self.broker}, {self.rate:g} Hz telemetry, "
-            f"{self.duration_s:.0f} s measured ({self.online} online after {self.connect_s:.1f} s)",
+            f"{self.drones} load drones on {self.broker}, {self.rate:g} Hz telemetry"
+            + (f" ({self.per_message} samples a message), " if self.per_message > 1 else ", ")
+            + f"{self.duration_s:.0f} s measured ({self.online} online after {self.connect_s:.1f} s)",
             f"  ingest lag          p50 {s(self.lag_p50_s)}, p99 {s(self.lag_p99_s)} "
             f"({self.lag_samples} drone-seconds)",
             f"  samples             sent {self.sent}, stored {self.stored}, not stored after the "
             f"drain wait {self.lost}; "
-            f"stored {self.ingest_per_s:.0f}/s",
+            f"stored {self.ingest_per_s:.0f}/s of {self.sent_per_s:.0f}/s sent",
             f"  command round trip  p50 {s(self.command_rtt_p50_s, 'ms', 1e3)}, "
             f"p99 {s(self.command_rtt_p99_s, 'ms', 1e3)} ({self.commands} commands, "
             f"{self.command_failures} failed); no fleet: p50 "
@@ -151,6 +160,21 @@ class LoadResult:
             "  CPU (cores busy)    "
             + ", ".join(f"{k} {v:.2f}" for k, v in self.cores.items())
             + f" of {psutil.cpu_count()}"
+        )
+        if self.cpu_wait:
+            lines.append(
+                "  waiting for a CPU   "
+                + ", ".join(f"{k} {v:.2f}" for k, v in self.cpu_wait.items())
+                + " (cores' worth of runnable time not run)"
+            )
+        if self.broker_figures:
+            lines.append(
+                "  broker's figures    "
+                + ", ".join(f"{k} {v}" for k, v in self.broker_figures.items())
+            )
+        lines.append(
+            f"  load average        {self.load_average[0]:.2f} at the start, "
+            f"{self.load_average[1]:.2f} at the end of the measured window"
         )
         lines += [f"  note: {note}" for note in self.notes]
         return "\n".join(lines)
@@ -302,6 +326,30 @@ def rabbit_queue_depths(api_urls: str) -> dict[str, int]:
     }
 
 
+def rabbit_queue_figures(api_urls: str) -> dict[str, float]:
+    """The ingest queue as RabbitMQ counts it: waiting, in flight to consumers, and the
+    totals published to it and delivered from it (rates come from two readings)."""
+    columns = (
+        "name,messages_ready,messages_unacknowledged,consumers,"
+        "message_stats.publish,message_stats.deliver_get"
+    )
+    try:
+        queues = _rabbit_api(api_urls, "GET", f"queues?columns={columns}")
+    except OSError:
+        return {}
+    for q in queues:  # type: ignore[attr-defined]
+        if q["name"] == "skyhive.ingest":
+            stats = q.get("message_stats") or {}
+            return {
+                "ready": float(q.get("messages_ready") or 0),
+                "unacked": float(q.get("messages_unacknowledged") or 0),
+                "consumers": float(q.get("consumers") or 0),
+                "messages_published": float(stats.get("publish") or 0),
+                "messages_delivered": float(stats.get("deliver_get") or 0),
+            }
+    return {}
+
+
 def purge_rabbit_queues(api_urls: str) -> None:
     """Empty the ground queues a previous run left, so this run's ingest reads only its own."""
     for name in rabbit_queue_depths(api_urls):
@@ -428,7 +476,7 @@ class LoadProcess:
         self.final: dict | None = None
         argv = [PY, "-m", "onboard.loaddrone", "--fleet", str(self.path),
                 "--rate", str(config.rate), "--heartbeat", str(config.heartbeat),
-                "--stats-interval", "1"]  # fmt: skip
+                "--stats-interval", "1", "--per-message", str(config.per_message)]  # fmt: skip
         self.process = Supervised(
             name, argv, python_env(), folder / f"{name}.log", on_line=self._line
         ).start()
@@ -656,6 +704,55 @@ def cpu_seconds(processes: dict[str, list[psutil.Process]]) -> dict[str, float]:
     return out
 
 
+def waiting_seconds(processes: dict[str, list[psutil.Process]]) -> dict[str, float]:
+    """Seconds each role's threads spent runnable, waiting for a CPU, so far (Linux
+    schedstat; empty elsewhere). A thread that is behind yet mostly waits here is starved
+    by the machine; one that is behind and neither runs nor waits is blocked on something."""
+    out = {}
+    for role, procs in processes.items():
+        total = 0
+        for proc in procs:
+            for p in [proc, *_children(proc)]:
+                for path in Path(f"/proc/{p.pid}/task").glob("*/schedstat"):
+                    with contextlib.suppress(OSError, ValueError, IndexError):
+                        total += int(path.read_text().split()[1])
+        out[role] = total / 1e9
+    return out if Path("/proc/self/schedstat").exists() else {}
+
+
+def sent_so_far(loads: list[LoadProcess]) -> int:
+    """Telemetry objects the load drones report sent (their latest stats lines)."""
+    return sum(int(p.latest.get("telemetry_objects", 0)) for p in loads)
+
+
+def broker_counters(services: dict[str, str]) -> dict[str, float]:
+    """The broker's own running totals: Mosquitto's $SYS (as the gateways keep them in
+    Redis), RabbitMQ's per-queue figures from its management API."""
+    if "RABBITMQ_API_URLS" in services:
+        return rabbit_queue_figures(services["RABBITMQ_API_URLS"])
+    import redis
+
+    from workers.broker.mosquitto_sys import remembered
+
+    try:
+        figures = remembered(redis.Redis.from_url(services["REDIS_URL"]))
+    except redis.RedisError:
+        return {}
+    names = ("messages_received", "messages_sent", "messages_dropped")
+    return {k: float(figures[k]) for k in names if isinstance(figures.get(k), int | float)}
+
+
+def broker_window(before: dict[str, float], after: dict[str, float], seconds: float) -> dict:
+    """Totals turned into rates over the window; levels (queue depths) as they ended."""
+    out: dict[str, float] = {}
+    for name, value in after.items():
+        if name.startswith("messages_") and name in before:
+            out[f"{name.removeprefix('messages_')}/s"] = round((value - before[name]) / seconds)
+        else:
+            out[name] = round(value, 1)
+    return out
+
+
 def _children(proc: psutil.Process) -> list[psutil.Process]:
     try:
         return proc.children(recursive=True)
@@ -797,7 +894,9 @@ def _measure(run: Run, map_probe: MapProbe) -> tuple[LagProbe, CommandProbe]:
     CPU and rows stored over the whole of it."""
     config, result = run.config, run.result
     busy = dict(run.roles, **{"load drones": [psutil.Process(p.process.pid) for p in run.loads]})
-    cpu_before = cpu_seconds(busy)
+    cpu_before, wait_before = cpu_seconds(busy), waiting_seconds(busy)
+    broker_before, sent_before = broker_counters(run.services), sent_so_far(run.loads)
+    load_before = os.getloadavg()[0]
     stored_at_start = run.stored()
     start = time.time()
     map_probe.reset()
@@ -812,9 +911,14 @@ def _measure(run: Run, map_probe: MapProbe) -> tuple[LagProbe, CommandProbe]:
         result.notes.append(f"queue depths mid-run: {depths}")
     time.sleep(config.duration / 2)
     seconds = time.time() - start
-    cpu_after = cpu_seconds(busy)
+    cpu_after, wait_after = cpu_seconds(busy), waiting_seconds(busy)
     result.cores = {role: (cpu_after[role] - cpu_before.get(role, 0.0)) / seconds
                     for role in cpu_after}  # fmt: skip
+    result.cpu_wait = {role: round((wait_after[role] - wait_before.get(role, 0.0)) / seconds, 2)
+                       for role in wait_after}  # fmt: skip
+    result.broker_figures = broker_window(broker_before, broker_counters(run.services), seconds)
+    result.sent_per_s = (sent_so_far(run.loads) - sent_before) / seconds
+    result.load_average = (load_before, os.getloadavg()[0])
     # Sustained throughput: rows the ingest wrote while measured, whenever they were sent
     # (a backlogged broker delivers old samples; they count, as the work was done).
     result.ingest_per_s = (run.stored() - stored_at_start) / seconds
@@ -885,7 +989,9 @@ def run_load(config: LoadConfig) -> LoadResult:
     """One whole run; everything started is stopped, whatever happens."""
     config.data_dir.mkdir(parents=True, exist_ok=True)
     folder = Path(tempfile.mkdtemp(prefix=f"run-{config.broker}-", dir=config.data_dir))
-    result = LoadResult(config.broker, config.drones, config.rate, config.duration)
+    result = LoadResult(
+        config.broker, config.drones, config.rate, config.duration, config.per_message
+    )
     run = Run(config, folder, result, Broker(config))
     with contextlib.ExitStack() as stack:
         # Run in reverse: load drones, probes, ground processes, then the broker.
@@ -909,6 +1015,22 @@ def run_load(config: LoadConfig) -> LoadResult:
         _drain(run)
         _summarise(result, lag, commands, map_probe)
     return result
+
+
+def compare_runs(results: list[LoadResult]) -> str:
+    """One line per run: the figures the goals name, side by side."""
+
+    def f(v: float | None) -> str:
+        return "n/a" if v is None else f"{v:.2f}"
+
+    lines = ["run  lag p50/p99 s  stored/s of sent/s  map p99 s  online  broker cores  load avg"]
+    for n, r in enumerate(results, 1):
+        lines.append(
+            f"{n:3d}  {f(r.lag_p50_s):>5}/{f(r.lag_p99_s):<6}  {r.ingest_per_s:8.0f} of "
+            f"{r.sent_per_s:<7.0f}  {f(r.map_staleness_p99_s):>9}  {r.online:6d}  "
+            f"{r.cores.get('broker', 0.0):12.2f}  {r.load_average[0]:.1f}→{r.load_average[1]:.1f}"
+        )
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:

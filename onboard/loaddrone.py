@@ -14,6 +14,7 @@ one turn per hour. The drift is a known function of time, so whoever sees a repo
 position (the fleet map) can tell how old it is: `position_age(home, lat, lon, now)`.
 
     python -m onboard.loaddrone --fleet fleet.json [--rate 10] [--heartbeat 5] [--duration S]
+        [--per-message N]   (N samples per telemetry message: a period of N / rate s)
 
 `fleet.json` is a list of `{"drone_id", "password", "urls": ["mqtt://host:port", ...]}`.
 The process prints one JSON stats line per `--stats-interval` and a final one on exit.
@@ -167,13 +168,17 @@ class LoadDrone:
         )
 
     def telemetry(self, t: float, seq: int) -> bytes:
+        return telemetry_message(t, [self.telemetry_object(t, seq)])
+
+    def telemetry_object(self, t: float, seq: int) -> str:
+        """One AttitudeActual sample as the JSON of a telemetry object."""
         # Formatted by hand: json.dumps would cost more than the rest of a tick.
         yaw = (seq * 0.7) % 360.0
         return (
-            f'{{"ts":{t:.6f},"objects":[{{"name":"AttitudeActual","ts":{t:.6f},'
+            f'{{"name":"AttitudeActual","ts":{t:.6f},'
             f'"fields":{{"Roll":{math.sin(seq * 0.1):.2f},"Pitch":{math.cos(seq * 0.1):.2f},'
-            f'"Yaw":{yaw:.2f}}}}}]}}'
-        ).encode()
+            f'"Yaw":{yaw:.2f}}}}}'
+        )
 
     def gear_announcement(self) -> bytes:
         return protocol.encode(protocol.GearAnnouncement(SPECS, SENSORS))
@@ -452,6 +457,12 @@ class LoadDrone:
         self.send("mission", protocol.encode(progress))
 
 
+def telemetry_message(t: float, objects: list[str]) -> bytes:
+    """A telemetry message sent at t carrying these objects (JSON texts), as the agent
+    sends every object sampled in one telemetry period in one message."""
+    return f'{{"ts":{t:.6f},"objects":[{",".join(objects)}]}}'.encode()
+
+
 class CommandRefused(Exception):
     """A command the drone will not carry out; str() is the sentence for the reply."""
 
@@ -524,6 +535,7 @@ class Session(asyncio.Protocol):
         self._closing = False
         self._lost = asyncio.Event()
         self._last_sent = 0.0
+        self.samples: list[str] = []  # sampled this telemetry period, not sent yet
 
     # -- lifecycle ------------------------------------------------------------------------
 
@@ -695,9 +707,13 @@ class Fleet:
         time_scale: float = 10.0,
         home: tuple[float, float, float] = DEFAULT_HOME,
         connect_spread: float = 2.0,
+        per_message: int = 1,
     ) -> None:
         self.stats = Stats()
         self.rate = rate
+        # Samples (taken at `rate` Hz) per telemetry message: the agent's telemetry period
+        # is per_message / rate, and each message carries every sample of its period.
+        self.per_message = max(1, per_message)
         self.heartbeat_interval = heartbeat_interval
         self.time_scale = time_scale
         self.home = home
@@ -777,13 +793,18 @@ class Fleet:
         def tick(session: Session, now: float) -> None:
             nonlocal seq
             seq += 1
+            samples = session.samples
+            samples.append(session.drone.telemetry_object(now, seq))
+            if len(samples) < self.per_message:
+                return
+            session.samples = []
             if session.paused:
-                self.stats.telemetry_throttled += 1
-            elif session.publish("telemetry", session.drone.telemetry(now, seq)):
+                self.stats.telemetry_throttled += len(samples)
+            elif session.publish("telemetry", telemetry_message(now, samples)):
                 self.stats.telemetry_messages += 1
-                self.stats.telemetry_objects += 1
+                self.stats.telemetry_objects += len(samples)
             else:
-                self.stats.telemetry_unsent += 1
+                self.stats.telemetry_unsent += len(samples)
 
         if self.rate > 0:
             await self._spread(1.0 / self.rate, tick)
@@ -810,8 +831,15 @@ async def run_fleet(
     duration: float | None,
     stats_interval: float,
     out: Any = sys.stdout,
+    per_message: int = 1,
 ) -> dict:
-    fleet = Fleet(accounts, rate=rate, heartbeat_interval=heartbeat_interval, time_scale=time_scale)
+    fleet = Fleet(
+        accounts,
+        rate=rate,
+        heartbeat_interval=heartbeat_interval,
+        time_scale=time_scale,
+        per_message=per_message,
+    )
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -844,6 +872,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--time-scale", type=float, default=10.0, help="mission fast-forward")
     parser.add_argument("--duration", type=float, default=None, help="seconds, then exit")
     parser.add_argument("--stats-interval", type=float, default=1.0)
+    parser.add_argument(
+        "--per-message", type=int, default=1, help="samples per telemetry message (period)"
+    )
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     with open(args.fleet) as f:
@@ -856,6 +887,7 @@ def main(argv: list[str] | None = None) -> int:
             time_scale=args.time_scale,
             duration=args.duration,
             stats_interval=args.stats_interval,
+            per_message=args.per_message,
         )
     )
     return 0

@@ -3,7 +3,10 @@
 
     .venv/bin/python scripts/loadtest.py --drones 1000 --broker mosquitto|rabbitmq
         [--duration 30] [--rate 10] [--heartbeat 5] [--gateways 1] [--ingests 1]
-        [--per-process 250] [--json results.json]
+        [--per-process 250] [--per-message 1] [--runs 1] [--json results.json]
+
+`--runs N` runs it N times in a row, each from scratch, prints every run's figures as it
+ends and then one line per run to compare them.
 
 Everything runs on ports of its own (a private Mosquitto or two-node RabbitMQ cluster, the
 test profile's PostgreSQL and Redis with a database and db index of our own, the ground
@@ -22,7 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from bench.scale_harness import LoadConfig, run_load  # noqa: E402
+from bench.scale_harness import LoadConfig, compare_runs, run_load  # noqa: E402
 
 
 def _interrupt(signum: int, frame: object) -> None:
@@ -42,10 +45,17 @@ def main() -> int:
     parser.add_argument("--ingests", type=int, default=1)
     parser.add_argument("--webs", type=int, default=1)
     parser.add_argument("--per-process", type=int, default=250, help="load drones per process")
+    parser.add_argument(
+        "--per-message", type=int, default=1,
+        help="samples per telemetry message: one message per period of N / rate s",
+    )  # fmt: skip
+    parser.add_argument("--runs", type=int, default=1, help="consecutive runs, each reported")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
     args = parser.parse_args()
     if args.drones < 1:
         parser.error("--drones must be at least 1")
+    if args.runs < 1 or args.per_message < 1:
+        parser.error("--runs and --per-message must be at least 1")
     config = LoadConfig(
         drones=args.drones,
         broker=args.broker,
@@ -56,17 +66,26 @@ def main() -> int:
         ingests=args.ingests,
         webs=args.webs,
         per_process=args.per_process,
+        per_message=args.per_message,
     )
     # SIGTERM unwinds like Ctrl-C, so run_load stops everything it started.
     signal.signal(signal.SIGTERM, _interrupt)
+    results = []
     try:
-        result = run_load(config)
+        for n in range(args.runs):
+            result = run_load(config)
+            results.append(result)
+            if args.runs > 1:
+                print(f"run {n + 1} of {args.runs}:")
+            print(result.summary(), flush=True)
     except KeyboardInterrupt:
         print("[loadtest] interrupted; everything it started has been stopped", file=sys.stderr)
         return 130
-    print(result.summary())
+    if args.runs > 1:
+        print(compare_runs(results))
     if args.json is not None:
-        args.json.write_text(json.dumps(result.to_dict(), indent=2) + "\n")
+        data = [r.to_dict() for r in results]
+        args.json.write_text(json.dumps(data if args.runs > 1 else data[0], indent=2) + "\n")
     return 0
 
 

@@ -41,9 +41,13 @@ def split_fields(fields: dict) -> tuple[dict, dict | None]:
     return numbers, labels
 
 
+# One encoder for every row: json.dumps with options builds a new one per call.
+_encode_json = json.JSONEncoder(separators=(",", ":")).encode
+
+
 def _copy_json(value: dict) -> str:
-    # JSON from json.dumps has no raw tabs or newlines; only backslashes need doubling.
-    return json.dumps(value, separators=(",", ":")).replace("\\", "\\\\")
+    # JSON from the encoder has no raw tabs or newlines; only backslashes need doubling.
+    return _encode_json(value).replace("\\", "\\\\")
 
 
 @dataclass(frozen=True)

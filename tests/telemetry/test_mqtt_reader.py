@@ -87,3 +87,32 @@ def test_a_read_ending_inside_the_next_packets_length_still_acks_what_was_delive
     finally:
         ours.close()
         broker.close()
+
+
+def test_on_messages_takes_every_publish_of_a_read_at_once():
+    batches: list[list] = []
+    reader = Subscriber(
+        "mqtt://u:p@127.0.0.1:1",
+        "t",
+        "+/telemetry/out",
+        lambda topic, payload: pytest.fail("on_message is not used when on_messages is given"),
+        on_messages=batches.append,
+    )
+    stream = (
+        publish("A/telemetry/out", b"1")
+        + publish("B/telemetry/out", b"2", packet_id=3)
+        + publish("C/telemetry/out", b"3")
+    )
+    ours, broker = socket.socketpair()
+    try:
+        consumed, _ = reader._parse(ours, bytearray(stream), True)
+        assert consumed == len(stream)
+        assert batches == [
+            [("A/telemetry/out", b"1", None), ("B/telemetry/out", b"2", None),
+             ("C/telemetry/out", b"3", None)]
+        ]  # fmt: skip
+        assert broker.recv(16) == b"\x40\x02\x00\x03", "QoS 1 acked on reading"
+        assert reader._parse(ours, bytearray(), True)[0] == 0 and len(batches) == 1
+    finally:
+        ours.close()
+        broker.close()

@@ -350,3 +350,26 @@ def test_the_load_harness_sees_every_sample_stored_and_every_command_answered(
     assert not (tmp_path / "loadtest" / "mosquitto" / "mosquitto" / "mosquitto.pid").exists(), (
         "the private broker is stopped afterwards"
     )
+
+
+def test_a_longer_telemetry_period_sends_every_sample_of_it_in_one_message(
+    broker: Broker, ground: Ground
+) -> None:
+    fleet = FleetThread(
+        accounts_for(broker, ["LOAD_1"]), rate=20.0, heartbeat_interval=5.0, per_message=4
+    ).start()
+    try:
+        assert fleet.wait_online(), "the load drone did not connect"
+        ground.wait_for(lambda: len(ground.on("LOAD_1/telemetry/out")) >= 5)
+    finally:
+        fleet.stop()
+    with ground.lock:
+        payloads = [p for t, p, _ in ground.messages if t == "LOAD_1/telemetry/out"]
+    stats = fleet.fleet.stats
+    assert stats.telemetry_objects == 4 * stats.telemetry_messages
+    for payload in payloads:
+        message = protocol.parse_telemetry(json.loads(payload))
+        stamps = [obj.ts for obj in message.objects]
+        assert len(stamps) == 4 and stamps == sorted(stamps)
+        # Sampled at 20 Hz, sent with the last sample of the period.
+        assert 0.1 < stamps[-1] - stamps[0] < 0.3 and message.ts == stamps[-1]

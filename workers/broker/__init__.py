@@ -23,7 +23,7 @@ what they have stored, not what they have read.
 from __future__ import annotations
 
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Protocol
 from urllib.parse import urlsplit
 
@@ -118,12 +118,14 @@ def competing_consumer(
     prefetch: int = 1000,
     counters: object | None = None,
     manual_ack: bool = False,
+    on_messages: Callable[[list], object] | None = None,
 ) -> Consumer:
     """One member of consumer group `group` for the drones' `<id>/<channel>/out` messages.
 
     Given `amqp_urls` (RabbitMQ: `amqp_urls()` when `uses_amqp()`), an `AmqpConsumer` on
     `skyhive.<group>`; else an MQTT shared subscription on `mqtt_url` (one channel: the
-    fast reader of workers.broker.mqtt_reader). Needs no Django settings, so the ingest, which
+    fast reader of workers.broker.mqtt_reader, which hands `on_messages`, when given,
+    every message of one read at once). Needs no Django settings, so the ingest, which
     has none, builds its reader here too.
     """
     if amqp_urls:
@@ -148,4 +150,5 @@ def competing_consumer(
         on_message,
         qos=qos,
         manual_ack=manual_ack,
+        on_messages=on_messages,
     )

@@ -50,6 +50,8 @@ class Subscriber:
         qos: int = 1,
         keepalive: int = 30,
         manual_ack: bool = False,
+        on_messages: Callable[[list[tuple[str, bytes, Callable[[], None] | None]]], object]
+        | None = None,
     ) -> None:
         parts = urlsplit(url)
         self.host = parts.hostname or "127.0.0.1"
@@ -64,6 +66,9 @@ class Subscriber:
         self.subscribed = threading.Event()
         self.sessions = 0  # subscriptions granted so far: 2 after one reconnect
         self.manual_ack = manual_ack
+        # Given, it takes every PUBLISH of one read at once, as (topic, payload, settle)
+        # (settle None unless manual_ack and QoS 1), instead of on_message one by one.
+        self.on_messages = on_messages
         self._connection = 0  # which TCP connection a packet id belongs to
         self._send_lock = threading.Lock()
         self._stop = threading.Event()
@@ -142,6 +147,9 @@ class Subscriber:
         """Handle every complete packet at the start of `buffer`; bytes consumed."""
         pos = 0
         acks = bytearray()
+        batch: list[tuple[str, bytes, Callable[[], None] | None]] | None = (
+            [] if self.on_messages is not None else None
+        )
         while (bounds := packet_at(buffer, pos)) is not None:
             i, stop = bounds  # the body is buffer[i:stop]
             header = buffer[pos]
@@ -151,17 +159,19 @@ class Subscriber:
                 topic = buffer[i + 2 : i + 2 + topic_len].decode("utf-8", "replace")
                 start = i + 2 + topic_len
                 qos = (header >> 1) & 0x03
-                if not self.manual_ack:
-                    if qos:
-                        acks += b"\x40\x02" + buffer[start : start + 2]  # PUBACK
-                        start += 2
-                    self.on_message(topic, bytes(buffer[start:stop]))
-                else:
-                    settle = None
-                    if qos:
-                        settle = self._settler(sock, bytes(buffer[start : start + 2]))
-                        start += 2
+                settle = None
+                if qos and not self.manual_ack:
+                    acks += b"\x40\x02" + buffer[start : start + 2]  # PUBACK
+                    start += 2
+                elif qos:
+                    settle = self._settler(sock, bytes(buffer[start : start + 2]))
+                    start += 2
+                if batch is not None:
+                    batch.append((topic, bytes(buffer[start:stop]), settle))
+                elif self.manual_ack:
                     self.on_message(topic, bytes(buffer[start:stop]), settle)
+                else:
+                    self.on_message(topic, bytes(buffer[start:stop]))
             elif kind == 2:  # CONNACK
                 if stop - i < 2 or buffer[i + 1] != 0:
                     raise ProtocolViolation(f"broker refused the connection (code {buffer[i + 1]})")
@@ -173,6 +183,8 @@ class Subscriber:
                 self.subscribed.set()
                 log.info("ingest subscribed to %s", self.topic_filter)
             pos = stop
+        if batch and self.on_messages is not None:
+            self.on_messages(batch)
         if acks:
             self._send(sock, bytes(acks))
         return pos, connected
