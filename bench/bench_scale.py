@@ -1,7 +1,7 @@
 """Scale-out: a thousand load drones against the whole ground side, on Mosquitto
 and on a two-node RabbitMQ cluster, in the same run.
 
-    .venv/bin/python -m bench.bench_scale [--drones 1000] [--duration 20]
+    .venv/bin/python -m bench.bench_scale [--drones 1000] [--duration 20] [--per-message 1]
 
 Each run is bench/scale_harness.py's `run_load`: a private broker, the real web (ASGI),
 gateway and ingest processes, and N load drones (onboard.loaddrone) at 10 Hz telemetry
@@ -23,6 +23,16 @@ Keys:
 - scale.rabbitmq_vs_mosquitto_ingest: rows the ingest stored per second while measured
   (old samples a backlogged broker delivers late count too) on the RabbitMQ cluster, with
   two gateways and two ingests. Baseline: the same on Mosquitto with one of each.
+- scale.ingest_1000_lag_rabbitmq_s: p99 ingest lag (as above) of the 1 000-drone run on
+  the RabbitMQ cluster. Baseline: the 1 000-drone run on Mosquitto of the same bench.
+
+Every run's detail also keeps samples sent per second, each role's CPU cores busy and
+cores' worth of time runnable but waiting for a CPU (a process behind for want of CPU
+waits a lot; one held back by something else does not), the broker's own figures over the
+measured window (Mosquitto's $SYS rates; RabbitMQ's ingest queue: ready, unacknowledged,
+published/s, delivered/s) and the load average. `--per-message N` makes the load drones
+send one message per N samples (a telemetry period of N / 10 s), as the agent sends every
+object of its period in one message.
 
 Every run also prints memory per connected drone (ground processes and broker, RSS loaded
 minus idle) and samples sent vs stored; they are kept in each key's `runs` detail.
@@ -60,6 +70,12 @@ def _figures(result: LoadResult) -> dict:
         "baseline_rtt_p99_s": result.baseline_rtt_p99_s,
         "map_staleness_p99_s": result.map_staleness_p99_s,
         "kib_per_drone": result.kib_per_drone,
+        "sent_per_s": round(result.sent_per_s, 1),
+        "per_message": result.per_message,
+        "cores": {k: round(v, 2) for k, v in result.cores.items()},
+        "cpu_wait": result.cpu_wait,
+        "broker_figures": result.broker_figures,
+        "load_average": result.load_average,
         "notes": result.notes,
     }
 
@@ -84,15 +100,23 @@ def _record(key: str, value: float | None, baseline_value: float | None, **figur
     record(key, value=value, baseline_value=baseline_value, **figure)  # type: ignore[arg-type]
 
 
-def _measure_all(drones: int, small: int, duration: float) -> dict[str, LoadResult | None]:
+def _measure_all(
+    drones: int, small: int, duration: float, per_message: int = 1
+) -> dict[str, LoadResult | None]:
     """The four runs, by name; a run that failed is None."""
 
     def cluster(n: int) -> LoadConfig:
-        return LoadConfig(drones=n, broker="rabbitmq", duration=duration, gateways=2, ingests=2)
+        return LoadConfig(
+            drones=n, broker="rabbitmq", duration=duration, gateways=2, ingests=2,
+            per_message=per_message,
+        )  # fmt: skip
+
+    def mosquitto(n: int) -> LoadConfig:
+        return LoadConfig(drones=n, broker="mosquitto", duration=duration, per_message=per_message)
 
     return {
-        "mosquitto_small": _run(LoadConfig(drones=small, broker="mosquitto", duration=duration)),
-        "mosquitto": _run(LoadConfig(drones=drones, broker="mosquitto", duration=duration)),
+        "mosquitto_small": _run(mosquitto(small)),
+        "mosquitto": _run(mosquitto(drones)),
         # The cluster with the small fleet too: on a small machine the two RabbitMQ nodes
         # run out of CPU long before 1 000 drones, and this shows where the design stands.
         "rabbitmq_small": _run(cluster(small)),
@@ -170,6 +194,16 @@ def _record_cluster_ingest(runs: dict[str, LoadResult | None], drones: int) -> N
         rabbitmq_small_per_s=None if rabbit_small is None else round(rabbit_small.ingest_per_s, 1),
         rabbitmq_small_lost=_of(rabbit_small, "lost"),
     )
+    _record(
+        "scale.ingest_1000_lag_rabbitmq_s",
+        rabbit.lag_p99_s,
+        mosquitto.lag_p99_s,
+        unit="s",
+        baseline_name=f"p99 ingest lag on Mosquitto, {drones} drones, same run",
+        higher_is_better=False,
+        goal=f"< 1 s with {drones} drones at 10 Hz on the two-node cluster",
+        rabbitmq=_figures(rabbit),
+    )
 
 
 def main() -> int:
@@ -177,8 +211,11 @@ def main() -> int:
     parser.add_argument("--drones", type=int, default=1000)
     parser.add_argument("--small", type=int, default=100, help="drones of the baseline run")
     parser.add_argument("--duration", type=float, default=20.0, help="seconds measured per run")
+    parser.add_argument(
+        "--per-message", type=int, default=1, help="samples per telemetry message (load drones)"
+    )
     args = parser.parse_args()
-    runs = _measure_all(args.drones, args.small, args.duration)
+    runs = _measure_all(args.drones, args.small, args.duration, args.per_message)
     if runs["mosquitto"] is None:
         print("no Mosquitto figures: nothing recorded", flush=True)
         return 1

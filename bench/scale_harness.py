@@ -61,6 +61,7 @@ class LoadConfig:
     rate: float = 10.0  # telemetry Hz per drone
     heartbeat: float = 5.0  # seconds between heartbeats
     per_message: int = 1  # samples per telemetry message (the period is per_message / rate)
+    connect_spread: float = 2.0  # seconds over which each load process connects its drones
     per_process: int = 250  # load drones per process
     webs: int = 1
     gateways: int = 1
@@ -476,7 +477,8 @@ class LoadProcess:
         self.final: dict | None = None
         argv = [PY, "-m", "onboard.loaddrone", "--fleet", str(self.path),
                 "--rate", str(config.rate), "--heartbeat", str(config.heartbeat),
-                "--stats-interval", "1", "--per-message", str(config.per_message)]  # fmt: skip
+                "--stats-interval", "1", "--per-message", str(config.per_message),
+                "--connect-spread", str(config.connect_spread)]  # fmt: skip
         self.process = Supervised(
             name, argv, python_env(), folder / f"{name}.log", on_line=self._line
         ).start()
@@ -880,7 +882,8 @@ def _connect_fleet(run: Run) -> MapProbe:
     for k in range(0, len(rest), config.per_process):
         name = f"load{len(run.loads)}"
         run.loads.append(LoadProcess(rest[k : k + config.per_process], config, run.folder, name))
-    wait_for(lambda: sum(p.online for p in run.loads) >= config.drones, 60, interval=0.25)
+    wait_for(lambda: sum(p.online for p in run.loads) >= config.drones,
+             60 + config.connect_spread, interval=0.25)  # fmt: skip
     wait_for(lambda: run.online() >= config.drones, 20, interval=1.0)
     run.result.connect_s = time.monotonic() - began
     run.result.online = run.online()

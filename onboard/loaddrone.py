@@ -832,6 +832,7 @@ async def run_fleet(
     stats_interval: float,
     out: Any = sys.stdout,
     per_message: int = 1,
+    connect_spread: float = 2.0,
 ) -> dict:
     fleet = Fleet(
         accounts,
@@ -839,6 +840,7 @@ async def run_fleet(
         heartbeat_interval=heartbeat_interval,
         time_scale=time_scale,
         per_message=per_message,
+        connect_spread=connect_spread,
     )
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
@@ -875,6 +877,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--per-message", type=int, default=1, help="samples per telemetry message (period)"
     )
+    parser.add_argument(
+        "--connect-spread", type=float, default=2.0, help="seconds over which drones connect"
+    )
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     with open(args.fleet) as f:
@@ -888,6 +893,7 @@ def main(argv: list[str] | None = None) -> int:
             duration=args.duration,
             stats_interval=args.stats_interval,
             per_message=args.per_message,
+            connect_spread=args.connect_spread,
         )
     )
     return 0

@@ -3,7 +3,8 @@
 
     .venv/bin/python scripts/loadtest.py --drones 1000 --broker mosquitto|rabbitmq
         [--duration 30] [--rate 10] [--heartbeat 5] [--gateways 1] [--ingests 1]
-        [--per-process 250] [--per-message 1] [--runs 1] [--json results.json]
+        [--per-process 250] [--per-message 1] [--connect-spread 2]
+        [--runs 1] [--json results.json]
 
 `--runs N` runs it N times in a row, each from scratch, prints every run's figures as it
 ends and then one line per run to compare them.
@@ -49,6 +50,10 @@ def main() -> int:
         "--per-message", type=int, default=1,
         help="samples per telemetry message: one message per period of N / rate s",
     )  # fmt: skip
+    parser.add_argument(
+        "--connect-spread", type=float, default=2.0,
+        help="seconds over which each load process connects its drones",
+    )  # fmt: skip
     parser.add_argument("--runs", type=int, default=1, help="consecutive runs, each reported")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
     args = parser.parse_args()
@@ -67,6 +72,7 @@ def main() -> int:
         webs=args.webs,
         per_process=args.per_process,
         per_message=args.per_message,
+        connect_spread=args.connect_spread,
     )
     # SIGTERM unwinds like Ctrl-C, so run_load stops everything it started.
     signal.signal(signal.SIGTERM, _interrupt)
