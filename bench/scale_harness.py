@@ -162,6 +162,12 @@ class LoadResult:
             + ", ".join(f"{k} {v:.2f}" for k, v in self.cores.items())
             + f" of {psutil.cpu_count()}"
         )
+        if self.ingest_per_s and self.cores.get("ingest"):
+            per_sample = self.cores["ingest"] / self.ingest_per_s * 1e6
+            lines.append(
+                f"  ingest CPU          {per_sample:.0f} µs per stored sample "
+                f"(one busy core would hold {1e6 / per_sample:.0f} samples/s)"
+            )
         if self.cpu_wait:
             lines.append(
                 "  waiting for a CPU   "
