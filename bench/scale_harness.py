@@ -756,6 +756,8 @@ def broker_window(before: dict[str, float], after: dict[str, float], seconds: fl
     for name, value in after.items():
         if name.startswith("messages_") and name in before:
             out[f"{name.removeprefix('messages_')}/s"] = round((value - before[name]) / seconds)
+        elif name.startswith("messages_"):  # no first reading (the broker did not answer)
+            out[f"{name.removeprefix('messages_')} in all"] = round(value)
         else:
             out[name] = round(value, 1)
     return out
@@ -943,12 +945,15 @@ def _drain(run: Run) -> None:
     stats = sum_stats(finals)
     run.result.load_stats = stats
     run.result.sent = stats.get("telemetry_objects", 0)
-    stored = -1
-    for _ in range(60):  # until the count stops moving (the ingest has drained)
+    # Until everything sent is stored, or the count has not moved for 3 s (a busy
+    # machine can stall the ingest for a second without it being done), 120 s at most.
+    stored, still = -1, 0
+    for _ in range(120):
         now_stored = run.stored()
-        if now_stored == stored:
-            break
+        still = still + 1 if now_stored == stored else 0
         stored = now_stored
+        if stored >= run.result.sent or still >= 3:
+            break
         time.sleep(1.0)
     run.result.stored = stored
 
