@@ -335,26 +335,21 @@ def rabbit_queue_depths(api_urls: str) -> dict[str, int]:
 
 def rabbit_queue_figures(api_urls: str) -> dict[str, float]:
     """The ingest queue as RabbitMQ counts it: waiting, in flight to consumers, and the
-    totals published to it and delivered from it (rates come from two readings)."""
-    columns = (
-        "name,messages_ready,messages_unacknowledged,consumers,"
-        "message_stats.publish,message_stats.deliver_get"
-    )
+    totals published to it and delivered from it (rates come from several readings)."""
     try:
-        queues = _rabbit_api(api_urls, "GET", f"queues?columns={columns}")
-    except OSError:
+        q = _rabbit_api(api_urls, "GET", "queues/%2F/skyhive.ingest")
+    except (OSError, ValueError):
         return {}
-    for q in queues:  # type: ignore[attr-defined]
-        if q["name"] == "skyhive.ingest":
-            stats = q.get("message_stats") or {}
-            return {
-                "ready": float(q.get("messages_ready") or 0),
-                "unacked": float(q.get("messages_unacknowledged") or 0),
-                "consumers": float(q.get("consumers") or 0),
-                "messages_published": float(stats.get("publish") or 0),
-                "messages_delivered": float(stats.get("deliver_get") or 0),
-            }
-    return {}
+    if not isinstance(q, dict):
+        return {}
+    stats = q.get("message_stats") or {}
+    return {
+        "ready": float(q.get("messages_ready") or 0),
+        "unacked": float(q.get("messages_unacknowledged") or 0),
+        "consumers": float(q.get("consumers") or 0),
+        "messages_published": float(stats.get("publish") or 0),
+        "messages_delivered": float(stats.get("deliver_get") or 0),
+    }
 
 
 def purge_rabbit_queues(api_urls: str) -> None:
@@ -750,17 +745,56 @@ def broker_counters(services: dict[str, str]) -> dict[str, float]:
     return {k: float(figures[k]) for k in names if isinstance(figures.get(k), int | float)}
 
 
-def broker_window(before: dict[str, float], after: dict[str, float], seconds: float) -> dict:
-    """Totals turned into rates over the window; levels (queue depths) as they ended."""
+def broker_window(readings: list[tuple[float, dict[str, float]]]) -> dict:
+    """The broker's figures over a window of timed readings: a running total as a rate
+    between the first and the last time it changed (Mosquitto's $SYS and RabbitMQ's
+    statistics are refreshed only every few seconds, so the window's own ends would be
+    off by up to one refresh), anything else as it ended."""
     out: dict[str, float] = {}
-    for name, value in after.items():
-        if name.startswith("messages_") and name in before:
-            out[f"{name.removeprefix('messages_')}/s"] = round((value - before[name]) / seconds)
-        elif name.startswith("messages_"):  # no first reading (the broker did not answer)
-            out[f"{name.removeprefix('messages_')} in all"] = round(value)
-        else:
+    last = readings[-1][1] if readings else {}
+    for name, value in last.items():
+        if not name.startswith("messages_"):
             out[name] = round(value, 1)
+            continue
+        label = name.removeprefix("messages_")
+        changes, previous = [], None
+        for at, figures in readings:
+            if name in figures and figures[name] != previous:
+                changes.append((at, figures[name]))
+                previous = figures[name]
+        if len(changes) >= 3:  # the first change may be the first reading, not a refresh
+            (t0, v0), (t1, v1) = changes[1], changes[-1]
+            out[f"{label}/s"] = round((v1 - v0) / (t1 - t0))
+        else:
+            out[f"{label} in all"] = round(value)
     return out
+
+
+class BrokerWatch:
+    """Reads the broker's own figures every half second while measured."""
+
+    def __init__(self, services: dict[str, str], every: float = 0.5) -> None:
+        self.services = services
+        self.every = every
+        self.readings: list[tuple[float, dict[str, float]]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def start(self) -> BrokerWatch:
+        self._thread.start()
+        return self
+
+    def stop(self) -> dict:
+        self._stop.set()
+        self._thread.join(15)
+        return broker_window(self.readings)
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            figures = broker_counters(self.services)
+            if figures:
+                self.readings.append((time.monotonic(), figures))
+            self._stop.wait(self.every)
 
 
 def _children(proc: psutil.Process) -> list[psutil.Process]:
@@ -906,7 +940,7 @@ def _measure(run: Run, map_probe: MapProbe) -> tuple[LagProbe, CommandProbe]:
     config, result = run.config, run.result
     busy = dict(run.roles, **{"load drones": [psutil.Process(p.process.pid) for p in run.loads]})
     cpu_before, wait_before = cpu_seconds(busy), waiting_seconds(busy)
-    broker_before, sent_before = broker_counters(run.services), sent_so_far(run.loads)
+    broker, sent_before = BrokerWatch(run.services).start(), sent_so_far(run.loads)
     load_before = os.getloadavg()[0]
     stored_at_start = run.stored()
     start = time.time()
@@ -927,7 +961,7 @@ def _measure(run: Run, map_probe: MapProbe) -> tuple[LagProbe, CommandProbe]:
                     for role in cpu_after}  # fmt: skip
     result.cpu_wait = {role: round((wait_after[role] - wait_before.get(role, 0.0)) / seconds, 2)
                        for role in wait_after}  # fmt: skip
-    result.broker_figures = broker_window(broker_before, broker_counters(run.services), seconds)
+    result.broker_figures = broker.stop()
     result.sent_per_s = (sent_so_far(run.loads) - sent_before) / seconds
     result.load_average = (load_before, os.getloadavg()[0])
     # Sustained throughput: rows the ingest wrote while measured, whenever they were sent

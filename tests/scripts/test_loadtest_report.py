@@ -12,16 +12,13 @@ import psutil
 from bench.scale_harness import LoadResult, broker_window, compare_runs, waiting_seconds
 
 
-def test_broker_totals_become_rates_and_levels_stay_levels():
-    before = {"messages_received": 1000.0, "messages_dropped": 5.0, "ready": 40.0}
-    after = {"messages_received": 21000.0, "messages_dropped": 5.0, "ready": 7.0,
-             "messages_sent": 3.0}  # fmt: skip
-    assert broker_window(before, after, 2.0) == {
-        "received/s": 10000,
-        "dropped/s": 0,
-        "ready": 7.0,
-        "sent in all": 3,  # no first reading: not a rate
-    }
+def test_broker_totals_become_rates_between_refreshes_and_levels_stay_levels():
+    # Refreshed every 2 s (10 000 more each time), read every half second.
+    readings = [(t / 2, {"messages_received": 1000.0 + 10_000 * ((t + 1) // 4), "ready": t})
+                for t in range(12)]  # fmt: skip
+    readings[-1][1]["messages_sent"] = 3.0  # seen once: no rate
+    assert broker_window(readings) == {"received/s": 5000, "ready": 11, "sent in all": 3}
+    assert broker_window([]) == {}
 
 
 def test_every_run_gets_a_line_with_the_goals_figures():
