@@ -1,7 +1,8 @@
 """The Drone Manager: commands with real replies, the REST command set of [Paula 2018], table 4.2.
 
 A command is checked here before anything is sent (who may, which drone, which
-parameters, is it safe), logged with its sender, sent through the gateway (workers.outbox)
+parameters, is it safe), logged with its sender, sent over the web process's own broker connection
+(workers.direct; through a gateway and the outbox, workers.outbox, when it is down)
 and answered with the drone's own reply, correlated by a fresh request id.
 """
 
@@ -18,7 +19,7 @@ from django.utils import timezone
 from django.utils.module_loading import import_string
 
 from onboard import protocol
-from workers import outbox
+from workers import direct, outbox
 
 from . import envelopes
 from .models import ROLE_RANK, CommandLog, Drone, Role
@@ -168,14 +169,20 @@ def record(entry: CommandLog, reply: dict | None) -> None:
     entry.save(update_fields=["outcome", "response", "error", "answered_at"])
 
 
+def settle(prepared: Prepared, reply: dict | None) -> None:
+    """After the answer (or its absence): the log entry, and the drone's new target."""
+    record(prepared.entry, reply)
+    envelopes.remember_target(prepared.drone, prepared.command, reply)
+
+
 async def execute(prepared: Prepared, *, timeout: float | None = None) -> Outcome:
-    """Publish to `<id>/control/in` via a gateway and wait for the drone's own reply."""
+    """Publish to `<id>/control/in` (workers.direct: this process's own broker connection,
+    else a gateway through the outbox) and wait for the drone's own reply."""
     request = protocol.ControlRequest(prepared.entry.request_id, prepared.command, prepared.params)
-    reply = await outbox.arequest(
+    reply = await direct.arequest(
         prepared.drone.drone_id, "control", request.to_dict(), timeout=timeout
     )
-    await sync_to_async(record)(prepared.entry, reply)
-    await sync_to_async(envelopes.remember_target)(prepared.drone, prepared.command, reply)
+    await sync_to_async(settle)(prepared, reply)
     return Outcome(request.request_id, prepared.command, reply)
 
 
