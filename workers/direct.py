@@ -36,6 +36,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import paho.mqtt.client as mqtt
+import redis
 from django.conf import settings
 
 from onboard import protocol
@@ -240,6 +241,14 @@ def close() -> None:
         current.stop()
 
 
+async def _settled(registration: asyncio.Future) -> None:
+    try:
+        await registration
+    except redis.RedisError as exc:
+        # Only the copy of the reply through Redis is missing: the direct one still counts.
+        log.warning("reply not registered in Redis: %s", exc)
+
+
 async def arequest(
     drone_id: str, channel: str, message: dict, *, timeout: float | None = None
 ) -> dict | None:
@@ -251,7 +260,11 @@ async def arequest(
         return await outbox.arequest(drone_id, channel, message, timeout=timeout)
     deadline = time.monotonic() + timeout
     request_id = message["request_id"]
-    await outbox.aexpect_reply(drone_id, request_id, timeout)
+    # Registered in Redis alongside, not before: its command is on the Redis socket before
+    # the request leaves (one turn of the loop), so no reply can overtake it, and the
+    # request does not wait a Redis round trip.
+    expecting = asyncio.ensure_future(outbox.aexpect_reply(drone_id, request_id, timeout))
+    await asyncio.sleep(0)
     future = current.expect(request_id, drone_id)
     try:
         wait = float(getattr(settings, "COMMAND_DIRECT_PUBACK_S", 0.5))
@@ -265,6 +278,7 @@ async def arequest(
             reply = None
     finally:
         current.forget(request_id)
+        await _settled(expecting)
     if reply is LINK_LOST or reply is None:
         # Handed over through Redis meanwhile (by a gateway), or still to come there.
         return await outbox.await_reply(request_id, deadline - time.monotonic())

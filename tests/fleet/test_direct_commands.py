@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
+import signal
 import threading
 import time
 
@@ -95,15 +97,32 @@ def test_without_a_broker_connection_the_outbox_delivers(
 
 
 def test_a_publish_the_broker_does_not_acknowledge_in_time_also_goes_through_the_outbox(
-    world_tx, broker, gateway, ready_link, drone, settings
+    world_tx, broker, gateway, ready_link, drone, settings, fresh_redis
 ):
-    settings.COMMAND_DIRECT_PUBACK_S = 0.0  # no PUBACK can come that fast
-    outcome = async_to_sync(commands.send)(world_tx.operator, "ACME_1", "arm", {})
+    settings.COMMAND_DIRECT_PUBACK_S = 0.3
+    result: dict = {}
+
+    def send() -> None:
+        result["outcome"] = async_to_sync(commands.send)(world_tx.operator, "ACME_1", "arm", {})
+
+    def queued() -> bool:
+        waiting = fresh_redis.llen(outbox.outbox_key()) + fresh_redis.llen(gateway.taken)
+        return waiting > 0
+
+    sender = threading.Thread(target=send)
+    os.kill(broker.process.pid, signal.SIGSTOP)  # connected, but acknowledging nothing
+    try:
+        sender.start()
+        assert wait_for(queued, 5), "not handed to the outbox"
+    finally:
+        os.kill(broker.process.pid, signal.SIGCONT)
+    sender.join(20)
+    outcome = result["outcome"]
     assert outcome.ok
     # Both copies reach the drone under one request id (a drone ignores the repeat).
     assert wait_for(lambda: len(drone.requests) == 2, 5)
     assert {r["request_id"] for r in drone.requests} == {outcome.request_id}
-    assert wait_for(lambda: gateway.counters.get("published") == 1, 5)
+    assert CommandLog.objects.get(request_id=outcome.request_id).outcome == "ok"
 
 
 def test_a_reply_from_another_drone_is_not_taken(world_tx, broker, fresh_redis, ready_link):
