@@ -270,6 +270,11 @@ async def arequest(
         wait = float(getattr(settings, "COMMAND_DIRECT_PUBACK_S", 0.5))
         topic = protocol.topic(drone_id, channel, "in")
         if not await current.publish(topic, message, qos=protocol.QOS[channel], wait=wait):
+            log.warning(
+                "%s not acknowledged by the broker in %g s: sent through the outbox too",
+                request_id,
+                wait,
+            )
             left = max(deadline - time.monotonic(), 0.1)
             await outbox.asend_to_drone(drone_id, channel, message, ttl=left)
         try:
