@@ -13,8 +13,8 @@ process sees the replies to what it sent. The rules it keeps:
   request id it has seen, so a late copy of the direct publish changes nothing.
 - Every reply also reaches Redis: the request is registered as pending there before it is
   published, so the gateways (which also receive `control/out`) hand the reply over as
-  they do for any command. The waiter takes whichever comes first: its own connection's
-  copy, or, once that connection is lost, the Redis one.
+  they do for any command. The waiter takes its own connection's copy, or the Redis one
+  once that connection is lost or the request went through the outbox.
 - A reply counts only from the drone that was asked (the topic names it), as in
   `outbox.deliver_reply`.
 
@@ -269,7 +269,12 @@ async def arequest(
     try:
         wait = float(getattr(settings, "COMMAND_DIRECT_PUBACK_S", 0.5))
         topic = protocol.topic(drone_id, channel, "in")
-        if not await current.publish(topic, message, qos=protocol.QOS[channel], wait=wait):
+        if await current.publish(topic, message, qos=protocol.QOS[channel], wait=wait):
+            try:
+                reply = await asyncio.wait_for(future, max(deadline - time.monotonic(), 0.0))
+            except TimeoutError:
+                reply = None
+        else:
             log.warning(
                 "%s not acknowledged by the broker in %g s: sent through the outbox too",
                 request_id,
@@ -277,10 +282,7 @@ async def arequest(
             )
             left = max(deadline - time.monotonic(), 0.1)
             await outbox.asend_to_drone(drone_id, channel, message, ttl=left)
-        try:
-            reply = await asyncio.wait_for(future, max(deadline - time.monotonic(), 0.0))
-        except TimeoutError:
-            reply = None
+            reply = LINK_LOST  # its reply comes through a gateway and Redis
     finally:
         current.forget(request_id)
         await _settled(expecting)
