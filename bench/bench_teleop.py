@@ -247,6 +247,7 @@ async def _page_moves(bench: Bench, name: str, log: SetpointLog) -> tuple[list[f
         additional_headers=headers,
         origin=f"http://{host}",  # type: ignore[arg-type]
         max_size=None,
+        ping_interval=None,  # a busy machine must not end the page: the moves tell
     ) as page:
         await _until_fresh(page)
         for i in range(MOVES):
