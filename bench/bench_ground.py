@@ -17,6 +17,8 @@ Keys:
   (token auth, keep-alive) until the drone's reply is in the HTTP answer, with 1 and 100
   drones connected. Baseline: a bare MQTT request/response through the same broker (a
   ground paho client publishing to `<id>/control/in` and receiving `<id>/control/out`).
+  The web process sends over its own broker connection (workers.direct), opened at its
+  first command: the warm-up requests, not measured, cover that.
 - ground.heartbeats_per_s: heartbeats one gateway validates and stores per second (one
   UPDATE each) under a flood. Baseline: the raw rate one paho client receives the same
   flood doing nothing with it (a separate process, like the gateway).

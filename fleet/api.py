@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from asgiref.sync import sync_to_async
 from django.conf import settings
 from drf_spectacular.types import OpenApiTypes
@@ -156,6 +158,30 @@ class DroneCommandView(AsyncAPIView):
     """`POST /api/v1/drones/{drone_id}/commands/`: the drone's own reply, or an error."""
 
     permission_classes = [OrganisationRole]
+    prepared: commands.Prepared | None = None
+
+    def _prepare(self, request: Request, *args: Any, **kwargs: Any) -> None:
+        """Authentication, the body and every check before sending, in one worker-thread
+        step: each step to a thread and back is on every command's round trip."""
+        super()._prepare(request, *args, **kwargs)
+        if request.method != "POST":
+            return
+        serializer = CommandRequestSerializer(data=request.data)
+        serializer.is_valid(raise_exception=True)
+        self.order = serializer.validated_data
+        command = self.order["command"]
+        if command in commands.CHAIN_COMMANDS:
+            return
+        try:
+            self.prepared = commands.prepare(
+                request.user,
+                kwargs["drone_id"],
+                command,
+                self.order["params"],
+                self.order["confirm_beyond_defaults"],
+            )
+        except CommandRefused as refusal:
+            raise _api_error(refusal) from None
 
     @extend_schema(
         operation_id="drones_commands_create",
@@ -184,28 +210,10 @@ class DroneCommandView(AsyncAPIView):
         ),
     )
     async def post(self, request: Request, drone_id: str) -> Response:
-        serializer = CommandRequestSerializer(data=request.data)
-        serializer.is_valid(raise_exception=True)
-        command = serializer.validated_data["command"]
-        params = serializer.validated_data["params"]
-        confirmed = serializer.validated_data["confirm_beyond_defaults"]
-        try:
-            if command in commands.CHAIN_COMMANDS:
-                result = await sync_to_async(commands.run_mission_start_stop)(
-                    request.user, drone_id, command, params.get("mission"), confirmed
-                )
-                return Response(
-                    {
-                        "request_id": "",
-                        "command": command,
-                        "ok": True,
-                        "result": result,
-                        "error": None,
-                    }
-                )
-            outcome = await commands.send(request.user, drone_id, command, params, confirmed)
-        except CommandRefused as refusal:
-            raise _api_error(refusal) from None
+        command = self.order["command"]
+        if self.prepared is None:
+            return await self.chain(request, drone_id, command)
+        outcome = await commands.execute(self.prepared)
         if outcome.timed_out:
             raise NoReply(f"No reply from {drone_id} within {settings.COMMAND_TIMEOUT_S:g} s.")
         reply = outcome.reply or {}
@@ -217,6 +225,22 @@ class DroneCommandView(AsyncAPIView):
                 "result": reply.get("result"),
                 "error": reply.get("error"),
             }
+        )
+
+    async def chain(self, request: Request, drone_id: str, command: str) -> Response:
+        """startchain / stopchain: the Mission Planner's hooks answer, not the drone."""
+        try:
+            result = await sync_to_async(commands.run_mission_start_stop)(
+                request.user,
+                drone_id,
+                command,
+                self.order["params"].get("mission"),
+                self.order["confirm_beyond_defaults"],
+            )
+        except CommandRefused as refusal:
+            raise _api_error(refusal) from None
+        return Response(
+            {"request_id": "", "command": command, "ok": True, "result": result, "error": None}
         )
 
 

@@ -1,24 +1,27 @@
 """The Drone Manager: commands with real replies, the REST command set of [Paula 2018], table 4.2.
 
 A command is checked here before anything is sent (who may, which drone, which
-parameters, is it safe), logged with its sender, sent through the gateway (workers.outbox)
+parameters, is it safe), logged with its sender, sent over the web process's own broker connection
+(workers.direct; through a gateway and the outbox, workers.outbox, when it is down)
 and answered with the drone's own reply, correlated by a fresh request id.
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
 from dataclasses import dataclass
 from typing import Any
 
 from asgiref.sync import sync_to_async
 from django.conf import settings
+from django.db import DatabaseError
 from django.db.models import F
 from django.utils import timezone
 from django.utils.module_loading import import_string
 
 from onboard import protocol
-from workers import outbox
+from workers import direct, outbox
 
 from . import envelopes
 from .models import ROLE_RANK, CommandLog, Drone, Role
@@ -122,7 +125,8 @@ def prepare(
     """Every check in order: drone (404), role (403), params (400), state and envelope (409).
 
     A move beyond the envelope's defaults needs `confirmed` (409 confirmation_required).
-    Returns the pending log entry with a fresh request id; refusals are logged too.
+    Returns the pending log entry (not saved yet) with a fresh request id; refusals are
+    logged here.
     """
     drone = find_drone(user, drone_id)
     base = {"drone": drone, "user": user, "command": str(command)[:40], "params": params or {}}
@@ -146,7 +150,8 @@ def prepare(
         envelopes.check_command(drone, command, clean, confirmed)
     except envelopes.EnvelopeRefusal as exc:
         raise _refuse(base, CommandRefused(409, exc.message, code=exc.code)) from None
-    entry = CommandLog.objects.create(
+    # Saved by `execute` while the command is on its way (refusals above are saved at once).
+    entry = CommandLog(
         drone=drone,
         user=user,
         request_id=protocol.new_request_id(),
@@ -165,17 +170,35 @@ def record(entry: CommandLog, reply: dict | None) -> None:
         entry.response = reply
         entry.error = reply.get("error") or ""
     entry.answered_at = timezone.now()
-    entry.save(update_fields=["outcome", "response", "error", "answered_at"])
+    if entry.pk is None:  # its first write failed: this one stores it whole
+        entry.save()
+    else:
+        entry.save(update_fields=["outcome", "response", "error", "answered_at"])
+
+
+def settle(prepared: Prepared, reply: dict | None) -> None:
+    """After the answer (or its absence): the log entry, and the drone's new target."""
+    record(prepared.entry, reply)
+    envelopes.remember_target(prepared.drone, prepared.command, reply)
 
 
 async def execute(prepared: Prepared, *, timeout: float | None = None) -> Outcome:
-    """Publish to `<id>/control/in` via a gateway and wait for the drone's own reply."""
+    """Publish to `<id>/control/in` (workers.direct: this process's own broker connection,
+    else a gateway through the outbox) and wait for the drone's own reply."""
     request = protocol.ControlRequest(prepared.entry.request_id, prepared.command, prepared.params)
-    reply = await outbox.arequest(
-        prepared.drone.drone_id, "control", request.to_dict(), timeout=timeout
-    )
-    await sync_to_async(record)(prepared.entry, reply)
-    await sync_to_async(envelopes.remember_target)(prepared.drone, prepared.command, reply)
+    # The log entry is written while the command travels, not before: a database commit
+    # less on the way to the drone. It is in the log before the answer is recorded.
+    logged = asyncio.ensure_future(sync_to_async(prepared.entry.save)())
+    try:
+        reply = await direct.arequest(
+            prepared.drone.drone_id, "control", request.to_dict(), timeout=timeout
+        )
+    finally:
+        try:
+            await logged
+        except DatabaseError:
+            log.warning("command %s not logged yet; retried with its answer", request.request_id)
+    await sync_to_async(settle)(prepared, reply)
     return Outcome(request.request_id, prepared.command, reply)
 
 

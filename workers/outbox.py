@@ -1,11 +1,14 @@
-"""The web ↔ gateway link through Redis: the only way ground code reaches a drone.
+"""The web ↔ gateway link through Redis.
 
-Web processes never open MQTT connections. To send, they push onto one Redis list (the
+Commands a web process sends go over its own MQTT connection when it has one
+(workers.direct); everything else (missions, envelopes, Celery tasks), and commands while
+that connection is down, goes here. To send, a process pushes onto one Redis list (the
 outbox) that every gateway takes from (BLMOVE onto a list of its own, so each message is
 taken once however many gateways run, and one that a dying gateway had in hand is put
-back for the others; drones ignore a request id they have already seen). To wait for a reply, the sender registers the request id
-(with the drone it went to) and blocks on a per-request list; the gateway that receives
-the drone's answer pushes it there. Any web process can therefore wait for any reply.
+back for the others; drones ignore a request id they have already seen). To wait for a
+reply, the sender registers the request id (with the drone it went to) and blocks on a
+per-request list; the gateway that receives the drone's answer pushes it there. Any web
+process can therefore wait for any reply.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import json
 import time
 import weakref
 from collections.abc import Callable
+from typing import Any
 from urllib.parse import urlsplit
 
 import redis
@@ -102,12 +106,33 @@ async def arequest(
     """Send a message carrying `request_id` and wait for the drone's answer (None on timeout)."""
     timeout = settings.COMMAND_TIMEOUT_S if timeout is None else timeout
     request_id = message["request_id"]
-    client = async_redis()
-    pipe = client.pipeline(transaction=False)
-    pipe.set(PENDING_PREFIX + request_id, drone_id, px=int((timeout + 5) * 1000))
+    pipe = async_redis().pipeline(transaction=False)
+    _expect(pipe, drone_id, request_id, timeout)
     pipe.rpush(outbox_key(), outbox_item(drone_id, channel, message, ttl=timeout))
     await pipe.execute()
-    popped = await client.blpop([REPLY_PREFIX + request_id], timeout=timeout)
+    return await await_reply(request_id, timeout)
+
+
+def _expect(client: aredis.Redis, drone_id: str, request_id: str, timeout: float) -> Any:
+    return client.set(PENDING_PREFIX + request_id, drone_id, px=int((timeout + 5) * 1000))
+
+
+async def aexpect_reply(drone_id: str, request_id: str, timeout: float) -> None:
+    """Register `request_id` as asked of `drone_id`, so a gateway hands its reply over
+    (`deliver_reply`); before the request is sent, or the reply could come first."""
+    await _expect(async_redis(), drone_id, request_id, timeout)
+
+
+async def await_reply(request_id: str, timeout: float) -> dict | None:
+    """The reply a gateway handed over for `request_id`, waiting up to `timeout` seconds;
+    None (and the request no longer pending) when none came."""
+    client = async_redis()
+    popped = None
+    if timeout > 0:
+        popped = await client.blpop([REPLY_PREFIX + request_id], timeout=timeout)
+    else:
+        value = await client.lpop(REPLY_PREFIX + request_id)
+        popped = None if value is None else (None, value)
     if popped is None:
         await client.delete(PENDING_PREFIX + request_id)
         return None

@@ -442,3 +442,9 @@ SPECTACULAR_SETTINGS.update(
 PASTVIEW_TELEOP_FRESH_S = env.float("PASTVIEW_TELEOP_FRESH_S", 3.0)
 # The admin's map-tile upload has its own limit (TILES_UPLOAD_MAX_BYTES, config/asgi.py).
 REQUEST_BODY_LIMITS.insert(0, (r"^/admin/tiles/tileset/add/$", None))
+
+# Commands from web processes go over each process's own broker connection (the ground's
+# MQTT_URL account; workers.direct), falling back to the gateways' outbox when it is down
+# or the broker has not acknowledged a command within COMMAND_DIRECT_PUBACK_S seconds.
+COMMAND_DIRECT = env.bool("COMMAND_DIRECT", True)
+COMMAND_DIRECT_PUBACK_S = env.float("COMMAND_DIRECT_PUBACK_S", 0.5)

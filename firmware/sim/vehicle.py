@@ -6,7 +6,9 @@ objects a ground station writes, steps it, and reads its state to build telemetr
 
 from __future__ import annotations
 
+import logging
 import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -14,6 +16,8 @@ from firmware.sim.receiver import ARMED, ARMING, DISARMED, ReceiverArming
 
 # One LLA↔NED for the whole project: the sphere dRonin linearises about home (docs/uavtalk.md).
 from onboard.navigation import euler_to_quaternion, lla_to_ned, ned_to_lla
+
+log = logging.getLogger(__name__)
 
 AUTONOMOUS_MODES = ("PositionHold", "PathPlanner", "ReturnToHome", "TabletControl")
 # 4S LiPo open-circuit voltage per cell against charge left (fraction), coarse but monotonic.
@@ -116,6 +120,9 @@ class Vehicle:
         if mode == "Land":
             down = 0.0
         self.target = PathTarget(mode, (north, east, min(down, 0.0)))
+        # One line per setpoint, stamped with the wall clock: a benchmark times a command
+        # from the ground to this moment (bench/bench_teleop.py).
+        log.info("setpoint %s %.3f %.3f %.3f at %.6f", mode, *self.target.end, time.time())
 
     def set_home(self, lat: float, lon: float, alt: float) -> None:
         """Move home; the vehicle stays where it is on the globe, so its NED changes."""
