@@ -41,6 +41,27 @@ def build_world() -> World:
     )
 
 
+def _rabbitmq_user(item: pytest.Item) -> bool:
+    """Whether the test runs RabbitMQ nodes: the session's cluster, or a node of its own."""
+    callspec = getattr(item, "callspec", None)
+    params = callspec.params if callspec else {}
+    return (
+        "rabbit_cluster" in getattr(item, "fixturenames", ())
+        or params.get("broker_kind") == "rabbitmq"
+        or item.path.name == "test_rabbitmq_loopback.py"
+    )
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):  # type: ignore[no-untyped-def]
+    """Under pytest-xdist (--dist loadgroup) every RabbitMQ test runs in one worker: the
+    session's two-node cluster then starts once, on the one port base of this run
+    (RABBIT_PORT_BASE), and two clusters never compete for the cores."""
+    for item in items:
+        if _rabbitmq_user(item):
+            item.add_marker(pytest.mark.xdist_group("rabbitmq"))
+
+
 @pytest.fixture
 def world(db) -> World:  # type: ignore[no-untyped-def]
     return build_world()

@@ -1,16 +1,24 @@
-"""Test settings: the suite's own services on their own ports (.data/test/env)."""
+"""Test settings: the suite's own services on their own ports (.data/test/env).
+
+Under pytest-xdist each worker has services of its own, which scripts/test.sh starts in
+.data/test-<worker> (gw0, gw1, ...): workers never share a database, a Redis or a broker.
+"""
 
 import os
 
 from config.env import BASE_DIR, env, read_data_env
 
-read_data_env(BASE_DIR / ".data" / "test" / "env")
+# Children of a worker (ground processes, Celery workers, the live server) inherit the
+# variable and so read the same services.
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+TEST_DATA_DIR = BASE_DIR / ".data" / (f"test-{_WORKER}" if _WORKER else "test")
+read_data_env(TEST_DATA_DIR / "env")
 # The suite starts and stops many threads that touch the ORM; with a pool each finished
 # thread would keep its connection checked out. Benchmarks turn the pool back on
 # (scripts/bench.sh) to measure what production runs.
 os.environ.setdefault("DB_POOL", "false")
-os.environ.setdefault("MEDIA_ROOT", str(BASE_DIR / ".data" / "test" / "media"))
-os.environ.setdefault("TILES_DIR", str(BASE_DIR / ".data" / "test" / "tiles"))
+os.environ.setdefault("MEDIA_ROOT", str(TEST_DATA_DIR / "media"))
+os.environ.setdefault("TILES_DIR", str(TEST_DATA_DIR / "tiles"))
 # The suite logs in from one address far more often than a person; the throttling tests
 # set the production rates themselves.
 os.environ.setdefault("AUTH_TOKEN_RATE", "10000/min")
