@@ -1,7 +1,8 @@
 """Test settings: the suite's own services on their own ports (.data/test/env).
 
-Under pytest-xdist each worker has services of its own, which scripts/test.sh starts in
-.data/test-<worker> (gw0, gw1, ...): workers never share a database, a Redis or a broker.
+Under pytest-xdist each worker reads .data/test-<worker>/env (gw0, gw1, ...), which
+scripts/test.sh writes: a Redis and a Mosquitto of its own, and the one PostgreSQL server,
+where pytest-django gives each worker its own test database.
 """
 
 import os
