@@ -5,6 +5,7 @@ Django is imported inside fixtures only, so pure-Python tests run without it.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import pytest
@@ -41,6 +42,10 @@ def build_world() -> World:
     )
 
 
+# Markers of the tests that take seconds to minutes each (pyproject.toml).
+LONG_MARKS = ("e2e", "browser", "slow")
+
+
 def _rabbitmq_user(item: pytest.Item) -> bool:
     """Whether the test runs RabbitMQ nodes: the session's cluster, or a node of its own."""
     callspec = getattr(item, "callspec", None)
@@ -56,10 +61,15 @@ def _rabbitmq_user(item: pytest.Item) -> bool:
 def pytest_collection_modifyitems(config, items):  # type: ignore[no-untyped-def]
     """Under pytest-xdist (--dist loadgroup) every RabbitMQ test runs in one worker: the
     session's two-node cluster then starts once, on the one port base of this run
-    (RABBIT_PORT_BASE), and two clusters never compete for the cores."""
+    (RABBIT_PORT_BASE), and two clusters never compete for the cores. Every worker
+    collects the same order, as xdist requires."""
     for item in items:
         if _rabbitmq_user(item):
             item.add_marker(pytest.mark.xdist_group("rabbitmq"))
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        # The long tests first (a stable sort: modules stay together), so that none of them
+        # starts last while the other workers have run out of work.
+        items.sort(key=lambda item: not any(item.get_closest_marker(m) for m in LONG_MARKS))
 
 
 @pytest.fixture
