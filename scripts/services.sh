@@ -91,7 +91,14 @@ pg_start() {
   fi
   if port_open "$PG_PORT"; then log "PostgreSQL already up on $PG_PORT"; return 0; fi
   log "starting PostgreSQL on 127.0.0.1:$PG_PORT"
-  as_pg "$PG_BIN/pg_ctl" -D "$dir" -l "$dir/server.log" -o "-p $PG_PORT" -w -t 60 start >/dev/null
+  # The port is in the kernel's ephemeral range: an outgoing connection may hold it for a
+  # moment (many test processes start at once), so a failed bind is tried again.
+  local try
+  for try in 1 2 3; do
+    as_pg "$PG_BIN/pg_ctl" -D "$dir" -l "$dir/server.log" -o "-p $PG_PORT" -w -t 60 start >/dev/null && break
+    [ "$try" = 3 ] && return 1
+    log "PostgreSQL did not start on $PG_PORT; trying again"; sleep 1
+  done
   touch "$DATA/.started.postgres"
   local pw; pw=$(secret pg_password)
   local appw; appw=$(secret db_password)

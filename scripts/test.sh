@@ -6,25 +6,67 @@ ROOT=$(cd "$(dirname "$0")/.." && pwd)
 cd "$ROOT"
 PY=.venv/bin/python
 
-# Stop at the end only what this run started: when every service was already up (a
-# developer's own `make test-services-up`), leave them running.
-started=""
+# Parallel pytest workers (pytest-xdist). They share the test profile's PostgreSQL server,
+# each in a test database of its own (pytest-django names it after the worker), and each
+# has its own Redis and Mosquitto in .data/test-gw<K>, on the test ports plus 1+K: workers
+# never share a database, a queue or a drone id. Most end-to-end tests wait on simulated
+# drones rather than compute, so more workers than cores pays. TEST_WORKERS=1 runs
+# serially on .data/test.
+WORKERS=${TEST_WORKERS:-$(( $(nproc) * 2 < 4 ? $(nproc) * 2 : 4 ))}
+REDIS_BASE=${TEST_REDIS_PORT:-63791}; MQTT_BASE=${TEST_MQTT_PORT:-18831}
+workers=(); [ "$WORKERS" -gt 1 ] && for k in $(seq 0 $((WORKERS - 1))); do workers+=("$k"); done
+worker_services() { # worker_services K ACTION...: scripts/services.sh ACTIONs for worker K
+  local k=$1 dir="$ROOT/.data/test-gw$1" action; shift
+  mkdir -p "$dir"
+  # The one PostgreSQL server, and so one set of passwords, for every worker.
+  ln -sfn ../test/postgres "$dir/postgres"; ln -sfn ../test/secrets "$dir/secrets"
+  for action in "$@"; do
+    DATA_DIR="$dir" TEST_REDIS_PORT=$((REDIS_BASE + 1 + k)) TEST_MQTT_PORT=$((MQTT_BASE + 1 + k)) \
+      scripts/services.sh "$action" test >/dev/null || return 1
+  done
+}
+
+# Stop at the end only what this run started: services that were up already (a
+# developer's own `make test-services-up`) are left running.
 status=$(scripts/services.sh status test)
-if grep -q "down" <<<"$status"; then started=yes; else echo "[test] reusing the running test services"; fi
-scripts/services.sh start test || exit 1
+if [ ${#workers[@]} -eq 0 ]; then
+  base_started=""; grep -q "down" <<<"$status" && base_started=yes
+  scripts/services.sh start test || exit 1
+else
+  base_started=""; grep -q "PostgreSQL down" <<<"$status" && base_started=yes
+  scripts/services.sh pg-start test || exit 1
+fi
+[ -n "$base_started" ] || echo "[test] reusing the running test services"
+started=()
+for k in "${workers[@]}"; do
+  status=$(DATA_DIR="$ROOT/.data/test-gw$k" TEST_REDIS_PORT=$((REDIS_BASE + 1 + k)) \
+    TEST_MQTT_PORT=$((MQTT_BASE + 1 + k)) scripts/services.sh status test)
+  grep -Eq "(Redis|Mosquitto) down" <<<"$status" && started+=("$k")
+done
+pids=()
+for k in "${workers[@]}"; do worker_services "$k" redis-start mosquitto-start env & pids+=($!); done
+failed=""
+for pid in "${pids[@]}"; do wait "$pid" || failed=yes; done
 cleanup() {
   # The scale tests' RabbitMQ cluster stops itself; this catches an interrupted run.
   RABBIT_PORT_BASE=${RABBIT_PORT_BASE:-18900} scripts/rabbitmq.sh stop "${RABBIT_PROFILE:-test-rabbitmq}" 2>/dev/null || true
-  [ -n "$started" ] && scripts/services.sh stop test
+  for k in "${started[@]}"; do worker_services "$k" mosquitto-stop redis-stop & done
+  wait
+  if [ -n "$base_started" ]; then
+    if [ ${#workers[@]} -eq 0 ]; then scripts/services.sh stop test; else scripts/services.sh pg-stop test; fi
+  fi
 }
 trap cleanup EXIT
+[ -z "$failed" ] || exit 1
 
 set -e
 export DJANGO_SETTINGS_MODULE=config.settings.test
 echo "[test] ruff"
 $PY -m ruff check .
 echo "[test] migrations are up to date"
-$PY manage.py makemigrations --check --dry-run >/dev/null
+# Against the first worker's database when the serial profile's services are not started.
+first_profile=(); [ ${#workers[@]} -gt 0 ] && first_profile=(env PYTEST_XDIST_WORKER=gw0)
+"${first_profile[@]}" $PY manage.py makemigrations --check --dry-run >/dev/null
 if [ -f firmware/arming_switch/Makefile ]; then
   echo "[test] arming-switch firmware host tests"
   make -s --no-print-directory -C firmware/arming_switch test
@@ -32,7 +74,12 @@ fi
 set +e
 echo "[test] pytest"
 # The slowest tests are listed at the end: where the suite's time goes.
-$PY -m pytest --durations=25 "$@"
+xdist=(); [ ${#workers[@]} -gt 0 ] && xdist=(-n "$WORKERS" --dist loadgroup)
+# Each pytest session that starts makes the shared /tmp/pytest-of-<user> private again,
+# which would lock the brokers the tests start (they run as the mosquitto user) out of
+# their password files at their next reload; this checkout's own base folder is left alone.
+BASETEMP=${TMPDIR:-/tmp}/skyhive-test-$(id -u)-$(printf %s "$ROOT" | md5sum | cut -c1-8)
+$PY -m pytest --durations=25 --basetemp "$BASETEMP" "${xdist[@]}" "$@"
 rc=$?
 echo "[test] the whole run took $(( $(date +%s) - STARTED_AT )) s"
 # pytest exit 5 means no tests ran: that is a failure for us.

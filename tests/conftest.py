@@ -5,6 +5,7 @@ Django is imported inside fixtures only, so pure-Python tests run without it.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import pytest
@@ -39,6 +40,45 @@ def build_world() -> World:
         drone=factories.drone(org, "ACME_1"),
         other_drone=factories.drone(other, "GLOBEX_1"),
     )
+
+
+# Tests whose assertions hold only with a core to spare (simulated flights in real time,
+# frame rates, a deadline after a kill): under xdist one worker runs them one at a time.
+REAL_TIME = (
+    "tests/missions/test_experiments.py",
+    "tests/pastview/test_e2e.py",
+    "tests/workers/test_faults.py::test_a_gateway_killed_mid_mission",
+)
+# Markers of the tests that take seconds to minutes each (pyproject.toml).
+LONG_MARKS = ("e2e", "browser", "slow")
+
+
+def _rabbitmq_user(item: pytest.Item) -> bool:
+    """Whether the test runs RabbitMQ nodes: the session's cluster, or a node of its own."""
+    callspec = getattr(item, "callspec", None)
+    params = callspec.params if callspec else {}
+    return (
+        "rabbit_cluster" in getattr(item, "fixturenames", ())
+        or params.get("broker_kind") == "rabbitmq"
+        or item.path.name == "test_rabbitmq_loopback.py"
+    )
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):  # type: ignore[no-untyped-def]
+    """Under pytest-xdist (--dist loadgroup) every RabbitMQ test runs in one worker: the
+    session's two-node cluster then starts once, on the one port base of this run
+    (RABBIT_PORT_BASE), and two clusters never compete for the cores. The real-time tests
+    share another. Every worker collects the same order, as xdist requires."""
+    for item in items:
+        if _rabbitmq_user(item):
+            item.add_marker(pytest.mark.xdist_group("rabbitmq"))
+        elif item.nodeid.startswith(REAL_TIME):
+            item.add_marker(pytest.mark.xdist_group("real-time"))
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        # The long tests first (a stable sort: modules stay together), so that none of them
+        # starts last while the other workers have run out of work.
+        items.sort(key=lambda item: not any(item.get_closest_marker(m) for m in LONG_MARKS))
 
 
 @pytest.fixture

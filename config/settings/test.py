@@ -1,16 +1,33 @@
-"""Test settings: the suite's own services on their own ports (.data/test/env)."""
+"""Test settings: the suite's own services on their own ports (.data/test/env).
+
+Under pytest-xdist each worker reads .data/test-<worker>/env (gw0, gw1, ...), which
+scripts/test.sh writes: a Redis and a Mosquitto of its own, and the one PostgreSQL server,
+where pytest-django gives each worker its own test database.
+"""
 
 import os
 
 from config.env import BASE_DIR, env, read_data_env
 
-read_data_env(BASE_DIR / ".data" / "test" / "env")
+# Children of a worker (ground processes, Celery workers, the live server) inherit the
+# variable and so read the same services.
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+TEST_DATA_DIR = BASE_DIR / ".data" / (f"test-{_WORKER}" if _WORKER else "test")
+if os.environ.get("TEST_PROFILE_DIR", str(TEST_DATA_DIR)) != str(TEST_DATA_DIR):
+    # A worker inherits what its controller loaded for another profile (.data/test):
+    # those values give way to the worker's own; what the user set stays.
+    for _key in os.environ.get("TEST_PROFILE_KEYS", "").split(","):
+        os.environ.pop(_key, None)
+_before = set(os.environ)
+read_data_env(TEST_DATA_DIR / "env")
+os.environ.setdefault("MEDIA_ROOT", str(TEST_DATA_DIR / "media"))
+os.environ.setdefault("TILES_DIR", str(TEST_DATA_DIR / "tiles"))
+os.environ["TEST_PROFILE_KEYS"] = ",".join(sorted(set(os.environ) - _before))
+os.environ["TEST_PROFILE_DIR"] = str(TEST_DATA_DIR)
 # The suite starts and stops many threads that touch the ORM; with a pool each finished
 # thread would keep its connection checked out. Benchmarks turn the pool back on
 # (scripts/bench.sh) to measure what production runs.
 os.environ.setdefault("DB_POOL", "false")
-os.environ.setdefault("MEDIA_ROOT", str(BASE_DIR / ".data" / "test" / "media"))
-os.environ.setdefault("TILES_DIR", str(BASE_DIR / ".data" / "test" / "tiles"))
 # The suite logs in from one address far more often than a person; the throttling tests
 # set the production rates themselves.
 os.environ.setdefault("AUTH_TOKEN_RATE", "10000/min")

@@ -60,7 +60,13 @@ POISON = [
 ]
 
 
-@pytest.mark.parametrize(("channel", "payload", "reason", "field"), POISON)
+# Ids without the payloads: these carry the collection time, and parallel workers
+# (pytest-xdist) must collect the same test names.
+@pytest.mark.parametrize(
+    ("channel", "payload", "reason", "field"),
+    POISON,
+    ids=[f"{channel}-{reason}-{field}" for channel, _, reason, field in POISON],
+)
 def test_every_channel_refuses_what_storage_cannot_take_naming_field_and_reason(
     channel, payload, reason, field
 ):

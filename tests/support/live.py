@@ -5,11 +5,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from django.conf import settings
+
 from bench.browser import launch_chromium
 from onboard.processes import Supervised, free_port, python_env
 from workers.ground import web_argv
-
-ROOT = Path(__file__).resolve().parents[2]
 
 
 class LiveServer:
@@ -24,7 +24,8 @@ class LiveServer:
             PYTHONUNBUFFERED="1",
             **(extra_env or {}),
         )
-        log = ROOT / ".data" / "test" / f"live-{self.port}.log"
+        # The test profile's folder of this pytest worker (config/settings/test.py).
+        log = Path(settings.TEST_DATA_DIR) / f"live-{self.port}.log"
         self.process = Supervised("live server", web_argv(self.port), env, log, port=self.port)
         self.process.start().wait_ready(30)
 

@@ -29,20 +29,24 @@ def _payload(fields: dict, ts: float = NOW) -> bytes:
     return json.dumps({"ts": NOW, "objects": [{"name": "Gyros", "ts": ts, "fields": fields}]})
 
 
+UNSTORABLE = [
+    (_payload({"mode": "a\x00b"}), "bad_text"),
+    (_payload({"mode": "\udc00"}), "bad_text"),
+    (_payload({"mode": "x" * 200_000}), "bad_value"),
+    (_payload({"x": 1.5}).replace("1.5", "-Infinity"), "bad_value"),
+    (_payload({"x": 1}, ts=1e30), "ts_window"),
+    (_payload({"x": 1}, ts=-1e30), "ts_window"),
+    (
+        _payload({"x": 1}).replace(f'"ts": {NOW!r}, "objects"', '"ts": 1e30, "objects"'),
+        "ts_window",
+    ),
+]
+
+
+# Ids without the payloads: these carry the collection time, and parallel workers
+# (pytest-xdist) must collect the same test names.
 @pytest.mark.parametrize(
-    ("payload", "reason"),
-    [
-        (_payload({"mode": "a\x00b"}), "bad_text"),
-        (_payload({"mode": "\udc00"}), "bad_text"),
-        (_payload({"mode": "x" * 200_000}), "bad_value"),
-        (_payload({"x": 1.5}).replace("1.5", "-Infinity"), "bad_value"),
-        (_payload({"x": 1}, ts=1e30), "ts_window"),
-        (_payload({"x": 1}, ts=-1e30), "ts_window"),
-        (
-            _payload({"x": 1}).replace(f'"ts": {NOW!r}, "objects"', '"ts": 1e30, "objects"'),
-            "ts_window",
-        ),
-    ],
+    ("payload", "reason"), UNSTORABLE, ids=[reason for _, reason in UNSTORABLE]
 )
 def test_unstorable_values_are_refused_with_their_reason(payload, reason):
     with pytest.raises(Rejected) as refused:
