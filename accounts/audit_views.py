@@ -14,13 +14,14 @@ from django.http import Http404, HttpRequest, HttpResponse, StreamingHttpRespons
 from django.shortcuts import render
 
 from fleet.models import Role
+from fleet.tenancy import acting_membership
 
 from . import audit
 from .models import AuditEvent
 
 
 def _membership(request: HttpRequest):  # type: ignore[no-untyped-def]
-    membership = getattr(request, "membership", None)
+    membership = acting_membership(request)
     if membership is None:
         raise Http404("You are not a member of any organisation.")
     return membership

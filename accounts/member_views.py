@@ -18,7 +18,7 @@ from django.urls import reverse
 from django.views.decorators.http import require_POST
 
 from fleet.models import Membership, Role
-from fleet.tenancy import SESSION_KEY
+from fleet.tenancy import SESSION_KEY, acting_membership
 
 from . import audit, members, twofactor
 from . import organisation as org_settings
@@ -28,7 +28,7 @@ from .errors import Refused
 def admin_organisation(request: HttpRequest):  # type: ignore[no-untyped-def]
     """The current organisation, if the user is its admin; 403 otherwise, and for a
     change while the session owes the second factor the organisation requires."""
-    membership = getattr(request, "membership", None)
+    membership = acting_membership(request)
     if membership is None or not membership.allows(Role.ADMIN):
         raise PermissionDenied("Only the organisation's admins manage it.")
     if request.method == "POST" and twofactor.missing(request):

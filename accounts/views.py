@@ -14,6 +14,7 @@ from django.urls import reverse_lazy
 from django.views.decorators.http import require_POST
 
 from config.throttling import LoginAttempts, parse_rate
+from fleet.tenancy import acting_organisation
 
 from . import signin, tokens, twofactor
 from .errors import Refused
@@ -50,7 +51,7 @@ def create_token(request: HttpRequest) -> HttpResponse:
             name=request.POST.get("name"),
             days=request.POST.get("expires_in_days"),
             scope=request.POST.get("scope"),
-            organisation=getattr(request, "organisation", None),
+            organisation=acting_organisation(request),
         )
     except Refused as exc:
         context = {**_security_context(request), "token_error": f"{exc.field}: {exc.message}"}

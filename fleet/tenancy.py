@@ -6,9 +6,7 @@ the session, switchable). The API filters by every organisation the user belongs
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
-from django.http import HttpRequest, HttpResponse
+from django.http import HttpRequest
 
 from .models import Membership, Organisation
 
@@ -42,21 +40,26 @@ def role_in(user, organisation: Organisation) -> Membership | None:  # type: ign
     )
 
 
-class OrganisationMiddleware:
-    """Sets request.membership and request.organisation for the portal pages."""
+_CACHE_ATTR = "_acting_membership"
 
-    def __init__(self, get_response: Callable[[HttpRequest], HttpResponse]):
-        self.get_response = get_response
 
-    def __call__(self, request: HttpRequest) -> HttpResponse:
-        membership = current_membership(request)
-        request.membership = membership  # type: ignore[attr-defined]
-        request.organisation = membership.organisation if membership else None  # type: ignore[attr-defined]
-        return self.get_response(request)
+def acting_membership(request: HttpRequest) -> Membership | None:
+    """The membership the portal acts for on this request, looked up once per request.
+
+    Looked up on first use rather than by a middleware: an API request that never asks
+    (a command) pays no query and no hop out of the event loop for it."""
+    if not hasattr(request, _CACHE_ATTR):
+        setattr(request, _CACHE_ATTR, current_membership(request))
+    return getattr(request, _CACHE_ATTR)
+
+
+def acting_organisation(request: HttpRequest) -> Organisation | None:
+    membership = acting_membership(request)
+    return membership.organisation if membership else None
 
 
 def organisation_context(request: HttpRequest) -> dict:
-    membership = getattr(request, "membership", None)
+    membership = acting_membership(request) if hasattr(request, "user") else None
     return {
         "current_membership": membership,
         "current_organisation": membership.organisation if membership else None,

@@ -13,13 +13,13 @@ from . import listing
 from .models import Drone, Membership, Role
 from .serializers import DroneDetailSerializer
 from .state import LABELS, describe
-from .tenancy import SESSION_KEY, role_in
+from .tenancy import SESSION_KEY, acting_organisation, role_in
 
 
 def _organisation_or_404(request: HttpRequest):  # type: ignore[no-untyped-def]
-    if request.organisation is None:  # type: ignore[attr-defined]
+    if acting_organisation(request) is None:
         raise Http404("You are not a member of any organisation.")
-    return request.organisation  # type: ignore[attr-defined]
+    return acting_organisation(request)
 
 
 @login_required
@@ -58,7 +58,7 @@ def drone_table(request: HttpRequest) -> JsonResponse:
 
 def _live_config(request: HttpRequest, drones: object, drone_id: str | None = None) -> dict:
     """What the page scripts need: the map tiles, the websocket, the initial state."""
-    socket = f"/ws/fleet/?org={request.organisation.slug}"  # type: ignore[attr-defined]
+    socket = f"/ws/fleet/?org={acting_organisation(request).slug}"  # type: ignore[union-attr]
     return {
         "tileUrl": settings.MAP_TILE_URL,
         "attribution": settings.MAP_TILE_ATTRIBUTION,

@@ -16,6 +16,7 @@ from rest_framework.response import Response
 
 from fleet.models import Membership, Organisation, Role
 from fleet.permissions import OrganisationRole
+from fleet.tenancy import acting_organisation
 from logs import services, uploads
 from logs.importers import HEAD_BYTES, pick_importer
 from logs.importers.base import LogFormatError
@@ -120,7 +121,8 @@ def _upload_organisation(request: Request) -> Organisation:
     the one the portal acts for, else the user's only membership; operators and up."""
     memberships = Membership.objects.for_user(request.user)
     slug = request.data.get("organisation") or ""
-    current = getattr(request._request, "organisation", None)
+    # Only a portal (session) request acts for one organisation; a token acts for none.
+    current = acting_organisation(request._request) if request.auth is None else None
     if slug:
         memberships = memberships.filter(organisation__slug=slug)
     elif current is not None:

@@ -10,6 +10,7 @@ from django.http import FileResponse, Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, render
 
 from fleet.models import Role
+from fleet.tenancy import acting_membership, acting_organisation
 from logs.models import FlightLog, LogStatus
 from logs.uploads import human_bytes
 
@@ -18,7 +19,7 @@ MAX_COMPARED = 4
 
 @login_required
 def log_list(request: HttpRequest) -> HttpResponse:
-    organisation = request.organisation  # type: ignore[attr-defined]
+    organisation = acting_organisation(request)
     if organisation is None:
         raise Http404("You are not a member of any organisation.")
     logs = FlightLog.objects.filter(organisation=organisation).select_related("owner")
@@ -27,7 +28,7 @@ def log_list(request: HttpRequest) -> HttpResponse:
     wanted = request.GET.get("status", "")
     if wanted in LogStatus.values:
         logs = logs.filter(status=wanted)
-    membership = request.membership  # type: ignore[attr-defined]
+    membership = acting_membership(request)
     return render(
         request,
         "logs/list.html",

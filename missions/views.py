@@ -12,6 +12,7 @@ from django.urls import reverse
 from fleet import envelopes
 from fleet.models import Role
 from fleet.permissions import require_role
+from fleet.tenancy import acting_organisation
 from onboard.protocol import STEP_COMMANDS
 
 from .models import Mission, MissionStatus, Picture
@@ -21,7 +22,7 @@ UUID_PLACEHOLDER = "00000000-0000-0000-0000-000000000000"
 
 
 def _organisation(request: HttpRequest):  # type: ignore[no-untyped-def]
-    organisation = request.organisation  # type: ignore[attr-defined]
+    organisation = acting_organisation(request)
     if organisation is None:
         raise Http404("You are not a member of any organisation.")
     return organisation

@@ -19,6 +19,7 @@ from rest_framework.response import Response
 
 from fleet import listing
 from fleet.models import Drone, Membership, Role
+from fleet.tenancy import acting_organisation
 from workers import operations
 from workers.ingest_status import drone_refusals
 from workers.ingest_status import ingest_status as read_ingest_status
@@ -30,9 +31,9 @@ OVERVIEW_OBJECTS = ["FlightBatteryState", "FlightTelemetryStats", "GCSTelemetryS
 
 
 def _organisation_or_404(request: HttpRequest):  # type: ignore[no-untyped-def]
-    if request.organisation is None:  # type: ignore[attr-defined]
+    if acting_organisation(request) is None:
         raise Http404("You are not a member of any organisation.")
-    return request.organisation  # type: ignore[attr-defined]
+    return acting_organisation(request)
 
 
 @login_required
