@@ -90,6 +90,10 @@ LANE_BACKOFF = (0.05, 3.0)
 DRONE_LANES = 4
 PICTURE_LANES = 2
 APART_CHANNELS = frozenset({"pictures"})
+# The batch thread writes at most one batch per this interval: a flood then costs a
+# statement per drone every 50 ms rather than per few messages, and a heartbeat (one per
+# drone every 5 s) is stored at most this much later.
+BATCH_INTERVAL_S = 0.05
 # A broker that has not acknowledged a publish in this long has lost us: the message goes
 # back to the outbox (paho may still deliver its own copy; drones ignore the repeat).
 PUBACK_WAIT_S = 5.0
@@ -570,10 +574,13 @@ class Gateway:
     def _run_batches(self) -> None:
         """Store queued messages, as many at once as are waiting; settle them."""
         while not (self._finish.is_set() and not self._batch):
+            began = time.monotonic()
             items = self._batch.take(MAX_BATCH, timeout=0.1)
             if items:
                 self._run_batch(items)
             self.counters.maybe_flush()
+            if len(items) < MAX_BATCH:  # let the next batch gather (not when stopping)
+                self._finish.wait(BATCH_INTERVAL_S - (time.monotonic() - began))
         connection.close()
 
     def _run_batch(self, items: list[tuple[str, str, str, Any, Settle | None]]) -> None:

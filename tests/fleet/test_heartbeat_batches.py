@@ -180,3 +180,19 @@ def test_the_batch_queue_keeps_order_bounds_its_size_and_wakes_its_reader():
     assert time.monotonic() - began >= 0.04
     threading.Timer(0.05, q.put, args=("late",)).start()
     assert wait_for(lambda: q.take(10, timeout=1.0) or None, 2) == ["late"]
+
+
+def test_a_parsed_heartbeat_is_the_one_its_constructor_builds():
+    import dataclasses
+
+    from onboard import protocol
+
+    message = json.loads(_beat("ACME_1", 3))
+    message["fc"]["setup"] = ["Set the receiver type"]
+    parsed = protocol.parse_heartbeat(message)
+    names = {f.name for f in dataclasses.fields(protocol.Heartbeat)}
+    assert set(vars(parsed)) == names
+    assert parsed == protocol.Heartbeat(**vars(parsed)) and hash(parsed)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        parsed.armed = False  # type: ignore[misc]
+    assert parsed.to_dict()["fc"]["setup"] == ["Set the receiver type"]
