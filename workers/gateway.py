@@ -149,7 +149,7 @@ class Gateway:
         self.taken = outbox.taken_key(self.outbox, self.owner)
         self.db_retry_s = db_retry_s
         self._load_handlers(dispatch, batch_dispatch)
-        # Messages of the batched channels, as received: (topic, payload, settle).
+        # Parsed messages of the batched channels: (topic, channel, drone id, message, settle).
         self._batch = BatchQueue(MAX_QUEUED)
         self._finish = threading.Event()
         # Set by stop(): take nothing new; then, if the lanes do not drain in time, give up
