@@ -31,47 +31,48 @@ log = logging.getLogger(__name__)
 CLOCK_TOLERANCE_S = 5.0
 
 # One statement for a whole batch: update each drone's state and learn whether it was
-# offline before (the sub-select reads the old rows under lock), so reconnections are
-# noticed without another round trip on the hot path. Revoked drones are not updated:
-# they are unknown here.
-_ROW = (
-    "(%s, %s::timestamptz, %s::float8, %s::float8, %s::float8, %s::float8, %s::float8,"
-    " %s::boolean, %s::boolean, %s, %s::jsonb, %s::jsonb)"
-)
+# offline before (`old` reads the rows under lock, before the update), so reconnections
+# are noticed without another round trip on the hot path. The rows travel as one JSON
+# parameter: the statement's text never changes (psycopg parses it once) and the
+# parameter is one C-encoded string, whatever the batch's size. Revoked drones are not
+# updated: they are unknown here.
 _HEARTBEATS_SQL = """
+WITH v AS (
+    SELECT * FROM jsonb_to_recordset(%s::jsonb) AS v(
+        drone_id text, lat float8, lon float8, alt float8, voltage float8,
+        remaining float8, armed boolean, airborne boolean, mode text, mission jsonb, fc jsonb
+    )
+), old AS (
+    SELECT id, online FROM fleet_drone
+    WHERE drone_id IN (SELECT drone_id FROM v) AND NOT credentials_revoked
+    ORDER BY id FOR UPDATE
+)
 UPDATE fleet_drone AS d SET
-    online = TRUE, last_seen = v.seen, lat = v.lat, lon = v.lon, alt = v.alt,
+    online = TRUE, last_seen = %s, lat = v.lat, lon = v.lon, alt = v.alt,
     battery_voltage = v.voltage, battery_remaining = v.remaining, armed = v.armed,
     airborne = v.airborne, flight_mode = v.mode, mission = v.mission, fc = v.fc
-FROM (VALUES {rows}) AS v(
-    drone_id, seen, lat, lon, alt, voltage, remaining, armed, airborne, mode, mission, fc
-), (
-    SELECT id, online FROM fleet_drone
-    WHERE drone_id = ANY(%s) AND NOT credentials_revoked
-    ORDER BY id FOR UPDATE
-) AS old
+FROM v, old
 WHERE d.drone_id = v.drone_id AND d.id = old.id
 RETURNING d.drone_id, d.id, d.organisation_id, old.online
 """
 
 
-def _row(heartbeat: Heartbeat, seen: datetime) -> list:
+def _row(heartbeat: Heartbeat, seen: datetime) -> dict:
     position = heartbeat.position
     mission = heartbeat.mission
-    return [
-        heartbeat.drone_id,
-        seen,
-        None if position is None else position.lat,
-        None if position is None else position.lon,
-        None if position is None else position.alt,
-        heartbeat.battery_voltage,
-        heartbeat.battery_remaining,
-        heartbeat.armed,
-        heartbeat.airborne,
-        heartbeat.flight_mode[:40],
-        None if mission is None else json.dumps(mission.to_dict()),
-        json.dumps(fc_state(heartbeat, seen)),
-    ]
+    return {
+        "drone_id": heartbeat.drone_id,
+        "lat": None if position is None else position.lat,
+        "lon": None if position is None else position.lon,
+        "alt": None if position is None else position.alt,
+        "voltage": heartbeat.battery_voltage,
+        "remaining": heartbeat.battery_remaining,
+        "armed": heartbeat.armed,
+        "airborne": heartbeat.airborne,
+        "mode": heartbeat.flight_mode[:40],
+        "mission": None if mission is None else mission.to_dict(),
+        "fc": fc_state(heartbeat, seen),
+    }
 
 
 def fc_state(heartbeat: Heartbeat, seen: datetime) -> dict:
@@ -181,14 +182,10 @@ def _store(heartbeats: list[Heartbeat], seen: datetime) -> list:
     """One UPDATE for the batch and the `online` events, in one transaction: a drone is
     never seen online without its event, and a batch the gateway retries after a lost
     connection is written whole or not at all."""
-    params: list = []
-    for heartbeat in heartbeats:
-        params += _row(heartbeat, seen)
-    params.append([heartbeat.drone_id for heartbeat in heartbeats])
-    sql = _HEARTBEATS_SQL.format(rows=", ".join([_ROW] * len(heartbeats)))
+    rows = json.dumps([_row(heartbeat, seen) for heartbeat in heartbeats])
     with transaction.atomic():
         with connection.cursor() as cursor:
-            cursor.execute(sql, params)
+            cursor.execute(_HEARTBEATS_SQL, [rows, seen])
             rows = cursor.fetchall()
         came_online = [
             ConnectionEvent(

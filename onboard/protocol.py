@@ -16,7 +16,7 @@ import secrets
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 DRONE_ID_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 REQUEST_ID_RE = re.compile(r"^[0-9a-f]{32}$")
@@ -158,9 +158,11 @@ def _type_name(value: Any) -> str:
 
 def number(value: Any, name: str, *, lo: float | None = None, hi: float | None = None) -> float:
     """A finite number (numeric strings accepted, as the HTTP endpoint sends them)."""
-    if isinstance(value, bool) or value is None:
+    if type(value) is float:  # the common case (a JSON number with a fraction): the short way
+        result = value
+    elif isinstance(value, bool) or value is None:
         raise ProtocolError(name, f"must be a number, got {_type_name(value)}")
-    if isinstance(value, str):
+    elif isinstance(value, str):
         try:
             result = float(value.strip())
         except ValueError:
@@ -887,7 +889,8 @@ def parse_heartbeat(obj: Any) -> Heartbeat:
     battery = obj.get("battery") or {}
     battery = _object(battery, "battery")
     fc = _object(obj.get("fc") or {}, "fc")
-    return Heartbeat(
+    return _checked(
+        Heartbeat,
         drone_id=drone_id,
         ts=_ts(obj),
         position=_optional_position(obj.get("position")),
@@ -902,7 +905,20 @@ def parse_heartbeat(obj: Any) -> Heartbeat:
         fc_protocol=_string(fc.get("protocol") or "unknown", "fc.protocol"),
         fc_connected=_boolean(fc.get("connected", False), "fc.connected"),
         fc_setup=_setup_list(fc.get("setup")),
+        type="heartbeat",
     )
+
+
+T = TypeVar("T")
+
+
+def _checked(cls: type[T], **fields: Any) -> T:
+    """A frozen dataclass from fields already checked, every field given: the same object
+    its constructor builds, without a `__setattr__` call per field (a fifth of a
+    heartbeat's parse, which the ground does for every drone every 5 s)."""
+    instance = object.__new__(cls)
+    instance.__dict__.update(fields)
+    return instance
 
 
 def _setup_list(value: Any) -> tuple[str, ...]:

@@ -36,6 +36,8 @@ DEFAULT_MAX_PAYLOAD_BYTES = 256 * 1024
 BATCH_DISPATCH: dict[str, str] = {
     "heartbeats": "fleet.heartbeats.handle_heartbeats",
 }
-MAX_BATCH = 500
+# Messages per batch at most: the statement writes one row per drone (its newest), so a
+# large batch of a flood costs little more than a small one.
+MAX_BATCH = 5000
 # Parsed messages waiting for a batch handler; beyond this they are dropped as overload.
 MAX_QUEUED = 50_000

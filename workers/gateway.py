@@ -21,12 +21,13 @@ from __future__ import annotations
 import json
 import logging
 import os
-import queue
 import socket
 import threading
 import time
+from collections import Counter
 from collections.abc import Callable, Sequence
 from typing import Any
+from urllib.parse import urlsplit
 
 import kombu.exceptions
 import paho.mqtt.client as mqtt
@@ -36,12 +37,14 @@ from django.db.utils import DatabaseError, InterfaceError, OperationalError
 from django.utils.module_loading import import_string
 
 from onboard import protocol
+from onboard.mqtt import parse_broker_url
 from onboard.retry import Backoff, retry_call
 from workers import broker, outbox
 from workers.broker.figures import RabbitMQPoller
 from workers.broker.mosquitto_sys import SYS_FILTER, SysView
+from workers.broker.mqtt_reader import Subscriber
 from workers.counters import Counters, is_alive
-from workers.lanes import Lanes
+from workers.lanes import BatchQueue, Lanes
 
 from .dispatch import (
     BATCH_DISPATCH,
@@ -52,7 +55,6 @@ from .dispatch import (
     MAX_QUEUED,
 )
 
-QUEUED = "queued"
 # Handing a message back unacknowledged: the gateway stopped (or gave up) before storing
 # it, so the broker delivers it again (to this session on reconnect, or to a peer).
 HELD_BACK = "held_back"
@@ -88,6 +90,10 @@ LANE_BACKOFF = (0.05, 3.0)
 DRONE_LANES = 4
 PICTURE_LANES = 2
 APART_CHANNELS = frozenset({"pictures"})
+# The batch thread writes at most one batch per this interval: a flood then costs a
+# statement per drone every 50 ms rather than per few messages, and a heartbeat (one per
+# drone every 5 s) is stored at most this much later.
+BATCH_INTERVAL_S = 0.05
 # A broker that has not acknowledged a publish in this long has lost us: the message goes
 # back to the outbox (paho may still deliver its own copy; drones ignore the repeat).
 PUBACK_WAIT_S = 5.0
@@ -102,6 +108,15 @@ def _close_connection() -> None:
         connection.close()
     except DatabaseError:
         pass
+
+
+def _counter_names(reason: str | None) -> tuple[str, ...]:
+    """What a message's outcome adds to: handled, unhandled.<channel>, or dropped."""
+    if reason is None:
+        return ("handled",)
+    if reason.startswith("unhandled."):
+        return (reason,)
+    return ("dropped", f"dropped.{reason}")
 
 
 def subscription(channel: str) -> str:
@@ -134,9 +149,8 @@ class Gateway:
         self.taken = outbox.taken_key(self.outbox, self.owner)
         self.db_retry_s = db_retry_s
         self._load_handlers(dispatch, batch_dispatch)
-        self._queue: queue.Queue[tuple[str, str, Any, Settle | None]] = queue.Queue(
-            maxsize=MAX_QUEUED
-        )
+        # Parsed messages of the batched channels: (topic, channel, drone id, message, settle).
+        self._batch = BatchQueue(MAX_QUEUED)
         self._finish = threading.Event()
         # Set by stop(): take nothing new; then, if the lanes do not drain in time, give up
         # retrying (what is left stays unacknowledged with the broker).
@@ -161,6 +175,7 @@ class Gateway:
             raise ValueError("a persistent gateway session needs a stable client_id")
         self.persistent = persistent
         self.client = self._mqtt_client(client_id, persistent)
+        self.batch_readers = self._batch_readers(client_id)
         self.failover = broker.attach_failover(self.client, self.urls)
         self.sys_view, self.rabbitmq_poller = self._broker_watch()
         self._outbox_thread = threading.Thread(
@@ -222,6 +237,31 @@ class Gateway:
         client.on_message = self._on_message
         return client
 
+    def _batch_readers(self, client_id: str) -> dict[str, Subscriber]:
+        """On Mosquitto over plain TCP, a fast reader (workers.broker.mqtt_reader) per
+        batched channel, on a connection of its own: paho's per-message work would cost
+        the heartbeats two thirds of their rate. It settles a QoS 1 delivery only when
+        told, as paho does here. Over TLS, and on RabbitMQ, the channel stays on paho or
+        the AMQP consumer. The session is clean: heartbeats are QoS 0, never kept for an
+        absent subscriber anyway."""
+        url = self.urls[0]
+        if self.consumer is not None or urlsplit(url).scheme not in ("mqtt", "tcp"):
+            return {}
+        node = parse_broker_url(url)
+        readers = {}
+        for channel in self.batch_handlers:
+            reader = Subscriber(
+                url,
+                f"{client_id}-{channel}",
+                subscription(channel),
+                self._take_batched,
+                qos=protocol.QOS[channel],
+                manual_ack=True,
+            )
+            reader.username, reader.password = node.username, node.password  # URL-decoded
+            readers[channel] = reader
+        return readers
+
     def _broker_watch(self) -> tuple[SysView | None, RabbitMQPoller | None]:
         """What this gateway writes for the operations page about the broker: on Mosquitto
         its view of `$SYS` and of its link (workers.broker.mosquitto_sys); on RabbitMQ the
@@ -260,6 +300,8 @@ class Gateway:
             self.rabbitmq_poller.start()
         self._outbox_thread.start()
         self._batch_thread.start()
+        for reader in self.batch_readers.values():
+            reader.start()
 
     def stop(self, timeout: float = 5.0) -> None:
         """Drain: stop taking outbox work and new messages, store what is in hand (given
@@ -270,6 +312,8 @@ class Gateway:
         self._drain(timeout)
         self._finish.set()  # nothing new arrives now: the batch thread empties the queue
         self._batch_thread.join(timeout)
+        for reader in self.batch_readers.values():
+            reader.stop()  # after the batch thread settled what it stored
         if self.consumer is not None:
             self.consumer.stop(timeout)  # sends the acknowledgements settled so far
         if self.rabbitmq_poller is not None:
@@ -296,9 +340,10 @@ class Gateway:
         deadline = time.monotonic() + timeout
         if not self.connected.wait(timeout):
             return False
-        if self.consumer is None:
-            return True
-        return self.consumer.subscribed.wait(max(0.0, deadline - time.monotonic()))
+        consumers = [*self.batch_readers.values()]
+        if self.consumer is not None:
+            consumers.append(self.consumer)
+        return all(c.subscribed.wait(max(0.0, deadline - time.monotonic())) for c in consumers)
 
     # -- paho callbacks ---------------------------------------------------------------------
 
@@ -313,7 +358,11 @@ class Gateway:
             # Nagle + delayed ACKs add ~40 ms per command round trip (docs/uavtalk.md).
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         if self.consumer is None:
-            filters = [(subscription(ch), protocol.QOS[ch]) for ch in self.channels]
+            own = [ch for ch in self.channels if ch not in self.batch_readers]
+            filters = [(subscription(ch), protocol.QOS[ch]) for ch in own]
+            if self.batch_readers and self.persistent:
+                # A session kept from before the readers existed still holds theirs.
+                client.unsubscribe([subscription(ch) for ch in self.batch_readers])
             if self.sys_view is not None:
                 self.sys_view.link_up(self.address)
                 filters.append((SYS_FILTER, 0))
@@ -365,10 +414,11 @@ class Gateway:
             return  # stopping: left unacknowledged, the broker delivers it again
         parts = topic_name.split("/")
         channel = parts[1] if len(parts) == 3 else ""
+        if channel in self.batch_handlers:
+            self._take_batched(topic_name, payload, settle)
+            return
         try:
-            if channel in self.batch_handlers:
-                self._queue_batch(topic_name, payload, settle)
-            elif settle is None and self.lanes.backlog() >= MAX_QUEUED:
+            if settle is None and self.lanes.backlog() >= MAX_QUEUED:
                 self._count("overload")  # QoS 0 only: QoS 1 is bounded by the broker
                 self._count_against_drone(topic_name, "overload")
             else:
@@ -381,10 +431,30 @@ class Gateway:
                 settle()  # dropped: it would fail the same way again
         self.counters.maybe_flush()
 
-    def _queue_batch(self, topic_name: str, payload: bytes, settle: Settle | None) -> None:
-        reason = self.handle(topic_name, payload, settle=settle)
-        if reason != QUEUED and settle is not None:
-            settle()  # refused: never to be stored
+    def _take_batched(self, topic_name: str, payload: bytes, settle: Settle | None) -> None:
+        """A message of a batched channel, from a network thread: parsed here, so that
+        parsing overlaps the batch thread's wait on the database, and queued for it; or
+        refused (counted, per drone and reason) and settled for good: unparsable, or
+        overload when the queue is full (a newer heartbeat follows)."""
+        if self._closing.is_set():
+            return  # stopping: left unacknowledged, the broker delivers it again
+        try:
+            parsed = (
+                self._parse(topic_name, payload) if len(self._batch) < MAX_QUEUED else "overload"
+            )
+            if not isinstance(parsed, str):
+                channel, drone_id, message = parsed
+                if self._batch.put((topic_name, channel, drone_id, message, settle)):
+                    return
+                parsed = "overload"
+        except Exception:  # noqa: BLE001 - the gateway must outlive any bug in a parser
+            log.exception("could not take %s", topic_name)
+            parsed = "handler_error"
+        self.counters.incr("received")
+        self._count(parsed)
+        self._count_against_drone(topic_name, parsed)
+        if settle is not None:
+            settle()
 
     def _work(self, item: tuple[str, bytes, Settle | None]) -> None:
         """On a lane: handle the message, retrying through outages; settle it unless the
@@ -407,32 +477,19 @@ class Gateway:
 
     # -- inbound ----------------------------------------------------------------------------
 
-    def handle(
-        self,
-        topic_name: str,
-        payload: bytes,
-        *,
-        patient: bool = False,
-        settle: Settle | None = None,
-    ) -> str | None:
-        """Process one message; returns None if handled, else why it was dropped/skipped
-        (QUEUED: handed to the batch thread with its `settle`). `patient` retries through
-        database and Redis outages until the gateway stops (see `with_db_retry`)."""
+    def handle(self, topic_name: str, payload: bytes, *, patient: bool = False) -> str | None:
+        """Process one message; returns None if handled, else why it was dropped/skipped.
+        `patient` retries through database and Redis outages until the gateway stops (see
+        `with_db_retry`). A batched channel's message is stored alone, as a batch of one."""
         self.counters.incr("received")
-        reason = self._handle(topic_name, payload, patient, settle)
-        if reason != QUEUED:
-            self._count(reason)
-            self._count_against_drone(topic_name, reason)
+        reason = self._handle(topic_name, payload, patient)
+        self._count(reason)
+        self._count_against_drone(topic_name, reason)
         return reason
 
     def _count(self, reason: str | None) -> None:
-        if reason is None:
-            self.counters.incr("handled")
-        elif reason.startswith("unhandled."):
-            self.counters.incr(reason)
-        else:
-            self.counters.incr("dropped")
-            self.counters.incr(f"dropped.{reason}")
+        for name in _counter_names(reason):
+            self.counters.incr(name)
 
     def _count_against_drone(self, topic_name: str, reason: str | None) -> None:
         """A dropped message also counts against the drone of its topic, as
@@ -443,9 +500,20 @@ class Gateway:
         if len(parts) == 3 and parts[1] in protocol.OUT_CHANNELS and protocol.is_drone_id(parts[0]):
             self.counters.refused(parts[0], f"{parts[1]}.{reason}")
 
-    def _handle(
-        self, topic_name: str, payload: bytes, patient: bool, settle: Settle | None
-    ) -> str | None:
+    def _handle(self, topic_name: str, payload: bytes, patient: bool) -> str | None:
+        parsed = self._parse(topic_name, payload)
+        if isinstance(parsed, str):
+            return parsed
+        channel, drone_id, message = parsed
+        if channel in self.batch_handlers:
+            batch_handler = self.batch_handlers[channel]
+            return self.with_db_retry(batch_handler, [(drone_id, message)], patient=patient)[0]
+        handler = self.handlers[channel]
+        assert handler is not None
+        return self.with_db_retry(handler, drone_id, message, patient=patient)
+
+    def _parse(self, topic_name: str, payload: bytes) -> tuple[str, str, Any] | str:
+        """(channel, drone id, parsed message), or why the message is refused."""
         try:
             drone_id, channel, direction = protocol.split_topic(topic_name)
         except protocol.ProtocolError:
@@ -454,22 +522,14 @@ class Gateway:
             return "bad_topic"
         if len(payload) > MAX_PAYLOAD_BYTES.get(channel, DEFAULT_MAX_PAYLOAD_BYTES):
             return "too_large"
-        handler = self.handlers.get(channel)
-        if handler is None and channel not in self.batch_handlers:
+        if self.handlers.get(channel) is None and channel not in self.batch_handlers:
             return f"unhandled.{channel}"
         try:
             message = protocol.PARSERS[(channel, "out")](protocol.decode_json(payload))
         except protocol.ProtocolError as exc:
             log.debug("refused %s: %s", topic_name, exc)
             return exc.reason
-        if channel in self.batch_handlers:
-            try:
-                self._queue.put_nowait((channel, drone_id, message, settle))
-            except queue.Full:
-                return "overload"
-            return QUEUED
-        assert handler is not None
-        return self.with_db_retry(handler, drone_id, message, patient=patient)
+        return channel, drone_id, message
 
     def with_db_retry(self, fn: Callable[..., Any], *args: Any, patient: bool = False) -> Any:
         """`fn(*args)`, called again on a fresh connection while the database is
@@ -512,39 +572,48 @@ class Gateway:
         )
 
     def _run_batches(self) -> None:
-        """Hand queued messages to their batch handlers, as many at once as are waiting."""
-        while not (self._finish.is_set() and self._queue.empty()):
-            try:
-                items = [self._queue.get(timeout=0.1)]
-            except queue.Empty:
-                continue
-            while len(items) < MAX_BATCH:
-                try:
-                    items.append(self._queue.get_nowait())
-                except queue.Empty:
-                    break
-            by_channel: dict[str, list[tuple[str, Any]]] = {}
-            for channel, drone_id, message, _settle in items:
-                by_channel.setdefault(channel, []).append((drone_id, message))
-            for channel, batch in by_channel.items():
-                self._run_batch(channel, batch)
-            for *_, settle in items:
-                if settle is not None:
-                    settle()  # stored, or dropped for good (a newer heartbeat follows)
+        """Store queued messages, as many at once as are waiting; settle them."""
+        while not (self._finish.is_set() and not self._batch):
+            began = time.monotonic()
+            items = self._batch.take(MAX_BATCH, timeout=0.1)
+            if items:
+                self._run_batch(items)
             self.counters.maybe_flush()
+            if len(items) < MAX_BATCH:  # let the next batch gather (not when stopping)
+                self._finish.wait(BATCH_INTERVAL_S - (time.monotonic() - began))
         connection.close()
 
-    def _run_batch(self, channel: str, batch: list[tuple[str, Any]]) -> None:
+    def _run_batch(self, items: list[tuple[str, str, str, Any, Settle | None]]) -> None:
+        """One statement per channel for the parsed messages; every one counted (per
+        drone and reason when refused), then settled: stored, or dropped for good."""
+        by_channel: dict[str, list[tuple[str, Any]]] = {}
+        for _topic, channel, drone_id, message, _settle in items:
+            by_channel.setdefault(channel, []).append((drone_id, message))
+        outcomes = {
+            channel: iter(self._store_batch(channel, batch))
+            for channel, batch in by_channel.items()
+        }
+        counts: Counter[str] = Counter(received=len(items), handled=0)
+        for topic_name, channel, _drone_id, _message, _settle in items:
+            reason = next(outcomes[channel])
+            if reason is None:
+                counts["handled"] += 1
+            else:
+                counts.update(_counter_names(reason))
+                self._count_against_drone(topic_name, reason)
+        for name, amount in counts.items():
+            self.counters.incr(name, amount)
+        for *_, settle in items:
+            if settle is not None:
+                settle()
+
+    def _store_batch(self, channel: str, batch: list[tuple[str, Any]]) -> list[str | None]:
         try:
-            reasons = self.with_db_retry(self.batch_handlers[channel], batch)
+            return self.with_db_retry(self.batch_handlers[channel], batch)
         except Exception:  # noqa: BLE001 - the gateway must outlive any bug in a handler
             log.exception("batch handler for %s failed", channel)
-            reasons = ["handler_error"] * len(batch)
             connection.close()
-        for (drone_id, _message), reason in zip(batch, reasons, strict=True):
-            self._count(reason)
-            if reason is not None:
-                self.counters.refused(drone_id, f"{channel}.{reason}")
+            return ["handler_error"] * len(batch)
 
     # -- outbound ---------------------------------------------------------------------------
 

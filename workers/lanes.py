@@ -3,7 +3,8 @@
 The gateway hands every drone message to a lane chosen by the drone id, so one drone's
 messages are handled in the order they arrived (a step's "started" before its
 "completed") while other drones' go on in parallel, and the MQTT network thread never
-waits on the database, Redis or a picture decoder.
+waits on the database, Redis or a picture decoder. Heartbeats, stored many at once,
+go instead to one `BatchQueue`, which one thread empties in arrival order.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import queue
 import threading
 import time
 import zlib
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
@@ -73,3 +75,45 @@ class Lanes:
                     log.exception("lane work failed")
         finally:
             self.on_exit()
+
+
+class BatchQueue:
+    """A bounded first-in-first-out queue that one thread empties in batches.
+
+    Filling it is one append and a flag test, so a network thread handing over tens of
+    thousands of messages a second spends next to nothing per message; `take` returns
+    everything waiting (up to a limit) at once, in arrival order.
+    """
+
+    def __init__(self, limit: int) -> None:
+        self.limit = limit
+        self._items: deque[Any] = deque()
+        self._ready = threading.Event()
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def put(self, item: Any) -> bool:
+        """Queue `item`; False (and nothing queued) when `limit` items are waiting."""
+        if len(self._items) >= self.limit:
+            return False
+        self._items.append(item)
+        if not self._ready.is_set():
+            self._ready.set()
+        return True
+
+    def take(self, most: int, timeout: float) -> list[Any]:
+        """Up to `most` items in arrival order, waiting up to `timeout` for the first."""
+        if not self._items:
+            # Cleared, then looked again: an item put from now on sets the flag again.
+            self._ready.clear()
+            if not self._items:
+                self._ready.wait(timeout)
+        taken: list[Any] = []
+        pop = self._items.popleft
+        while len(taken) < most:
+            try:
+                taken.append(pop())
+            except IndexError:
+                break
+        return taken

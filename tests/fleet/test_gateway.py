@@ -367,7 +367,7 @@ def test_a_batch_of_heartbeats_is_one_update_keeping_each_drones_newest(world_tx
     with CaptureQueriesContext(connection) as queries:
         reasons = handle_heartbeats(batch)
     assert reasons == [None, None, None, "unknown_drone", "drone_id_mismatch"]
-    updates = [q for q in queries.captured_queries if q["sql"].lstrip().startswith("UPDATE")]
+    updates = [q for q in queries.captured_queries if "UPDATE fleet_drone" in q["sql"]]
     assert len(updates) == 1
     assert Drone.objects.get(drone_id="ACME_1").lat == 3.0
     assert Drone.objects.get(drone_id="GLOBEX_1").lat == 2.0
