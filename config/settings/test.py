@@ -20,6 +20,12 @@ if os.environ.get("TEST_PROFILE_DIR", str(TEST_DATA_DIR)) != str(TEST_DATA_DIR):
         os.environ.pop(_key, None)
 _before = set(os.environ)
 read_data_env(TEST_DATA_DIR / "env")
+if _WORKER:
+    # A test that runs the service script (`services.sh start test`) must find this
+    # worker's services where they are, not start others on the controller's ports.
+    for _name in ("PG_PORT", "REDIS_PORT", "MQTT_PORT"):
+        if _name in os.environ:
+            os.environ[f"TEST_{_name}"] = os.environ[_name]
 os.environ.setdefault("MEDIA_ROOT", str(TEST_DATA_DIR / "media"))
 os.environ.setdefault("TILES_DIR", str(TEST_DATA_DIR / "tiles"))
 os.environ["TEST_PROFILE_KEYS"] = ",".join(sorted(set(os.environ) - _before))
