@@ -222,7 +222,9 @@ def _script(*argv: str, env: dict[str, str] | None = None, timeout: float = 240)
 def database_and_redis(config: LoadConfig) -> dict[str, str]:
     """The test profile's PostgreSQL and Redis, with a database and db index of our own."""
     _script(str(ROOT / "scripts" / "services.sh"), "start", "test")
-    test_env = _read_env(ROOT / ".data" / "test" / "env")
+    # The profile the script just started: a test worker's own (DATA_DIR), else .data/test.
+    profile = Path(os.environ.get("DATA_DIR") or ROOT / ".data" / "test")
+    test_env = _read_env(profile / "env")
     import psycopg
     from psycopg import sql
 

@@ -75,6 +75,9 @@ def pytest_collection_modifyitems(config, items):  # type: ignore[no-untyped-def
             item.add_marker(pytest.mark.xdist_group("rabbitmq"))
         elif item.nodeid.startswith(REAL_TIME):
             item.add_marker(pytest.mark.xdist_group("real-time"))
+        elif item.nodeid.startswith("tests/firmware/test_arming_switch.py"):
+            # They build and run one firmware binary in the checkout: one worker at a time.
+            item.add_marker(pytest.mark.xdist_group("firmware-build"))
     if os.environ.get("PYTEST_XDIST_WORKER"):
         # The long tests first (a stable sort: modules stay together), so that none of them
         # starts last while the other workers have run out of work.
