@@ -2,12 +2,17 @@
 
 import os
 
-from django.core.asgi import get_asgi_application
+import django
 
 # Production unless told otherwise: `make run` and the tests name their settings module.
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.production")
-# Build Django's app before importing anything that touches models (Channels docs).
-django_asgi_app = get_asgi_application()
+# Build Django's app before importing anything that touches models (Channels docs); what
+# get_asgi_application() does, with the handler that runs middleware in the event loop.
+django.setup(set_prefix=False)
+
+from config.middleware import EventLoopASGIHandler  # noqa: E402
+
+django_asgi_app = EventLoopASGIHandler()
 
 from channels.auth import AuthMiddlewareStack  # noqa: E402
 from channels.routing import ProtocolTypeRouter, URLRouter  # noqa: E402

@@ -26,6 +26,8 @@ from django.core.exceptions import RequestDataTooBig, TooManyFieldsSent
 from django.http import HttpRequest, HttpResponse, JsonResponse
 from django.utils.deprecation import MiddlewareMixin
 
+from config.middleware import EventLoopHooks
+
 ASGIApp = Callable[
     [dict, Callable[[], Awaitable[dict]], Callable[[dict], Awaitable[None]]], Awaitable[None]
 ]
@@ -69,7 +71,7 @@ def _content_length(value: str | bytes | None) -> int | None:
         return None
 
 
-class BodyLimitMiddleware(MiddlewareMixin):
+class BodyLimitMiddleware(EventLoopHooks, MiddlewareMixin):
     def process_request(self, request: HttpRequest) -> HttpResponse | None:
         limit = limit_for(request.path)
         length = _content_length(request.META.get("CONTENT_LENGTH"))

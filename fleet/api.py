@@ -213,7 +213,7 @@ class DroneCommandView(AsyncAPIView):
         command = self.order["command"]
         if self.prepared is None:
             return await self.chain(request, drone_id, command)
-        outcome = await commands.execute(self.prepared)
+        outcome = await commands.execute(self.prepared, after_answer=self.after_answer)
         if outcome.timed_out:
             raise NoReply(f"No reply from {drone_id} within {settings.COMMAND_TIMEOUT_S:g} s.")
         reply = outcome.reply or {}

@@ -4,21 +4,70 @@ Under ASGI, sync views share one thread: a command waiting 15 s for a reply woul
 the whole site. This keeps DRF's authentication, CSRF, permissions, content negotiation,
 error shape and OpenAPI schema (drf-spectacular reads the class), runs those steps in a
 worker thread, and awaits the handler on the event loop.
+
+A JSON answer is rendered on the event loop (Django would take a rendered DRF response to
+a thread once more), and work the handler put in `after_answer` runs after the answer has
+been sent, in the request's thread.
 """
 
 from __future__ import annotations
 
 import inspect
+import logging
+from collections.abc import Callable
 from typing import Any
 
 from asgiref.sync import markcoroutinefunction, sync_to_async
-from django.http import HttpRequest
+from django.http import HttpRequest, HttpResponse
+from rest_framework.renderers import JSONRenderer
 from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
+log = logging.getLogger(__name__)
+
+
+class Answered(HttpResponse):
+    """A rendered API response; `after_answer` runs when the server closes it, once sent.
+
+    `data` is the DRF response's, for callers that read it (the test client's users)."""
+
+    def __init__(self, response: Response, after_answer: list[Callable[[], None]]) -> None:
+        super().__init__(response.content, status=response.status_code)
+        for header, value in response.items():
+            self[header] = value
+        self.cookies = response.cookies
+        self.data = response.data
+        self.after_answer = after_answer
+
+    def close(self) -> None:
+        for job in self.after_answer:
+            try:
+                job()
+            except Exception:  # noqa: BLE001 - the answer is out; the others still run
+                log.exception("work after answering %r failed", job)
+        self.after_answer = []
+        super().close()
+
+
+async def rendered(response: HttpResponse, after_answer: list[Callable[[], None]]) -> HttpResponse:
+    """JSON is rendered here; another renderer (the browsable API) in a thread. A plain
+    Django response is returned as it is, its follow-up work done first."""
+    if not isinstance(response, Response):
+        for job in after_answer:
+            await sync_to_async(job)()
+        return response
+    if isinstance(getattr(response, "accepted_renderer", None), JSONRenderer):
+        response.render()
+    else:
+        await sync_to_async(response.render)()
+    return Answered(response, after_answer)
+
 
 class AsyncAPIView(APIView):
+    # Work a handler leaves for after its answer is sent (a log entry, for one).
+    after_answer: list[Callable[[], None]]
+
     @classmethod
     def as_view(cls, **initkwargs: Any):  # type: ignore[no-untyped-def]
         sync_view = super().as_view(**initkwargs)
@@ -45,6 +94,7 @@ class AsyncAPIView(APIView):
     async def adispatch(self, request: HttpRequest, *args: Any, **kwargs: Any) -> Response:
         self.args = args
         self.kwargs = kwargs
+        self.after_answer = []
         drf_request = self.initialize_request(request, *args, **kwargs)
         self.request = drf_request
         self.headers = self.default_response_headers
@@ -62,4 +112,4 @@ class AsyncAPIView(APIView):
         except Exception as exc:  # noqa: BLE001 - DRF turns it into the API's error shape
             response = await sync_to_async(self.handle_exception)(exc)
         self.response = self.finalize_response(drf_request, response, *args, **kwargs)
-        return self.response
+        return await rendered(self.response, self.after_answer)

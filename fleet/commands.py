@@ -9,8 +9,11 @@ and answered with the drone's own reply, correlated by a fresh request id.
 from __future__ import annotations
 
 import asyncio
+import contextvars
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from asgiref.sync import sync_to_async
@@ -176,15 +179,20 @@ def record(entry: CommandLog, reply: dict | None) -> None:
         entry.save(update_fields=["outcome", "response", "error", "answered_at"])
 
 
-def settle(prepared: Prepared, reply: dict | None) -> None:
-    """After the answer (or its absence): the log entry, and the drone's new target."""
-    record(prepared.entry, reply)
-    envelopes.remember_target(prepared.drone, prepared.command, reply)
-
-
-async def execute(prepared: Prepared, *, timeout: float | None = None) -> Outcome:
+async def execute(
+    prepared: Prepared,
+    *,
+    timeout: float | None = None,
+    after_answer: list[Callable[[], None]] | None = None,
+) -> Outcome:
     """Publish to `<id>/control/in` (workers.direct: this process's own broker connection,
-    else a gateway through the outbox) and wait for the drone's own reply."""
+    else a gateway through the outbox) and wait for the drone's own reply.
+
+    The drone's new target is stored before this returns: the envelope check of the next
+    command starts from it. The answer's log entry is written here too, unless the caller
+    passes `after_answer`, a list it runs (synchronously) once it has answered its own
+    caller, so that writing it is not on the way back to the operator.
+    """
     request = protocol.ControlRequest(prepared.entry.request_id, prepared.command, prepared.params)
     # The log entry is written while the command travels, not before: a database commit
     # less on the way to the drone. It is in the log before the answer is recorded.
@@ -198,7 +206,14 @@ async def execute(prepared: Prepared, *, timeout: float | None = None) -> Outcom
             await logged
         except DatabaseError:
             log.warning("command %s not logged yet; retried with its answer", request.request_id)
-    await sync_to_async(settle)(prepared, reply)
+    if envelopes.moves_target(prepared.command, reply):
+        await sync_to_async(envelopes.remember_target)(prepared.drone, prepared.command, reply)
+    # Later, it still knows the request it answers (the audit trail names its address).
+    answered = partial(contextvars.copy_context().run, record, prepared.entry, reply)
+    if after_answer is None:
+        await sync_to_async(answered)()
+    else:
+        after_answer.append(answered)
     return Outcome(request.request_id, prepared.command, reply)
 
 

@@ -301,13 +301,18 @@ def check_plan(
         raise OutsideEnvelope(found[0].violation, found[0].index)
 
 
+def moves_target(command: str, reply: Mapping[str, Any] | None) -> bool:
+    """The drone accepted a navigation command and said where it now flies."""
+    if not reply or not reply.get("ok") or command not in protocol.NAVIGATION_COMMANDS:
+        return False
+    return isinstance((reply.get("result") or {}).get("target"), dict)
+
+
 def remember_target(drone: Drone, command: str, reply: Mapping[str, Any] | None) -> None:
     """After the drone accepted a navigation command: its new target, and its home."""
-    if not reply or not reply.get("ok") or command not in protocol.NAVIGATION_COMMANDS:
+    if not moves_target(command, reply):
         return
-    target = (reply.get("result") or {}).get("target")
-    if not isinstance(target, dict):
-        return
+    target = reply["result"]["target"]  # type: ignore[index]
     ned = [target.get("north"), target.get("east"), target.get("down")]
     fields = {"nav_target": ned}
     if command == "takeoff" and drone.lat is not None and not drone.airborne:

@@ -468,7 +468,13 @@ class ControlRequest:
     ts: float = field(default_factory=now)
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        # Spelled out: dataclasses.asdict deep-copies, on every command's way out.
+        return {
+            "request_id": self.request_id,
+            "command": self.command,
+            "params": dict(self.params),
+            "ts": self.ts,
+        }
 
 
 @dataclass(frozen=True)
@@ -481,7 +487,14 @@ class ControlResponse:
     ts: float = field(default_factory=now)
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        return {
+            "request_id": self.request_id,
+            "command": self.command,
+            "ok": self.ok,
+            "result": None if self.result is None else dict(self.result),
+            "error": self.error,
+            "ts": self.ts,
+        }
 
 
 def control_request(command: str, params: dict | None = None) -> ControlRequest:

@@ -201,23 +201,36 @@ class PastViewConsumer(GroupConsumer):
             await self._teleop_reply(False, f"{stale} Teleoperation needs a current view.")
             return
         assert self.drone is not None
+        # The commands' log entries are written once the page has its answer.
+        answered: list = []
+        try:
+            ok, error, sent = await self._send_moves(stick, answered)
+            await self._teleop_reply(ok, error, sent)
+        finally:
+            for job in answered:
+                await sync_to_async(job)()
+
+    async def _send_moves(self, stick: Stick, answered: list) -> tuple[bool, str | None, list]:
+        """The stick's commands in order, each after the previous one's reply (its envelope
+        check starts from the target that reply set); stops at the first refusal."""
+        assert self.drone is not None and self.heading is not None
         user = self.scope["user"]
-        sent = []
+        sent: list = []
         for command, value in commands_for(stick, self.heading, settings.PASTVIEW_TELEOP_STEP_M):
             try:
                 prepared = await sync_to_async(commands.prepare)(
                     user, self.drone.drone_id, command, {"value": value}
                 )
-                outcome = await commands.execute(prepared, timeout=TELEOP_REPLY_TIMEOUT_S)
+                outcome = await commands.execute(
+                    prepared, timeout=TELEOP_REPLY_TIMEOUT_S, after_answer=answered
+                )
             except commands.CommandRefused as exc:
-                await self._teleop_reply(False, exc.message, sent)
-                return
+                return False, exc.message, sent
             if not outcome.ok:
                 error = "No reply from the drone." if outcome.timed_out else outcome.reply["error"]  # type: ignore[index]
-                await self._teleop_reply(False, error, sent)
-                return
+                return False, error, sent
             sent.append({"command": command, "value": value})
-        await self._teleop_reply(True, None, sent)
+        return True, None, sent
 
     async def _teleop_reply(self, ok: bool, error: str | None, sent: list | None = None) -> None:
         await self.send_json({"type": "teleop", "ok": ok, "error": error, "sent": sent or []})

@@ -32,6 +32,7 @@ INSTALLED_APPS = [
 ]
 
 MIDDLEWARE = [
+    # Under ASGI each of Django's own runs as its event-loop variant (config/middleware.py).
     "django.middleware.security.SecurityMiddleware",
     "config.bodylimits.BodyLimitMiddleware",
     "config.staticfiles.StaticFilesMiddleware",
