@@ -43,11 +43,14 @@ def build_world() -> World:
 
 
 # Tests whose assertions hold only with a core to spare (simulated flights in real time,
-# frame rates, a deadline after a kill): under xdist one worker runs them one at a time.
+# frame rates, a deadline after a kill, ticks on time): marked `realtime`, which a
+# parallel run (scripts/test.sh) runs in one worker once every other test has finished.
 REAL_TIME = (
     "tests/missions/test_experiments.py",
+    "tests/missions/test_services.py::test_replacement_with_no_drone_available",
     "tests/pastview/test_e2e.py",
-    "tests/workers/test_faults.py::test_a_gateway_killed_mid_mission",
+    "tests/workers/test_faults.py",
+    "tests/workers/test_loaddrone.py::test_two_hundred_load_drones",
 )
 # Markers of the tests that take seconds to minutes each (pyproject.toml).
 LONG_MARKS = ("e2e", "browser", "slow")
@@ -69,11 +72,12 @@ def pytest_collection_modifyitems(config, items):  # type: ignore[no-untyped-def
     """Under pytest-xdist (--dist loadgroup) every RabbitMQ test runs in one worker: the
     session's two-node cluster then starts once, on the one port base of this run
     (RABBIT_PORT_BASE), and two clusters never compete for the cores. The real-time tests
-    share another. Every worker collects the same order, as xdist requires."""
+    share another (and are marked `realtime`). Every worker collects the same order, as xdist requires."""
     for item in items:
         if _rabbitmq_user(item):
             item.add_marker(pytest.mark.xdist_group("rabbitmq"))
         elif item.nodeid.startswith(REAL_TIME):
+            item.add_marker(pytest.mark.realtime)
             item.add_marker(pytest.mark.xdist_group("real-time"))
         elif item.nodeid.startswith("tests/firmware/test_arming_switch.py"):
             # They build and run one firmware binary in the checkout: one worker at a time.
