@@ -41,11 +41,15 @@ as_pg() {
 }
 
 secret() { # secret NAME: a random value generated once and kept in the data directory
-  local file="$DATA/secrets/$1"
+  local file="$DATA/secrets/$1" draft
   if [ ! -s "$file" ]; then
     mkdir -p "$DATA/secrets"; chmod 700 "$DATA/secrets"
-    head -c 24 /dev/urandom | base64 | tr -dc 'A-Za-z0-9' | head -c 32 >"$file"
-    chmod 600 "$file"
+    draft=$(mktemp "$DATA/secrets/.$1.XXXXXX")
+    head -c 24 /dev/urandom | base64 | tr -dc 'A-Za-z0-9' | head -c 32 >"$draft"
+    # A hard link is made only if the name is free: when several starts race (parallel
+    # test workers share one secrets folder) the first value is the one every one reads.
+    ln "$draft" "$file" 2>/dev/null || true
+    rm -f "$draft"
   fi
   cat "$file"
 }
