@@ -34,8 +34,9 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
-from onboard.processes import Supervised, free_port, python_env, wait_for
-from workers.ground import gateway_argv, pastview_argv, web_argv
+from bench import private_ground
+from onboard.processes import Supervised, wait_for
+from workers.ground import gateway_argv, pastview_argv
 
 DB_NAME = "bench_teleop"
 REDIS_DB = 12
@@ -106,23 +107,8 @@ class Bench:
 
 
 def _set_up() -> Bench:
-    from django.conf import settings
-    from django.db import connection
-
-    from workers import outbox
-    from workers.mosquitto import start_broker
-
-    db_name = connection.creation.create_test_db(verbosity=0, autoclobber=True, keepdb=False)
     folder = Path(tempfile.mkdtemp(prefix="bench-teleop-"))
-    broker = start_broker(
-        folder / "mosquitto",
-        {"ground": "bench-ground"},
-        extra_config=f"pid_file {folder / 'mosquitto' / 'mosquitto.pid'}\n",
-    )
-    settings.MOSQUITTO_DIR = str(broker.directory)
-    settings.MQTT_URL = broker.url_for("ground")
-    settings.MQTT_PUBLIC_HOST, settings.MQTT_PUBLIC_PORT = "127.0.0.1", broker.port
-    outbox.sync_redis().delete(outbox.outbox_key())
+    db_name, broker = private_ground.database_and_broker(folder, "bench-ground")
     token, session, names, passwords = _provision()
     return Bench(broker, db_name, token, session, names, passwords, folder)
 
@@ -130,38 +116,21 @@ def _set_up() -> Bench:
 def _provision() -> tuple[str, str, list[str], dict[str, str]]:
     """An operator (API token and a signed-in session) and the drones' broker passwords."""
     from django.conf import settings
-    from django.contrib.auth import get_user_model
     from django.test import Client
-    from rest_framework.authtoken.models import Token
 
-    from fleet import credentials
-    from fleet.models import Membership, Organisation, Role
-
-    organisation = Organisation.objects.create(name="Bench", slug="bench")
-    user = get_user_model().objects.create_user("bench-operator", password="x")
-    Membership.objects.create(user=user, organisation=organisation, role=Role.OPERATOR)
+    names = [f"BENCH_T{i:02d}" for i in range(DRONES)]
+    user, token, passwords = private_ground.operator_and_drones(names)
     client = Client()
     client.force_login(user)
-    session = client.cookies[settings.SESSION_COOKIE_NAME].value
-    names = [f"BENCH_T{i:02d}" for i in range(DRONES)]
-    passwords = {name: credentials.provision(name, "bench").password for name in names}
-    return Token.objects.create(user=user).key, session, names, passwords
+    return token, client.cookies[settings.SESSION_COOKIE_NAME].value, names, passwords
 
 
 def _start_ground(bench: Bench) -> None:
-    env = python_env(
-        TEST_WORKER_DB_NAME=bench.db_name,
-        MQTT_URL=bench.broker.url_for("ground"),
-        MOSQUITTO_DIR=str(bench.broker.directory),
-        PYTHONUNBUFFERED="1",
-        LOG_LEVEL="WARNING",
-    )
+    env = private_ground.ground_env(bench.db_name, bench.broker)
     for name, argv in (("gateway", gateway_argv()), ("pastview", pastview_argv())):
         bench.processes.append(Supervised(name, argv, env).start())
-    port = free_port()
-    web = Supervised("web", [*web_argv(port), "--log-level", "warning"], env, port=port)
-    bench.processes.append(web.start())
-    web.wait_ready(60)
+    web = private_ground.start_web(env, 60)
+    bench.processes.append(web)
     bench.base_url = web.url
 
 
