@@ -423,9 +423,13 @@ class MissionRun:
             self.socket.step_completions(),
             accepted,
         )
-        assert any(
-            m.get("type") == "mission" and m.get("status") == "completed"
-            for m in self.socket.messages
+        # The push of the mission's end may follow its last step's by a moment.
+        assert wait_for(
+            lambda: any(
+                m.get("type") == "mission" and m.get("status") == "completed"
+                for m in self.socket.messages
+            ),
+            10,
         ), self.socket.messages[-5:]
 
 
