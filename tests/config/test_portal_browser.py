@@ -1,6 +1,7 @@
 """The portal in a real browser: log in, navigate, read on a phone-sized screen."""
 
 import pytest
+from playwright.sync_api import expect
 
 from tests.conftest import login
 
@@ -10,6 +11,8 @@ pytestmark = pytest.mark.browser
 def test_a_user_logs_in_and_navigates_the_portal(page, live_asgi, world_tx):
     login(page, live_asgi, "owner")
     assert page.locator("h1").first.inner_text().startswith("Fleet")
+    # The table is filled by the page's script after the load.
+    expect(page.locator("#drone-table tbody tr")).to_have_count(1)
     assert page.locator("#drone-table").inner_text().count("ACME_1") == 1
     assert "GLOBEX_1" not in page.content()
     page.click("nav >> text=Missions")
