@@ -33,6 +33,8 @@ from django.middleware.common import CommonMiddleware as _Common
 from django.middleware.csrf import CsrfViewMiddleware as _Csrf
 from django.middleware.security import SecurityMiddleware as _Security
 
+from config.request_threads import RequestThreads
+
 SAFE_METHODS = ("GET", "HEAD", "OPTIONS", "TRACE")
 
 
@@ -146,7 +148,19 @@ EVENT_LOOP_VARIANTS = {
 
 
 class EventLoopASGIHandler(ASGIHandler):
-    """Django's ASGI handler with the event-loop variant of each of Django's middleware."""
+    """Django's ASGI handler with the event-loop variant of each of Django's middleware,
+    and each request's synchronous work on a thread kept from an earlier request
+    (config.request_threads) rather than on a new one."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.threads = RequestThreads()
+
+    async def __call__(self, scope: dict, receive: Any, send: Any) -> None:
+        if scope["type"] != "http":
+            raise ValueError(f"Django can only handle ASGI/HTTP connections, not {scope['type']}.")
+        async with self.threads.context():
+            await self.handle(scope, receive, send)
 
     def load_middleware(self, is_async: bool = False) -> None:
         named = settings.MIDDLEWARE
