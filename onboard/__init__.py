@@ -3,4 +3,8 @@
 This package must never import Django; it is installed on drones on its own.
 """
 
+from .blas import one_thread
+
+one_thread()  # before numpy is imported anywhere in the process (onboard/blas.py)
+
 __version__ = "0.1.0"
