@@ -68,7 +68,7 @@ class UlogImporter:
         for d in ulog.data_list:
             # A topic with several instances gets one layer per instance.
             layer = d.name if counts[d.name] == 1 else f"{d.name}_{d.multi_id}"
-            times = d.data["timestamp"].astype(np.int64) * 1000
+            times = np.multiply(d.data["timestamp"], 1000, dtype=np.int64)  # µs to ns
             for field, values in d.data.items():
                 if field == "timestamp":
                     continue
@@ -108,13 +108,7 @@ class UlogImporter:
     def _add_euler(log: LogData, layer: str, data: dict, times: np.ndarray) -> None:
         """PX4 logs attitude only as a quaternion (w, x, y, z; body FRD to NED); the 3D view
         and the trajectory want yaw, pitch, roll in that order (z, then y, then x)."""
-        w, x, y, z = (data[f"q[{i}]"].astype(np.float64) for i in range(4))
-        angles = {
-            "roll": np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
-            "pitch": np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0)),
-            "yaw": np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)),
-        }
-        for name, values in angles.items():
+        for name, values in _euler(data).items():
             log.add(
                 Series(
                     join(layer, "euler", name),
@@ -125,6 +119,25 @@ class UlogImporter:
                     special=f"rotation.{name}",
                 )
             )
+
+
+# Attitude rows converted at a time: the float64 working copies stay a few MiB however
+# long the log.
+EULER_BLOCK = 1 << 18
+
+
+def _euler(data: dict) -> dict[str, np.ndarray]:
+    """Roll, pitch and yaw from the logged quaternion, computed in float64 and kept in
+    float32, the quaternion's own precision."""
+    q = [data[f"q[{i}]"] for i in range(4)]
+    angles = {name: np.empty(len(q[0]), dtype=np.float32) for name in ("roll", "pitch", "yaw")}
+    for start in range(0, len(q[0]), EULER_BLOCK):
+        rows = slice(start, start + EULER_BLOCK)
+        w, x, y, z = (component[rows].astype(np.float64) for component in q)
+        angles["roll"][rows] = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+        angles["pitch"][rows] = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
+        angles["yaw"][rows] = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return angles
 
 
 def _kind(values: np.ndarray) -> str:

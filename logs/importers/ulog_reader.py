@@ -7,7 +7,8 @@ message of a subscription is then gathered at once through a numpy view whose re
 at any byte (stride 1), so the per-message Python work is a few operations.
 
 The file is read in chunks of CHUNK_BYTES, so memory stays bounded by the decoded data plus
-one chunk and its message offsets.
+one chunk and its message offsets; each topic's parts are joined, and let go of, one topic
+at a time.
 Corruption is handled like pyulog: an impossible header moves on by one byte (or to the
 next sync sequence when the log has them), a data message of an unknown subscription or an
 impossible size is skipped, and the log is flagged corrupt.
@@ -291,13 +292,18 @@ class _Reader:
         self.out.dropouts_ms += struct.unpack_from("<H", payload)[0]
 
     def _finish(self) -> None:
+        """Each topic's parts joined into one array, the parts let go of as soon as they
+        are joined: memory holds the decoded data once, plus one topic's copy at most."""
         subs = [*self.finished, *self.subscriptions.values()]
         merged: dict[tuple[str, int, int], list[np.ndarray]] = {}
         for sub in subs:
             if sub.parts:
                 merged.setdefault((sub.name, sub.multi_id, sub.msg_id), []).extend(sub.parts)
-        for (name, multi_id, msg_id), parts in merged.items():
+                sub.parts = []
+        for name, multi_id, msg_id in list(merged):
+            parts = merged.pop((name, multi_id, msg_id))
             records = parts[0] if len(parts) == 1 else np.concatenate(parts)
+            del parts
             data = {n: records[n] for n in records.dtype.names}
             self.out.data_list.append(Dataset(name, multi_id, msg_id, data))
         self.out.data_list.sort(key=lambda d: (d.name, d.multi_id))

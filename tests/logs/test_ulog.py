@@ -123,3 +123,21 @@ def test_px4_attitude_quaternion_also_gives_yaw_pitch_roll(tmp_path):
     assert find_special(log)["rotation"] == [
         f"vehicle_attitude/euler/{n}" for n in ("roll", "pitch", "yaw")
     ]
+
+
+def test_yaw_pitch_roll_of_a_long_log_are_computed_block_by_block(tmp_path, monkeypatch):
+    from logs.importers import ulog
+
+    monkeypatch.setattr(ulog, "EULER_BLOCK", 7)  # rows in several blocks and a partial one
+    rng = np.random.default_rng(3)
+    yaw, pitch, roll = rng.uniform(-1.5, 1.5, (3, 30))
+    arr = np.zeros(30, dtype=[("timestamp", "<u8"), ("q", "(4,)<f4")])
+    arr["timestamp"] = np.arange(1, 31)
+    arr["q"] = quaternion(yaw, pitch, roll)
+    path = tmp_path / "long.ulg"
+    write_ulog(path, {"vehicle_attitude": arr})
+    log = import_log(path)
+    for name, expected in (("yaw", yaw), ("pitch", pitch), ("roll", roll)):
+        values = log.series[f"vehicle_attitude/euler/{name}"].values
+        assert values.dtype == np.float32  # the quaternion's own precision
+        np.testing.assert_allclose(values, expected, atol=1e-5)
