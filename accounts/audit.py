@@ -80,7 +80,7 @@ def record(
     request = current_request()
     actor = actor if actor is not None else _actor_of(request)
     ids = [organisation_ids] if isinstance(organisation_ids, int) else list(organisation_ids)
-    AuditEvent.objects.bulk_create(
+    entries = [
         AuditEvent(
             organisation_id=organisation_id,
             actor=actor if getattr(actor, "pk", None) else None,
@@ -93,7 +93,11 @@ def record(
             detail=detail or {},
         )
         for organisation_id in ids
-    )
+    ]
+    if len(entries) == 1:
+        entries[0].save()  # one INSERT: bulk_create would wrap it in a transaction of its own
+    else:
+        AuditEvent.objects.bulk_create(entries)
 
 
 def organisation_ids_of(user: Any) -> list[int]:
