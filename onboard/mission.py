@@ -427,6 +427,12 @@ class MissionWorker:
             mission.roi_set = False
         mission.leg = None
         self.events("mission", {"event": status, "mission_id": payload.mission_id, "error": error})
+        # What the drone does next (hold, return, land) is in place before the ground hears
+        # the mission ended: an operator's command sent on that news is not overridden.
+        try:
+            self.on_end(status)
+        except Exception:
+            log.exception("the end of mission %s was not handled", payload.mission_id)
         self._mission_status(
             protocol.MissionProgress(
                 payload.mission_id,
@@ -436,10 +442,6 @@ class MissionWorker:
                 request_id=mission.request_id if status == "stopped" else None,
             )
         )
-        try:
-            self.on_end(status)
-        except Exception:
-            log.exception("the end of mission %s was not handled", payload.mission_id)
 
     def _run_step(self, mission: RunningMission, step: protocol.Step) -> tuple[bool, str | None]:
         """(True, None) done, (False, why) failed, (False, None) paused part-way."""

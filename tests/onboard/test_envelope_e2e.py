@@ -77,6 +77,7 @@ def test_the_agent_refuses_moves_outside_its_envelope_and_keeps_it(
         ground.send("mission", start.to_dict())
         failed = ground.wait_for("mission", lambda m: m.get("status") == "failed")
         assert "maximum distance" in failed["error"]
+        ground.wait_for("mission", lambda m: m.get("status") == "stopped")
         assert ground.command("changeN", value=40)["ok"]
     finally:
         ground.close()

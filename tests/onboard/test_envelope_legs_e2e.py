@@ -37,6 +37,9 @@ def test_the_agent_refuses_a_leg_across_an_exclusion_zone_and_flies_one_beside_i
     ground.send("mission", start.to_dict())
     failed = ground.wait_for("mission", lambda m: m.get("status") == "failed")
     assert "exclusion circle 0" in failed["error"]
+    # The stopped mission's hold is in place before its end is reported; a command sent
+    # after that starts from the hold.
+    ground.wait_for("mission", lambda m: m.get("status") == "stopped")
 
     # 30 m north first, then east: the leg passes 30 m from the zone's centre.
     assert ground.command("changeN", value=30)["ok"]
