@@ -7,6 +7,7 @@ number is an error, not its default.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import environ
@@ -23,6 +24,28 @@ POSTGRESQL = "django.db.backends.postgresql"
 def read_data_env(path: Path) -> None:
     """Load the KEY=VALUE file scripts/services.sh writes; the real environment wins."""
     environ.Env.read_env(path, overwrite=False)
+
+
+def data_env_values(path: Path) -> dict[str, str]:
+    """The KEY=VALUE pairs of that file as written ({} when there is none)."""
+    if not path.is_file():
+        return {}
+    pairs = (line.split("=", 1) for line in path.read_text().splitlines() if "=" in line)
+    return {key.strip(): value.strip() for key, value in pairs if not key.startswith("#")}
+
+
+SERVICE_PORTS = ("PG_PORT", "REDIS_PORT", "MQTT_PORT")
+
+
+def pin_test_ports(path: Path) -> None:
+    """Point the service script's test profile (TEST_PG_PORT, ...) at the ports the
+    profile file at `path` names: a test that runs `services.sh start test` then finds
+    these services where they are. Taken from the file, not the environment, which may
+    carry `make run`'s own ports (the Makefile exports MQTT_PORT)."""
+    values = data_env_values(path)
+    for name in SERVICE_PORTS:
+        if name in values:
+            os.environ[f"TEST_{name}"] = values[name]
 
 
 def database_from_url(url: str) -> dict:

@@ -7,7 +7,7 @@ where pytest-django gives each worker its own test database.
 
 import os
 
-from config.env import BASE_DIR, env, read_data_env
+from config.env import BASE_DIR, env, pin_test_ports, read_data_env
 
 # Children of a worker (ground processes, Celery workers, the live server) inherit the
 # variable and so read the same services.
@@ -23,9 +23,7 @@ read_data_env(TEST_DATA_DIR / "env")
 if _WORKER:
     # A test that runs the service script (`services.sh start test`) must find this
     # worker's services where they are, not start others on the controller's ports.
-    for _name in ("PG_PORT", "REDIS_PORT", "MQTT_PORT"):
-        if _name in os.environ:
-            os.environ[f"TEST_{_name}"] = os.environ[_name]
+    pin_test_ports(TEST_DATA_DIR / "env")
 os.environ.setdefault("MEDIA_ROOT", str(TEST_DATA_DIR / "media"))
 os.environ.setdefault("TILES_DIR", str(TEST_DATA_DIR / "tiles"))
 os.environ["TEST_PROFILE_KEYS"] = ",".join(sorted(set(os.environ) - _before))
