@@ -44,6 +44,7 @@ from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
 from bench import private_ground
+from bench.common import test_profile_env
 from onboard.processes import Supervised, wait_for
 from workers.ground import gateway_argv
 
@@ -56,22 +57,13 @@ FLOOD_S = 5.0
 HOME = (38.736946, -9.142685)
 
 
-def _test_env() -> dict[str, str]:
-    values = {}
-    for line in (ROOT / ".data" / "test" / "env").read_text().splitlines():
-        if "=" in line and not line.startswith("#"):
-            key, value = line.split("=", 1)
-            values[key.strip()] = value.strip()
-    return values
-
-
 def setup_django() -> None:
     # BENCH_GROUND_SETTINGS compares another settings module (e.g. a pooled database).
     os.environ["DJANGO_SETTINGS_MODULE"] = os.environ.get(
         "BENCH_GROUND_SETTINGS", "config.settings.test"
     )
     os.environ["TEST_DB_NAME"] = f"test_{DB_NAME}"
-    parts = urlsplit(_test_env()["REDIS_URL"])
+    parts = urlsplit(test_profile_env()["REDIS_URL"])
     os.environ["REDIS_URL"] = urlunsplit(parts._replace(path=f"/{REDIS_DB}"))
     import django
 

@@ -31,10 +31,10 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
+from bench.common import test_profile_env
 from onboard.processes import Supervised, free_port, python_env, wait_for
 from workers.ground import gateway_argv, worker_argv
 
-ROOT = Path(__file__).resolve().parents[1]
 DB_NAME = "bench_missions_live"
 REDIS_DB = 10
 SAMPLES = int(os.environ.get("BENCH_MISSIONS_SAMPLES", 15))
@@ -43,17 +43,8 @@ FLEETS = (1, 100)
 HOME = (40.6303, -8.6575)
 
 
-def _test_env() -> dict[str, str]:
-    values = {}
-    for line in (ROOT / ".data" / "test" / "env").read_text().splitlines():
-        if "=" in line and not line.startswith("#"):
-            key, value = line.split("=", 1)
-            values[key.strip()] = value.strip()
-    return values
-
-
 def _redis_url() -> str:
-    parts = urlsplit(_test_env()["REDIS_URL"])
+    parts = urlsplit(test_profile_env()["REDIS_URL"])
     return urlunsplit(parts._replace(path=f"/{REDIS_DB}"))
 
 

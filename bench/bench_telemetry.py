@@ -39,12 +39,11 @@ import numpy as np
 import psutil
 import psycopg
 
-from bench.common import best_of, percentile, record
+from bench.common import best_of, percentile, record, test_profile_env
 from onboard.mqttwire import connect_packet, publish_packet
 from onboard.processes import Supervised, free_port, python_env, wait_for
 from workers.mosquitto import GROUND_AND_DRONES_ACL, Broker
 
-ROOT = Path(__file__).resolve().parents[1]
 DB_NAME = "bench_telemetry"
 DRONES = 1000
 WORKERS = 4
@@ -69,17 +68,8 @@ MAX_OBJECT_NAMES = [
 ]
 
 
-def _env() -> dict[str, str]:
-    values = {}
-    for line in (ROOT / ".data" / "test" / "env").read_text().splitlines():
-        if "=" in line:
-            key, value = line.split("=", 1)
-            values[key] = value
-    return values
-
-
 def _conninfo(dbname: str) -> str:
-    url = urlsplit(_env()["DATABASE_URL"])
+    url = urlsplit(test_profile_env()["DATABASE_URL"])
     return psycopg.conninfo.make_conninfo(
         host=url.hostname,
         port=str(url.port),

@@ -35,6 +35,7 @@ from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
 from bench import private_ground
+from bench.common import test_profile_env
 from onboard.processes import Supervised, wait_for
 from workers.ground import gateway_argv, pastview_argv
 
@@ -53,11 +54,10 @@ LOG_SLACK_S = 0.5
 
 
 def setup_django() -> None:
-    from bench.bench_ground import _test_env
 
     os.environ["DJANGO_SETTINGS_MODULE"] = "config.settings.test"
     os.environ["TEST_DB_NAME"] = f"test_{DB_NAME}"
-    parts = urlsplit(_test_env()["REDIS_URL"])
+    parts = urlsplit(test_profile_env()["REDIS_URL"])
     os.environ["REDIS_URL"] = urlunsplit(parts._replace(path=f"/{REDIS_DB}"))
     import django
 

@@ -15,6 +15,15 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "results.json"
+TEST_PROFILE_ENV = Path(__file__).resolve().parents[1] / ".data" / "test" / "env"
+
+
+def test_profile_env() -> dict[str, str]:
+    """What scripts/services.sh wrote for the test profile (URLs with their passwords).
+    Called once the caller has named its settings module: `config` sets a default."""
+    from config.env import data_env_values
+
+    return data_env_values(TEST_PROFILE_ENV)
 
 
 def record(
