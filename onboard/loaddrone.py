@@ -104,6 +104,7 @@ class Stats:
     connects: int = 0
     connect_failures: int = 0
     resent: int = 0
+    ticks: int = 0  # scheduled slices run, for reading late_ticks as a share
     dropped: Counter = field(default_factory=Counter)
 
     def to_dict(self) -> dict:
@@ -779,6 +780,7 @@ class Fleet:
             for session in groups[k % slices]:
                 act(session, now)
             k += 1
+            self.stats.ticks += 1
             next_at += step
             delay = next_at - time.monotonic()
             if delay < -period:  # far behind (an overloaded machine): skip, do not burst

@@ -326,7 +326,10 @@ def test_two_hundred_load_drones_in_one_process_connect_and_publish(
     assert set(per_drone) == set(ids) and heartbeats == set(ids)
     assert sum(per_drone.values()) == stats.telemetry_messages, "every sample sent arrived"
     assert stats.telemetry_messages >= 200 * 10 * 1.5, "about 10 Hz per drone"
-    assert not stats.dropped
+    # The process keeps its schedule: a stall of a shared machine past a whole period is
+    # counted and skipped, and stays rare; nothing else is dropped.
+    assert set(stats.dropped) <= {"late_ticks"}, stats.dropped
+    assert stats.dropped["late_ticks"] <= stats.ticks / 100, (stats.dropped, stats.ticks)
 
 
 @pytest.mark.e2e
