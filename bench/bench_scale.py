@@ -5,7 +5,7 @@ and on a two-node RabbitMQ cluster, in the same run.
 
 Each run is bench/scale_harness.py's `run_load`: a private broker, the real web (ASGI),
 gateway and ingest processes, and N load drones (onboard.loaddrone) at 10 Hz telemetry
-and a heartbeat every 5 s. Four runs: 100 drones on Mosquitto (the small-fleet baseline),
+and a heartbeat every 5 s. Four main runs: 100 drones on Mosquitto (the small-fleet baseline),
 1 000 on Mosquitto, then 100 and 1 000 on the RabbitMQ cluster (drones spread over both
 nodes, two gateways and two ingests reading the shared AMQP queues). The small cluster run
 is kept beside each key (`rabbitmq_small`).
@@ -26,6 +26,10 @@ Keys:
 - scale.ingest_1000_lag_rabbitmq_s: p99 ingest lag (as above) of the 1 000-drone run on
   the RabbitMQ cluster. Baseline: the 1 000-drone run on Mosquitto of the same bench.
 
+A fifth run repeats the 1 000-drone cluster run with the drones sending five samples a
+message (a 0.5 s telemetry period), what the drone side can do for the cluster; it is
+kept beside the two cluster keys (`rabbitmq_batched…`).
+
 Every run's detail also keeps samples sent per second, each role's CPU cores busy and
 cores' worth of time runnable but waiting for a CPU (a process behind for want of CPU
 waits a lot; one held back by something else does not), the broker's own figures over the
@@ -43,6 +47,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,6 +56,9 @@ if str(ROOT) not in sys.path:
 
 from bench.common import record  # noqa: E402
 from bench.scale_harness import LoadConfig, LoadResult, run_load  # noqa: E402
+
+# Samples per message of the cluster's batched run: a 0.5 s telemetry period at 10 Hz.
+BATCHED_PERIOD_SAMPLES = 5
 
 
 def _figures(result: LoadResult) -> dict:
@@ -114,6 +122,9 @@ def _measure_all(
     def mosquitto(n: int) -> LoadConfig:
         return LoadConfig(drones=n, broker="mosquitto", duration=duration, per_message=per_message)
 
+    def batched(config: LoadConfig) -> LoadConfig:
+        return replace(config, per_message=max(per_message, BATCHED_PERIOD_SAMPLES))
+
     return {
         "mosquitto_small": _run(mosquitto(small)),
         "mosquitto": _run(mosquitto(drones)),
@@ -121,6 +132,9 @@ def _measure_all(
         # run out of CPU long before 1 000 drones, and this shows where the design stands.
         "rabbitmq_small": _run(cluster(small)),
         "rabbitmq": _run(cluster(drones)),
+        # What the drone side can do for the cluster: the same samples, one message per
+        # BATCHED_PERIOD_SAMPLES of them (a longer telemetry period, as the protocol allows).
+        "rabbitmq_batched": _run(batched(cluster(drones))),
     }
 
 
@@ -179,6 +193,7 @@ def _record_command_rtt(runs: dict[str, LoadResult | None]) -> None:
 
 def _record_cluster_ingest(runs: dict[str, LoadResult | None], drones: int) -> None:
     mosquitto, rabbit, rabbit_small = runs["mosquitto"], runs["rabbitmq"], runs["rabbitmq_small"]
+    batched = runs["rabbitmq_batched"]
     if rabbit is None or mosquitto is None:
         return
     _record(
@@ -193,6 +208,9 @@ def _record_cluster_ingest(runs: dict[str, LoadResult | None], drones: int) -> N
         mosquitto_lost=mosquitto.lost,
         rabbitmq_small_per_s=None if rabbit_small is None else round(rabbit_small.ingest_per_s, 1),
         rabbitmq_small_lost=_of(rabbit_small, "lost"),
+        rabbitmq_batched_per_s=None if batched is None else round(batched.ingest_per_s, 1),
+        rabbitmq_batched_lost=_of(batched, "lost"),
+        rabbitmq_batched_per_message=_of(batched, "per_message"),
     )
     _record(
         "scale.ingest_1000_lag_rabbitmq_s",
@@ -203,6 +221,7 @@ def _record_cluster_ingest(runs: dict[str, LoadResult | None], drones: int) -> N
         higher_is_better=False,
         goal=f"< 1 s with {drones} drones at 10 Hz on the two-node cluster",
         rabbitmq=_figures(rabbit),
+        rabbitmq_batched=None if batched is None else _figures(batched),
     )
 
 
