@@ -54,7 +54,6 @@ LOG_SLACK_S = 0.5
 
 
 def setup_django() -> None:
-
     os.environ["DJANGO_SETTINGS_MODULE"] = "config.settings.test"
     os.environ["TEST_DB_NAME"] = f"test_{DB_NAME}"
     parts = urlsplit(test_profile_env()["REDIS_URL"])
