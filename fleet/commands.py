@@ -11,7 +11,7 @@ from __future__ import annotations
 import asyncio
 import contextvars
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
@@ -189,32 +189,55 @@ async def execute(
     else a gateway through the outbox) and wait for the drone's own reply.
 
     The drone's new target is stored before this returns: the envelope check of the next
-    command starts from it. The answer's log entry is written here too, unless the caller
+    command starts from it. The log entry is written with its answer, unless the caller
     passes `after_answer`, a list it runs (synchronously) once it has answered its own
     caller, so that writing it is not on the way back to the operator.
     """
-    request = protocol.ControlRequest(prepared.entry.request_id, prepared.command, prepared.params)
-    # The log entry is written while the command travels, not before: a database commit
-    # less on the way to the drone. It is in the log before the answer is recorded.
-    logged = asyncio.ensure_future(sync_to_async(prepared.entry.save)())
-    try:
-        reply = await direct.arequest(
-            prepared.drone.drone_id, "control", request.to_dict(), timeout=timeout
-        )
-    finally:
-        try:
-            await logged
-        except DatabaseError:
-            log.warning("command %s not logged yet; retried with its answer", request.request_id)
+    entry = prepared.entry
+    entry.sent_at = timezone.now()
+    request = protocol.ControlRequest(entry.request_id, prepared.command, prepared.params)
+    reply = await _answer_logging_pending(
+        direct.arequest(prepared.drone.drone_id, "control", request.to_dict(), timeout=timeout),
+        entry,
+    )
     if envelopes.moves_target(prepared.command, reply):
         await sync_to_async(envelopes.remember_target)(prepared.drone, prepared.command, reply)
     # Later, it still knows the request it answers (the audit trail names its address).
-    answered = partial(contextvars.copy_context().run, record, prepared.entry, reply)
+    answered = partial(contextvars.copy_context().run, record, entry, reply)
     if after_answer is None:
         await sync_to_async(answered)()
     else:
         after_answer.append(answered)
     return Outcome(request.request_id, prepared.command, reply)
+
+
+async def _answer_logging_pending(
+    answer: Coroutine[Any, Any, dict | None], entry: CommandLog
+) -> dict | None:
+    """The drone's answer. One that takes longer than COMMAND_LOG_PENDING_AFTER_S has its
+    entry written as pending meanwhile, so a command still on its way is in the log; a
+    quick one is written once, with its outcome (`record`): a write less per command, and
+    no database work beside the command while it travels."""
+    waiting = asyncio.ensure_future(answer)
+    try:
+        done, _ = await asyncio.wait({waiting}, timeout=settings.COMMAND_LOG_PENDING_AFTER_S)
+        if done:
+            return waiting.result()
+        await _save_pending(entry)
+        return await waiting
+    except asyncio.CancelledError:
+        # The caller went away (a closed connection): the command may be on its way.
+        waiting.cancel()
+        if entry.pk is None:
+            await asyncio.shield(_save_pending(entry))
+        raise
+
+
+async def _save_pending(entry: CommandLog) -> None:
+    try:
+        await sync_to_async(entry.save)()
+    except DatabaseError:
+        log.warning("command %s not logged yet; retried with its answer", entry.request_id)
 
 
 async def send(

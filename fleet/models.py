@@ -8,6 +8,7 @@ from django.conf import settings
 from django.core.exceptions import ValidationError
 from django.core.validators import RegexValidator
 from django.db import models
+from django.utils import timezone
 
 DRONE_ID_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 # Broker accounts that are not drones: a drone's broker username is its id, so a drone
@@ -197,7 +198,8 @@ class CommandLog(models.Model):
     outcome = models.CharField(max_length=10, choices=Outcome.choices, default=Outcome.PENDING)
     response = models.JSONField(null=True, blank=True)
     error = models.TextField(blank=True)
-    sent_at = models.DateTimeField(auto_now_add=True)
+    # When it left, set by the sender: the entry may be written after its answer.
+    sent_at = models.DateTimeField(default=timezone.now, editable=False)
     answered_at = models.DateTimeField(null=True, blank=True)
 
     class Meta:

@@ -230,6 +230,9 @@ CELERY_BEAT_SCHEDULE: dict = {}
 HEARTBEAT_INTERVAL_S = env.float("HEARTBEAT_INTERVAL_S", 5.0)
 OFFLINE_AFTER_MISSED_HEARTBEATS = env.int("OFFLINE_AFTER_MISSED_HEARTBEATS", 3)
 COMMAND_TIMEOUT_S = env.float("COMMAND_TIMEOUT_S", 15.0)
+# A command answered within this many seconds is logged once, with its answer; one still
+# waiting then is logged as pending at that moment and completed when it ends.
+COMMAND_LOG_PENDING_AFTER_S = env.float("COMMAND_LOG_PENDING_AFTER_S", 0.1)
 
 LOGGING = {
     "version": 1,

@@ -115,8 +115,11 @@ class Responder:
     """A minimal MQTT drone: answers `<id>/control/in` the way the agent does (used where
     the test is about the ground side; the end-to-end tests run the real agent)."""
 
-    def __init__(self, url: str, drone_id: str, *, refuse: tuple[str, ...] = ()) -> None:
+    def __init__(
+        self, url: str, drone_id: str, *, refuse: tuple[str, ...] = (), delay: float = 0.0
+    ) -> None:
         import json
+        import threading
         import time
 
         self.drone_id = drone_id
@@ -139,7 +142,11 @@ class Responder:
                 "error": None if ok else "refused by the test drone",
                 "ts": time.time(),
             }
-            client.publish(f"{drone_id}/control/out", json.dumps(reply), qos=1)
+            answer = (f"{drone_id}/control/out", json.dumps(reply))
+            if delay:
+                threading.Timer(delay, client.publish, answer, {"qos": 1}).start()
+            else:
+                client.publish(*answer, qos=1)
 
         self.client.on_message = on_message
         self.client.subscribe([(f"{drone_id}/control/in", 1), (f"{drone_id}/mission/in", 1)])

@@ -9,9 +9,11 @@ import os
 import signal
 import threading
 import time
+from datetime import timedelta
 
 import pytest
 from asgiref.sync import async_to_sync
+from django.db.models.signals import post_save
 
 from fleet import commands, credentials
 from fleet.models import CommandLog, Drone
@@ -78,6 +80,48 @@ def test_the_api_answers_with_the_reply_and_logs_it(world_tx, broker, gateway, r
     assert (entry.command, entry.outcome, entry.user) == ("arm", "ok", world_tx.operator)
     assert entry.response["request_id"] == body["request_id"] and entry.answered_at
     assert gateway.counters.get("published") == published  # not through the outbox
+
+
+def test_a_quick_answer_is_logged_once_with_its_outcome(world_tx, broker, ready_link, drone):
+    saves: list[tuple[bool, str]] = []
+
+    def saved(sender, instance, created, **kwargs):  # type: ignore[no-untyped-def]
+        saves.append((created, instance.outcome))
+
+    post_save.connect(saved, sender=CommandLog, dispatch_uid="test-quick-answer")
+    try:
+        outcome = async_to_sync(commands.send)(world_tx.operator, "ACME_1", "arm", {})
+    finally:
+        post_save.disconnect(dispatch_uid="test-quick-answer", sender=CommandLog)
+    assert outcome.ok
+    assert saves == [(True, "ok")]  # one write, its outcome in it: no pending row first
+    entry = CommandLog.objects.get(request_id=outcome.request_id)
+    assert entry.sent_at <= entry.answered_at  # type: ignore[operator]
+
+
+def test_a_slow_answer_is_in_the_log_as_pending_while_it_travels(
+    world_tx, broker, ready_link, settings
+):
+    settings.COMMAND_LOG_PENDING_AFTER_S = 0.1
+    Drone.objects.filter(drone_id="ACME_1").update(online=True)
+    slow = Responder(_drone_url(broker, "ACME_1"), "ACME_1", delay=1.5)
+    result: dict = {}
+
+    def send() -> None:
+        result["outcome"] = async_to_sync(commands.send)(world_tx.operator, "ACME_1", "arm", {})
+
+    sender = threading.Thread(target=send)
+    began = time.monotonic()
+    sender.start()
+    try:
+        pending = CommandLog.objects.filter(drone__drone_id="ACME_1", outcome="pending")
+        assert wait_for(pending.exists, 1.0), "no pending entry while the drone takes its time"
+        assert time.monotonic() - began < 1.5  # before the answer, not with it
+        sender.join(10)
+    finally:
+        slow.stop()
+    entry = CommandLog.objects.get(request_id=result["outcome"].request_id)
+    assert entry.outcome == "ok" and entry.answered_at - entry.sent_at >= timedelta(seconds=1.4)
 
 
 def test_without_a_broker_connection_the_outbox_delivers(
