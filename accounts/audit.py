@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from contextvars import ContextVar
 from datetime import date, datetime, time
 from typing import Any
@@ -43,18 +44,22 @@ class AuditContextMiddleware:
     def __call__(self, request: HttpRequest) -> Any:
         if self.is_async:
             return self._acall(request)
-        token = _request.set(request)
-        try:
+        with serving(request):
             return self.get_response(request)
-        finally:
-            _request.reset(token)
 
     async def _acall(self, request: HttpRequest) -> HttpResponse:
-        token = _request.set(request)
-        try:
+        with serving(request):
             return await self.get_response(request)
-        finally:
-            _request.reset(token)
+
+
+@contextmanager
+def serving(request: HttpRequest) -> Iterator[None]:
+    """Within it, `record` knows the request (its user and address)."""
+    token = _request.set(request)
+    try:
+        yield
+    finally:
+        _request.reset(token)
 
 
 def current_request() -> HttpRequest | None:

@@ -33,11 +33,11 @@ def database_and_broker(folder: Path, ground_password: str) -> tuple[str, Any]:
 
 
 def operator_and_drones(names: list[str]) -> tuple[Any, str, dict[str, str]]:
-    """An operator of a new organisation (the user and an API token) and each drone's
-    broker password."""
+    """An operator of a new organisation (the user and a personal API token, as
+    `POST /api/v1/token/` gives) and each drone's broker password."""
     from django.contrib.auth import get_user_model
-    from rest_framework.authtoken.models import Token
 
+    from accounts import tokens
     from fleet import credentials
     from fleet.models import Membership, Organisation, Role
 
@@ -45,7 +45,7 @@ def operator_and_drones(names: list[str]) -> tuple[Any, str, dict[str, str]]:
     user = get_user_model().objects.create_user("bench-operator", password="x")
     Membership.objects.create(user=user, organisation=organisation, role=Role.OPERATOR)
     passwords = {name: credentials.provision(name, "bench").password for name in names}
-    return user, Token.objects.create(user=user).key, passwords
+    return user, tokens.issue(user, name="bench").key, passwords
 
 
 def ground_env(db_name: str, broker: Any) -> dict[str, str]:

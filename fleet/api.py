@@ -154,6 +154,22 @@ def _api_error(refusal: CommandRefused) -> exceptions.APIException:
     return Conflict(refusal.message, code=refusal.code)
 
 
+def command_reply(drone_id: str, outcome: commands.Outcome) -> Response:
+    """The answer to a sent command: the drone's own reply, or NoReply (504) without one."""
+    if outcome.timed_out:
+        raise NoReply(f"No reply from {drone_id} within {settings.COMMAND_TIMEOUT_S:g} s.")
+    reply = outcome.reply or {}
+    return Response(
+        {
+            "request_id": outcome.request_id,
+            "command": outcome.command,
+            "ok": bool(reply.get("ok")),
+            "result": reply.get("result"),
+            "error": reply.get("error"),
+        }
+    )
+
+
 class DroneCommandView(AsyncAPIView):
     """`POST /api/v1/drones/{drone_id}/commands/`: the drone's own reply, or an error."""
 
@@ -214,18 +230,7 @@ class DroneCommandView(AsyncAPIView):
         if self.prepared is None:
             return await self.chain(request, drone_id, command)
         outcome = await commands.execute(self.prepared, after_answer=self.after_answer)
-        if outcome.timed_out:
-            raise NoReply(f"No reply from {drone_id} within {settings.COMMAND_TIMEOUT_S:g} s.")
-        reply = outcome.reply or {}
-        return Response(
-            {
-                "request_id": outcome.request_id,
-                "command": command,
-                "ok": bool(reply.get("ok")),
-                "result": reply.get("result"),
-                "error": reply.get("error"),
-            }
-        )
+        return command_reply(drone_id, outcome)
 
     async def chain(self, request: Request, drone_id: str, command: str) -> Response:
         """startchain / stopchain: the Mission Planner's hooks answer, not the drone."""

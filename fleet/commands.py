@@ -23,11 +23,12 @@ from django.db.models import F
 from django.utils import timezone
 from django.utils.module_loading import import_string
 
+from config import asyncdb
 from onboard import protocol
 from workers import direct, outbox
 
 from . import envelopes
-from .models import ROLE_RANK, CommandLog, Drone, Role
+from .models import ROLE_RANK, CommandLog, Drone, Membership, Organisation, Role
 
 log = logging.getLogger(__name__)
 
@@ -107,6 +108,29 @@ def find_drone(user: Any, drone_id: str) -> Drone:
     return drone
 
 
+async def afind_drone(user: Any, drone_id: str) -> Drone | None:
+    """`find_drone` as one query on the event loop (config/asyncdb.py), for the command
+    route: the same isolation rule (a member of the drone's organisation) and the same
+    `member_role`, the organisation attached; None where `find_drone` would refuse."""
+    if not isinstance(drone_id, str) or not protocol.is_drone_id(drone_id):
+        return None
+    sql = (
+        f'SELECT {asyncdb.columns(Drone, "d")}, {asyncdb.columns(Organisation, "o")}, m."role" '
+        f'FROM "{Drone._meta.db_table}" d '
+        f'JOIN "{Organisation._meta.db_table}" o ON o."id" = d."organisation_id" '
+        f'JOIN "{Membership._meta.db_table}" m ON m."organisation_id" = o."id" '
+        'WHERE m."user_id" = %s AND d."drone_id" = %s'
+    )
+    row = await asyncdb.fetch_one(sql, (user.pk, drone_id))
+    if row is None:
+        return None
+    width = len(Drone._meta.concrete_fields)
+    drone = asyncdb.instance(Drone, row[:width])
+    drone.organisation = asyncdb.instance(Organisation, row[width:-1])
+    drone.member_role = row[-1]  # type: ignore[attr-defined]
+    return drone  # type: ignore[return-value]
+
+
 def _may_operate(drone: Drone) -> bool:
     return ROLE_RANK[Role(drone.member_role)] >= ROLE_RANK[Role.OPERATOR]  # type: ignore[attr-defined]
 
@@ -132,34 +156,38 @@ def prepare(
     logged here.
     """
     drone = find_drone(user, drone_id)
-    base = {"drone": drone, "user": user, "command": str(command)[:40], "params": params or {}}
+    try:
+        return checked(user, drone, command, params, confirmed)
+    except CommandRefused as refusal:
+        base = {"drone": drone, "user": user, "command": str(command)[:40]}
+        raise _refuse({**base, "params": params or {}}, refusal) from None
+
+
+def checked(
+    user: Any, drone: Drone, command: str, params: dict | None, confirmed: bool = False
+) -> Prepared:
+    """The checks after the drone is found (it carries `member_role`): role (403), params
+    (400), state and envelope (409). Raises CommandRefused; logs nothing."""
     if not _may_operate(drone):
-        raise _refuse(base, CommandRefused(403, "Only operators and admins may command drones."))
+        raise CommandRefused(403, "Only operators and admins may command drones.")
     try:
         clean = protocol.validate_command(command, params or {})
     except protocol.ProtocolError as exc:
         field = exc.field.removeprefix("params.")
-        raise _refuse(base, CommandRefused(400, f"{field}: {exc.message}", field)) from None
+        raise CommandRefused(400, f"{field}: {exc.message}", field) from None
     if not drone.online:
-        raise _refuse(base, CommandRefused(409, f"Drone {drone.drone_id} is offline."))
+        raise CommandRefused(409, f"Drone {drone.drone_id} is offline.")
     if command in UNSAFE_IN_FLIGHT and drone.airborne and not clean.get("force"):
-        raise _refuse(
-            base,
-            CommandRefused(
-                409, f"Refusing {command} while {drone.drone_id} is airborne; send force=true."
-            ),
+        raise CommandRefused(
+            409, f"Refusing {command} while {drone.drone_id} is airborne; send force=true."
         )
     try:
         envelopes.check_command(drone, command, clean, confirmed)
     except envelopes.EnvelopeRefusal as exc:
-        raise _refuse(base, CommandRefused(409, exc.message, code=exc.code)) from None
-    # Saved by `execute` while the command is on its way (refusals above are saved at once).
+        raise CommandRefused(409, exc.message, code=exc.code) from None
+    # Written by `execute` (refusals are written by `prepare` at once).
     entry = CommandLog(
-        drone=drone,
-        user=user,
-        request_id=protocol.new_request_id(),
-        command=command,
-        params=clean,
+        drone=drone, user=user, request_id=protocol.new_request_id(), command=command, params=clean
     )
     return Prepared(drone=drone, command=command, params=clean, entry=entry)
 

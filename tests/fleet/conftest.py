@@ -190,3 +190,36 @@ def client_for(user=None):  # type: ignore[no-untyped-def]
     if user is not None:
         client.force_login(user)
     return client
+
+
+def drone_url(broker, drone_id: str) -> str:  # type: ignore[no-untyped-def]
+    """A drone's own broker URL (its credentials provisioned in the test's database)."""
+    from fleet import credentials
+    from fleet.models import Drone
+
+    organisation = Drone.objects.get(drone_id=drone_id).organisation.slug
+    creds = credentials.provision(drone_id, organisation)
+    return f"mqtt://{drone_id}:{creds.password}@127.0.0.1:{broker.port}"
+
+
+@pytest.fixture
+def ready_link(broker):  # type: ignore[no-untyped-def]
+    """This process's connection to the test broker, subscribed and ready."""
+    from workers import direct
+
+    direct.close()
+    link = direct.link()
+    assert link is not None and link.ready.wait(10)
+    yield link
+    direct.close()
+
+
+@pytest.fixture
+def responding_drone(world_tx, broker):  # type: ignore[no-untyped-def]
+    """ACME_1 online and answering its commands (a Responder on its own account)."""
+    from fleet.models import Drone
+
+    Drone.objects.filter(drone_id="ACME_1").update(online=True)
+    responder = Responder(drone_url(broker, "ACME_1"), "ACME_1")
+    yield responder
+    responder.stop()

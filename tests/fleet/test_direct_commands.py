@@ -15,39 +15,20 @@ import pytest
 from asgiref.sync import async_to_sync
 from django.db.models.signals import post_save
 
-from fleet import commands, credentials
+from fleet import commands
 from fleet.models import CommandLog, Drone
 from onboard import protocol
 from onboard.processes import wait_for
 from workers import direct, outbox
 
-from .conftest import GROUND_PASSWORD, Responder, client_for, mqtt_client
+from .conftest import GROUND_PASSWORD, Responder, client_for, drone_url, mqtt_client
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
 
-def _drone_url(broker, drone_id: str) -> str:  # type: ignore[no-untyped-def]
-    organisation = Drone.objects.get(drone_id=drone_id).organisation.slug
-    creds = credentials.provision(drone_id, organisation)
-    return f"mqtt://{drone_id}:{creds.password}@127.0.0.1:{broker.port}"
-
-
 @pytest.fixture
-def ready_link(broker):  # type: ignore[no-untyped-def]
-    """This process's connection to the test broker, subscribed and ready."""
-    direct.close()
-    link = direct.link()
-    assert link is not None and link.ready.wait(10)
-    yield link
-    direct.close()
-
-
-@pytest.fixture
-def drone(world_tx, broker):  # type: ignore[no-untyped-def]
-    Drone.objects.filter(drone_id="ACME_1").update(online=True)
-    responder = Responder(_drone_url(broker, "ACME_1"), "ACME_1")
-    yield responder
-    responder.stop()
+def drone(responding_drone):  # type: ignore[no-untyped-def]
+    return responding_drone
 
 
 def _request(command: str = "arm") -> dict:
@@ -104,7 +85,7 @@ def test_a_slow_answer_is_in_the_log_as_pending_while_it_travels(
 ):
     settings.COMMAND_LOG_PENDING_AFTER_S = 0.1
     Drone.objects.filter(drone_id="ACME_1").update(online=True)
-    slow = Responder(_drone_url(broker, "ACME_1"), "ACME_1", delay=1.5)
+    slow = Responder(drone_url(broker, "ACME_1"), "ACME_1", delay=1.5)
     result: dict = {}
 
     def send() -> None:
@@ -171,8 +152,8 @@ def test_a_publish_the_broker_does_not_acknowledge_in_time_also_goes_through_the
 
 def test_a_reply_from_another_drone_is_not_taken(world_tx, broker, fresh_redis, ready_link):
     Drone.objects.filter(drone_id__in=["ACME_1", "GLOBEX_1"]).update(online=True)
-    asked = mqtt_client(_drone_url(broker, "ACME_1"))
-    other = mqtt_client(_drone_url(broker, "GLOBEX_1"))
+    asked = mqtt_client(drone_url(broker, "ACME_1"))
+    other = mqtt_client(drone_url(broker, "GLOBEX_1"))
     request = _request()
 
     def impostor(client, userdata, message):  # type: ignore[no-untyped-def]
@@ -195,7 +176,7 @@ def test_a_reply_arriving_after_the_connection_is_lost_comes_through_redis(
     world_tx, broker, gateway, ready_link
 ):
     Drone.objects.filter(drone_id="ACME_1").update(online=True)
-    drone = mqtt_client(_drone_url(broker, "ACME_1"))
+    drone = mqtt_client(drone_url(broker, "ACME_1"))
     asked = threading.Event()
 
     def answer_late(client, userdata, message):  # type: ignore[no-untyped-def]
