@@ -14,7 +14,8 @@ command execution time is not what this measures.
 
 Keys:
 - ground.command_rtt_p50_1 / _p50_100 / _p99_100: `POST /api/v1/drones/{id}/commands/`
-  (token auth, keep-alive) until the drone's reply is in the HTTP answer, with 1 and 100
+  (a personal token, as `POST /api/v1/token/` gives, so the command route in front of
+  Django takes it; keep-alive) until the drone's reply is in the HTTP answer, with 1 and 100
   drones connected. Baseline: a bare MQTT request/response through the same broker (a
   ground paho client publishing to `<id>/control/in` and receiving `<id>/control/out`).
   The web process sends over its own broker connection (workers.direct), opened at its
