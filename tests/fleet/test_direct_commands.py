@@ -85,7 +85,7 @@ def test_a_slow_answer_is_in_the_log_as_pending_while_it_travels(
 ):
     settings.COMMAND_LOG_PENDING_AFTER_S = 0.1
     Drone.objects.filter(drone_id="ACME_1").update(online=True)
-    slow = Responder(drone_url(broker, "ACME_1"), "ACME_1", delay=1.5)
+    slow = Responder(drone_url(broker, "ACME_1"), "ACME_1", delay=3.0)
     result: dict = {}
 
     def send() -> None:
@@ -96,13 +96,13 @@ def test_a_slow_answer_is_in_the_log_as_pending_while_it_travels(
     sender.start()
     try:
         pending = CommandLog.objects.filter(drone__drone_id="ACME_1", outcome="pending")
-        assert wait_for(pending.exists, 1.0), "no pending entry while the drone takes its time"
-        assert time.monotonic() - began < 1.5  # before the answer, not with it
+        assert wait_for(pending.exists, 2.5), "no pending entry while the drone takes its time"
+        assert time.monotonic() - began < 3.0  # before the answer, not with it
         sender.join(10)
     finally:
         slow.stop()
     entry = CommandLog.objects.get(request_id=result["outcome"].request_id)
-    assert entry.outcome == "ok" and entry.answered_at - entry.sent_at >= timedelta(seconds=1.4)
+    assert entry.outcome == "ok" and entry.answered_at - entry.sent_at >= timedelta(seconds=2.9)
 
 
 def test_without_a_broker_connection_the_outbox_delivers(
