@@ -12,6 +12,7 @@ import hashlib
 import secrets
 from dataclasses import dataclass
 from datetime import datetime, timedelta
+from functools import cache
 from typing import Any
 
 from django.conf import settings
@@ -144,20 +145,28 @@ async def afind_usable(key: str) -> ApiToken | None:
     One query on the event loop (config/asyncdb.py), for the command route."""
     if not key.startswith(PREFIX):
         return None
-    user_model = ApiToken._meta.get_field("user").related_model
-    sql = (
+    row = await asyncdb.fetch_one(_usable_sql(), (digest(key), timezone.now()))
+    if row is None:
+        return None
+    width = len(ApiToken._meta.concrete_fields)
+    token = asyncdb.instance(ApiToken, row[:width])
+    token.user = asyncdb.instance(_user_model(), row[width:])
+    return token  # type: ignore[return-value]
+
+
+def _user_model() -> Any:
+    return ApiToken._meta.get_field("user").related_model
+
+
+@cache
+def _usable_sql() -> str:
+    user_model = _user_model()
+    return (
         f"SELECT {asyncdb.columns(ApiToken, 't')}, {asyncdb.columns(user_model, 'u')} "
         f'FROM "{ApiToken._meta.db_table}" t JOIN "{user_model._meta.db_table}" u '
         'ON u."id" = t."user_id" WHERE t."key_hash" = %s AND u."is_active" '
         'AND t."revoked_at" IS NULL AND t."expires_at" > %s'
     )
-    row = await asyncdb.fetch_one(sql, (digest(key), timezone.now()))
-    if row is None:
-        return None
-    width = len(ApiToken._meta.concrete_fields)
-    token = asyncdb.instance(ApiToken, row[:width])
-    token.user = asyncdb.instance(user_model, row[width:])
-    return token  # type: ignore[return-value]
 
 
 def touch(token: ApiToken) -> None:

@@ -46,6 +46,7 @@ from rest_framework.renderers import JSONRenderer
 from accounts import audit, tokens
 from config.api import exception_handler
 from fleet import api, commands
+from fleet.async_views import run_after_answer
 from fleet.models import Drone
 from onboard import protocol
 
@@ -101,8 +102,8 @@ def _candidate(scope: dict) -> str | None:
         return None
     if headers.get(b"accept", b"").strip().lower() not in JSON_ANSWERS:
         return None
-    if not headers.get(b"content-length", b"").isdigit():
-        return None  # DRF reads no body without one
+    if b"content-length" not in headers:
+        return None  # DRF reads no body without one (and `_checked` compares it)
     return match.group(1)
 
 
@@ -195,11 +196,7 @@ async def _serve(
         outcome = await commands.execute(prepared, after_answer=answered)
     await _send(_response(request, prepared.drone, outcome), send)
     answered.append(partial(tokens.touch, token))
-    for job in answered:
-        try:
-            await database_sync_to_async(job)()
-        except Exception:  # noqa: BLE001 - the answer is out; the others still run
-            log.exception("work after answering %r failed", job)
+    await database_sync_to_async(run_after_answer)(answered)
 
 
 def _response(request: ASGIRequest, drone: Drone, outcome: commands.Outcome) -> HttpResponse:

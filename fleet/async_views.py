@@ -41,13 +41,18 @@ class Answered(HttpResponse):
         self.after_answer = after_answer
 
     def close(self) -> None:
-        for job in self.after_answer:
-            try:
-                job()
-            except Exception:  # noqa: BLE001 - the answer is out; the others still run
-                log.exception("work after answering %r failed", job)
+        run_after_answer(self.after_answer)
         self.after_answer = []
         super().close()
+
+
+def run_after_answer(jobs: list[Callable[[], None]]) -> None:
+    """Each job in turn; one that fails is logged and the others still run."""
+    for job in jobs:
+        try:
+            job()
+        except Exception:  # noqa: BLE001 - the answer is out; the others still run
+            log.exception("work after answering %r failed", job)
 
 
 async def rendered(response: HttpResponse, after_answer: list[Callable[[], None]]) -> HttpResponse:

@@ -13,7 +13,7 @@ import contextvars
 import logging
 from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
-from functools import partial
+from functools import cache, partial
 from typing import Any
 
 from asgiref.sync import sync_to_async
@@ -114,14 +114,7 @@ async def afind_drone(user: Any, drone_id: str) -> Drone | None:
     `member_role`, the organisation attached; None where `find_drone` would refuse."""
     if not isinstance(drone_id, str) or not protocol.is_drone_id(drone_id):
         return None
-    sql = (
-        f'SELECT {asyncdb.columns(Drone, "d")}, {asyncdb.columns(Organisation, "o")}, m."role" '
-        f'FROM "{Drone._meta.db_table}" d '
-        f'JOIN "{Organisation._meta.db_table}" o ON o."id" = d."organisation_id" '
-        f'JOIN "{Membership._meta.db_table}" m ON m."organisation_id" = o."id" '
-        'WHERE m."user_id" = %s AND d."drone_id" = %s'
-    )
-    row = await asyncdb.fetch_one(sql, (user.pk, drone_id))
+    row = await asyncdb.fetch_one(_member_drone_sql(), (user.pk, drone_id))
     if row is None:
         return None
     width = len(Drone._meta.concrete_fields)
@@ -129,6 +122,17 @@ async def afind_drone(user: Any, drone_id: str) -> Drone | None:
     drone.organisation = asyncdb.instance(Organisation, row[width:-1])
     drone.member_role = row[-1]  # type: ignore[attr-defined]
     return drone  # type: ignore[return-value]
+
+
+@cache
+def _member_drone_sql() -> str:
+    return (
+        f'SELECT {asyncdb.columns(Drone, "d")}, {asyncdb.columns(Organisation, "o")}, m."role" '
+        f'FROM "{Drone._meta.db_table}" d '
+        f'JOIN "{Organisation._meta.db_table}" o ON o."id" = d."organisation_id" '
+        f'JOIN "{Membership._meta.db_table}" m ON m."organisation_id" = o."id" '
+        'WHERE m."user_id" = %s AND d."drone_id" = %s'
+    )
 
 
 def _may_operate(drone: Drone) -> bool:
