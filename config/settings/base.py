@@ -420,6 +420,9 @@ ALERT_RECENT_S = env.int("ALERT_RECENT_S", 600)
 ALERT_MAX_ATTEMPTS = env.int("ALERT_MAX_ATTEMPTS", 6)
 ALERT_RETRY_BASE_S = env.float("ALERT_RETRY_BASE_S", 30.0)
 ALERT_WEBHOOK_TIMEOUT_S = env.float("ALERT_WEBHOOK_TIMEOUT_S", 10.0)
+# Webhooks go to public addresses only; on, also to loopback and private networks (a
+# receiver on the site's own network). Never link-local (config/outbound.py).
+ALERT_WEBHOOK_ALLOW_PRIVATE = env.bool("ALERT_WEBHOOK_ALLOW_PRIVATE", False)
 
 # --- map tiles (offline first) ---
 INSTALLED_APPS += ["tiles", "drf_spectacular_sidecar"]

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from importlib.resources import files
 from pathlib import Path
 
+from onboard.uavtalk import generations
+
 # Type index (hashed) -> (xml name, struct code, size in bytes), as the firmware numbers them.
 FIELD_TYPES: tuple[tuple[str, str, int], ...] = (
     ("int8", "b", 1),
@@ -345,31 +347,36 @@ def parse_definition(text: str, source: str = "<xml>") -> list[_RawObject]:
     return objects
 
 
-def _root_options(
-    raw: dict[str, _RawObject], f: _RawField, seen: tuple[str, ...] = ()
-) -> tuple[str, ...]:
-    """Option list of the root of a field's parent= chain."""
-    if f.parent is None:
-        return f.options
-    if f.parent in seen:
-        raise DefinitionError(f"parent loop through {f.parent}")
-    obj_name, _, field_name = f.parent.partition(".")
+def _parent_field(raw: dict[str, _RawObject], f: _RawField) -> _RawField:
+    obj_name, _, field_name = (f.parent or "").partition(".")
     parent_obj = raw.get(obj_name)
     parent = (
         next((p for p in parent_obj.fields if p.name == field_name), None) if parent_obj else None
     )
     if parent is None:
         raise DefinitionError(f"{f.name}: unknown parent {f.parent}")
-    return _root_options(raw, parent, (*seen, f.parent))
+    return parent
+
+
+def _chain_options(
+    raw: dict[str, _RawObject], f: _RawField, seen: tuple[str, ...] = ()
+) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(the field's options, the root's options) along its parent= chain. A field that
+    lists no options takes its parent's list, as dRonin's uavobjectparser.cpp does, and
+    its values are indexes in the root's list."""
+    if f.parent is None:
+        return f.options, f.options
+    if f.parent in seen:
+        raise DefinitionError(f"parent loop through {f.parent}")
+    inherited, root = _chain_options(raw, _parent_field(raw, f), (*seen, f.parent))
+    return f.options or inherited, root
 
 
 def _resolve(raw: dict[str, _RawObject], f: _RawField) -> FieldDef:
     options = f.options
     values: tuple[int, ...] = tuple(range(len(options)))
     if f.type_index == ENUM_TYPE and f.parent is not None:
-        root = _root_options(raw, f)
-        if not options:
-            options = root
+        options, root = _chain_options(raw, f)
         try:
             values = tuple(root.index(option) for option in options)
         except ValueError as exc:
@@ -416,6 +423,18 @@ def build_objects(raw_objects: Iterable[_RawObject]) -> list[ObjectDef]:
     return built
 
 
+def _read_folder(path: Path) -> list[_RawObject]:
+    raw: list[_RawObject] = []
+    for file in sorted(path.glob("*.xml")):
+        raw.extend(parse_definition(file.read_text(encoding="utf-8"), str(file)))
+    return raw
+
+
+def _others(variants: Mapping[str, Mapping[str, ObjectDef]], generation: str) -> list[ObjectDef]:
+    """Other generations' definitions of the objects that differ (decoded by id only)."""
+    return [obj for per in variants.values() for key, obj in per.items() if key != generation]
+
+
 def default_objects_dir() -> Path:
     """Where the XML definitions live: $SKYHIVE_UAVOBJECTS, else the package's definitions/."""
     env = os.environ.get("SKYHIVE_UAVOBJECTS")
@@ -425,30 +444,94 @@ def default_objects_dir() -> Path:
 
 
 class ObjectRegistry:
-    """All known objects, by name and by id."""
+    """All known objects, by name and by id, for one firmware generation.
 
-    def __init__(self, objects: Iterable[ObjectDef]) -> None:
+    `variants` holds, per object defined differently in another generation, every
+    generation's definition of it (by generation key). The agent's registry also decodes
+    those other definitions by id (`also_decodes`), so it can read whichever one a board
+    answers; a board (the simulator) knows only its own and NACKs the others.
+    """
+
+    def __init__(
+        self,
+        objects: Iterable[ObjectDef],
+        *,
+        also_decodes: Iterable[ObjectDef] = (),
+        generation: str = generations.DEFAULT.key,
+        variants: Mapping[str, Mapping[str, ObjectDef]] | None = None,
+    ) -> None:
         self.by_name: dict[str, ObjectDef] = {}
         self.by_id: dict[int, ObjectDef] = {}
+        self.generation = generation
+        self.variants: dict[str, dict[str, ObjectDef]] = {
+            name: dict(per) for name, per in (variants or {}).items()
+        }
         for obj in objects:
-            if obj.id in self.by_id:
-                raise DefinitionError(
-                    f"{obj.name} and {self.by_id[obj.id].name} share id {obj.id:#x}"
-                )
+            self._add_id(obj)
             self.by_name[obj.name] = obj
-            self.by_id[obj.id] = obj
+        for obj in also_decodes:
+            self._add_id(obj)
+
+    def _add_id(self, obj: ObjectDef) -> None:
+        if obj.id in self.by_id and self.by_id[obj.id] is not obj:
+            raise DefinitionError(f"{obj.name} and {self.by_id[obj.id].name} share id {obj.id:#x}")
+        self.by_id[obj.id] = obj
 
     @classmethod
-    def load(cls, directory: str | os.PathLike[str] | None = None) -> ObjectRegistry:
-        """Load every *.xml file of a directory (default: default_objects_dir())."""
+    def load(
+        cls,
+        directory: str | os.PathLike[str] | None = None,
+        generation: str = generations.DEFAULT.key,
+        *,
+        every_generation: bool = False,
+    ) -> ObjectRegistry:
+        """Every *.xml file of a directory (default: default_objects_dir()) with the
+        generation's own definitions from `generations/<folder>/`. With
+        `every_generation` the other generations' definitions are known too: decoded by
+        id, and ready for `for_generation`."""
         path = Path(directory) if directory is not None else default_objects_dir()
-        files = sorted(path.glob("*.xml"))
-        if not files:
+        common = _read_folder(path)
+        if not common:
             raise DefinitionError(f"no UAVObject XML files in {path}")
-        raw: list[_RawObject] = []
-        for file in files:
-            raw.extend(parse_definition(file.read_text(encoding="utf-8"), str(file)))
-        return cls(build_objects(raw))
+        keys = [g.key for g in generations.GENERATIONS] if every_generation else [generation]
+        built = {
+            key: build_objects(
+                common + _read_folder(path / "generations" / generations.get(key).folder)
+            )
+            for key in dict.fromkeys([generation, *keys])
+        }
+        return cls._from_generations(built, generation)
+
+    @classmethod
+    def _from_generations(
+        cls, built: Mapping[str, list[ObjectDef]], generation: str
+    ) -> ObjectRegistry:
+        variants: dict[str, dict[str, ObjectDef]] = {}
+        for key, objects in built.items():
+            for obj in objects:
+                variants.setdefault(obj.name, {})[key] = obj
+        variants = {
+            name: per for name, per in variants.items() if len({o.id for o in per.values()}) > 1
+        }
+        return cls(
+            built[generation],
+            also_decodes=_others(variants, generation),
+            generation=generation,
+            variants=variants,
+        )
+
+    def for_generation(self, generation: str) -> ObjectRegistry:
+        """The same objects, with `generation`'s definitions used by name."""
+        objects = [
+            self.variants[obj.name].get(generation, obj) if obj.name in self.variants else obj
+            for obj in self.by_name.values()
+        ]
+        return type(self)(
+            objects,
+            also_decodes=_others(self.variants, generation),
+            generation=generation,
+            variants=self.variants,
+        )
 
     @classmethod
     def from_xml(cls, *texts: str) -> ObjectRegistry:
@@ -471,9 +554,6 @@ class ObjectRegistry:
 
     def __len__(self) -> int:
         return len(self.by_name)
-
-    def get_by_id(self, object_id_: int) -> ObjectDef | None:
-        return self.by_id.get(object_id_)
 
 
 def pack_metadata(flags: int, flight_ms: int, gcs_ms: int, logging_ms: int) -> bytes:

@@ -59,12 +59,12 @@ FIRMWARE_IDS = {
     "BaroAltitude": 0x99622E6A,
     "FirmwareIAPObj": 0x5E6E8FDC,
     "UAVTalkReceiver": 0x0D2720A4,
+    "ManualControlCommand": 0x1C994034,
+    "ManualControlSettings": 0x884ED0E6,
 }
-# Objects whose id no reference lists: pinned to the id our definition hashes to, so an
-# edit that changes a field shows here. ManualControlSettings follows dRonin's definition
-# of the release's time (docs/uavtalk.md); a board that does not know it NACKs it, and the
-# agent then says what to check by hand.
-PINNED_IDS = {"ManualControlSettings": 0x3B9DB004}
+# Objects whose id no reference lists: pinned to the id our definition (dRonin's own XML,
+# as the release ships it) hashes to, so an edit that changes a field shows here.
+PINNED_IDS = {"SystemAlarms": 0x24364184}
 
 
 def test_every_object_we_define_has_a_checked_id():
