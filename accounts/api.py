@@ -1,5 +1,5 @@
 """`POST /api/v1/token/`: a username and password (and a one-time code once the user has
-a second factor) for a named, expiring personal token; the caller's own tokens listed
+a second factor) for a named, expiring personal token bound to one organisation; the caller's own tokens listed
 (`GET /api/v1/tokens/`) and revoked (`DELETE /api/v1/tokens/{id}/`)."""
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from rest_framework.response import Response
 
 from config.api import StrictSerializer
 from config.throttling import AuthRateThrottle
+from fleet.models import Membership, Organisation
 
 from . import tokens, twofactor
 from .errors import Refused
@@ -33,6 +34,7 @@ class TokenRequestSerializer(StrictSerializer):
     expires_at = serializers.DateTimeField(required=False)
     scope = serializers.ChoiceField(choices=[*tokens.READ_ALIASES, "operate"], required=False)
     otp = serializers.CharField(required=False, allow_blank=True, max_length=16)
+    organisation = serializers.SlugField(required=False, allow_blank=True)
 
 
 TokenSerializer = inline_serializer(
@@ -41,6 +43,7 @@ TokenSerializer = inline_serializer(
         "token": serializers.CharField(),
         "name": serializers.CharField(),
         "scope": serializers.CharField(),
+        "organisation": serializers.CharField(),
         "expires_at": serializers.DateTimeField(),
     },
 )
@@ -51,6 +54,7 @@ def token_body(issued: tokens.Issued) -> dict:
         "token": issued.key,
         "name": issued.token.name,
         "scope": issued.token.scope,
+        "organisation": issued.token.organisation.slug if issued.token.organisation else None,
         "expires_at": issued.token.expires_at.isoformat(),
     }
 
@@ -71,6 +75,23 @@ def _second_factor(user: object, code: object) -> None:
         )
 
 
+def _organisation_for(user: object, slug: str) -> Organisation:
+    """The one organisation a new token acts for: `organisation` (the slug of one of the
+    user's), or the user's only one; a member of several must name it."""
+    memberships = Membership.objects.for_user(user)
+    if slug:
+        found = memberships.filter(organisation__slug=slug).first()
+        if found is None:
+            raise exceptions.ValidationError({"organisation": ["not an organisation of yours"]})
+        return found.organisation
+    found = list(memberships[:2])
+    if len(found) != 1:
+        raise exceptions.ValidationError(
+            {"organisation": ["name the organisation the token acts for (its slug)"]}
+        )
+    return found[0].organisation
+
+
 @extend_schema(request=TokenRequestSerializer, responses=TokenSerializer, auth=[])
 @api_view(["POST"])
 @authentication_classes([])
@@ -80,7 +101,8 @@ def obtain_token(request: Request) -> Response:
     """Exchange a username and password (and `otp`, the authenticator's code, once the
     user has one) for a new personal API token (header `Authorization: Token …`), named,
     expiring after `expires_in_days` (default API_TOKEN_DEFAULT_DAYS), `operate` unless
-    `scope` is `read`."""
+    `scope` is `read`. The token acts in one organisation only: `organisation` (a slug),
+    which a member of several must give."""
     serializer = TokenRequestSerializer(data=request.data)
     serializer.is_valid(raise_exception=True)
     data = serializer.validated_data
@@ -90,9 +112,11 @@ def obtain_token(request: Request) -> Response:
     if user is None or not user.is_active:
         raise exceptions.AuthenticationFailed("Unable to log in with the provided credentials.")
     _second_factor(user, data.get("otp"))
+    organisation = _organisation_for(user, data.get("organisation", ""))
     try:
         issued = tokens.issue(
             user,
+            organisation=organisation,
             name=data.get("name"),
             days=data.get("expires_in_days"),
             expires_at=data.get("expires_at"),

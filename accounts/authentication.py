@@ -5,7 +5,9 @@ anything gets 403 `read_only_token`; a session whose user must use a second fact
 has not gets 403 `second_factor_required` for anything but reading. Both are enforced
 here, at authentication, so they hold for every view, including those with their own
 permission classes. Tokens are not asked for a code on each request: a token is only
-issued after one (accounts/api.py) or from a session that gave one.
+issued after one (accounts/api.py) or from a session that gave one. A token made for one
+organisation binds the request to it (fleet.tenancy.reach): another organisation's
+drones, missions, telemetry and logs are as unknown to it as to an outsider (404).
 """
 
 from __future__ import annotations
@@ -15,6 +17,8 @@ from typing import Any
 from django.utils import timezone
 from rest_framework import authentication, exceptions
 from rest_framework.permissions import SAFE_METHODS
+
+from fleet import tenancy
 
 from . import tokens, twofactor
 from .models import ApiToken
@@ -43,6 +47,9 @@ class TokenAuthentication(authentication.TokenAuthentication):
                 code, message = refused
                 raise exceptions.AuthenticationFailed(message, code=code)
             tokens.touch(token)  # type: ignore[arg-type]
+            if token.organisation_id is not None:  # type: ignore[union-attr]
+                # Every for_user lookup of this request now reaches that organisation only.
+                tenancy.bind(token.user, token.organisation_id)  # type: ignore[union-attr]
             return token.user, token  # type: ignore[union-attr]
         user, legacy = super().authenticate_credentials(key)
         if tokens.legacy_expiry(legacy) <= timezone.now():

@@ -17,8 +17,9 @@ class ApiToken(models.Model):
     user = models.ForeignKey(
         settings.AUTH_USER_MODEL, on_delete=models.CASCADE, related_name="api_tokens"
     )
-    # The organisation the token was made for: leaving it revokes the token. Empty for
-    # tokens from `POST /api/v1/token/`, which act for every organisation of the user.
+    # The organisation the token was made for: it reaches that one only (fleet.tenancy),
+    # and leaving it revokes the token. Empty only on tokens made before tokens were
+    # bound: they act for every organisation of the user until they expire.
     organisation = models.ForeignKey(
         "fleet.Organisation", null=True, blank=True, on_delete=models.CASCADE, related_name="+"
     )

@@ -63,7 +63,9 @@ class MembershipQuerySet(models.QuerySet):
     def for_user(self, user) -> MembershipQuerySet:  # type: ignore[no-untyped-def]
         if not user.is_authenticated:
             return self.none()
-        return self.filter(user=user).select_related("organisation")
+        from .tenancy import reach  # here: tenancy imports these models
+
+        return self.filter(reach(user, via="")).select_related("organisation")
 
 
 class Membership(models.Model):
@@ -96,7 +98,9 @@ class DroneQuerySet(models.QuerySet):
         """Only drones of organisations the user belongs to: the isolation rule."""
         if not user.is_authenticated:
             return self.none()
-        return self.filter(organisation__memberships__user=user)
+        from .tenancy import reach  # here: tenancy imports these models
+
+        return self.filter(reach(user))
 
 
 class Drone(models.Model):

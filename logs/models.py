@@ -17,6 +17,7 @@ from django.utils import timezone
 from django.utils.text import get_valid_filename
 
 from fleet.models import Organisation
+from fleet.tenancy import reach
 
 
 class LogStatus(models.TextChoices):
@@ -30,7 +31,7 @@ class FlightLogQuerySet(models.QuerySet):
         """Only logs of organisations the user belongs to: the isolation rule."""
         if not user.is_authenticated:
             return self.none()
-        return self.filter(organisation__memberships__user=user)
+        return self.filter(reach(user))
 
     def search(self, query: str) -> FlightLogQuerySet:
         query = query.strip()

@@ -9,6 +9,7 @@ from django.db import models
 from django.utils import timezone
 
 from fleet.models import Drone, Organisation
+from fleet.tenancy import reach
 
 
 class IllegalTransition(Exception):
@@ -78,7 +79,7 @@ class MissionQuerySet(models.QuerySet):
     def for_user(self, user) -> MissionQuerySet:  # type: ignore[no-untyped-def]
         if not user.is_authenticated:
             return self.none()
-        return self.filter(organisation__memberships__user=user)
+        return self.filter(reach(user))
 
 
 class Mission(models.Model):

@@ -115,3 +115,85 @@ async def _connect(application, user, query: str = "", expect: bool = True):
     communicator, connected, _ = await connect_websocket(f"/ws/fleet/{query}", user)
     assert connected is expect
     return communicator
+
+
+# -- a token belongs to one organisation ---------------------------------------------------
+
+
+@pytest.fixture
+def member_of_both(world, missions):
+    """The acme operator, also an admin of globex: a token of acme must still not reach
+    globex, although its user may."""
+    from fleet.models import Membership
+    from logs.models import FlightLog
+
+    Membership.objects.create(user=world.operator, organisation=world.other_org, role="admin")
+    FlightLog.objects.create(organisation=world.other_org, owner=world.outsider, name="g.ulg")
+    return world
+
+
+def token_client(user, organisation) -> APIClient:  # type: ignore[no-untyped-def]
+    from accounts import tokens
+
+    client = APIClient()
+    key = tokens.issue(user, name="script", organisation=organisation).key
+    client.credentials(HTTP_AUTHORIZATION=f"Token {key}")
+    return client
+
+
+def test_a_token_of_one_organisation_gets_404_for_the_other_organisations_drone(
+    member_of_both,
+):
+    world = member_of_both
+    acme = token_client(world.operator, world.org)
+    assert acme.get("/api/v1/drones/ACME_1/").status_code == 200
+    assert acme.get("/api/v1/drones/GLOBEX_1/").status_code == 404
+    assert acme.get("/api/v1/telemetry/drones/GLOBEX_1/latest/").status_code == 404
+    refused = acme.post(
+        "/api/v1/drones/GLOBEX_1/commands/", {"command": "arm", "params": {}}, format="json"
+    )
+    assert refused.status_code == 404
+    assert not world.other_drone.commands.exists()
+    # The same user's globex token reaches globex, and not acme.
+    globex = token_client(world.operator, world.other_org)
+    assert globex.get("/api/v1/drones/GLOBEX_1/").status_code == 200
+    assert globex.get("/api/v1/drones/ACME_1/").status_code == 404
+
+
+def test_a_token_of_one_organisation_lists_only_that_organisations_rows(member_of_both):
+    world = member_of_both
+    acme = token_client(world.operator, world.org)
+    drones = acme.get("/api/v1/drones/").json()["results"]
+    assert [d["drone_id"] for d in drones] == ["ACME_1"]
+    missions = acme.get("/api/v1/missions/").json()["results"]
+    assert [m["name"] for m in missions] == ["Survey north field"]
+    logs = acme.get("/api/v1/logs/").json()
+    assert "g.ulg" not in str(logs)
+    theirs = Mission.objects.get(organisation=world.other_org)
+    assert acme.get(f"/api/v1/missions/{theirs.pk}/").status_code == 404
+    assert [m["organisation"] for m in acme.get("/api/v1/me/").json()["memberships"]] == ["acme"]
+    assert acme.get("/api/v1/organisations/globex/envelope/").status_code == 404
+
+
+def test_an_older_token_without_organisation_keeps_its_reach_and_is_flagged(member_of_both):
+    from django.test import Client
+
+    world = member_of_both
+    unbound = token_client(world.operator, None)
+    assert unbound.get("/api/v1/drones/GLOBEX_1/").status_code == 200
+    assert unbound.get("/api/v1/drones/ACME_1/").status_code == 200
+    page = Client()
+    page.force_login(world.operator)
+    assert "older: replace it" in page.get("/accounts/security/").content.decode()
+
+
+def test_a_token_from_the_api_acts_for_the_organisation_it_names(member_of_both):
+    body = {"username": "operator", "password": "correct horse battery staple"}
+    unnamed = APIClient().post("/api/v1/token/", body, format="json")
+    assert unnamed.status_code == 400 and "organisation" in unnamed.json()["fields"]
+    named = APIClient().post("/api/v1/token/", {**body, "organisation": "globex"}, format="json")
+    assert named.status_code == 200 and named.json()["organisation"] == "globex"
+    client = APIClient()
+    client.credentials(HTTP_AUTHORIZATION=f"Token {named.json()['token']}")
+    assert client.get("/api/v1/drones/ACME_1/").status_code == 404
+    assert client.get("/api/v1/drones/GLOBEX_1/").status_code == 200

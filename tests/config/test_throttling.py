@@ -26,7 +26,10 @@ def rates(settings):
 
 @pytest.fixture
 def user(db):
-    return User.objects.create_user(f"pilot-{uuid.uuid4().hex[:8]}", password=PASSWORD)
+    # A member of one organisation: a token is made for one (accounts/api.py).
+    from tests import factories
+
+    return factories.person(factories.organisation(), username=f"pilot-{uuid.uuid4().hex[:8]}")
 
 
 def token(client: APIClient, ip: str, username: str, password: str, **headers: str):  # type: ignore[no-untyped-def]
