@@ -1,7 +1,8 @@
 """The organisation's audit trail: a filtered page and the same entries as CSV.
 
 Every member sees their current organisation's trail (who commanded what is shared
-knowledge in a crew); only admins see the callers' addresses. Nothing here changes it.
+knowledge in a crew); only admins see the callers' addresses and webhook URLs. Nothing
+here changes it.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from django.core.paginator import Paginator
 from django.http import Http404, HttpRequest, HttpResponse, StreamingHttpResponse
 from django.shortcuts import render
 
+from config import outbound
 from fleet.models import Role
 from fleet.tenancy import acting_membership
 
@@ -54,7 +56,10 @@ def audit_csv(request: HttpRequest) -> StreamingHttpResponse:
     membership = _membership(request)
     events = audit.filtered(membership.organisation, request.GET)
     writer = csv.writer(_Echo())
-    rows = audit.csv_rows(events, with_ip=membership.allows(Role.ADMIN))
+    admin = membership.allows(Role.ADMIN)
+    rows = audit.csv_rows(events, with_ip=admin)
+    if not admin:  # a webhook URL often holds the receiver's secret: admins only
+        rows = ([outbound.hide_urls(cell) for cell in row] for row in rows)
     response = StreamingHttpResponse(
         (writer.writerow(row) for row in rows), content_type="text/csv"
     )

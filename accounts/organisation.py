@@ -14,6 +14,7 @@ from django.core.exceptions import ValidationError
 from django.core.validators import URLValidator, validate_email
 from django.db import transaction
 
+from config import outbound
 from fleet.models import Organisation
 from onboard.envelope import EnvelopeError, parse_latlon
 
@@ -65,6 +66,11 @@ def _recipient(entry: str) -> str:
             f"alert recipients: {entry!r} is neither an e-mail address nor an http(s) URL",
             field="alert_recipients",
         ) from None
+    if entry.startswith(("http://", "https://")):
+        try:
+            outbound.check(entry)  # a public address only, unless the site allows private
+        except outbound.Refused as exc:
+            raise Refused(f"alert recipients: {exc}", field="alert_recipients") from None
     return entry
 
 

@@ -1,4 +1,4 @@
-"""REST: the organisation's recent alerts, newest first."""
+"""REST: the organisation's recent alerts, newest first; webhook URLs to admins only."""
 
 from __future__ import annotations
 
@@ -9,9 +9,11 @@ from rest_framework.permissions import IsAuthenticated
 from rest_framework.request import Request
 from rest_framework.response import Response
 
+from config import outbound
+from fleet.models import Role
 from fleet.tenancy import current_membership
 
-from .models import Alert
+from .models import Alert, Delivery
 
 MAX_ALERTS = 200
 
@@ -31,17 +33,24 @@ def recent(request: Request) -> Response:
     alerts = Alert.objects.filter(organisation_id=membership.organisation_id).prefetch_related(
         "deliveries"
     )[:limit]
+    admin = membership.allows(Role.ADMIN)
     return Response(
         {
             "alerts": [
-                {
-                    **a.to_dict(),
-                    "deliveries": [
-                        {"recipient": d.recipient, "status": d.status, "attempts": d.attempts}
-                        for d in a.deliveries.all()
-                    ],
-                }
+                {**a.to_dict(), "deliveries": [_delivery(d, admin) for d in a.deliveries.all()]}
                 for a in alerts
             ]
         }
     )
+
+
+def _delivery(delivery: Delivery, admin: bool) -> dict:
+    """A webhook URL often holds the receiver's secret (in its path or query): only
+    admins, who set it, see it."""
+    hidden = delivery.channel == Delivery.Channel.WEBHOOK and not admin
+    return {
+        "recipient": outbound.HIDDEN if hidden else delivery.recipient,
+        "channel": delivery.channel,
+        "status": delivery.status,
+        "attempts": delivery.attempts,
+    }

@@ -1,18 +1,20 @@
 """Deliver one alert to one recipient: an e-mail through Django's mail backend, or a JSON
-POST to a webhook. A delivery is attempted under a row lock and marked delivered at once,
-so a retried task never sends it twice; webhooks also get the delivery's id as an
-Idempotency-Key header, for a receiver whose answer was lost on the way back."""
+POST to a webhook (only where `config.outbound` allows it). A delivery is attempted under a
+row lock and marked delivered at once, so a retried task never sends it twice; webhooks
+also get the delivery's id as an Idempotency-Key header, for a receiver whose answer was
+lost on the way back."""
 
 from __future__ import annotations
 
+import http.client
 import json
-import urllib.error
-import urllib.request
 
 from django.conf import settings
 from django.core.mail import send_mail
 from django.db import transaction
 from django.utils import timezone
+
+from config import outbound
 
 from .models import Alert, Delivery
 
@@ -77,22 +79,18 @@ def _email(alert: Alert, recipient: str) -> None:
 
 def _webhook(delivery: Delivery, url: str) -> None:
     body = json.dumps({"alert": delivery.alert.to_dict()}).encode()
-    request = urllib.request.Request(
-        url,
-        data=body,
-        method="POST",
-        headers={
-            "Content-Type": "application/json",
-            "Idempotency-Key": str(delivery.pk),
-            "User-Agent": "Skyhive alerts",
-        },
-    )
+    headers = {
+        "Content-Type": "application/json",
+        "Idempotency-Key": str(delivery.pk),
+        "User-Agent": "Skyhive alerts",
+    }
     try:
-        with urllib.request.urlopen(request, timeout=settings.ALERT_WEBHOOK_TIMEOUT_S) as answer:
-            status = answer.status
-    except urllib.error.HTTPError as exc:
-        raise DeliveryError(f"the webhook answered {exc.code}") from exc
-    except (urllib.error.URLError, OSError) as exc:
+        status = outbound.post(url, body, headers, timeout=settings.ALERT_WEBHOOK_TIMEOUT_S)
+    except outbound.Refused as exc:
+        raise DeliveryError(f"the webhook is refused: {exc}") from exc
+    except (OSError, http.client.HTTPException) as exc:
         raise DeliveryError(f"the webhook could not be reached: {exc}") from exc
+    if 300 <= status < 400:
+        raise DeliveryError(f"the webhook answered {status} (redirects are not followed)")
     if not 200 <= status < 300:
         raise DeliveryError(f"the webhook answered {status}")
