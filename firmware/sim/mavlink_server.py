@@ -45,6 +45,7 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from firmware.sim.mavlink_streams import STREAMED
 from firmware.sim.receiver import ARMED, DISARMED
 from firmware.sim.vehicle import PathTarget, Vehicle, lla_to_ned
 from onboard.fc.mavlink import COPTER_MODES, FORCE_MAGIC, MavlinkCodec
@@ -107,19 +108,7 @@ STREAM_GROUPS = {
     mavlink.MAV_DATA_STREAM_POSITION: ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"),
     mavlink.MAV_DATA_STREAM_EXTRA1: ("ATTITUDE",),
 }
-STREAMABLE = (
-    "SYS_STATUS",
-    "BATTERY_STATUS",
-    "GLOBAL_POSITION_INT",
-    "LOCAL_POSITION_NED",
-    "ATTITUDE",
-    "HIGHRES_IMU",
-    "GPS_RAW_INT",
-    "HOME_POSITION",
-    "MISSION_CURRENT",
-    "EXTENDED_SYS_STATE",
-    "AUTOPILOT_VERSION",
-)
+STREAMABLE = tuple(STREAMED)
 STREAM_IDS = {getattr(mavlink, f"MAVLINK_MSG_ID_{name}"): name for name in STREAMABLE}
 DEFAULT_PARAMS = {
     "BATT_CRT_PCT": 15.0,
@@ -147,18 +136,6 @@ PX4_DEFAULT_RATES = {
     "HOME_POSITION": 0.5,
     "MISSION_CURRENT": 1.0,
 }
-# MAV_PROTOCOL_CAPABILITY bits both autopilots report in AUTOPILOT_VERSION.
-CAPABILITIES = (
-    mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
-    | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
-    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT
-    | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
-    | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
-    | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
-    | mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
-)
-# flight_sw_version: major, minor, patch, FIRMWARE_VERSION_TYPE_OFFICIAL.
-SOFTWARE_VERSIONS = {"ardupilot": (4, 5, 7, 255), "px4": (1, 15, 4, 255)}
 NAV_POSITION_ITEMS = (
     mavlink.MAV_CMD_NAV_WAYPOINT,
     mavlink.MAV_CMD_NAV_LOITER_TIME,
@@ -1155,182 +1132,10 @@ class MavlinkSession:
         self.stats.junk_sent += 2
 
     def _emit(self, name: str) -> None:
-        """Send one streamed message (`_emit_<name>`); names without one are ignored."""
-        emit = getattr(self, f"_emit_{name.lower()}", None)
-        if emit is not None:
-            emit()
-
-    def _emit_sys_status(self) -> None:
-        v = self.vehicle
-        sensors = 0x0020_FC2F
-        healthy = sensors if self.has_position else sensors & ~mavlink.MAV_SYS_STATUS_SENSOR_GPS
-        self._send(
-            "sys_status",
-            sensors,
-            sensors,
-            healthy,
-            200,
-            round(v.voltage * 1000),
-            round(v.current_a * 100),
-            round(v.remaining * 100),
-            0,
-            self.codec.stats.bad_crc + self.codec.stats.bad_data,
-            0,
-            0,
-            0,
-            0,
-        )
-
-    def _emit_battery_status(self) -> None:
-        v = self.vehicle
-        cell_mv = round(v.voltage / v.config.cells * 1000)
-        cells = [cell_mv] * v.config.cells + [0xFFFF] * (10 - v.config.cells)
-        self._send(
-            "battery_status",
-            0,
-            mavlink.MAV_BATTERY_FUNCTION_ALL,
-            mavlink.MAV_BATTERY_TYPE_LIPO,
-            0x7FFF,
-            cells,
-            round(v.current_a * 100),
-            round(v.consumed_mah),
-            -1,
-            round(v.remaining * 100),
-            round(v.estimated_flight_time()),
-        )
-
-    def _emit_global_position_int(self) -> None:
-        if not self.has_position:
-            return  # no fix, no global position estimate to send
-        v = self.vehicle
-        boot_ms = int(v.time * 1000) & 0xFFFFFFFF
-        lat, lon, alt_msl = v.lla()
-        self._send(
-            "global_position_int",
-            boot_ms,
-            round(lat * 1e7),
-            round(lon * 1e7),
-            round(alt_msl * 1000),
-            round(-v.ned[2] * 1000),
-            round(v.velocity[0] * 100),
-            round(v.velocity[1] * 100),
-            round(v.velocity[2] * 100),
-            round(v.yaw * 100) % 36000,
-        )
-
-    def _emit_local_position_ned(self) -> None:
-        v = self.vehicle
-        boot_ms = int(v.time * 1000) & 0xFFFFFFFF
-        self._send("local_position_ned", boot_ms, *v.ned, *v.velocity)
-
-    def _emit_attitude(self) -> None:
-        v = self.vehicle
-        boot_ms = int(v.time * 1000) & 0xFFFFFFFF
-        roll, pitch, yaw = v.attitude()
-        self._send(
-            "attitude",
-            boot_ms,
-            math.radians(roll),
-            math.radians(pitch),
-            math.radians(((yaw + 180) % 360) - 180),
-            0.0,
-            0.0,
-            0.0,
-        )
-
-    def _emit_highres_imu(self) -> None:
-        v = self.vehicle
-        alt_msl = v.lla()[2]
-        pressure = 1013.25 * (1 - 2.25577e-5 * alt_msl) ** 5.25588
-        self._send(
-            "highres_imu",
-            int(v.time * 1e6),
-            0.0,
-            0.0,
-            -9.81,
-            0.0,
-            0.0,
-            0.0,
-            0.21,
-            0.0,
-            0.42,
-            pressure,
-            0.0,
-            alt_msl,
-            35.0,
-            0x1FFF,
-        )
-
-    def _emit_gps_raw_int(self) -> None:
-        v = self.vehicle
-        lat, lon, alt_msl = v.lla()
-        self._send(
-            "gps_raw_int",
-            int(v.time * 1e6),
-            3 if self.has_position else 1,
-            round(lat * 1e7),
-            round(lon * 1e7),
-            round(alt_msl * 1000),
-            90,
-            110,
-            round(math.hypot(*v.velocity[:2]) * 100),
-            round(v.yaw * 100) % 36000,
-            v.config.satellites if self.has_position else 0,
-        )
-
-    def _emit_home_position(self) -> None:
-        v = self.vehicle
-        h = v.home
-        self._send(
-            "home_position",
-            round(h[0] * 1e7),
-            round(h[1] * 1e7),
-            round(h[2] * 1000),
-            0.0,
-            0.0,
-            0.0,
-            [1.0, 0.0, 0.0, 0.0],
-            0.0,
-            0.0,
-            0.0,
-        )
-
-    def _emit_mission_current(self) -> None:
-        self._send("mission_current", self.current, len(self.mission))
-
-    def _emit_extended_sys_state(self) -> None:
-        v = self.vehicle
-        if not v.airborne:
-            climbing = self.armed and v.target.end[2] < -0.5 and v.target.mode != "Land"
-            state = (
-                mavlink.MAV_LANDED_STATE_TAKEOFF if climbing else mavlink.MAV_LANDED_STATE_ON_GROUND
-            )
-        elif v.target.mode == "Land":
-            state = mavlink.MAV_LANDED_STATE_LANDING
-        else:
-            state = mavlink.MAV_LANDED_STATE_IN_AIR
-        self._send("extended_sys_state", mavlink.MAV_VTOL_STATE_UNDEFINED, state)
-
-    def _emit_autopilot_version(self) -> None:
-        major, minor, patch, kind = SOFTWARE_VERSIONS[self.autopilot]
-        version = (major << 24) | (minor << 16) | (patch << 8) | kind
-        capabilities = CAPABILITIES
-        if not self.px4:
-            capabilities |= mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
-        self._send(
-            "autopilot_version",
-            capabilities,
-            version,
-            0,
-            0,
-            0,
-            [0] * 8,
-            [0] * 8,
-            [0] * 8,
-            0,
-            0,
-            0x5348495645,  # a fixed hardware uid for this simulated board
-        )
+        """Send one streamed message, its fields from `STREAMED[name]` (none: nothing sent)."""
+        fields = STREAMED[name](self)
+        if fields is not None:
+            self._send(name.lower(), *fields)
 
 
 def _valid_latlon(lat: float, lon: float) -> bool:

@@ -13,6 +13,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from firmware.sim.mavlink_server import MavlinkSession
+from firmware.sim.mavlink_streams import STREAMED
 from firmware.sim.vehicle import Vehicle, VehicleConfig
 from onboard.fc.mavlink import MavlinkCodec
 from onboard.navigation import ned_to_lla
@@ -328,6 +329,22 @@ def test_px4_streams_unasked_and_describes_itself_in_autopilot_version():
     quiet = Ground("ardupilot")
     quiet.run(2.5)
     assert not {"SYS_STATUS", "GLOBAL_POSITION_INT"} & {m.get_type() for m in quiet.inbox}
+
+
+@pytest.mark.parametrize("name", sorted(STREAMED))
+def test_every_message_in_the_stream_table_answers_a_request_for_it(name):
+    ground = Ground("ardupilot")
+    ground.inbox.clear()
+    message_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
+    assert ground.command(mavlink.MAV_CMD_REQUEST_MESSAGE, message_id) == 0
+    assert name in {m.get_type() for m in ground.inbox}
+
+
+def test_a_message_outside_the_stream_table_is_refused_not_sent():
+    ground = Ground("ardupilot")
+    result = ground.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_VFR_HUD)
+    assert result == mavlink.MAV_RESULT_UNSUPPORTED
+    assert "VFR_HUD" not in {m.get_type() for m in ground.inbox}
 
 
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
