@@ -12,13 +12,17 @@ from config.env import env
 
 from .base import *  # noqa: F403
 
-# The broker account the development settings fall back to; never valid in production.
+# The broker and database accounts the development settings fall back to; never valid
+# in production.
 FALLBACK_MQTT_ACCOUNT = ("ground", "ground")
+FALLBACK_DATABASE_PASSWORD = "skyhive"
 
 
 def missing_secrets() -> list[str]:
     """What the environment lacks for production: SECRET_KEY, the ground's own broker
-    account in MQTT_URL, a Redis password in REDIS_URL."""
+    account in MQTT_URL, a Redis password in REDIS_URL, a database password that is not
+    the development one in DATABASE_URL (none at all is fine: a local socket's peer
+    authentication)."""
     missing = []
     # Empty also when unset or naming (with a leading `$`) a variable that is unset.
     if not env.str("SECRET_KEY", ""):
@@ -30,7 +34,25 @@ def missing_secrets() -> list[str]:
         missing.append("MQTT_URL (with the ground's own user and password, not ground:ground)")
     if not urlsplit(env.str("REDIS_URL", "")).password:
         missing.append("REDIS_URL (with its password)")
+    database = urlsplit(env.str("DATABASE_URL", ""))
+    if not database.scheme or database.password == FALLBACK_DATABASE_PASSWORD:
+        missing.append("DATABASE_URL (with its own password, not the development skyhive)")
     return missing
+
+
+def proxy_ssl_header() -> tuple[str, str] | None:
+    """The header a TLS-terminating proxy sets, trusted only when the site says a proxy
+    is there: SECURE_PROXY_SSL_HEADER (`X-Forwarded-Proto: https`), or NUM_PROXIES > 0
+    (then X-Forwarded-Proto). Trusted with no proxy, any client could claim https."""
+    named = env.str("SECURE_PROXY_SSL_HEADER", "")
+    if named:
+        header, _, value = named.partition(":")
+        if not (header.strip() and value.strip()):
+            raise ImproperlyConfigured("SECURE_PROXY_SSL_HEADER is `Header-Name: value`")
+        return ("HTTP_" + header.strip().upper().replace("-", "_"), value.strip())
+    if env.int("NUM_PROXIES", 0) > 0:
+        return ("HTTP_X_FORWARDED_PROTO", "https")
+    return None
 
 
 _missing = missing_secrets()
@@ -40,7 +62,7 @@ if _missing:
 STATIC_ROOT = BASE_DIR / "staticfiles"  # noqa: F405 - `make collectstatic` fills it
 WHITENOISE_USE_FINDERS = False
 
-SECURE_PROXY_SSL_HEADER = ("HTTP_X_FORWARDED_PROTO", "https")
+SECURE_PROXY_SSL_HEADER = proxy_ssl_header()
 SECURE_SSL_REDIRECT = True
 SESSION_COOKIE_SECURE = True
 CSRF_COOKIE_SECURE = True
