@@ -19,7 +19,7 @@ from firmware.sim.server import PtyTransport, TcpTransport, serve
 from firmware.sim.telemetry import BoardSession
 from firmware.sim.vehicle import Vehicle, VehicleConfig
 from onboard.arming_frames import load_frames
-from onboard.uavtalk import ObjectRegistry
+from onboard.uavtalk import ObjectRegistry, arming_vetoes, generations
 
 
 class UnknownParameter(ValueError):
@@ -104,6 +104,23 @@ def build_parser() -> argparse.ArgumentParser:
         "(Yaw Right+Throttle on channels 1-4, 1000/1500/2000, an arming channel on 5), "
         "e.g. Arming=Switch+Throttle or ChannelGroups.Throttle=PWM (repeatable)",
     )
+    p.add_argument(
+        "--firmware",
+        choices=[g.key for g in generations.GENERATIONS],
+        default=generations.DEFAULT.key,
+        help="uavtalk: the dRonin generation played, with its object definitions; objects "
+        "of another generation are NACKed, as the board does (release: Release-20180729, "
+        "latest: dRonin's latest source, 2021)",
+    )
+    p.add_argument(
+        "--alarm",
+        type=_setting,
+        action="append",
+        default=[],
+        metavar="ALARM=LEVEL",
+        help="uavtalk: a SystemAlarms entry raised from boot, e.g. Sensors=Critical "
+        "(Error or above keeps the board from arming, as dRonin's ok_to_arm does)",
+    )
     p.add_argument("-v", "--verbose", action="store_true")
     return p
 
@@ -162,15 +179,17 @@ def _session(args: argparse.Namespace) -> BoardSession | MavlinkSession:
         config=config, receiver=ReceiverArming(frames, arming_time_s=args.arming_time)
     )
     if args.fc != "mavlink":
-        return BoardSession(
+        board = BoardSession(
             vehicle=vehicle,
-            registry=ObjectRegistry.load(args.objects_dir),
+            registry=ObjectRegistry.load(args.objects_dir, args.firmware),
             frames=frames,
             time_scale=args.time_scale,
             arming_line=args.arming_line,
             link_timeout_s=args.link_timeout,
             receiver_settings=dict(args.receiver_setting),
         )
+        raise_alarms(board, dict(args.alarm))
+        return board
     session = MavlinkSession(
         vehicle=vehicle,
         time_scale=args.time_scale,
@@ -182,6 +201,21 @@ def _session(args: argparse.Namespace) -> BoardSession | MavlinkSession:
             raise UnknownParameter(f"unknown MAVLink parameter {name}")
         session.params[name] = value
     return session
+
+
+def raise_alarms(board: BoardSession, alarms: dict[str, str]) -> None:
+    """SystemAlarms entries as the board's modules would raise them (ValueError for an
+    alarm or level dRonin does not have)."""
+    if not alarms:
+        return
+    field = board.registry["SystemAlarms"].field("Alarm")
+    values = board.values[("SystemAlarms", 0)]["Alarm"]
+    for name, level in alarms.items():
+        if name not in field.element_names or level not in field.options:
+            raise ValueError(f"no SystemAlarms alarm {name} at level {level}")
+        values[field.element_names.index(name)] = level
+    alarm_values = board.values[("SystemAlarms", 0)]
+    board.vehicle.receiver.vetoed = bool(arming_vetoes.vetoes(alarm_values, field.element_names))
 
 
 if __name__ == "__main__":

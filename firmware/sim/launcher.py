@@ -80,6 +80,7 @@ def start_simulator(
     drain: float | None = None,
     max_horizontal_speed: float | None = None,
     arming_time: float | None = None,
+    firmware: str | None = None,
     log_file: str | os.PathLike[str] | None = None,
     extra_args: list[str] | None = None,
     startup_timeout: float = 10.0,
@@ -102,6 +103,7 @@ def start_simulator(
         "--drain": drain,
         "--max-horizontal-speed": max_horizontal_speed,
         "--arming-time": arming_time,
+        "--firmware": firmware,
     }
     for flag, value in optional.items():
         if value is not None:

@@ -68,6 +68,8 @@ class ReceiverArming:
         # Switch family: an arming attempt was cancelled; the switch must go low first.
         self.switch_must_drop = False
         self._switch = False
+        # An alarm that vetoes arming (dRonin's ok_to_arm): arming gestures are ignored.
+        self.vetoed = False
 
     def reset(self) -> None:
         """Back to Disarmed, as after a reboot."""
@@ -107,7 +109,7 @@ class ReceiverArming:
         arming_time_s, disarming_time_s = self._times(pulses_us)
         if gesture == "disarm" and isinstance(pulses_us, BoardChannels) and self._switch:
             self.switch_must_drop = False  # the switch is low
-        elif gesture == "arm" and self.switch_must_drop:
+        elif gesture == "arm" and (self.switch_must_drop or self.vetoed):
             gesture = None
         wanted = {"arm": DISARMED, "disarm": ARMED}
         if gesture is None or not (

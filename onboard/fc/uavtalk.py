@@ -39,7 +39,9 @@ from onboard.uavtalk import (
     FrameDecoder,
     MessageType,
     ObjectRegistry,
+    arming_vetoes,
     encode_frame,
+    generations,
     receiver_setup,
 )
 
@@ -53,6 +55,9 @@ IAP_STEPS = (1122, 2233, 3344)
 IAP_GAP_S = 0.6  # board seconds between reset steps (the firmware accepts 0.5 to 5 s)
 NAV_MODE = "PathPlanner"
 STATE_OBJECTS = ("FlightStatus", "HomeLocation", "GPSPosition", "PositionActual")
+# A board answers an object it knows at once; one it does not know is NACKed or ignored.
+PROBE_TIMEOUT_S = 1.0
+ALARMS = "SystemAlarms"
 
 
 @dataclass
@@ -86,7 +91,7 @@ class UAVTalkFlightController(LinkDriver):
     ) -> None:
         self.link_url = link_url
         self._init_link_driver(ReopeningLink(link_url), "uavtalk")
-        self.registry = registry or ObjectRegistry.load(objects_dir)
+        self.registry = registry or ObjectRegistry.load(objects_dir, every_generation=True)
         self.codec = Codec(self.registry)
         self.decoder = FrameDecoder(self.registry)
         self.arming_switch = arming_switch
@@ -106,6 +111,10 @@ class UAVTalkFlightController(LinkDriver):
         self._last_heard = 0.0
         self._last_sent = 0.0
         self._last_handshake = 0.0
+        # Set-up findings: the firmware generation's, and the receiver settings' (these
+        # keep the board from arming, so `arm` answers with them at once).
+        self._generation_report: tuple[str, ...] = ()
+        self._arming_blockers: tuple[str, ...] = ()
 
     # --- the protocol's part of the link skeleton (onboard/fc/driver.py) -----------------
     LINK_NAME = "flight controller"
@@ -220,21 +229,80 @@ class UAVTalkFlightController(LinkDriver):
             self._set_disconnected()
 
     def _fetch_state(self) -> None:
+        try:
+            self.detect_generation()
+        except NotConnected:
+            return  # the next session detects again
         for name in STATE_OBJECTS:
             try:
                 self.request_object(name, timeout=1.0)
             except FlightControllerError as exc:
                 log.debug("initial %s request failed: %s", name, exc)
-        if getattr(self.arming_switch, "receiver_group", None) == receiver_setup.GROUP:
+        if self._uses_receiver_channels():
             self.check_receiver_setup()
+        else:
+            self._holder.update(setup=self._generation_report)
+
+    def _uses_receiver_channels(self) -> bool:
+        return getattr(self.arming_switch, "receiver_group", None) == receiver_setup.GROUP
+
+    def detect_generation(self) -> str | None:
+        """Ask the board for each generation's definition of the objects that differ
+        between dRonin generations, and read and write with the generation whose
+        definitions it answers (onboard.uavtalk.generations). None when it answers none:
+        the set-up report then names each object with the ids expected."""
+        variants = self.registry.variants
+        answered = {name: self._answered(per) for name, per in variants.items()}
+        fits = [
+            g.key
+            for g in generations.GENERATIONS
+            if all(g.key in keys for keys in answered.values())
+        ]
+        unknown = [name for name, keys in answered.items() if not keys]
+        self._generation_report = tuple(self._neither(name) for name in unknown)
+        for problem in self._generation_report:
+            log.warning("flight controller set-up: %s", problem)
+        if not fits:
+            return None
+        if fits[0] != self.registry.generation:
+            self.registry = self.registry.for_generation(fits[0])
+            self.codec = Codec(self.registry)
+        log.info("flight controller firmware: %s", generations.get(fits[0]).firmware)
+        return fits[0]
+
+    def _answered(self, per: dict) -> list[str]:
+        keys = []
+        for key, obj in per.items():
+            try:
+                self.request_object_id(obj.id, timeout=PROBE_TIMEOUT_S)
+            except CommandTimeout:
+                continue  # ignored: not this generation's
+            except NotConnected:
+                raise
+            except FlightControllerError:
+                continue  # NACKed: not this generation's
+            keys.append(key)
+        return keys
+
+    def _neither(self, name: str) -> str:
+        ids = ", ".join(
+            f"{generations.get(key).firmware}: {obj.id:#010x}"
+            for key, obj in self.registry.variants[name].items()
+        )
+        return (
+            f"the flight controller answers no definition of {name} known here ({ids}): "
+            "its firmware is another dRonin version; add its definitions "
+            '(docs/uavtalk.md "Adding a firmware generation")'
+        )
 
     def check_receiver_setup(self) -> tuple[str, ...]:
         """Read the board's receiver settings and say what to change before the agent can
         arm it through UAVTalkReceiver; the answer is logged and kept in `state.setup`
         (heartbeats carry it to the ground)."""
-        found: list[str] = []
+        found: list[str] = list(self._generation_report)
+        blockers: list[str] = []
         for name in ("UAVTalkReceiver", receiver_setup.SETTINGS):
-            if name not in self.registry:
+            if name not in self.registry or any(name in p for p in self._generation_report):
                 continue
             try:
                 values = self.request_object(name, timeout=2.0)
@@ -247,23 +315,40 @@ class UAVTalkFlightController(LinkDriver):
                 found.append(self._unknown_object(name))
                 continue
             if name == receiver_setup.SETTINGS:
-                found += receiver_setup.problems(values)
+                blockers = receiver_setup.problems(values)
                 if hasattr(self.arming_switch, "configure"):
                     self.arming_switch.configure(values)
-        for problem in found:
+        for problem in blockers:
             log.warning("flight controller set-up: %s", problem)
-        self._holder.update(setup=tuple(found))
-        return tuple(found)
+        self._arming_blockers = tuple(blockers)
+        self._holder.update(setup=tuple(found + blockers))
+        return tuple(found + blockers)
 
     def _unknown_object(self, name: str) -> str:
         obj = self.registry[name]
         message = (
             f"the flight controller does not know {name} as defined here (id {obj.id:#010x}); "
-            "its firmware is not dRonin Release-20180729"
+            f"its firmware is not {generations.get(self.registry.generation).firmware}"
         )
         if name == receiver_setup.SETTINGS:
             message += ": check by hand that " + "; ".join(receiver_setup.by_hand())
         return message
+
+    def arming_vetoes(self) -> list[str]:
+        """Why the board will not arm now, in dRonin's terms: receiver settings that cannot
+        arm, alarms that veto arming (read afresh), or no receiver at all."""
+        found = list(self._arming_blockers)
+        if ALARMS not in self.registry:
+            return found
+        try:
+            alarms = self.request_object(ALARMS, timeout=PROBE_TIMEOUT_S)
+        except FlightControllerError:
+            return found  # not answered: the board's FlightStatus stays the judge
+        names = self.registry[ALARMS].field("Alarm").element_names
+        found += arming_vetoes.vetoes(alarms, names, self.cached("FlightStatus"))
+        if not self._uses_receiver_channels() and arming_vetoes.no_receiver(alarms):
+            found.append(arming_vetoes.no_receiver(alarms))  # type: ignore[arg-type]
+        return found
 
     def _set_disconnected(self) -> None:
         self._link_status = "Disconnected"
@@ -454,6 +539,9 @@ class UAVTalkFlightController(LinkDriver):
         if self.state.armed == arm and not self.state.arming:
             return
         word = "arm" if arm else "disarm"
+        vetoes = self.arming_vetoes() if arm else []
+        if vetoes:
+            raise FlightControllerError("the board will not arm: " + "; ".join(vetoes))
         (self.arming_switch.request_arm if arm else self.arming_switch.request_disarm)()
         deadline = time.monotonic() + timeout
         try:

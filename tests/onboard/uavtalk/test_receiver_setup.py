@@ -3,6 +3,7 @@ reported as what to change; writes the board does not know are refused at once."
 
 from __future__ import annotations
 
+import re
 import shutil
 import time
 from pathlib import Path
@@ -253,9 +254,11 @@ def test_a_board_set_up_wrong_is_reported_on_connect_and_in_the_heartbeat():
         assert wait_for(lambda: fc.state.setup == (wanted,), 5), fc.state.setup
         heartbeat = parse_heartbeat(build_heartbeat("DRONE_1", fc.state, None).to_dict())
         assert heartbeat.fc_setup == (wanted,)
-        # As a real board would, it ignores the channels: arming cannot happen.
-        with pytest.raises(FlightControllerError, match="did not arm"):
-            fc.arm(timeout=1.0)
+        # It could not arm from these channels: the agent says why at once.
+        started = time.monotonic()
+        with pytest.raises(FlightControllerError, match=re.escape(f"will not arm: {wanted}")):
+            fc.arm(timeout=5.0)
+        assert time.monotonic() - started < 1.0
         assert not fc.state.armed
     finally:
         fc.stop()
