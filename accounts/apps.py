@@ -1,4 +1,5 @@
 from django.apps import AppConfig
+from django.contrib.admin import apps as admin_apps
 
 
 class AccountsConfig(AppConfig):
@@ -9,3 +10,11 @@ class AccountsConfig(AppConfig):
         from . import receivers, schema  # noqa: F401 - the schema extension registers itself
 
         receivers.connect()
+
+
+class AdminConfig(admin_apps.AdminConfig):
+    """`django.contrib.admin` on the site of accounts/admin_site.py: the portal's sign-in
+    and second factor (named in INSTALLED_APPS in place of `django.contrib.admin`)."""
+
+    default = False  # "accounts" alone still means AccountsConfig
+    default_site = "accounts.admin_site.AdminSite"

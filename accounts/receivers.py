@@ -5,12 +5,13 @@ from __future__ import annotations
 
 from typing import Any
 
+from django.conf import settings
 from django.contrib.auth.signals import user_logged_in, user_login_failed
 from django.db.models.signals import post_save
 
 from fleet.signals import action_refused, envelope_changed
 
-from . import audit, signin
+from . import admin_site, audit, passwords, signin
 
 # The command log's outcomes, as the audit trail names them.
 COMMAND_OUTCOMES = {"ok": "ok", "failed": "failed", "timeout": "timeout", "rejected": "refused"}
@@ -95,3 +96,7 @@ def connect() -> None:
     action_refused.connect(refused, dispatch_uid="audit-refused")
     user_logged_in.connect(signin.signed_in, dispatch_uid="sign-in-record")
     user_login_failed.connect(signin.sign_in_failed, dispatch_uid="sign-in-failed-record")
+    post_save.connect(
+        passwords.password_saved, sender=settings.AUTH_USER_MODEL, dispatch_uid="password-saved"
+    )
+    post_save.connect(admin_site.logged, sender="admin.LogEntry", dispatch_uid="audit-admin")

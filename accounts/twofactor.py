@@ -41,8 +41,12 @@ def required_for(user: Any) -> bool:
 
 def session_verified(request: Any) -> bool:
     """Whether this session signed in (or enrolled) with a one-time code."""
-    device_id = request.session.get(DEVICE_ID_SESSION_KEY) if hasattr(request, "session") else None
-    device = device_of(request.user) if device_id else None
+    return _verified(request.user, getattr(request, "session", None))
+
+
+def _verified(user: Any, session: Any) -> bool:
+    device_id = session.get(DEVICE_ID_SESSION_KEY) if session is not None else None
+    device = device_of(user) if device_id else None
     return bool(device and device.persistent_id == device_id)
 
 
@@ -50,6 +54,38 @@ def missing(request: Any) -> bool:
     """The user must use a second factor and this session has not."""
     user = request.user
     return bool(user.is_authenticated and required_for(user) and not session_verified(request))
+
+
+def owes_second_factor(user: Any, organisation: Any, session: Any) -> bool:
+    """The session (a request's or a websocket's) may not move `organisation`'s drones:
+    the organisation requires a second factor of its operators and admins, the user is
+    one there, and this session has not given a code. Named by the SECOND_FACTOR_CHECK
+    setting for the apps that do not import accounts (pastview's teleoperation)."""
+    required = Membership.objects.filter(
+        user=user,
+        organisation=organisation,
+        role__in=(Role.OPERATOR, Role.ADMIN),
+        organisation__account_settings__require_second_factor=True,
+    ).exists()
+    return required and not _verified(user, session)
+
+
+def admin_allowed(request: Any) -> bool:
+    """Staff reach the Django admin only from a session that gave its code, when they
+    have an authenticator or an organisation of theirs requires one."""
+    user = request.user
+    needed = device_of(user) is not None or required_for(user)
+    return not needed or session_verified(request)
+
+
+def current_proof(user: Any, form: Any) -> bool:
+    """Before the authenticator changes: the current code (`current_code`) of the one
+    enrolled, or the password (`password`) when none is, so a borrowed session cannot
+    move the second factor to another phone."""
+    device = device_of(user)
+    if device is not None:
+        return check(device, form.get("current_code"))
+    return user.check_password(str(form.get("password") or ""))
 
 
 def start_enrolment(user: Any) -> TOTPDevice:

@@ -44,7 +44,12 @@ def security(request: HttpRequest) -> HttpResponse:
 @login_required
 @require_POST
 def create_token(request: HttpRequest) -> HttpResponse:
-    """A new token, its key shown on this response only (it is not stored)."""
+    """A new token, its key shown on this response only (it is not stored). A session
+    that owes the second factor its organisation requires mints no credential."""
+    if twofactor.missing(request):
+        error = "second factor: your organisation requires it; set it up and sign in with it first."
+        context = {**_security_context(request), "token_error": error}
+        return render(request, "accounts/security.html", context, status=403)
     try:
         issued = tokens.issue(
             request.user,
@@ -79,21 +84,37 @@ def revoke_legacy_token(request: HttpRequest) -> HttpResponse:
 
 @login_required
 def two_factor(request: HttpRequest) -> HttpResponse:
-    """Enrol an authenticator app: scan the QR code, then confirm with its first code."""
+    """Enrol an authenticator app, or move to another: scan the QR code, then confirm
+    with its first code, after proving the current one (or the password)."""
     device = twofactor.pending_enrolment(request.user) or twofactor.start_enrolment(request.user)
     status, error = 200, None
     if request.method == "POST":
-        if twofactor.confirm(request.user, device, request.POST.get("code")):
+        status, error = _enrol(request, device)
+        if error is None:
             django_otp.login(request, device)  # this session has now given a code
             messages.success(request, "Two-factor sign-in is on.")
             return redirect("accounts:security")
-        status, error = 400, "That code is not right; enter the one your app shows now."
     context = {
         "qr": twofactor.qr_svg(device),
         "secret": twofactor.secret_of(device),
         "error": error,
+        "has_second_factor": twofactor.device_of(request.user) is not None,
     }
     return render(request, "accounts/two_factor.html", context, status=status)
+
+
+def _enrol(request: HttpRequest, device: object) -> tuple[int, str | None]:
+    """(status, None) once the new authenticator is on; otherwise why not. Wrong
+    passwords count against the LOGIN_RATE limit like those on the sign-in page."""
+    attempts = LoginAttempts(request)
+    if attempts.exhausted():
+        return 429, "Too many failed attempts; try again in a minute."
+    if not twofactor.current_proof(request.user, request.POST):
+        attempts.failed()
+        return 403, "Give the code your current app shows (with none set up: your password)."
+    if not twofactor.confirm(request.user, device, request.POST.get("code")):
+        return 400, "That code is not right; enter the one your app shows now."
+    return 302, None
 
 
 @login_required

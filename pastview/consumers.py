@@ -22,6 +22,7 @@ from typing import Any
 from asgiref.sync import sync_to_async
 from channels.db import database_sync_to_async
 from django.conf import settings
+from django.utils.module_loading import import_string
 
 from fleet import commands
 from fleet.consumers import CLOSE_NOT_FOUND, GroupConsumer
@@ -68,7 +69,13 @@ class PastViewConsumer(GroupConsumer):
         drone, can_operate = await _drone_and_role(
             user, self.scope["url_route"]["kwargs"]["drone_id"]
         )
-        return None if drone is None else (drone, can_operate)
+        if drone is None:
+            return None
+        # A session owing its organisation's second factor watches but does not steer.
+        owes = database_sync_to_async(import_string(settings.SECOND_FACTOR_CHECK))
+        return drone, can_operate and not await owes(
+            user, drone.organisation, self.scope.get("session")
+        )
 
     def group_for(self, target: tuple[Drone, bool]) -> str:
         return group_name(target[0].drone_id)

@@ -14,7 +14,8 @@ ALLOWED_HOSTS = env.list(
 CSRF_TRUSTED_ORIGINS = env.list("CSRF_TRUSTED_ORIGINS", cast=str.strip, default=[])
 
 INSTALLED_APPS = [
-    "django.contrib.admin",
+    # django.contrib.admin behind the portal's sign-in and second factor (accounts/admin_site.py)
+    "accounts.apps.AdminConfig",
     "django.contrib.auth",
     "django.contrib.contenttypes",
     "django.contrib.sessions",
@@ -388,6 +389,9 @@ REST_FRAMEWORK["DEFAULT_AUTHENTICATION_CLASSES"] = [
     "accounts.authentication.TokenAuthentication",
     "accounts.authentication.SessionAuthentication",
 ]
+# Asked by apps that do not import accounts (pastview's teleoperation) before a session
+# moves a drone: (user, organisation, session) -> True while it owes the second factor.
+SECOND_FACTOR_CHECK = "accounts.twofactor.owes_second_factor"
 # Personal API tokens: their default and longest life. DRF's older unnamed tokens are
 # accepted until API_TOKEN_DEFAULT_DAYS after they were made.
 API_TOKEN_DEFAULT_DAYS = env.int("API_TOKEN_DEFAULT_DAYS", 90)

@@ -46,11 +46,14 @@ def enrol(client: Client, user) -> TOTPDevice:  # type: ignore[no-untyped-def]
     assert page.status_code == 200 and "<svg" in page.content.decode()
     device = TOTPDevice.objects.get(user=user, confirmed=False)
     assert page.context["secret"] in page.content.decode()
-    assert client.post("/accounts/security/two-factor/", {"code": "000000"}).status_code == 400
+    proof = {"password": PASSWORD}
+    wrong = client.post("/accounts/security/two-factor/", {**proof, "code": "000000"})
+    assert wrong.status_code == 400
     device.refresh_from_db()
     device.throttling_failure_count = 0  # the wrong code above slows the next try
     device.save()
-    assert client.post("/accounts/security/two-factor/", {"code": code(device)}).status_code == 302
+    right = client.post("/accounts/security/two-factor/", {**proof, "code": code(device)})
+    assert right.status_code == 302
     device.refresh_from_db()
     assert device.confirmed
     return device
