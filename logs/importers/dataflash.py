@@ -21,6 +21,8 @@ from logs.importers.base import Limits, LogFormatError, Progress, ProgressTicker
 from logs.series import LogData, Series, join
 
 HEAD = b"\xa3\x95"
+# Sensors of one kind on a vehicle (ArduPilot has at most a few IMUs, GPSs, batteries).
+MAX_INSTANCES = 16
 FMT_TYPE = 0x80
 FMT_LEN = 89
 # Format characters (ArduPilot AP_Logger / pymavlink DFReader.FORMAT_TO_STRUCT): dtype and
@@ -237,6 +239,12 @@ class DataFlashImporter:
             fmt.multipliers = multipliers.get(fmt.name, {})
             instance = instances.get(fmt.name)
             values_seen = np.unique(records[instance]) if instance else []
+            if len(values_seen) > MAX_INSTANCES:
+                # A layer per instance would make series by the record, not by the sensor.
+                log.warnings.append(
+                    f"{fmt.name}: {len(values_seen)} instances, over {MAX_INSTANCES}; kept as one."
+                )
+                values_seen = []
             if len(values_seen) > 1:
                 # Several sensors of one kind (IMU, GPS, BARO...) log under one message
                 # name; one layer per instance, named as pymavlink does: IMU[0], IMU[1].

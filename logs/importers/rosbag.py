@@ -4,10 +4,14 @@ the AR.Drone topics (ardrone_autonomy Navdata, cmd_vel) tagged as the special qu
 
 from __future__ import annotations
 
+import bz2
+from functools import partial
 from pathlib import Path
 
+import lz4.frame
 import numpy as np
 from rosbags.rosbag1 import Reader
+from rosbags.rosbag1.reader import decompressors
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from logs.importers.base import Limits, LogFormatError, Progress, ProgressTicker, describe
@@ -15,6 +19,9 @@ from logs.importers.columns import ColumnCollector
 from logs.series import LogData, join
 
 MAGIC = b"#ROSBAG V2.0"
+# A chunk may decompress to its compressed size times the limits' ratio, plus this much
+# (a tiny chunk of a few messages compresses badly, never hugely).
+CHUNK_SLACK_BYTES = 64 << 10
 # Fixed-size arrays up to this length become one series per element; longer arrays and
 # variable-length sequences (images, point clouds, tag lists) are not plottable quantities.
 MAX_ARRAY = 16
@@ -84,6 +91,52 @@ def flatten(msg: object, prefix: str, out: dict[str, object]) -> None:
             flatten(value, key, out)
 
 
+class ChunkBudget:
+    """Decompresses a bag's chunks within bounds, whatever their headers say: each chunk to
+    at most `ratio` times its compressed bytes (plus CHUNK_SLACK_BYTES), and all chunks
+    together, counting a chunk read again for messages out of order, to `total` bytes."""
+
+    def __init__(self, name: str, *, ratio: float, total: int) -> None:
+        self.name = name
+        self.ratio = ratio
+        self.left = total
+
+    def install(self, reader: Reader) -> None:
+        """Swap the reader's own decompressors (unbounded) for the capped ones."""
+        kinds = {id(fn): kind for kind, fn in decompressors.items()}
+        reader.chunks = {
+            pos: chunk._replace(
+                decompressor=partial(self.decompress, kinds[id(chunk.decompressor)])
+            )
+            for pos, chunk in reader.chunks.items()
+        }
+
+    def decompress(self, kind: str, data: bytes) -> bytes:
+        cap = min(int(self.ratio * len(data)) + CHUNK_SLACK_BYTES, self.left)
+        if kind == "bz2":
+            out = bz2.BZ2Decompressor().decompress(data, max_length=cap + 1)
+        elif kind == "lz4":
+            out = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=cap + 1)
+        else:
+            out = data
+        if len(out) > cap:
+            raise LogFormatError(
+                f"The bag {self.name!r} decompresses past its limit ({cap} bytes for a chunk "
+                f"of {len(data)}), so it was refused as a compression bomb."
+            )
+        self.left -= len(out)
+        return out
+
+
+def chunk_budget(path: Path, limits: Limits) -> ChunkBudget:
+    """The ratio of the limits for each chunk; in all, the file's own size or its size times
+    the ratio up to the limits' uncompressed ceiling, whichever is more."""
+    size = path.stat().st_size
+    ratio = limits.max_compression_ratio
+    total = max(size, min(int(ratio * size), limits.max_uncompressed_bytes))
+    return ChunkBudget(path.name, ratio=ratio, total=total)
+
+
 class RosbagImporter:
     name = "ROS 1 bag"
     extensions = (".bag",)
@@ -98,6 +151,7 @@ class RosbagImporter:
         try:
             reader = Reader(path)
             reader.open()
+            chunk_budget(path, limits).install(reader)
         except Exception as exc:
             raise LogFormatError(
                 f"The file {path.name!r} is not a readable ROS 1 bag (truncated?): {describe(exc)}."

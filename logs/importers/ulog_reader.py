@@ -12,6 +12,17 @@ at a time.
 Corruption is handled like pyulog: an impossible header moves on by one byte (or to the
 next sync sequence when the log has them), a data message of an unknown subscription or an
 impossible size is skipped, and the log is flagged corrupt.
+
+Bounds (a hostile file costs a fixed multiple of its size, never more):
+- Formats are measured before anything is built from them: a subscribed format larger than
+  a message can carry (a uint16 size, ULog File Format), nested deeper than MAX_NESTING,
+  containing itself, or whose fields would pass the file's field budget (FIELD_FLOOR plus
+  one per BYTES_PER_FIELD of file) refuses the file, so nested arrays that multiply
+  (`T1: T0[65535] a`, `T2: T1[65535] b`) are never expanded. A format name defined twice
+  keeps its first definition (PX4 defines each once), so a measure never goes stale.
+- After an impossible header the reader checks each header as it goes (CAREFUL_BYTES of
+  file at a time) until CLEAN_BYTES in a row are sound, then walks again in chunks that
+  start at RESUME_BYTES and double: a file of garbage is read once, not once per byte.
 """
 
 from __future__ import annotations
@@ -31,6 +42,15 @@ CHUNK_BYTES = 64 << 20
 # The same corruption heuristic as pyulog: a header this implausible is not a message.
 MAX_PLAUSIBLE_SIZE = 10_000
 KNOWN_TYPES = np.frombuffer(b"FDIMPQARSOLCB", dtype=np.uint8)
+KNOWN_TYPE_SET = frozenset(KNOWN_TYPES.tolist())
+# A message's size is a uint16, so a data record is at most this long.
+MAX_MESSAGE_BYTES = 0xFFFF
+MAX_NESTING = 16
+FIELD_FLOOR = 1 << 16
+BYTES_PER_FIELD = 16
+CAREFUL_BYTES = 1 << 20
+CLEAN_BYTES = 1 << 17
+RESUME_BYTES = 1 << 20
 DATA = ord("D")
 DATA_SECTION_STARTS = (ord("A"), ord("L"), ord("C"))
 
@@ -53,6 +73,10 @@ TYPES: dict[str, tuple[str, str]] = {
 
 class UlogError(ValueError):
     """The file is not a ULog this reader can parse."""
+
+
+class UlogBoundError(UlogError):
+    """The file declares more than its size can justify: refused whole, not skipped."""
 
 
 @dataclass
@@ -114,6 +138,10 @@ class _Reader:
         self.finished: list[Subscription] = []
         self.in_data = False
         self.has_sync = True
+        self.careful = False
+        self.measures: dict[str, tuple[int, int]] = {}
+        self.layouts: dict[str, tuple[np.dtype, int]] = {}
+        self.fields_left = FIELD_FLOOR + self.size // BYTES_PER_FIELD
 
     def read(self) -> UlogFile:
         head = self._bytes(0, HEADER_BYTES)
@@ -150,19 +178,22 @@ class _Reader:
     def _read_segment(self, pos: int, end: int) -> None:
         span = CHUNK_BYTES
         while pos < end:
+            if self.careful:
+                pos, span = self._careful(pos, end), RESUME_BYTES
+                continue
             chunk_end = min(end, pos + span)
             chunk = self._bytes(pos, chunk_end - pos)
             offsets, stop = _walk(chunk, 0, len(chunk))
-            good, resume = self._check(chunk, offsets)
+            good, bad = self._check(chunk, offsets)
             self._process(chunk, good)
-            if resume is not None:
-                pos, span = self._recover(pos + resume, end), CHUNK_BYTES
+            if bad is not None:
+                pos, self.careful = pos + bad, True
             elif chunk_end == end:
                 return  # what is left is a message cut off by the end of the file
             elif stop == 0:
                 span *= 2  # one message longer than a chunk
             else:
-                pos, span = pos + stop, CHUNK_BYTES
+                pos, span = pos + stop, min(span * 2, CHUNK_BYTES)
 
     def _check(self, chunk: bytes, offsets: np.ndarray) -> tuple[np.ndarray, int | None]:
         """Keep the messages before the first impossible header; say where it was."""
@@ -178,22 +209,35 @@ class _Reader:
             return offsets, None
         first = int(np.argmax(bad))
         self.out.file_corruption = True
-        return offsets[:first], int(offsets[first]) + 1
+        return offsets[:first], int(offsets[first])
+
+    def _careful(self, pos: int, end: int) -> int:
+        """From an impossible header at `pos`: check every header of the next CAREFUL_BYTES,
+        skipping past bad ones, and leave careful mode after CLEAN_BYTES of sound ones.
+        Returns where reading goes on."""
+        window = self._bytes(pos, min(end - pos, CAREFUL_BYTES))
+        scan = _scan(window, self.has_sync)
+        self.out.file_corruption |= scan.corrupt
+        self._process(window, np.frombuffer(scan.offsets, dtype=np.int64))
+        self.careful = not scan.clean
+        if scan.needs_sync:  # the next sync sequence lies past this window
+            return self._recover(pos + scan.stop, end)
+        if pos + len(window) == end and not scan.clean:
+            return end  # what is left is a message cut off by the end of the file
+        return pos + scan.stop
 
     def _recover(self, pos: int, end: int) -> int:
-        """After a corrupt header: the next sync sequence if the log has them, else the
-        next byte."""
-        if not self.has_sync:
-            return pos
-        at = pos
+        """The position after the next sync sequence from `pos`; when the rest of the file
+        has none, `pos` itself, and headers are tried byte by byte from then on."""
+        at, span = pos, CAREFUL_BYTES
         while at < end:
-            window = self._bytes(at, min(CHUNK_BYTES, end - at))
+            window = self._bytes(at, min(span, end - at))
             found = window.find(SYNC)
             if found >= 0:
                 return at + found + len(SYNC)
             if at + len(window) >= end:
                 break
-            at += len(window) - len(SYNC) + 1
+            at, span = at + len(window) - len(SYNC) + 1, min(span * 2, CHUNK_BYTES)
         self.has_sync = False
         return pos
 
@@ -244,11 +288,16 @@ class _Reader:
         if handler is not None:
             try:
                 handler(self, payload)
+            except UlogBoundError:
+                raise
             except (IndexError, KeyError, ValueError, struct.error):
                 self.out.file_corruption = True
 
     def _format(self, payload: bytes) -> None:
         name, _, fields = _text(payload).partition(":")
+        if name in self.formats:
+            self.out.file_corruption = True  # PX4 defines each format once; the first stands
+            return
         self.formats[name] = [_field(f) for f in fields.split(";") if f]
 
     def _info(self, payload: bytes) -> None:
@@ -268,13 +317,48 @@ class _Reader:
     def _subscribe(self, payload: bytes) -> None:
         multi_id, msg_id = payload[0], struct.unpack_from("<H", payload, 1)[0]
         name = _text(payload[3:])
+        dtype, max_size = self._layout(name)
+        self._retire(msg_id)
+        self.subscriptions[msg_id] = Subscription(name, multi_id, msg_id, dtype, max_size)
+
+    def _layout(self, name: str) -> tuple[np.dtype, int]:
+        """The record type of a format and its full size, built once per format and only
+        after its measure fits a message and the file's field budget."""
+        known = self.layouts.get(name)
+        if known is not None:
+            return known
+        size, count = self._measure(name, 0)
+        if count > self.fields_left:
+            raise UlogBoundError(
+                f"the formats declare more fields ({count} in {name!r}) than a file of "
+                f"{self.size} bytes can carry"
+            )
+        self.fields_left -= count
         fields = _flatten(self.formats, name, "")
         while fields and fields[-1][0].startswith("_padding"):
             fields.pop()  # PX4 leaves trailing padding out of the data messages
-        dtype = np.dtype([(n, TYPES[t][0]) for n, t in fields])
-        max_size = sum(np.dtype(TYPES[t][0]).itemsize for _, t in _flatten(self.formats, name, ""))
-        self._retire(msg_id)
-        self.subscriptions[msg_id] = Subscription(name, multi_id, msg_id, dtype, max_size)
+        layout = self.layouts[name] = (np.dtype([(n, TYPES[t][0]) for n, t in fields]), size)
+        return layout
+
+    def _measure(self, name: str, depth: int) -> tuple[int, int]:
+        """(bytes, fields) of a format once flattened, computed without flattening it."""
+        known = self.measures.get(name)
+        if known is not None:
+            return known
+        if depth > MAX_NESTING:
+            raise UlogBoundError(f"the format {name!r} nests deeper than {MAX_NESTING} levels")
+        size = count = 0
+        for kind, length, _ in self.formats[name]:
+            if kind in TYPES:
+                one = (np.dtype(TYPES[kind][0]).itemsize, 1)
+            else:
+                one = self._measure(kind, depth + 1)
+            size += one[0] * max(length, 1)
+            count += one[1] * max(length, 1)
+            if size > MAX_MESSAGE_BYTES:
+                raise UlogBoundError(f"the format {name!r} is larger than a message can carry")
+        self.measures[name] = (size, count)
+        return size, count
 
     def _unsubscribe(self, payload: bytes) -> None:
         self._retire(struct.unpack_from("<H", payload)[0])
@@ -333,6 +417,44 @@ def _walk(buf: bytes, pos: int, end: int) -> tuple[np.ndarray, int]:
         add(pos)
         pos = nxt
     return np.frombuffer(offsets, dtype=np.int64), pos
+
+
+@dataclass
+class _Scan:
+    offsets: array
+    stop: int = 0
+    corrupt: bool = False
+    clean: bool = False
+    needs_sync: bool = False
+
+
+def _scan(buf: bytes, has_sync: bool) -> _Scan:
+    """The careful walk after corruption: each header is checked before it is followed, a
+    bad one skipped to the next sync sequence (or the next byte when the log has none);
+    stops after CLEAN_BYTES of sound messages in a row, or at the end of `buf`."""
+    scan = _Scan(array("q"))
+    pos = sound_from = 0
+    limit = len(buf) - 3
+    while pos <= limit:
+        size = buf[pos] | buf[pos + 1] << 8
+        if pos + 3 + size > len(buf):
+            break  # like pyulog, a header whose message runs past the end ends the file
+        kind = buf[pos + 2]
+        if kind not in KNOWN_TYPE_SET and (kind == 0 or size == 0 or size > MAX_PLAUSIBLE_SIZE):
+            scan.corrupt = True
+            found = buf.find(SYNC, pos + 1) if has_sync else -1
+            if has_sync and found < 0:
+                scan.stop, scan.needs_sync = pos + 1, True
+                return scan
+            pos = sound_from = found + len(SYNC) if found >= 0 else pos + 1
+            continue
+        scan.offsets.append(pos)
+        pos += 3 + size
+        if pos - sound_from >= CLEAN_BYTES:
+            scan.clean = True
+            break
+    scan.stop = pos
+    return scan
 
 
 def _records(chunk: bytes, dtype: np.dtype) -> np.ndarray:

@@ -46,7 +46,8 @@ NAVDATA = "ardrone_autonomy/msg/Navdata"
 T0 = 1_400_000_000 * 10**9
 
 
-def write_bag(path, n=100):
+def write_bag(path, n=100, compression=None):
+    """An ardrone_autonomy bag of `n` Navdata messages; `compression`: "bz2", "lz4" or None."""
     store = get_typestore(Stores.ROS1_NOETIC)
     store.register(get_types_from_msg(NAVDATA_MSG, NAVDATA))
     Navdata = store.types[NAVDATA]
@@ -56,7 +57,10 @@ def write_bag(path, n=100):
     Vector3 = store.types["geometry_msgs/msg/Vector3"]
     empty_u32 = np.zeros(0, dtype=np.uint32)
     empty_f32 = np.zeros(0, dtype=np.float32)
-    with Writer(path) as writer:
+    writer = Writer(path)
+    if compression:
+        writer.set_compression(Writer.CompressionFormat[compression.upper()])
+    with writer:
         nav = writer.add_connection("/ardrone/navdata", NAVDATA, typestore=store)
         cmd = writer.add_connection("/cmd_vel", "geometry_msgs/msg/Twist", typestore=store)
         for i in range(n):
