@@ -8,7 +8,8 @@ envelope or mission would be parsed in memory. Two layers use the same table:
 - `BodyLimitMiddleware` (Django): refuses by the announced Content-Length, and turns
   Django's own "too big / too many fields" refusals into 413 instead of 400;
 - `BodyLimitASGI` (config/asgi.py): also cuts off a body that grows past the limit
-  without announcing its length, before Django spools it to disk.
+  without announcing its length, before Django spools it to disk, and lets an upload in
+  only once its sender is known to be allowed to send it (config/uploadgate.py).
 
 A pattern whose limit is None is left to the endpoint (the log upload streams to disk
 with its own limit, logs/asgi.py).
@@ -26,6 +27,7 @@ from django.core.exceptions import RequestDataTooBig, TooManyFieldsSent
 from django.http import HttpRequest, HttpResponse, JsonResponse
 from django.utils.deprecation import MiddlewareMixin
 
+from config import uploadgate
 from config.middleware import EventLoopHooks
 
 ASGIApp = Callable[
@@ -99,6 +101,12 @@ class BodyLimitASGI:
         self.app = app
 
     async def __call__(self, scope: dict, receive, send) -> None:  # type: ignore[no-untyped-def]
+        # Uploads are let in only for whom may send them (config/uploadgate.py); their
+        # size is the endpoint's own (logs/asgi.py).
+        decide = uploadgate.gate_for(scope)
+        if decide is not None:
+            await uploadgate.guard(scope, receive, send, self.app, decide)
+            return
         limit = limit_for(scope.get("path", "")) if scope["type"] == "http" else None
         if limit is None:
             await self.app(scope, receive, send)

@@ -137,6 +137,8 @@ DATA_UPLOAD_MAX_MEMORY_SIZE = 16 * 1024 * 1024
 DATA_UPLOAD_MAX_NUMBER_FIELDS = 1000
 DATA_UPLOAD_MAX_NUMBER_FILES = 10
 LOG_UPLOAD_MAX_BYTES = env.int("LOG_UPLOAD_MAX_BYTES", 2 * 1024**3)
+# Uploads one user may have under way at once at each upload address (config/uploadgate.py).
+UPLOAD_MAX_CONCURRENT = env.int("UPLOAD_MAX_CONCURRENT", 2)
 # Request bodies (config/bodylimits.py): HTTP 413 past these, before any view runs. The
 # first matching pattern wins; None leaves the limit to the endpoint itself.
 REQUEST_BODY_MAX_BYTES = env.int("REQUEST_BODY_MAX_BYTES", 1024 * 1024)

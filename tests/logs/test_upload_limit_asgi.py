@@ -112,17 +112,21 @@ def test_uploads_within_the_limit_and_other_paths_pass_through(settings):
 
 
 def test_the_served_application_refuses_an_announced_oversized_upload_at_once(live_asgi, world_tx):
-    """Through uvicorn and config.asgi: 413 before any body byte is sent."""
+    """Through uvicorn and config.asgi: an operator announcing too much gets 413 before any
+    body byte is sent (a stranger gets 401 even earlier, tests/logs/test_upload_gate.py)."""
     import http.client
     from urllib.parse import urlsplit
 
     from django.conf import settings
+
+    from accounts import tokens
 
     url = urlsplit(live_asgi.url)
     connection = http.client.HTTPConnection(url.hostname, url.port, timeout=10)
     connection.putrequest("POST", "/api/v1/logs/")
     connection.putheader("Content-Type", "multipart/form-data; boundary=x")
     connection.putheader("Content-Length", str(settings.LOG_UPLOAD_MAX_BYTES * 2))
+    connection.putheader("Authorization", f"Token {tokens.issue(world_tx.operator).key}")
     connection.endheaders()
     response = connection.getresponse()
     assert response.status == 413
