@@ -12,7 +12,7 @@ from django.db import transaction
 
 from tiles import store
 from tiles.models import TileSet
-from tiles.sources import Source, open_source
+from tiles.sources import Limits, Source, open_source
 from tiles.store import TileError
 
 Bounds = tuple[float, float, float, float]
@@ -34,7 +34,10 @@ class Staged:
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
-def stage(source: Source) -> Staged:
+def stage(source: Source, limits: Limits | None = None) -> Staged:
+    """Every tile checked and written aside; the count and the bytes are held to `limits`
+    as they come, whatever the source declared (bad input: the folder goes, TileError)."""
+    limits = limits or Limits.from_settings()
     folder = store.root() / "incoming" / uuid.uuid4().hex
     folder.mkdir(parents=True)
     zooms: set[int] = set()
@@ -42,6 +45,9 @@ def stage(source: Source) -> Staged:
     count = size = 0
     try:
         for z, x, y, data in source.tiles:
+            limits.check_tile(f"tile {z}/{x}/{y}", len(data))
+            limits.check_count(count + 1)
+            limits.check_total(size + len(data))
             store.write_tile(folder, z, x, y, data)
             zooms.add(z)
             box = extents.setdefault(z, [x, y, x, y])

@@ -436,6 +436,10 @@ TEMPLATES[0]["OPTIONS"]["context_processors"].append("tiles.layer.map_layer_cont
 # Imported tile sets and the cache of the online source (manage.py import_tiles, the admin).
 TILES_DIR = env.str("TILES_DIR", f"{DATA_DIR}/tiles")
 TILES_UPLOAD_MAX_BYTES = env.int("TILES_UPLOAD_MAX_BYTES", 1024**3)
+# One import (upload, command or ZIP) holds at most this many tiles and bytes unpacked
+# (tiles/sources.py; a city at zoom 18 is about 100 000 tiles).
+TILES_IMPORT_MAX_TILES = env.int("TILES_IMPORT_MAX_TILES", 200_000)
+TILES_IMPORT_MAX_BYTES = env.int("TILES_IMPORT_MAX_BYTES", 4 * 1024**3)
 # Browsers keep a served tile this long before asking again (then 304 when unchanged).
 TILE_CACHE_MAX_AGE_S = env.int("TILE_CACHE_MAX_AGE_S", 7 * 86400)
 # An online tile source (like https://tile.openstreetmap.org/{z}/{x}/{y}.png) the portal
