@@ -185,6 +185,13 @@ def _validate_ids(ids: list[str]) -> None:
         raise ProvisioningError(
             f"Reserved drone id(s) {shown}: broker account names are not drone ids."
         )
+    ground_like = [drone_id for drone_id in ids if broker.is_ground_client_id(drone_id)]
+    if ground_like:
+        shown = ", ".join(repr(g) for g in ground_like[:5])
+        prefixes = ", ".join(broker.GROUND_CLIENT_ID_PREFIXES)
+        raise ProvisioningError(
+            f"Reserved drone id(s) {shown}: the ground's client ids start with {prefixes}."
+        )
     if len(set(ids)) != len(ids):
         raise ProvisioningError("The same drone id appears twice.")
 

@@ -50,8 +50,8 @@ secret() { # the same secrets services.sh keeps, so the ground's MQTT password i
   local file="$DATA/secrets/$1"
   if [ ! -s "$file" ]; then
     mkdir -p "$DATA/secrets"; chmod 700 "$DATA/secrets"
-    head -c 24 /dev/urandom | base64 | tr -dc 'A-Za-z0-9' | head -c 32 >"$file"
-    chmod 600 "$file"
+    # Created unreadable to others (umask), not opened to them until a chmod.
+    (umask 077; head -c 24 /dev/urandom | base64 | tr -dc 'A-Za-z0-9' | head -c 32 >"$file")
   fi
   cat "$file"
 }
@@ -111,7 +111,7 @@ start_node() {
   local i=$1 dir="$BASE_DIR/$i"
   mkdir -p "$BASE_DIR"
   if [ ! -s "$BASE_DIR/.erlang.cookie" ]; then
-    head -c 32 /dev/urandom | base64 | tr -dc 'A-Z0-9' | head -c 20 >"$BASE_DIR/.erlang.cookie"
+    (umask 077; head -c 32 /dev/urandom | base64 | tr -dc 'A-Z0-9' | head -c 20 >"$BASE_DIR/.erlang.cookie")
     chmod 400 "$BASE_DIR/.erlang.cookie"
   fi
   write_config "$i"

@@ -181,6 +181,18 @@ def backend(live_drones: LiveDrones) -> BrokerBackend:
 # -- Mosquitto's files --------------------------------------------------------------------
 
 
+# The client ids the ground's processes take (workers/gateway.py and its batch readers,
+# workers/direct.py, telemetry/ingest.py, pastview/runner.py and pastview/service.py) and
+# Mosquitto's own `auto-` ids for clients that send none. On the drones' listener a
+# drone's client id is its username (scripts/services.sh), so no drone id may start like
+# one of these: the drone would take over that ground session.
+GROUND_CLIENT_ID_PREFIXES = ("gateway-", "web-", "ingest-", "pastview-", "auto-")
+
+
+def is_ground_client_id(drone_id: str) -> bool:
+    return drone_id.lower().startswith(GROUND_CLIENT_ID_PREFIXES)
+
+
 def service_users() -> list[str]:
     users = list(settings.MQTT_SERVICE_USERS)
     ground = urlsplit(settings.MQTT_URL).username
@@ -259,6 +271,9 @@ class MosquittoBackend:
             existing = passwd.read_text() if passwd.exists() else ""
             _write_atomically(passwd, render_passwd(existing, drones))
             _write_atomically(self.directory / "acl", render_acl([d for d, _ in drones]))
+            ground = self.directory / "ground.passwd"
+            if ground.exists():  # the ground's own listener (scripts/services.sh)
+                _write_atomically(ground, render_passwd(existing, []))
             reloaded = _reload(self.directory / "mosquitto.pid")
         before = {line.split(":", 1)[0] for line in existing.splitlines() if ":" in line}
         removed = sorted(before - set(service_users()) - {d for d, _ in drones})
