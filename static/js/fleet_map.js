@@ -272,6 +272,7 @@
   }
 
   let searchTimer = null;
+  form.addEventListener("submit", (event) => event.preventDefault());  // Enter only filters
   form.addEventListener("input", () => {
     clearTimeout(searchTimer);
     searchTimer = setTimeout(() => { page = 1; loadPage(); }, 200);
