@@ -94,6 +94,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NAME=VALUE",
         help="mavlink parameter at boot, e.g. SIM_CMD_MUTE=400 or BATT_CRT_PCT=30 (repeatable)",
     )
+    _add_uavtalk_board_options(p)
+    p.add_argument("-v", "--verbose", action="store_true")
+    return p
+
+
+def _add_uavtalk_board_options(p: argparse.ArgumentParser) -> None:
+    """The dRonin board played: its firmware generation, receiver settings and alarms."""
     p.add_argument(
         "--receiver-setting",
         type=_setting,
@@ -121,8 +128,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="uavtalk: a SystemAlarms entry raised from boot, e.g. Sensors=Critical "
         "(Error or above keeps the board from arming, as dRonin's ok_to_arm does)",
     )
-    p.add_argument("-v", "--verbose", action="store_true")
-    return p
 
 
 def main(argv: list[str] | None = None) -> int:
