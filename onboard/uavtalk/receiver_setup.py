@@ -182,7 +182,8 @@ def _fix(key: str, should: object, now: object, why: str = "") -> str:
 def _number_problems(settings: Mapping[str, object]) -> list[str]:
     """Channel numbers outside 1-8, or shared by two controls."""
     numbers = {e: _get(settings, "ChannelNumber", e) for e in controls(settings)}
-    found, owner = [], {}
+    found: list[str] = []
+    owner: dict[object, str] = {}
     for element, number in numbers.items():
         clash = owner.get(number)
         if 1 <= number <= CHANNELS and clash is None:  # type: ignore[operator]
