@@ -263,7 +263,10 @@ class Broker:
                     env=self.script_env)  # fmt: skip
             password = (self.data_dir / "secrets" / "mqtt_ground_password").read_text().strip()
             url = f"mqtt://ground:{password}@127.0.0.1:{self.config.mqtt_port}"
+            # Drones have a listener of their own (scripts/services.sh, MQTT_DRONE_PORT).
+            drones = str(self.config.mqtt_port + 1000)
             return {"MQTT_BROKER": "mosquitto", "MQTT_URL": url, "MQTT_URLS": url,
+                    "MQTT_PUBLIC_PORT": drones,
                     "MOSQUITTO_DIR": str(self.data_dir / "mosquitto")}  # fmt: skip
         nodes = str(self.config.rabbit_nodes)
         self.started = not port_open(self.config.rabbit_port_base + 11)
