@@ -48,16 +48,6 @@ def rabbit_password_hash(password: str, *, salt: bytes | None = None) -> str:
     return base64.b64encode(salt + hashlib.sha256(salt + password.encode()).digest()).decode()
 
 
-def check_rabbit_password(password: str, hashed: str) -> bool:
-    try:
-        raw = base64.b64decode(hashed, validate=True)
-    except ValueError:
-        return False
-    if len(raw) != 36:
-        return False
-    return secrets.compare_digest(rabbit_password_hash(password, salt=raw[:4]), hashed)
-
-
 @dataclass(frozen=True)
 class Node:
     """One node's management API: where, and the credentials its URL carried."""
@@ -168,32 +158,10 @@ class RabbitMQAdmin:
             },
         )
 
-    def delete_user(self, name: str) -> bool:
-        """True if the user existed."""
-        return self.delete(f"users/{_q(name)}")
-
     def delete_users(self, names: Sequence[str]) -> None:
         """Several users in one call (missing ones are ignored by RabbitMQ)."""
         if names:
             self.request("POST", "users/bulk-delete", {"users": list(names)})
-
-    def set_permissions(
-        self, user: str, *, configure: str, write: str, read: str, vhost: str = DEFAULT_VHOST
-    ) -> None:
-        self.request(
-            "PUT",
-            f"permissions/{_q(vhost)}/{_q(user)}",
-            {"configure": configure, "write": write, "read": read},
-        )
-
-    def set_topic_permissions(
-        self, user: str, *, exchange: str, write: str, read: str, vhost: str = DEFAULT_VHOST
-    ) -> None:
-        self.request(
-            "PUT",
-            f"topic-permissions/{_q(vhost)}/{_q(user)}",
-            {"exchange": exchange, "write": write, "read": read},
-        )
 
     def import_definitions(self, definitions: dict[str, Any]) -> None:
         """Merge users, permissions, topic permissions... in one call (nothing is removed)."""
