@@ -13,7 +13,6 @@ from tiles.models import TileSet
 
 # The Web Mercator limits Leaflet draws tiles within.
 WORLD = (-180.0, -85.0511, 180.0, 85.0511)
-UPSTREAM_MAX_ZOOM = 19
 
 
 def map_layer() -> dict[str, object]:
@@ -23,7 +22,7 @@ def map_layer() -> dict[str, object]:
     local = reverse("tiles:tile", args=[0, 0, 0, "png"]).replace("0/0/0.png", "{z}/{x}/{y}.png")
     if settings.TILE_UPSTREAM_URL:
         attribution = settings.TILE_UPSTREAM_ATTRIBUTION
-        return _layer(local, attribution, 0, UPSTREAM_MAX_ZOOM, WORLD)
+        return _layer(local, attribution, 0, int(settings.TILE_UPSTREAM_MAX_ZOOM), WORLD)
     sets = TileSet.objects.aggregate(
         lo=Min("min_zoom"), hi=Max("max_zoom"), w=Min("west"), s=Min("south"),
         e=Max("east"), n=Max("north"),

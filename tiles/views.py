@@ -24,14 +24,21 @@ def tile(request: HttpRequest, z: int, x: int, y: int, ext: str) -> HttpResponse
         store.check_address(z, x, y)
     except store.TileError as exc:
         raise Http404(str(exc)) from exc
-    path = store.find_tile(z, x, y) or _from_upstream(z, x, y)
+    path = store.find_tile(z, x, y)
+    if path is not None and path.is_relative_to(store.cache_dir()):
+        upstream.touch(path)  # the cache evicts the least recently used
+    path = path or _from_upstream(request, z, x, y)
     if path is None:
         raise Http404(f"no tile {z}/{x}/{y}")
     return _file_response(request, path)
 
 
-def _from_upstream(z: int, x: int, y: int) -> Path | None:
+def _from_upstream(request: HttpRequest, z: int, x: int, y: int) -> Path | None:
     if not settings.TILE_UPSTREAM_URL:
+        return None
+    refused = upstream.refusal(request.user, z, x, y)
+    if refused:
+        logger.info("tile %s/%s/%s not fetched for %s: %s", z, x, y, request.user, refused)
         return None
     try:
         return upstream.fetch_and_keep(z, x, y)

@@ -450,6 +450,13 @@ TILE_UPSTREAM_ATTRIBUTION = env.str(
     "TILE_UPSTREAM_ATTRIBUTION", "&copy; OpenStreetMap contributors"
 )
 TILE_UPSTREAM_TIMEOUT_S = env.float("TILE_UPSTREAM_TIMEOUT_S", 5.0)
+# What users can have fetched and kept (tiles/upstream.py): members of an organisation
+# only; any tile up to the overview zoom, above it only tiles touching where their
+# organisations may fly, up to the source's last zoom (19 on OpenStreetMap's servers).
+TILE_UPSTREAM_OVERVIEW_ZOOM = env.int("TILE_UPSTREAM_OVERVIEW_ZOOM", 6)
+TILE_UPSTREAM_MAX_ZOOM = env.int("TILE_UPSTREAM_MAX_ZOOM", 19)
+# The cache's cap: past it the least recently served tiles are deleted.
+TILE_CACHE_MAX_BYTES = env.int("TILE_CACHE_MAX_BYTES", 1024**3)
 # Swagger UI and Redoc from the installed sidecar package, never from a CDN.
 SPECTACULAR_SETTINGS.update(
     {"SWAGGER_UI_DIST": "SIDECAR", "SWAGGER_UI_FAVICON_HREF": "SIDECAR", "REDOC_DIST": "SIDECAR"}

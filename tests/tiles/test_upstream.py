@@ -1,5 +1,7 @@
 """The pass-through cache: off by default; when TILE_UPSTREAM_URL is set, a missing tile
-is fetched once from that (here: a real local HTTP) server and kept for later, offline."""
+is fetched once from that (here: a real local HTTP) server and kept for later, offline;
+only for members of an organisation, where their envelope lets them fly, in a cache of
+a stated size that drops the least recently used tiles."""
 
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ pytestmark = pytest.mark.django_db
 
 
 class TileServer:
-    """A tile server with tiles at zoom 16 only, counting what it was asked."""
+    """A tile server with tiles at every zoom but 12, counting what it was asked."""
 
     def __init__(self) -> None:
         self.requests: list[str] = []
@@ -25,7 +27,7 @@ class TileServer:
             def do_GET(self) -> None:  # noqa: N802
                 outer.requests.append(self.path)
                 z, x, y = (int(v) for v in self.path.strip("/").removesuffix(".png").split("/"))
-                if z != 16:
+                if z == 12:
                     self.send_error(404)
                     return
                 body = png(colour_of(z, x, y), 64)
@@ -47,11 +49,19 @@ class TileServer:
         self.server.server_close()
 
 
+# Where acme flies in these tests: a home in Lisbon, 1 km about it (the default distance).
+LISBON = [38.73, -9.143]
+INSIDE = "/tiles/16/31103/25108.png"  # 38.733-38.737 N, 9.146-9.141 W: 600 m from home
+OUTSIDE = "/tiles/16/31120/25108.png"  # the same row, 9 km east
+
+
 @pytest.fixture
-def upstream(settings, tmp_path):  # type: ignore[no-untyped-def]
+def upstream(settings, tmp_path, world):  # type: ignore[no-untyped-def]
     server = TileServer()
     settings.TILES_DIR = str(tmp_path / "tiles")
     settings.MAP_TILE_URL = ""
+    world.org.envelope = {"home": LISBON}
+    world.org.save()
     yield server
     server.stop()
 
@@ -84,3 +94,70 @@ def test_tiles_the_source_does_not_have_or_cannot_send_are_404(settings, upstrea
     upstream.stop()
     assert client.get("/tiles/16/1/1.png").status_code == 404
     assert not (Path(settings.TILES_DIR) / "cache/12").exists()
+
+
+def cached(settings) -> list[str]:  # type: ignore[no-untyped-def]
+    folder = Path(settings.TILES_DIR) / "cache"
+    return sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*.png"))
+
+
+def test_a_user_of_no_organisation_has_nothing_fetched(settings, upstream, client):
+    from tests import factories
+
+    settings.TILE_UPSTREAM_URL = upstream.url
+    client.force_login(factories.person(None))
+    assert client.get(INSIDE).status_code == 404
+    assert client.get("/tiles/2/1/1.png").status_code == 404
+    assert upstream.requests == [] and cached(settings) == []
+
+
+def test_tiles_outside_the_organisations_envelope_are_not_fetched(settings, upstream, client, world):  # fmt: skip
+    settings.TILE_UPSTREAM_URL = upstream.url
+    client.force_login(world.viewer)
+    assert client.get(OUTSIDE).status_code == 404
+    client.force_login(world.outsider)  # globex has no home and no drone position
+    assert client.get(INSIDE).status_code == 404
+    assert upstream.requests == [] and cached(settings) == []
+    world.other_drone.lat, world.other_drone.lon = 38.7345, -9.1435
+    world.other_drone.save()  # now globex flies there too
+    assert client.get(INSIDE).status_code == 200
+    assert upstream.requests == [INSIDE.removeprefix("/tiles")]
+
+
+def test_an_inclusion_fence_is_the_area(settings, upstream, client, world):
+    settings.TILE_UPSTREAM_URL = upstream.url
+    east = [[38.73, -9.06], [38.74, -9.06], [38.74, -9.045], [38.73, -9.045]]
+    fence = {"polygons": [{"inclusion": True, "polygon": east, "version": 1}], "circles": []}
+    world.org.envelope = {"geoFence": fence}
+    world.org.save()
+    client.force_login(world.viewer)
+    assert client.get(INSIDE).status_code == 404
+    assert client.get(OUTSIDE).status_code == 200
+
+
+def test_zooms_above_the_limit_are_not_fetched_and_the_overview_is(settings, upstream, client, world):  # fmt: skip
+    settings.TILE_UPSTREAM_URL = upstream.url
+    settings.TILE_UPSTREAM_MAX_ZOOM = 15
+    client.force_login(world.viewer)
+    assert client.get(INSIDE).status_code == 404
+    assert client.get("/tiles/3/1/2.png").status_code == 200  # South America: overview
+    assert client.get("/tiles/8/1/2.png").status_code == 404  # not overview, not acme's
+    assert upstream.requests == ["/3/1/2.png"]
+
+
+def test_the_cache_keeps_its_cap_by_dropping_the_least_recently_used(
+    settings, upstream, client, world
+):
+    settings.TILE_UPSTREAM_URL = upstream.url
+    client.force_login(world.viewer)
+    first, second, third = (f"/tiles/16/{x}/25108.png" for x in (31102, 31103, 31104))
+    size = len(png(colour_of(16, 31103, 25108), 64))
+    settings.TILE_CACHE_MAX_BYTES = 3 * size - 1
+    for path in (first, second):
+        assert client.get(path).status_code == 200
+    assert client.get(first).status_code == 200  # served from the cache: now the newest
+    assert len(upstream.requests) == 2
+    assert client.get(third).status_code == 200
+    assert cached(settings) == ["16/31102/25108.png", "16/31104/25108.png"]
+    assert client.get(second).status_code == 200  # fetched again
+    assert len(upstream.requests) == 4
