@@ -274,7 +274,8 @@ class UAVTalkFlightController(LinkDriver):
         keys = []
         for key, obj in per.items():
             try:
-                self.request_object_id(obj.id, timeout=PROBE_TIMEOUT_S)
+                # Asked twice: one lost frame must not pass for an unknown definition.
+                self.request_object_id(obj.id, timeout=2 * PROBE_TIMEOUT_S, tries=2)
             except CommandTimeout:
                 continue  # ignored: not this generation's
             except NotConnected:
@@ -458,12 +459,11 @@ class UAVTalkFlightController(LinkDriver):
         assert waiter.frame is not None
         return waiter.frame.fields()
 
-    def request_object_id(self, object_id: int, timeout: float = 2.0) -> None:
+    def request_object_id(self, object_id: int, timeout: float = 2.0, *, tries: int = 1) -> None:
         """Ask for an object by raw id; raise FlightControllerError on NACK (diagnostics)."""
         waiter = _Waiter(object_id, "object")
-        self._wait(
-            waiter, lambda: self._send(encode_frame(MessageType.OBJ_REQ, object_id)), timeout, 1
-        )
+        wire = encode_frame(MessageType.OBJ_REQ, object_id)
+        self._wait(waiter, lambda: self._send(wire), timeout, tries)
         if waiter.nacked:
             raise FlightControllerError(
                 f"object {object_id:#010x} unknown to the flight controller (NACK)"
