@@ -163,8 +163,15 @@ async def guard(scope: dict, receive: Receive, send: Send, app: ASGIApp, decide:
             await cache.atouch(verdict, SLOT_TTL_S)
         return await receive()
 
+    async def releasing_send(message: dict) -> None:
+        # Free the slot before the answer's last byte: a client that starts its next
+        # upload on this answer must find it free.
+        if message["type"] == "http.response.body" and not message.get("more_body"):
+            await cache.adelete(verdict)
+        await send(message)
+
     try:
-        await app(scope, renewing_receive, send)
+        await app(scope, renewing_receive, releasing_send)
     finally:
         await cache.adelete(verdict)
 

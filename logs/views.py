@@ -40,6 +40,7 @@ def log_list(request: HttpRequest) -> HttpResponse:
             "can_upload": membership.allows(Role.OPERATOR),
             "upload_limit": human_bytes(settings.LOG_UPLOAD_MAX_BYTES),
             "upload_limit_bytes": settings.LOG_UPLOAD_MAX_BYTES,
+            "upload_concurrent": settings.UPLOAD_MAX_CONCURRENT,
         },
     )
 

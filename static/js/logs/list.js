@@ -11,7 +11,18 @@ if (zone) {
   const api = zone.dataset.api;
   const limit = Number(zone.dataset.limit);
 
-  const start = (files) => { for (const file of files) uploadOne(file); };
+  // The server takes at most UPLOAD_MAX_CONCURRENT uploads of one user at once (429
+  // beyond): the other files wait here for a free place.
+  const concurrent = Math.max(1, Number(zone.dataset.concurrent) || 1);
+  const waiting = [];
+  let running = 0;
+  const next = () => {
+    while (running < concurrent && waiting.length) {
+      running += 1;
+      uploadOne(waiting.shift(), () => { running -= 1; next(); });
+    }
+  };
+  const start = (files) => { waiting.push(...files); next(); };
   input.addEventListener("change", () => { start(input.files); input.value = ""; });
   for (const type of ["dragenter", "dragover"]) {
     dropzone.addEventListener(type, (event) => { event.preventDefault(); dropzone.classList.add("dragging"); });
@@ -21,7 +32,7 @@ if (zone) {
   }
   dropzone.addEventListener("drop", (event) => start(event.dataTransfer.files));
 
-  function uploadOne(file) {
+  function uploadOne(file, done) {
     const item = document.createElement("li");
     item.innerHTML = `<span class="name" title="${escapeHtml(file.name)}">${escapeHtml(file.name)}</span>
       <progress max="1" value="0" aria-label="Progress of ${escapeHtml(file.name)}"></progress>
@@ -37,6 +48,7 @@ if (zone) {
     };
     if (file.size > limit) {
       fail(`Too large: ${humanBytes(file.size)}, over the limit of ${humanBytes(limit)}.`);
+      done();
       return;
     }
     const form = new FormData();
@@ -52,6 +64,7 @@ if (zone) {
       state.textContent = `Uploading… ${Math.round((100 * event.loaded) / event.total)} % of ${humanBytes(event.total)}`;
     });
     xhr.addEventListener("error", () => fail("The upload was interrupted; try again."));
+    xhr.addEventListener("loadend", done);
     xhr.addEventListener("load", () => {
       let body = {};
       try { body = JSON.parse(xhr.responseText); } catch { /* not JSON: use the status */ }
