@@ -8,8 +8,9 @@ page ever lets one through.
   map). No `unsafe-inline`, no `unsafe-eval`.
 - Styles: style sheets from the server, and `<style>` elements with the nonce; style
   attributes stay allowed (`style-src-attr`), as the pages colour swatches and turn
-  heading arrows through them and an attribute cannot run code. The API reference pages
-  (Swagger UI, Redoc), whose bundles insert `<style>` elements, also allow inline styles.
+  heading arrows through them and an attribute cannot run code. The API's own pages
+  (Swagger UI, Redoc, DRF's browsable API), which insert `<style>` elements, also allow
+  inline styles.
 - Images: the server, and `data:`/`blob:` (map markers, rendered charts, camera frames);
   workers: the server and `blob:`; connections: the server, its websockets included.
 - No plugins, no foreign `<base>`, forms post to the server only, framed by the server
@@ -29,8 +30,8 @@ from django.core.exceptions import DisallowedHost
 from django.http import HttpRequest, HttpResponse
 
 HEADER = "Content-Security-Policy"
-# The API reference pages: their bundles (Swagger UI, Redoc) insert <style> elements.
-INLINE_STYLE_PATHS = ("/api/docs/", "/api/redoc/")
+# The API's own pages (Swagger UI, Redoc, DRF's browsable API) insert <style> elements.
+INLINE_STYLE_PATHS = ("/api/",)
 
 
 def policy(nonce: str, *, host: str, inline_styles: bool) -> str:

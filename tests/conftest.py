@@ -161,7 +161,10 @@ def browser():  # type: ignore[no-untyped-def]
 
 @pytest.fixture
 def page(browser):  # type: ignore[no-untyped-def]
-    context = browser.new_context(viewport={"width": 1280, "height": 800})
+    # Playwright's wait_for_function compiles its predicate with eval inside the page,
+    # which the pages' Content-Security-Policy refuses; the policy itself is tried by
+    # tests/config/test_csp_browser.py and test_offline_browser.py, whose contexts keep it.
+    context = browser.new_context(viewport={"width": 1280, "height": 800}, bypass_csp=True)
     page = context.new_page()
     yield page
     context.close()
