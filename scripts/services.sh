@@ -3,6 +3,9 @@
 #
 #   scripts/services.sh start|stop|status|env  run|test
 #
+# Mosquitto listens for the ground's processes on MQTT_PORT and for drones on
+# MQTT_DRONE_PORT (default MQTT_PORT + 1000; TEST_MQTT_DRONE_PORT for `test`).
+#
 # BROKER=rabbitmq runs a RabbitMQ node with its MQTT plugin (scripts/rabbitmq.sh) on the
 # MQTT port instead of Mosquitto, and writes its settings into the env file.
 #
@@ -225,7 +228,11 @@ mosquitto_start() {
     if ! grep -q '^ground:' "$dir/passwd"; then
       "$MOSQUITTO_PASSWD" -b "$dir/passwd" ground "$(secret mqtt_ground_password)"
     fi
-    grep '^ground:' "$dir/passwd" >"$dir/ground.passwd.new" && mv "$dir/ground.passwd.new" "$dir/ground.passwd"
+    # The ground's listener: the service users' lines only (MQTT_SERVICE_USERS, as the
+    # settings read it; provisioning keeps this file in step afterwards).
+    local users; users=$(echo "${MQTT_SERVICE_USERS:-ground}" | tr -d ' ' | tr ',' '|')
+    grep -E "^(ground|$users):" "$dir/passwd" >"$dir/ground.passwd.new"
+    mv "$dir/ground.passwd.new" "$dir/ground.passwd"
     [ -f "$dir/acl" ] || printf 'user ground\ntopic readwrite #\ntopic read $SYS/#\n\npattern write %%u/+/out\npattern read %%u/+/in\n' >"$dir/acl"
   )
   cat >"$dir/mosquitto.conf" <<CONF
@@ -320,7 +327,9 @@ case "$ACTION" in
   env) write_env ;;
   status)
     broker_name=Mosquitto; [ "$BROKER" = rabbitmq ] && broker_name=RabbitMQ
-    for p in "$PG_PORT:PostgreSQL" "$REDIS_PORT:Redis" "$MQTT_PORT:$broker_name"; do
+    ports=("$PG_PORT:PostgreSQL" "$REDIS_PORT:Redis" "$MQTT_PORT:$broker_name")
+    [ "$BROKER" = mosquitto ] && ports+=("$MQTT_DRONE_PORT:Mosquitto (drones)")
+    for p in "${ports[@]}"; do
       if port_open "${p%%:*}"; then echo "${p#*:} up on ${p%%:*}"; else echo "${p#*:} down (${p%%:*})"; fi
     done ;;
   pg-start) pg_start ;; pg-stop) pg_stop ;;
