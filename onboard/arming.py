@@ -150,6 +150,11 @@ class UAVTalkReceiverSwitch:
     When the board refuses (an alarm keeps it disarmed, FlightStatus drops back from
     Arming), the sticks go back to neutral for a moment and the request starts again, as a
     pilot would do.
+
+    Released while the board is armed, it keeps sending the rest position at the same
+    rate until the board disarms or `close()`: a dRonin board whose channels stop reads
+    its transmitter as disconnected and hands control to Failsafe
+    (flight/Modules/ManualControl/manualcontrol.c, control_source_select).
     """
 
     CHANNELS = 8
@@ -211,6 +216,15 @@ class UAVTalkReceiverSwitch:
         self._start("disarm")
 
     def release(self) -> None:
+        """Back to the rest position: kept streaming while the board is armed."""
+        with self._lock:
+            if self._thread is not None and self._armed():
+                self._mode = "safe"
+                return
+        self.close()
+
+    def close(self) -> None:
+        """Stop sending (the driver is stopping): one last rest position."""
         with self._lock:
             self._mode = None
             thread, self._thread = self._thread, None
@@ -219,12 +233,16 @@ class UAVTalkReceiverSwitch:
             thread.join(timeout=2)
         self._send("safe")
 
+    def _armed(self) -> bool:
+        state = getattr(self.fc, "state", None)
+        return bool(getattr(state, "armed", False) or getattr(state, "arming", False))
+
     def _start(self, mode: str) -> None:
         if self.fc is None:
             raise ArmingError("The UAVTalk receiver switch has no flight controller attached.")
         with self._lock:
             self._mode = mode
-            if self._thread is None:
+            if self._thread is None or not self._thread.is_alive():
                 self._wake.clear()
                 self._thread = threading.Thread(
                     target=self._run, name="arming-receiver", daemon=True
@@ -266,6 +284,9 @@ class UAVTalkReceiverSwitch:
         while True:
             with self._lock:
                 mode = self._mode
+                if mode == "safe" and not self._armed():
+                    self._mode = mode = None  # disarmed at rest: nothing left to hold
+                    self._thread = None
             if mode is None:
                 return
             state = getattr(self.fc, "state", None)

@@ -123,7 +123,7 @@ class UAVTalkFlightController(LinkDriver):
     def _on_stop(self) -> None:
         if self.arming_switch is not None:
             try:
-                self.arming_switch.release()
+                getattr(self.arming_switch, "close", self.arming_switch.release)()
             except Exception:
                 log.exception("arming switch release failed")
 
