@@ -13,7 +13,7 @@ import pytest
 from firmware.sim import start_simulator
 from firmware.sim.telemetry import apply_settings
 from onboard.arming import UAVTalkReceiverSwitch
-from onboard.fc.base import FlightControllerError
+from onboard.fc.base import FlightControllerError, VehicleState
 from onboard.fc.uavtalk import UAVTalkFlightController
 from onboard.heartbeat import build_heartbeat
 from onboard.processes import wait_for
@@ -175,6 +175,34 @@ def test_the_switch_falls_back_to_the_fixed_frames_when_the_settings_cannot_arm(
     switch.configure(_settings({**DRONIN_SWITCH, "Arming": "Roll Left+Throttle"}))
     assert switch.channels("arm")[:5] == [1000, 1000, 5000, 5000, 5000]
     assert switch.channels("disarm")[:5] == [1000, 9000, 5000, 5000, 5000]
+
+
+class _Board:
+    """Stands in for the driver: its FlightStatus, and the channels written to it."""
+
+    def __init__(self) -> None:
+        self.state = VehicleState(armed=True)
+        self.writes: list[list[int]] = []
+
+    def write_object(self, name: str, fields: dict, **options) -> None:  # type: ignore[no-untyped-def]
+        self.writes.append(list(fields["Channel"]))
+
+
+def test_released_while_armed_the_switch_keeps_the_rest_position_coming_until_disarmed():
+    board = _Board()
+    switch = UAVTalkReceiverSwitch(board, rate_hz=100.0)
+    switch.configure(_settings(DRONIN_SWITCH))
+    switch.request_arm()
+    switch.release()  # armed: a board whose channels stop hands control to Failsafe
+    count = len(board.writes)
+    assert wait_for(lambda: len(board.writes) > count + 10, 2)
+    assert board.writes[-1][:5] == [1000, 5000, 5000, 5000, 9000]  # switch stays high
+    board.state = VehicleState(armed=False)
+    time.sleep(0.1)
+    count = len(board.writes)
+    time.sleep(0.2)
+    assert len(board.writes) == count  # disarmed at rest: nothing more to hold
+    switch.close()
 
 
 # -- the agent and the simulated board -----------------------------------------------------------
