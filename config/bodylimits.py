@@ -101,14 +101,23 @@ class BodyLimitASGI:
         self.app = app
 
     async def __call__(self, scope: dict, receive, send) -> None:  # type: ignore[no-untyped-def]
-        # Uploads are let in only for whom may send them (config/uploadgate.py); their
-        # size is the endpoint's own (logs/asgi.py).
-        decide = uploadgate.gate_for(scope)
-        if decide is not None:
-            await uploadgate.guard(scope, receive, send, self.app, decide)
-            return
         limit = limit_for(scope.get("path", "")) if scope["type"] == "http" else None
-        if limit is None:
+        # Uploads, and bodies larger than the default, are let in only from whom may send
+        # them (config/uploadgate.py).
+        decide = uploadgate.gate_for(scope, limit)
+        if decide is None:
+            await self.limited(scope, receive, send, limit)
+            return
+
+        async def admitted(scope: dict, receive, send) -> None:  # type: ignore[no-untyped-def]
+            await self.limited(scope, receive, send, limit)
+
+        await uploadgate.guard(scope, receive, send, admitted, decide)
+
+    async def limited(self, scope: dict, receive, send, limit: int | None) -> None:  # type: ignore[no-untyped-def]
+        if limit is None and scope["method"] != "POST":
+            limit = int(settings.REQUEST_BODY_MAX_BYTES)  # an upload address takes only POSTs
+        if limit is None:  # the endpoint's own limit (logs/asgi.py)
             await self.app(scope, receive, send)
             return
         headers = dict(scope.get("headers", []))

@@ -32,6 +32,7 @@ from django.core.handlers.asgi import ASGIRequest
 from django.db import close_old_connections
 from django.http import HttpRequest
 from rest_framework.exceptions import APIException
+from rest_framework.permissions import SAFE_METHODS
 from rest_framework.request import Request
 from rest_framework.settings import api_settings
 
@@ -70,10 +71,7 @@ def log_uploader(request: HttpRequest) -> Refusal | Any:
     try:
         user, auth = api.user, api.auth
     except APIException as exc:
-        codes = exc.get_codes()
-        return Refusal(
-            exc.status_code, codes if isinstance(codes, str) else "refused", str(exc.detail)
-        )
+        return _refusal_of(exc)
     if not user.is_authenticated:
         return _signed_out()
     memberships = Membership.objects.for_user(user)
@@ -102,10 +100,37 @@ GATES: dict[str, Callable[[HttpRequest], Refusal | Any]] = {
 }
 
 
-def gate_for(scope: dict) -> Callable[[HttpRequest], Refusal | Any] | None:
-    if scope["type"] != "http" or scope.get("method") != "POST":
+def signed_in_sender(request: HttpRequest) -> Refusal | Any:
+    """Anyone signed in (the API's own authentication on /api/, the session elsewhere):
+    for the addresses that take more than the default body (missions, plans, envelopes),
+    whose views judge the rest."""
+    if request.path.startswith("/api/"):
+        authenticators = [cls() for cls in api_settings.DEFAULT_AUTHENTICATION_CLASSES]
+        api = Request(request, authenticators=authenticators)
+        try:
+            user = api.user
+        except APIException as exc:
+            return _refusal_of(exc)
+    else:
+        user = request.user
+    return user if user.is_authenticated else _signed_out()
+
+
+def _refusal_of(exc: APIException) -> Refusal:
+    codes = exc.get_codes()
+    return Refusal(exc.status_code, codes if isinstance(codes, str) else "refused", str(exc.detail))  # fmt: skip
+
+
+def gate_for(scope: dict, limit: int | None) -> Callable[[HttpRequest], Refusal | Any] | None:
+    """Who decides on this request before its body: an upload's gate, `signed_in_sender`
+    for a body that may exceed REQUEST_BODY_MAX_BYTES, else nobody."""
+    if scope["type"] != "http" or scope.get("method") in SAFE_METHODS:
         return None
-    return GATES.get(scope.get("path", ""))
+    if scope.get("path", "") in GATES:
+        return GATES[scope["path"]]
+    if limit is not None and limit > int(settings.REQUEST_BODY_MAX_BYTES):
+        return signed_in_sender
+    return None
 
 
 def probe(scope: dict) -> HttpRequest:
@@ -141,6 +166,8 @@ def admit(scope: dict, decide: Callable[[HttpRequest], Refusal | Any]) -> Refusa
         close_old_connections()
     if isinstance(verdict, Refusal):
         return verdict
+    if scope["path"] not in GATES or scope["method"] != "POST":
+        return ""  # not an upload: no slot to hold
     slot = take_slot(scope["path"], verdict.pk)
     if slot is None:
         limit = int(settings.UPLOAD_MAX_CONCURRENT)
@@ -160,20 +187,22 @@ async def guard(scope: dict, receive: Receive, send: Send, app: ASGIApp, decide:
         nonlocal renewed
         if time.monotonic() - renewed > RENEW_EVERY_S:
             renewed = time.monotonic()
-            await cache.atouch(verdict, SLOT_TTL_S)
+            if verdict:
+                await cache.atouch(verdict, SLOT_TTL_S)
         return await receive()
 
     async def releasing_send(message: dict) -> None:
         # Free the slot before the answer's last byte: a client that starts its next
         # upload on this answer must find it free.
-        if message["type"] == "http.response.body" and not message.get("more_body"):
+        if verdict and message["type"] == "http.response.body" and not message.get("more_body"):
             await cache.adelete(verdict)
         await send(message)
 
     try:
         await app(scope, renewing_receive, releasing_send)
     finally:
-        await cache.adelete(verdict)
+        if verdict:
+            await cache.adelete(verdict)
 
 
 async def refuse(send: Send, refusal: Refusal) -> None:

@@ -118,7 +118,9 @@ def test_a_form_with_too_many_fields_is_refused_with_413(world):
     assert "more than 1000 fields" in response.json()["error"]
 
 
-def _through_asgi(path: str, chunks: list[bytes]) -> tuple[int, dict, bytes]:
+def _through_asgi(
+    path: str, chunks: list[bytes], headers: list | None = None
+) -> tuple[int, dict, bytes]:
     """One request without a Content-Length through BodyLimitASGI in front of an app
     that reads the whole body and stores it: (status, JSON body, what the app stored)."""
     stored = bytearray()
@@ -145,7 +147,7 @@ def _through_asgi(path: str, chunks: list[bytes]) -> tuple[int, dict, bytes]:
         async def send(message: dict) -> None:
             sent.append(message)
 
-        scope = {"type": "http", "method": "PUT", "path": path, "headers": []}
+        scope = {"type": "http", "method": "PUT", "path": path, "headers": headers or []}
         await BodyLimitASGI(app)(scope, receive, send)
         body = b"".join(m.get("body", b"") for m in sent if m["type"] == "http.response.body")
         return sent[0]["status"], json.loads(body)
@@ -154,9 +156,35 @@ def _through_asgi(path: str, chunks: list[bytes]) -> tuple[int, dict, bytes]:
     return status, body, bytes(stored)
 
 
-def test_a_body_without_a_length_is_cut_off_at_the_limit_before_django_reads_it(db):
-    path = "/api/v1/organisations/acme/envelope/"
-    status, body, _ = _through_asgi(path, [b"x" * MiB, b"x" * MiB, b"x" * MiB])
+def test_a_body_without_a_length_is_cut_off_at_the_limit_before_django_reads_it(world_tx):
+    from accounts import tokens
+
+    path = f"/api/v1/organisations/{world_tx.org.slug}/envelope/"
+    key = tokens.issue(world_tx.owner, organisation=world_tx.org).key
+    signed = [(b"authorization", f"Token {key}".encode())]
+    status, body, _ = _through_asgi(path, [b"x" * MiB, b"x" * MiB, b"x" * MiB], signed)
     assert status == 413 and body["code"] == "too_large"
-    status, _, stored = _through_asgi(path, [b"{}"])
+    status, _, stored = _through_asgi(path, [b"{}"], signed)
     assert status == 201 and stored == b"{}"
+
+
+def test_a_body_larger_than_the_default_is_taken_only_from_a_signed_in_sender(world_tx):
+    """Missions, plans and envelopes take more than REQUEST_BODY_MAX_BYTES: a stranger is
+    answered before any of it is read."""
+    for path in ("/api/v1/missions/", "/api/v1/missions/logs/check/", "/organisation/envelope/"):
+        status, body, stored = _through_asgi(path, [b"x" * MiB] * 3)
+        assert (status, body["code"], stored) == (401, "not_authenticated", b""), path
+    bad = [(b"authorization", b"Token sky_wrong")]
+    status, _, stored = _through_asgi("/api/v1/missions/", [b"{}"], bad)
+    assert status == 401 and stored == b""
+    status, _, stored = _through_asgi("/api/v1/token/", [b"{}"])  # the default limit: open
+    assert status == 201 and stored == b"{}"
+
+
+def test_an_anonymous_mission_body_is_refused_before_a_megabyte_is_read(live_asgi, world_tx):
+    from tests.logs.test_upload_gate import MB, stream_upload
+
+    headers = {"Content-Type": "application/json"}
+    for chunked in (False, True):
+        outcome = stream_upload(live_asgi.url, "/api/v1/missions/", headers, chunked=chunked)
+        assert outcome.status in (401, 413) and outcome.taken < MB, outcome
