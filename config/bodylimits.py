@@ -11,8 +11,8 @@ envelope or mission would be parsed in memory. Two layers use the same table:
   without announcing its length, before Django spools it to disk, and lets an upload in
   only once its sender is known to be allowed to send it (config/uploadgate.py).
 
-A pattern whose limit is None is left to the endpoint (the log upload streams to disk
-with its own limit, logs/asgi.py).
+A pattern whose limit is None is left to the endpoint for POSTs (the log upload streams
+to disk with its own limit, logs/asgi.py); other methods there get the default.
 """
 
 from __future__ import annotations

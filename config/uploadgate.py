@@ -8,9 +8,11 @@ DEFAULT_AUTHENTICATION_CLASSES with their CSRF, read-only-token and second-facto
 refusals) and the operator role for the log upload; the session and the admin site's own
 permission for the map-tile upload. A refusal is answered 401/403 with
 `Connection: close` and the body is never received; a user who already has
-UPLOAD_MAX_CONCURRENT uploads under way at that address gets 429. The view checks
-everything again after the body (organisation, role, file): this gate only keeps
-strangers from costing anything. `config/bodylimits.py` runs it for every HTTP request.
+UPLOAD_MAX_CONCURRENT uploads under way at that address gets 429. The other addresses
+that take more than REQUEST_BODY_MAX_BYTES (missions, plans, envelopes) need a signed-in
+sender (`signed_in_sender`). The view checks everything again after the body
+(organisation, role, file): this gate only keeps strangers from costing anything.
+`config/bodylimits.py` runs it for every HTTP request.
 """
 
 from __future__ import annotations
