@@ -67,10 +67,6 @@ class StrictSerializer(serializers.Serializer):
         return super().to_internal_value(data)
 
 
-class StrictModelSerializer(StrictSerializer, serializers.ModelSerializer):
-    pass
-
-
 class Pagination(LimitOffsetPagination):
     """`?limit=&offset=`, with a cap: an unbounded limit would reach the database as an
     out-of-range LIMIT."""

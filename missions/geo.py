@@ -61,11 +61,6 @@ class LocalFrame:
         lon = (lon + 180.0) % 360.0 - 180.0
         return lat, lon
 
-    def point_to_ne(self, lat: float, lon: float) -> NDArray:
-        """One point → array [north, east]."""
-        north, east = self.to_ne(lat, lon)
-        return np.array([float(north), float(east)])
-
     def point_to_latlon(self, ne: ArrayLike) -> tuple[float, float]:
         north, east = np.asarray(ne, dtype=float)
         lat, lon = self.to_latlon(north, east)

@@ -15,7 +15,6 @@ lock guards the per-drone state.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import threading
@@ -301,7 +300,3 @@ def _same_except_evaluation(a: PastViewSettings, b: PastViewSettings) -> bool:
     left.pop("evaluation")
     right.pop("evaluation")
     return left == right
-
-
-def encode_snapshot(snapshot: dict[str, Any]) -> str:
-    return json.dumps(snapshot, separators=(",", ":"))

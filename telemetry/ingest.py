@@ -539,21 +539,7 @@ class Ingestor:
         self._ensure_days(conn, set().union(*(c.days for c in chunks)))
         text = "".join(c.text for c in chunks)
         with conn.transaction(), conn.cursor() as cursor:
-            if idempotent:
-                cursor.execute(
-                    "CREATE TEMP TABLE IF NOT EXISTS telemetry_stage "
-                    "(LIKE telemetry_sample) ON COMMIT DELETE ROWS"
-                )
-                table = "telemetry_stage"
-            else:
-                table = "telemetry_sample"
-            with cursor.copy(f"COPY {table} {storage.COPY_COLUMNS} FROM STDIN") as copy:
-                copy.write(text)
-            if idempotent:
-                cursor.execute(
-                    "INSERT INTO telemetry_sample SELECT * FROM telemetry_stage "
-                    "ON CONFLICT (drone_id, object, ts) DO NOTHING"
-                )
+            storage.copy_rows(cursor, text, idempotent=idempotent)
 
     def _flush_once(self, pending: list[Chunk], retrying: bool) -> list[Chunk]:
         """Store what the database takes; the chunks it refuses, for the caller to count."""

@@ -2,7 +2,8 @@
 
 Plain psycopg 3, no Django, so the ingest process and the tests' private PostgreSQL use
 the same code as the web app. Every function takes an open connection and commits what it
-did itself, except `copy_samples`, whose caller decides when a batch is committed.
+did itself, except `copy_samples` and `copy_rows`, whose caller decides when a batch is
+committed.
 """
 
 from __future__ import annotations
@@ -223,31 +224,29 @@ def drop_partitions_before(conn: psycopg.Connection, table: str, cutoff: date) -
 
 def copy_samples(conn: psycopg.Connection, samples: Sequence[Sample]) -> None:
     """COPY a batch into the sample table inside the caller's transaction."""
-    with (
-        conn.cursor() as cursor,
-        cursor.copy(f"COPY telemetry_sample {COPY_COLUMNS} FROM STDIN") as copy,
-    ):
-        copy.write("".join(s.copy_line() for s in samples))
-
-
-def copy_samples_idempotent(conn: psycopg.Connection, samples: Sequence[Sample]) -> int:
-    """COPY through a temporary table and skip rows already stored; rows inserted.
-
-    Used after a failure whose outcome is unknown (the connection died around COMMIT),
-    so a batch that did commit is not stored twice.
-    """
     with conn.cursor() as cursor:
-        cursor.execute(
-            "CREATE TEMP TABLE IF NOT EXISTS telemetry_stage "
-            "(LIKE telemetry_sample) ON COMMIT DELETE ROWS"
-        )
-        with cursor.copy(f"COPY telemetry_stage {COPY_COLUMNS} FROM STDIN") as copy:
-            copy.write("".join(s.copy_line() for s in samples))
-        cursor.execute(
-            "INSERT INTO telemetry_sample SELECT * FROM telemetry_stage "
-            "ON CONFLICT (drone_id, object, ts) DO NOTHING"
-        )
-        return cursor.rowcount
+        copy_rows(cursor, "".join(s.copy_line() for s in samples), idempotent=False)
+
+
+def copy_rows(cursor: psycopg.Cursor, text: str, *, idempotent: bool) -> None:
+    """COPY rows (COPY text lines, `Sample.copy_line`) into the sample table inside the
+    caller's transaction. `idempotent` goes through a temporary table and skips rows
+    already stored: after a failure whose outcome is unknown (the connection died around
+    COMMIT), a batch that did commit is not stored twice."""
+    if not idempotent:
+        with cursor.copy(f"COPY {SAMPLE_TABLE} {COPY_COLUMNS} FROM STDIN") as copy:
+            copy.write(text)
+        return
+    cursor.execute(
+        "CREATE TEMP TABLE IF NOT EXISTS telemetry_stage "
+        f"(LIKE {SAMPLE_TABLE}) ON COMMIT DELETE ROWS"
+    )
+    with cursor.copy(f"COPY telemetry_stage {COPY_COLUMNS} FROM STDIN") as copy:
+        copy.write(text)
+    cursor.execute(
+        f"INSERT INTO {SAMPLE_TABLE} SELECT * FROM telemetry_stage "
+        "ON CONFLICT (drone_id, object, ts) DO NOTHING"
+    )
 
 
 def insert_samples_row_by_row(conn: psycopg.Connection, samples: Iterable[Sample]) -> None:

@@ -37,9 +37,6 @@ KEY_PREFIX = "skyhive:counters:"
 INSTANCE_PREFIX = "skyhive:instance:"
 ALIVE_PREFIX = "skyhive:alive:"
 
-# An instance that has not reported for this long is gone (several missed flushes, so
-# one slow Redis round trip does not flap it).
-DEFAULT_INSTANCE_TTL_S = 10.0
 # How long a gone instance stays listed before Redis forgets it.
 GONE_RETAIN_S = 3600
 
@@ -48,7 +45,6 @@ IDENTITY_FIELDS = ("process", "instance", "host", "pid", "started", "last_report
 
 REFUSALS_KEY = "skyhive:refusals"
 REFUSAL_DRONES_KEY = "skyhive:refusals:drones"
-REFUSAL_DRONES = 1000
 OTHER_DRONES = "*"
 # Adds per-drone refusals, keeping at most ARGV[1] distinct drone ids; ARGV then holds
 # (drone, reason, amount) triples and last the name of the overflow bucket. One script,
@@ -94,9 +90,7 @@ class Counters:
         self.flush_every = flush_every
         self.instance = instance or default_instance()
         self.instance_ttl = float(
-            instance_ttl
-            if instance_ttl is not None
-            else getattr(settings, "INSTANCE_TTL_S", DEFAULT_INSTANCE_TTL_S)
+            instance_ttl if instance_ttl is not None else settings.INSTANCE_TTL_S
         )
         self.started = time.time()
         self._counts: Counter[str] = Counter()
@@ -134,7 +128,7 @@ class Counters:
         """Count a refused message against its drone (`reason` like `heartbeats.bad_text`)."""
         with self._lock:
             refusals = self._refusals
-            if (drone_id, reason) not in refusals and len(refusals) >= REFUSAL_DRONES:
+            if (drone_id, reason) not in refusals and len(refusals) >= settings.REFUSAL_DRONES:
                 drone_id = OTHER_DRONES  # held in memory until the next flush: bounded too
             refusals[(drone_id, reason)] += amount
 
@@ -203,7 +197,7 @@ class Counters:
 def _add_refusals(pipe: redis.client.Pipeline, refusals: dict[tuple[str, str], int]) -> None:
     if not refusals:
         return
-    args: list[str | int] = [getattr(settings, "REFUSAL_DRONES", REFUSAL_DRONES)]
+    args: list[str | int] = [settings.REFUSAL_DRONES]
     for (drone_id, reason), amount in refusals.items():
         args += [drone_id, reason, amount]
     args.append(OTHER_DRONES)
@@ -335,7 +329,7 @@ def instances(client: redis.Redis | None = None) -> list[Instance]:
                 pid=int(float(values.get("pid", 0))),
                 started=float(values.get("started", 0)),
                 last_report=float(values.get("last_report", 0)),
-                ttl=float(values.get("ttl", DEFAULT_INSTANCE_TTL_S)),
+                ttl=float(values.get("ttl", settings.INSTANCE_TTL_S)),
                 alive=bool(alive),
                 counters=numbers,
             )

@@ -280,6 +280,12 @@ CELERY_BEAT_SCHEDULE["fleet.sweep_offline"] = {
     "schedule": OFFLINE_SWEEP_INTERVAL_S,
     "options": {"expires": OFFLINE_SWEEP_INTERVAL_S},
 }
+# The status page's counters (workers/counters.py): a process whose heartbeat is older
+# than INSTANCE_TTL_S is gone (several missed flushes, so one slow Redis round trip does
+# not flap it); refusals are kept per drone for at most REFUSAL_DRONES drone ids, later
+# ones counted together, so a flood of invented ids cannot grow Redis.
+INSTANCE_TTL_S = env.float("INSTANCE_TTL_S", 10.0)
+REFUSAL_DRONES = env.int("REFUSAL_DRONES", 1000)
 # Another tile server for every map (like one on the site's own network); empty (the
 # default) uses the portal's own tiles (/tiles/, see "map tiles" below).
 MAP_TILE_URL = env.str("MAP_TILE_URL", "")
