@@ -5,6 +5,7 @@ counted against it, and every sample, heartbeat and step report of the good one 
 from __future__ import annotations
 
 import json
+import math
 import time
 import uuid
 from collections import Counter
@@ -101,7 +102,10 @@ def _telemetry(now: float, fields: dict, ts: float | None = None) -> bytes:
 
 def _hostile_messages(drone_id: str, mission_id: str, now: float) -> list[tuple[str, bytes, str]]:
     """(channel, payload, reason refused): NUL text, an unpaired surrogate, 200 kB strings,
-    NaN and times of 1e30, on every channel the ground stores."""
+    NaN and times of 1e30, on every channel the ground stores. NaN and Infinity come from
+    json.dumps itself (it writes them for float nan/inf): editing the encoded bytes would
+    also hit the clock's digits in "ts" whenever they hold the text replaced, and turn a
+    non-finite value into a message that is not JSON at all."""
     beat = heartbeat(drone_id)
     step = {"type": "step", "mission_id": mission_id, "index": 0, "command": "arm"}
     step |= {"status": "failed", "ts": now}
@@ -110,20 +114,20 @@ def _hostile_messages(drone_id: str, mission_id: str, now: float) -> list[tuple[
         ("telemetry", _telemetry(now, {"Armed": "Ar\x00med"}), "bad_text"),
         ("telemetry", _telemetry(now, {"Armed": "\ud800"}), "bad_text"),
         ("telemetry", _telemetry(now, {"Armed": HUGE}), "bad_value"),
-        ("telemetry", _telemetry(now, {"Armed": 1.5}).replace(b"1.5", b"NaN"), "bad_value"),
+        ("telemetry", _telemetry(now, {"Armed": math.nan}), "bad_value"),
         ("telemetry", _telemetry(now, {"Armed": 1}, ts=1e30), "ts_window"),
         ("heartbeats", json.dumps(beat | {"flight_mode": "HO\x00LD"}).encode(), "bad_text"),
         ("heartbeats", json.dumps(beat | {"flight_mode": HUGE}).encode(), "too_long"),
         ("heartbeats", json.dumps(beat | {"ts": 1e30}).encode(), "bad_timestamp"),
-        ("heartbeats", json.dumps(beat).encode().replace(b"16.4", b"NaN"), "not_finite"),
+        (
+            "heartbeats",
+            json.dumps(beat | {"battery": {"voltage": math.nan, "remaining": 0.9}}).encode(),
+            "not_finite",
+        ),
         ("mission", json.dumps(step | {"error": "bad\x00"}).encode(), "bad_text"),
         ("mission", json.dumps(step | {"error": HUGE}).encode(), "too_long"),
         ("mission", json.dumps(step | {"ts": 1e30}).encode(), "bad_timestamp"),
-        (
-            "mission",
-            json.dumps(step | {"duration_s": 1.5}).encode().replace(b"1.5", b"Infinity"),
-            "not_finite",
-        ),
+        ("mission", json.dumps(step | {"duration_s": math.inf}).encode(), "not_finite"),
         ("alarms", json.dumps(alarm | {"message": "\x00"}).encode(), "bad_text"),
         (
             "gear",
@@ -132,6 +136,14 @@ def _hostile_messages(drone_id: str, mission_id: str, now: float) -> list[tuple[
         ),
         ("pictures", json.dumps({"name": "p\x00.jpg", "jpeg": "", "ts": now}).encode(), "bad_text"),
     ]
+
+
+@pytest.mark.parametrize("now", [1764731541.52, 1764731516.4, 1764731500.25])
+def test_every_hostile_message_is_json_whatever_the_clock_reads(now):
+    """Each message is refused for its content, never for not being JSON: clocks whose
+    digits hold "1.5" or "16.4" once turned the NaN messages into broken JSON."""
+    for channel, payload, reason in _hostile_messages("ACME_1", str(uuid.uuid4()), now):
+        assert json.loads(payload), (channel, reason)
 
 
 def _steps_done(mission) -> bool:  # type: ignore[no-untyped-def]
