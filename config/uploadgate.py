@@ -179,7 +179,9 @@ def admit(scope: dict, decide: Callable[[HttpRequest], Refusal | Any]) -> Refusa
 
 async def guard(scope: dict, receive: Receive, send: Send, app: ASGIApp, decide: Any) -> None:
     """Run `app` for an upload `decide` admits; answer the refusal otherwise."""
-    verdict = await sync_to_async(admit, thread_sensitive=True)(scope, decide)
+    # A thread of the pool, not Django's one shared thread: uploads are not queued
+    # behind each other's checks (each opens and closes its own connection).
+    verdict = await sync_to_async(admit, thread_sensitive=False)(scope, decide)
     if isinstance(verdict, Refusal):
         await refuse(send, verdict)
         return
