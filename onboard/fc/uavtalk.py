@@ -114,6 +114,7 @@ class UAVTalkFlightController(LinkDriver):
         # Set-up findings: the firmware generation's, and the receiver settings' (these
         # keep the board from arming, so `arm` answers with them at once).
         self._generation_report: tuple[str, ...] = ()
+        self._unanswered: set[str] = set()  # objects the board knows in no generation here
         self._arming_blockers: tuple[str, ...] = ()
 
     # --- the protocol's part of the link skeleton (onboard/fc/driver.py) -----------------
@@ -258,8 +259,8 @@ class UAVTalkFlightController(LinkDriver):
             for g in generations.GENERATIONS
             if all(g.key in keys for keys in answered.values())
         ]
-        unknown = [name for name, keys in answered.items() if not keys]
-        self._generation_report = tuple(self._neither(name) for name in unknown)
+        self._unanswered = {name for name, keys in answered.items() if not keys}
+        self._generation_report = tuple(self._neither(name) for name in sorted(self._unanswered))
         for problem in self._generation_report:
             log.warning("flight controller set-up: %s", problem)
         if not fits:
@@ -303,7 +304,7 @@ class UAVTalkFlightController(LinkDriver):
         found: list[str] = list(self._generation_report)
         blockers: list[str] = []
         for name in ("UAVTalkReceiver", receiver_setup.SETTINGS):
-            if name not in self.registry or any(name in p for p in self._generation_report):
+            if name not in self.registry or name in self._unanswered:
                 continue
             try:
                 values = self.request_object(name, timeout=2.0)
