@@ -237,3 +237,26 @@ def test_the_board_reports_its_link_rates_in_bytes_per_second(board):
     # The board streams several objects many times a second; the ground sends keep-alives.
     assert fields["TxDataRate"] > 100
     assert 0 < fields["RxDataRate"] < fields["TxDataRate"]
+
+
+@pytest.mark.parametrize(("firmware", "other"), [("release", "latest"), ("latest", "release")])
+def test_each_generation_takes_its_own_manual_control_settings_and_nacks_the_others(
+    firmware, other
+):
+    agent = ObjectRegistry.load(every_generation=True)
+    own, foreign = (agent.for_generation(g)["ManualControlSettings"] for g in (firmware, other))
+    sim = start_simulator(time_scale=10.0, firmware=firmware)
+    ground = RawGround(sim.pty_path)
+    try:
+        ground.connect()
+        for obj in (foreign, own):
+            ground.send(encode_frame(MessageType.OBJ_ACK, obj.id, obj.pack(obj.defaults())))
+            reply = ground.pump(2, lambda f: f.type in (MessageType.NACK, MessageType.ACK))
+            assert reply is not None and reply.object_id == obj.id
+            assert reply.type == (MessageType.ACK if obj is own else MessageType.NACK)
+        ground.send(encode_frame(MessageType.OBJ_REQ, foreign.id))
+        nack = ground.pump(2, lambda f: f.object_id == foreign.id)
+        assert nack is not None and nack.type == MessageType.NACK
+    finally:
+        ground.close()
+        sim.stop()
