@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import pytest
 from asgiref.sync import sync_to_async
+from channels.testing import WebsocketCommunicator
 from django.test import Client
+from django_otp import DEVICE_ID_SESSION_KEY
 from django_otp.plugins.otp_totp.models import TOTPDevice
 from rest_framework.test import APIClient
 
@@ -14,11 +16,12 @@ from accounts import tokens
 from accounts.models import ApiToken, AuditEvent
 from fleet.models import CommandLog
 from tests.pastview.support import in_own_loop
-from tests.support.websocket import connect_websocket
+from tests.support.websocket import connect_websocket, session_cookie
 
 from .test_sign_in import PASSWORD, code, enrol, require_second_factor, signed_in
 
 TELEOP = {"type": "teleop", "forward": 1, "right": 0, "up": 0}
+ORIGIN = b"http://127.0.0.1"
 
 
 def test_a_session_owing_the_second_factor_creates_no_token_on_the_security_page(world):
@@ -45,6 +48,8 @@ def test_the_api_gives_no_token_to_a_user_owing_the_second_factor(world):
 @pytest.mark.usefixtures("no_snapshots_from_earlier_tests")
 @in_own_loop
 async def test_a_session_owing_the_second_factor_cannot_teleoperate(world_tx):
+    from config.asgi import application
+
     await sync_to_async(require_second_factor)(world_tx.org)
     communicator, connected, _ = await connect_websocket("/ws/pastview/ACME_1/", world_tx.operator)
     try:
@@ -57,6 +62,28 @@ async def test_a_session_owing_the_second_factor_cannot_teleoperate(world_tx):
         assert not await sync_to_async(CommandLog.objects.exists)()
     finally:
         await communicator.disconnect()
+    # A session that gave its code steers again.
+    cookie = await sync_to_async(verified_session)(world_tx.operator)
+    communicator = WebsocketCommunicator(
+        application, "/ws/pastview/ACME_1/", headers=[(b"origin", ORIGIN), (b"cookie", cookie)]
+    )
+    try:
+        assert (await communicator.connect(timeout=5))[0]
+        assert (await communicator.receive_json_from(timeout=5))["can_operate"] is True
+    finally:
+        await communicator.disconnect()
+
+
+def verified_session(user) -> bytes:  # type: ignore[no-untyped-def]
+    """The cookie of a session that signed in with the user's (new) authenticator."""
+    from django.contrib.sessions.backends.db import SessionStore
+
+    device = TOTPDevice.objects.create(user=user, name="phone", confirmed=True)
+    key = session_cookie(user).decode().split("=", 1)[1]
+    session = SessionStore(session_key=key)
+    session[DEVICE_ID_SESSION_KEY] = device.persistent_id
+    session.save()
+    return f"sessionid={key}".encode()
 
 
 def test_moving_the_authenticator_asks_for_the_current_code(world):
