@@ -166,6 +166,7 @@ def test_the_panic_page_sends_the_phones_position_and_follows_the_drone(
         is_mobile=True,
         geolocation={"latitude": caller[0], "longitude": caller[1]},
         permissions=["geolocation"],
+        bypass_csp=True,  # wait_for_function evaluates in the page (tests/conftest.py)
     )
     page = context.new_page()
     try:
