@@ -35,10 +35,10 @@ class Outcome:
     taken: int
 
 
-def _head(path: str, headers: dict[str, str], chunked: bool) -> bytes:
+def _head(path: str, headers: dict[str, str], chunked: bool, announced: int = ANNOUNCED) -> bytes:
     lines = [f"POST {path} HTTP/1.1", "Host: 127.0.0.1"]
     lines += [f"{name}: {value}" for name, value in headers.items()]
-    lines.append("Transfer-Encoding: chunked" if chunked else f"Content-Length: {ANNOUNCED}")
+    lines.append("Transfer-Encoding: chunked" if chunked else f"Content-Length: {announced}")
     return ("\r\n".join(lines) + "\r\n\r\n").encode()
 
 
@@ -68,13 +68,14 @@ def stream_upload(
     chunked: bool,
     limit: int = ANNOUNCED,
     prefix: bytes = b"",
+    announced: int = ANNOUNCED,
 ) -> Outcome:
     """POST `path` announcing 1.5 GB (or chunked), pushing body bytes (after `prefix`)
     until the server answers, stops reading or drops the connection."""
     url = urlsplit(server_url)
     sock = socket.create_connection((url.hostname, url.port), timeout=10)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 64 * 1024)
-    sock.sendall(_head(path, headers, chunked))
+    sock.sendall(_head(path, headers, chunked, announced))
     if prefix:
         sock.sendall((b"%x\r\n" % len(prefix)) + prefix + b"\r\n" if chunked else prefix)
     block = b"x" * 64 * 1024
@@ -229,6 +230,19 @@ def test_the_meter_sees_what_an_admitted_upload_sends(live_asgi, world_tx):
         live_asgi.url, LOG_PATH, headers, chunked=False, limit=8 * MB, prefix=part
     )
     assert outcome.taken >= 8 * MB - 256 * 1024, outcome
+
+
+def test_a_superuser_passes_the_tile_gate(live_asgi, world_tx):
+    from django.contrib.auth import get_user_model
+
+    root = get_user_model().objects.create_superuser("root", password="pw-for-tests-1")
+    headers = {**MULTIPART, **_session(root)}
+    part = b'--x\r\nContent-Disposition: form-data; name="file"; filename="a.zip"\r\n\r\n'
+    outcome = stream_upload(
+        live_asgi.url, TILE_PATH, headers, chunked=False, limit=4 * MB, prefix=part,
+        announced=100 * MB,
+    )  # fmt: skip
+    assert outcome.taken >= 4 * MB - 256 * 1024, outcome
 
 
 def _open_upload(url: str, headers: dict[str, str]) -> socket.socket:
