@@ -1,5 +1,7 @@
 """Importing a tile set from the admin: upload an MBTiles file or a ZIP of a z/x/y folder
-(at most TILES_UPLOAD_MAX_BYTES); it is checked completely before anything is kept."""
+(at most TILES_UPLOAD_MAX_BYTES, from a user the admin lets add tile sets: checked before
+the body is read, config/uploadgate.py); it is checked completely, within the import
+limits of tiles/sources.py, before anything is kept."""
 
 from __future__ import annotations
 
@@ -14,7 +16,8 @@ from tiles import importer, sources, store
 from tiles.models import TileSet
 from tiles.store import TileError
 
-# The admin's upload form posts here; config/asgi.py refuses bodies over the limit at once.
+# The admin's upload form posts here; config/asgi.py refuses strangers and bodies over the
+# limit at once.
 TILE_UPLOAD_PATH = "/admin/tiles/tileset/add/"
 
 
