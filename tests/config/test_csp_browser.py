@@ -119,3 +119,24 @@ def test_an_inline_script_put_into_a_page_is_refused(page, live_asgi, world_tx):
     )
     assert ran is False
     assert any("script-src" in problem for problem in visits.problems)
+
+
+def test_the_admin_pages_run_under_the_policy_without_a_violation(page, live_asgi, world_tx):
+    from django.contrib.auth import get_user_model
+
+    get_user_model().objects.create_superuser(
+        "staff", "staff@example.org", "correct horse battery staple"
+    )
+    visits = Visits(page)
+    login(page, live_asgi, "staff")
+    seen: set[str] = set()
+    queue = [f"{live_asgi.url}/admin/"]
+    while queue and len(seen) < 25:
+        url = queue.pop(0).split("#")[0]
+        if url in seen or "/logout/" in url:
+            continue
+        seen.add(url)
+        links = visits.open(url)
+        queue += [link for link in links if link.startswith(f"{live_asgi.url}/admin/")]
+    assert len(seen) >= 10, sorted(seen)
+    assert visits.problems == []
