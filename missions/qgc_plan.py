@@ -52,6 +52,10 @@ from onboard.envelope import (
 )
 from onboard.protocol import ProtocolError, validate_command
 
+# The largest .plan read: the ceiling the import endpoint applies before reading (a plan
+# of thousands of items is a few hundred KB), so json.loads works on a bounded text.
+MAX_PLAN_BYTES = 8 * 1024 * 1024
+
 NAV_WAYPOINT = 16
 NAV_LOITER_TIME = 19
 NAV_RETURN_TO_LAUNCH = 20
@@ -177,14 +181,6 @@ def _list(value: Any, where: str) -> list:
     return value
 
 
-def _pair(value: Any, where: str) -> tuple[float, float]:
-    """[lat, lon] (a third value, if any, is someone else's)."""
-    value = _list(value, where)
-    if len(value) < 2:
-        raise QgcPlanError(where, "must be [lat, lon]")
-    return _latlon(value[0], value[1], where)
-
-
 def _latlon(lat: Any, lon: Any, where: str) -> tuple[float, float]:
     lat = _num(lat, f"{where}.lat")
     lon = _num(lon, f"{where}.lon")
@@ -269,7 +265,12 @@ class _Reader:
             )
         for j, raw in enumerate(inner):
             inner_where = f"{where}.TransectStyleComplexItem.Items[{j}]"
-            self.item(_obj(raw, inner_where), inner_where, number)
+            inner_item = _obj(raw, inner_where)
+            # QGroundControl generates simple items only; nesting would also make the
+            # reading recurse as deep as the file wants.
+            if inner_item.get("type") == "ComplexItem":
+                raise QgcPlanError(inner_where, "a complex item inside a complex item")
+            self.item(inner_item, inner_where, number)
 
     def item(self, item: Mapping, where: str, number: int | None) -> None:
         """One mission item (`number`: its 1-based place in the plan) as Skyhive steps."""
@@ -474,10 +475,14 @@ def _read_rally(data: Any) -> list[list[float]]:
 def import_plan(source: str | bytes | Mapping) -> QgcPlan:
     """A .plan file (text, bytes or parsed JSON) → QgcPlan, or QgcPlanError saying where."""
     if isinstance(source, bytes | str):
+        if len(source) > MAX_PLAN_BYTES:
+            raise QgcPlanError("file", f"is over {MAX_PLAN_BYTES} bytes")
         try:
             source = json.loads(source)
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise QgcPlanError("file", f"is not JSON ({exc})") from None
+        except RecursionError:
+            raise QgcPlanError("file", "nests its JSON too deeply") from None
     plan = _obj(source, "file")
     if plan.get("fileType") != "Plan":
         raise QgcPlanError("fileType", f"must be 'Plan', got {plan.get('fileType')!r}")

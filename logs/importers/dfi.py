@@ -132,8 +132,15 @@ def _column(el: Element, groups: list[str], direct: bool) -> Column:
     return Column(el.tag, groups + [name], el.attrs, labels=labels)
 
 
-def _check_archive(zf: zipfile.ZipFile, limits: Limits) -> None:
+def _check_archive(zf: zipfile.ZipFile, limits: Limits, size: int) -> None:
+    """Declared sizes checked before anything is unpacked (zipfile stops each member at its
+    declared size). Members may not share compressed bytes, so the per-member ratio bounds
+    the whole: an overlapping-member ZIP bomb is refused here."""
     infos = zf.infolist()
+    if sum(i.compress_size for i in infos) > size:
+        raise LogFormatError(
+            f"The archive's members claim more compressed bytes than its {size} (ZIP bomb?)."
+        )
     if len(infos) > limits.max_members:
         raise LogFormatError(
             f"The archive has {len(infos)} members, over the limit of {limits.max_members}."
@@ -237,7 +244,8 @@ class DfiImporter:
         try:
             with zipfile.ZipFile(path) as zf:
                 return "description.xml" in zf.namelist()
-        except (zipfile.BadZipFile, OSError):
+        except (zipfile.BadZipFile, OSError, NotImplementedError, RuntimeError, ValueError):
+            # A damaged or unsupported ZIP (version, method, encryption): ours by name only.
             return path.suffix.lower() == ".dfi"
 
     def read(self, path: Path, *, limits: Limits, progress: Progress) -> LogData:
@@ -248,7 +256,7 @@ class DfiImporter:
                 f"The file {path.name!r} is not a ZIP archive (or it is truncated)."
             ) from exc
         with zf:
-            _check_archive(zf, limits)
+            _check_archive(zf, limits, path.stat().st_size)
             names = set(zf.namelist())
             if "description.xml" not in names:
                 raise LogFormatError("The archive has no description.xml at its root.")

@@ -5,6 +5,7 @@ the AR.Drone topics (ardrone_autonomy Navdata, cmd_vel) tagged as the special qu
 from __future__ import annotations
 
 import bz2
+import io
 from functools import partial
 from pathlib import Path
 
@@ -91,6 +92,27 @@ def flatten(msg: object, prefix: str, out: dict[str, object]) -> None:
             flatten(value, key, out)
 
 
+class _FileOfSize(io.BufferedReader):
+    """A bag file whose reads never ask for more than is left in it: the reader allocates
+    what a length field claims before reading, and a corrupt one claims up to 4 GiB."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(io.FileIO(path, "rb"))
+        self.size = path.stat().st_size
+
+    def read(self, size: int | None = -1) -> bytes:
+        if size is not None and size > 0:
+            size = max(min(size, self.size - self.tell()), 0)
+        return super().read(size)
+
+
+class _BagPath(type(Path())):  # type: ignore[misc]
+    """The bag's path as the reader opens it: through _FileOfSize."""
+
+    def open(self, *_args: object, **_kwargs: object) -> _FileOfSize:  # type: ignore[override]
+        return _FileOfSize(Path(self))
+
+
 class ChunkBudget:
     """Decompresses a bag's chunks within bounds, whatever their headers say: each chunk to
     at most `ratio` times its compressed bytes (plus CHUNK_SLACK_BYTES), and all chunks
@@ -149,7 +171,7 @@ class RosbagImporter:
         cols = ColumnCollector()
         log = LogData(format="rosbag")
         try:
-            reader = Reader(path)
+            reader = Reader(_BagPath(path))
             reader.open()
             chunk_budget(path, limits).install(reader)
         except Exception as exc:

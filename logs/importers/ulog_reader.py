@@ -46,7 +46,7 @@ KNOWN_TYPE_SET = frozenset(KNOWN_TYPES.tolist())
 # A message's size is a uint16, so a data record is at most this long.
 MAX_MESSAGE_BYTES = 0xFFFF
 MAX_NESTING = 16
-FIELD_FLOOR = 1 << 16
+FIELD_FLOOR = 1 << 13
 BYTES_PER_FIELD = 16
 CAREFUL_BYTES = 1 << 20
 CLEAN_BYTES = 1 << 17
@@ -435,6 +435,7 @@ def _scan(buf: bytes, has_sync: bool) -> _Scan:
     scan = _Scan(array("q"))
     pos = sound_from = 0
     limit = len(buf) - 3
+    candidates: np.ndarray | None = None
     while pos <= limit:
         size = buf[pos] | buf[pos + 1] << 8
         if pos + 3 + size > len(buf):
@@ -446,7 +447,13 @@ def _scan(buf: bytes, has_sync: bool) -> _Scan:
             if has_sync and found < 0:
                 scan.stop, scan.needs_sync = pos + 1, True
                 return scan
-            pos = sound_from = found + len(SYNC) if found >= 0 else pos + 1
+            if found < 0 and candidates is None:
+                candidates = _plausible(buf)
+            if found >= 0:
+                pos = sound_from = found + len(SYNC)
+            else:  # the next byte whose header could be one (a run of zeros is skipped whole)
+                at = int(candidates.searchsorted(pos + 1))  # type: ignore[union-attr]
+                pos = sound_from = int(candidates[at]) if at < len(candidates) else limit + 1
             continue
         scan.offsets.append(pos)
         pos += 3 + size
@@ -455,6 +462,19 @@ def _scan(buf: bytes, has_sync: bool) -> _Scan:
             break
     scan.stop = pos
     return scan
+
+
+def _plausible(buf: bytes) -> np.ndarray:
+    """Every offset of `buf` where a header passes the corruption check, in order."""
+    raw = np.frombuffer(buf, dtype=np.uint8)
+    if len(raw) < 3:
+        return np.zeros(0, dtype=np.int64)
+    kinds = raw[2:]
+    sizes = raw[:-2] | (raw[1:-1].astype(np.int64) << 8)
+    good = np.isin(kinds, KNOWN_TYPES) | (
+        (kinds != 0) & (sizes != 0) & (sizes <= MAX_PLAUSIBLE_SIZE)
+    )
+    return np.flatnonzero(good)
 
 
 def _records(chunk: bytes, dtype: np.dtype) -> np.ndarray:
