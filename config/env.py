@@ -19,6 +19,9 @@ env = environ.Env()
 env.escape_proxy = True
 
 POSTGRESQL = "django.db.backends.postgresql"
+# Each process's connection pool (DB_POOL): kept open, at most this many, and how long a
+# request waits for one.
+POOL = {"min_size": 1, "max_size": 16, "timeout": 10}
 
 
 def read_data_env(path: Path) -> None:
@@ -63,10 +66,11 @@ def database_from_url(url: str) -> dict:
         "PORT": str(config["PORT"] or 5432),
         # Under ASGI every request would otherwise open a new connection (~20 ms under
         # load); a pool per process keeps them. Django requires CONN_MAX_AGE 0 with a pool.
-        "OPTIONS": (
-            {"pool": {"min_size": 1, "max_size": 16, "timeout": 10}, **options}
-            if env.bool("DB_POOL", True)
-            else options
-        ),
+        "OPTIONS": ({"pool": dict(POOL), **options} if env.bool("DB_POOL", True) else options),
         "CONN_MAX_AGE": 0,
+        # A connection is checked before its first use in a request (or a task, or a
+        # process's unit of work) and replaced if dead: with the pool, Django passes the
+        # pool ConnectionPool.check_connection, so the first request after a PostgreSQL
+        # restart does not meet a stale connection.
+        "CONN_HEALTH_CHECKS": True,
     }

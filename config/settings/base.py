@@ -34,6 +34,8 @@ INSTALLED_APPS = [
 
 MIDDLEWARE = [
     # Under ASGI each of Django's own runs as its event-loop variant (config/middleware.py).
+    # First: a request that meets a database or Redis outage anywhere below answers 503.
+    "config.outage.outage_middleware",
     "django.middleware.security.SecurityMiddleware",
     "config.csp.ContentSecurityPolicyMiddleware",
     "config.bodylimits.BodyLimitMiddleware",
