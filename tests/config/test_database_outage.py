@@ -5,7 +5,8 @@ an outage answers 503 with Retry-After in the API's error shape, not 500.
 A real web process (uvicorn, as `make run` starts it) on the tests' PostgreSQL. The
 PostgreSQL server is shared, so it is never stopped: its restart is played by ending
 every backend of this test's database (pg_terminate_backend, what a restart does to
-them), and the outage by a process pointed at a port nothing listens on.
+them), and the outage by a process pointed at a port nothing listens on. Redis is one of
+the test's own, restarted at will.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import pytest
 from django.db import connection
 
 from onboard.processes import Supervised, free_port, python_env
+from tests.support.outage import REDIS_SERVER
 from workers.ground import web_argv
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -92,3 +94,20 @@ def test_a_request_during_an_outage_answers_503_with_retry_after(tmp_path, servi
     assert status == 503, body
     assert int(headers["Retry-After"]) > 0
     assert body["code"] == "service_unavailable" and body["error"]
+
+
+def test_the_first_request_after_a_redis_restart_is_answered(tmp_path):
+    port = free_port()
+    argv = [REDIS_SERVER, "--port", str(port), "--bind", "127.0.0.1", "--save", ""]
+    redis = Supervised("redis", argv, log_path=tmp_path / "redis.log", port=port)
+    redis.start().wait_ready(20)
+    web = _web(tmp_path, DB_POOL="true", REDIS_URL=f"redis://127.0.0.1:{port}/0")
+    try:
+        url = f"{web.url}/api/v1/token/"
+        assert _post(url, WRONG_LOGIN)[0] == 403  # the throttle's cache connection is open
+        redis.restart(20)  # every client connection ends with it
+        status, _, body = _post(url, WRONG_LOGIN)
+        assert status == 403, body
+    finally:
+        web.stop()
+        redis.stop()
