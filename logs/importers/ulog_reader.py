@@ -465,7 +465,8 @@ def _scan(buf: bytes, has_sync: bool) -> _Scan:
 
 
 def _plausible(buf: bytes) -> np.ndarray:
-    """Every offset of `buf` where a header passes the corruption check, in order."""
+    """Every offset of `buf` where _scan would not just step on: a header that passes the
+    corruption check, or one whose message runs past the end of `buf`."""
     raw = np.frombuffer(buf, dtype=np.uint8)
     if len(raw) < 3:
         return np.zeros(0, dtype=np.int64)
@@ -474,7 +475,8 @@ def _plausible(buf: bytes) -> np.ndarray:
     good = np.isin(kinds, KNOWN_TYPES) | (
         (kinds != 0) & (sizes != 0) & (sizes <= MAX_PLAUSIBLE_SIZE)
     )
-    return np.flatnonzero(good)
+    past_end = np.arange(3, len(raw) + 1) + sizes > len(raw)
+    return np.flatnonzero(good | past_end)
 
 
 def _records(chunk: bytes, dtype: np.dtype) -> np.ndarray:
