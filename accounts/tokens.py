@@ -12,15 +12,12 @@ import hashlib
 import secrets
 from dataclasses import dataclass
 from datetime import datetime, timedelta
-from functools import cache
 from typing import Any
 
 from django.conf import settings
 from django.utils import timezone
 from django.utils.dateparse import parse_datetime
 from rest_framework.authtoken.models import Token as LegacyToken
-
-from config import asyncdb
 
 from . import audit
 from .errors import Refused
@@ -137,36 +134,6 @@ def refusal(token: ApiToken | None) -> tuple[str, str] | None:
         when = f"{token.expires_at:%Y-%m-%d %H:%M} UTC"
         return "token_expired", f"This token expired on {when}; create a new one."
     return None
-
-
-async def afind_usable(key: str) -> ApiToken | None:
-    """The personal token `key` with its user, if `refusal` would let it be used (an
-    active user, neither revoked nor expired); None otherwise, and for other kinds of key.
-    One query on the event loop (config/asyncdb.py), for the command route."""
-    if not key.startswith(PREFIX):
-        return None
-    row = await asyncdb.fetch_one(_usable_sql(), (digest(key), timezone.now()))
-    if row is None:
-        return None
-    width = len(ApiToken._meta.concrete_fields)
-    token = asyncdb.instance(ApiToken, row[:width])
-    token.user = asyncdb.instance(_user_model(), row[width:])
-    return token  # type: ignore[return-value]
-
-
-def _user_model() -> Any:
-    return ApiToken._meta.get_field("user").related_model
-
-
-@cache
-def _usable_sql() -> str:
-    user_model = _user_model()
-    return (
-        f"SELECT {asyncdb.columns(ApiToken, 't')}, {asyncdb.columns(user_model, 'u')} "
-        f'FROM "{ApiToken._meta.db_table}" t JOIN "{user_model._meta.db_table}" u '
-        'ON u."id" = t."user_id" WHERE t."key_hash" = %s AND u."is_active" '
-        'AND t."revoked_at" IS NULL AND t."expires_at" > %s'
-    )
 
 
 def touch(token: ApiToken) -> None:

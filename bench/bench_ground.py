@@ -14,10 +14,10 @@ command execution time is not what this measures.
 
 Keys:
 - ground.command_rtt_p50_1 / _p50_100 / _p99_100: `POST /api/v1/drones/{id}/commands/`
-  (a personal token, as `POST /api/v1/token/` gives, so the command route in front of
-  Django takes it; keep-alive) until the drone's reply is in the HTTP answer, with 1 and 100
-  drones connected. Baseline: a bare MQTT request/response through the same broker (a
-  ground paho client publishing to `<id>/control/in` and receiving `<id>/control/out`).
+  (a personal token, as `POST /api/v1/token/` gives; keep-alive) until the drone's reply
+  is in the HTTP answer, with 1 and 100 drones connected. Baseline: a bare MQTT
+  request/response through the same broker (a ground paho client publishing to
+  `<id>/control/in` and receiving `<id>/control/out`).
   The web process sends over its own broker connection (workers.direct), opened at its
   first command: the warm-up requests, not measured, cover that.
 - ground.heartbeats_per_s: heartbeats one gateway validates and stores per second under a

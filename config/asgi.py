@@ -19,7 +19,6 @@ from channels.routing import ProtocolTypeRouter, URLRouter  # noqa: E402
 from channels.security.websocket import AllowedHostsOriginValidator  # noqa: E402
 
 from config.bodylimits import BodyLimitASGI  # noqa: E402
-from config.command_route import CommandRoute  # noqa: E402
 from config.lifespan import InstanceLifespan  # noqa: E402
 from config.routing import websocket_urlpatterns  # noqa: E402
 from logs.asgi import UploadLimitMiddleware  # noqa: E402
@@ -33,8 +32,7 @@ application = InstanceLifespan(
             # before Django spools them to disk (config/bodylimits.py).
             "http": BodyLimitASGI(
                 UploadLimitMiddleware(
-                    # A command that passes every check is answered before Django's cycle.
-                    UploadLimitMiddleware(CommandRoute(django_asgi_app)),
+                    UploadLimitMiddleware(django_asgi_app),
                     path=TILE_UPLOAD_PATH,
                     limit=tile_upload_limit,
                 )

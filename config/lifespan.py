@@ -2,8 +2,7 @@
 
 uvicorn sends the ASGI lifespan events that Channels' router does not take: this wrapper
 answers them, starting a heartbeat (workers.counters) at startup and retiring it at
-shutdown, and counts the HTTP requests and websocket connections the process serves. At
-shutdown it also closes the process's own database connection (config/asyncdb.py).
+shutdown, and counts the HTTP requests and websocket connections the process serves.
 Servers without lifespan events (daphne, the test client) pass straight through.
 """
 
@@ -11,7 +10,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from config import asyncdb
 from workers.counters import Heartbeat, start_heartbeat
 
 Scope = dict[str, Any]
@@ -46,6 +44,5 @@ class InstanceLifespan:
                 if self.heartbeat is not None:
                     self.heartbeat.stop()
                     self.heartbeat = None
-                asyncdb.close()
                 await send({"type": "lifespan.shutdown.complete"})
                 return

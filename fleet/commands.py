@@ -13,7 +13,7 @@ import contextvars
 import logging
 from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
-from functools import cache, partial
+from functools import partial
 from typing import Any
 
 from asgiref.sync import sync_to_async
@@ -23,12 +23,11 @@ from django.db.models import F
 from django.utils import timezone
 from django.utils.module_loading import import_string
 
-from config import asyncdb
 from onboard import protocol
 from workers import direct, outbox
 
 from . import envelopes
-from .models import ROLE_RANK, CommandLog, Drone, Membership, Organisation, Role
+from .models import ROLE_RANK, CommandLog, Drone, Role
 
 log = logging.getLogger(__name__)
 
@@ -106,33 +105,6 @@ def find_drone(user: Any, drone_id: str) -> Drone:
     if drone is None:
         raise CommandRefused(404, f"Unknown drone {drone_id!r}.", "droneID")
     return drone
-
-
-async def afind_drone(user: Any, drone_id: str) -> Drone | None:
-    """`find_drone` as one query on the event loop (config/asyncdb.py), for the command
-    route: the same isolation rule (a member of the drone's organisation) and the same
-    `member_role`, the organisation attached; None where `find_drone` would refuse."""
-    if not isinstance(drone_id, str) or not protocol.is_drone_id(drone_id):
-        return None
-    row = await asyncdb.fetch_one(_member_drone_sql(), (user.pk, drone_id))
-    if row is None:
-        return None
-    width = len(Drone._meta.concrete_fields)
-    drone = asyncdb.instance(Drone, row[:width])
-    drone.organisation = asyncdb.instance(Organisation, row[width:-1])
-    drone.member_role = row[-1]  # type: ignore[attr-defined]
-    return drone  # type: ignore[return-value]
-
-
-@cache
-def _member_drone_sql() -> str:
-    return (
-        f'SELECT {asyncdb.columns(Drone, "d")}, {asyncdb.columns(Organisation, "o")}, m."role" '
-        f'FROM "{Drone._meta.db_table}" d '
-        f'JOIN "{Organisation._meta.db_table}" o ON o."id" = d."organisation_id" '
-        f'JOIN "{Membership._meta.db_table}" m ON m."organisation_id" = o."id" '
-        'WHERE m."user_id" = %s AND d."drone_id" = %s'
-    )
 
 
 def _may_operate(drone: Drone) -> bool:

@@ -480,6 +480,3 @@ REQUEST_BODY_LIMITS.insert(0, (r"^/admin/tiles/tileset/add/$", None))
 # or the broker has not acknowledged a command within COMMAND_DIRECT_PUBACK_S seconds.
 COMMAND_DIRECT = env.bool("COMMAND_DIRECT", True)
 COMMAND_DIRECT_PUBACK_S = env.float("COMMAND_DIRECT_PUBACK_S", 0.5)
-# A token's command that passes every check is answered without Django's request cycle
-# (config/command_route.py); false sends every command through Django.
-COMMAND_ROUTE = env.bool("COMMAND_ROUTE", True)
