@@ -16,6 +16,7 @@ import pytest
 from django.db import connection
 
 from onboard.processes import Supervised, free_port, port_open, python_env, wait_for
+from scripts.devrun import STOP_GRACE_S
 from scripts.reaper import GRACE_S, living_groups
 from tests.support.outage import REDIS_SERVER
 
@@ -95,3 +96,20 @@ def test_killing_the_supervisor_leaves_none_of_its_processes_running(tmp_path, r
             supervisor.kill()
         for group in living_groups(supervisor.groups()):
             os.killpg(group, signal.SIGKILL)  # a failed test leaves nothing running either
+
+
+def test_ctrl_c_stops_every_process_and_the_supervisor_with_them(tmp_path, redis):
+    supervisor = Supervisor(tmp_path, f"redis://127.0.0.1:{redis.port}/0")
+    try:
+        assert wait_for(lambda: len(supervisor.groups()) == PROCESSES, 60), supervisor.lines
+        assert wait_for(lambda: port_open(supervisor.port), 60), supervisor.lines
+        groups = supervisor.groups()
+        supervisor.process.send_signal(signal.SIGINT)
+        assert supervisor.process.wait(STOP_GRACE_S + 10) == 0
+        assert not living_groups(groups)
+        assert "exited with code" not in "".join(supervisor.lines)  # none died on its own
+    finally:
+        if supervisor.process.poll() is None:
+            supervisor.kill()
+        for group in living_groups(supervisor.groups()):
+            os.killpg(group, signal.SIGKILL)
