@@ -7,7 +7,14 @@ from pathlib import Path
 import pytest
 
 from missions.planning import coverage, mission_steps
-from missions.qgc_plan import QgcPlanError, dumps, export_plan, export_qgc_plan, import_plan
+from missions.qgc_plan import (
+    MAX_PLAN_BYTES,
+    QgcPlanError,
+    dumps,
+    export_plan,
+    export_qgc_plan,
+    import_plan,
+)
 from onboard.protocol import encode_mission_payload
 from tests.missions.planning import rectangle
 
@@ -173,3 +180,19 @@ def test_a_survey_triggering_the_camera_by_distance_takes_pictures_while_flying(
     steps = import_plan(plan).steps
     waits = [s["params"] for s in steps if s["command"] == "wait_for_flight"]
     assert waits[0] == {} and waits[1]["photo_distance"] == 25
+
+
+def test_a_complex_item_nested_in_a_survey_is_refused_before_it_is_read():
+    plan = load("hover_survey.plan")
+    survey = plan["mission"]["items"][1]
+    nested = copy.deepcopy(survey)
+    for _ in range(400):  # deep enough to exhaust the reader's stack were it followed
+        nested = {**copy.deepcopy(survey), "TransectStyleComplexItem": {"Items": [nested]}}
+    plan["mission"]["items"][1] = nested
+    with pytest.raises(QgcPlanError, match="complex item inside a complex item"):
+        import_plan(plan)
+
+
+def test_a_plan_over_the_size_limit_is_refused_before_it_is_parsed():
+    with pytest.raises(QgcPlanError, match="is over"):
+        import_plan(b" " * (MAX_PLAN_BYTES + 1))
