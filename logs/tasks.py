@@ -12,7 +12,10 @@ from logs import services
 )
 def import_flight_log(self: Task, log_id: str) -> str:
     """Idempotent: a log already ready or failed (a redelivered message) is left alone.
-    Delivered again when its worker process dies, up to LOGS_IMPORT_REDELIVERY_LIMIT."""
+    A file the importers refuse, a MemoryError or the soft time limit ends the log failed
+    in this delivery, and the task returns so its message is acknowledged: a deterministic
+    failure is never retried. Only a worker process that dies has the message delivered
+    again, up to LOGS_IMPORT_REDELIVERY_LIMIT."""
     return services.process_log(log_id, self.request.id)
 
 
