@@ -1,4 +1,5 @@
-"""Limits on password guessing: the API's token view and the portal's login page.
+"""Limits on password guessing (the API's token view and the portal's login page) and on
+actions that move a drone (commands, mission starts, teleoperation).
 
 Counts live in Django's cache (Redis), so every web process shares them. The client is
 its address as DRF tells it (the last NUM_PROXIES hops of X-Forwarded-For are trusted,
@@ -6,6 +7,8 @@ none by default, so a forged header changes nothing).
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 from django.conf import settings
 from django.contrib.auth import views as auth_views
@@ -83,3 +86,67 @@ class LoginView(auth_views.LoginView):
         # factor (accounts.signin) is not a failure.
         LoginAttempts(self.request).failed()
         return super().form_invalid(form)
+
+
+class ActionRateThrottle(SimpleRateThrottle):
+    """`rate_setting` per caller on an action that moves a drone. `per` says whose count:
+    the user's (whatever the credential), or the API token's (a session has none, so this
+    one leaves it to the user's count). Counts live in the shared cache, so every web
+    process sees the same ones; over the rate, DRF answers 429 with Retry-After."""
+
+    rate_setting = ""
+    per = "user"
+
+    def get_rate(self) -> str:
+        return getattr(settings, self.rate_setting)
+
+    def get_cache_key(self, request, view) -> str | None:  # type: ignore[no-untyped-def]
+        ident = caller(request, self.per)
+        if ident is None:
+            return None
+        return f"throttle_{self.scope}_{self.per}_{ident}"
+
+
+def caller(request: Any, per: str) -> str | None:
+    """The user's id, or the token's kind and id; None when there is none to count."""
+    if per == "user":
+        user = getattr(request, "user", None)
+        return str(user.pk) if user is not None and user.is_authenticated else None
+    token = getattr(request, "auth", None)
+    return f"{type(token).__name__}:{token.pk}" if getattr(token, "pk", None) else None
+
+
+def action_throttles(scope: str, rate_setting: str) -> list[type[ActionRateThrottle]]:
+    """A throttle per user and one per token for an action, for a view's throttle_classes."""
+    return [
+        type(
+            f"{scope.title()}{per.title()}Throttle",
+            (ActionRateThrottle,),
+            {"scope": scope, "rate_setting": rate_setting, "per": per},
+        )
+        for per in ("user", "token")
+    ]
+
+
+COMMAND_THROTTLES = action_throttles("command", "COMMAND_RATE")
+MISSION_START_THROTTLES = action_throttles("mission_start", "MISSION_START_RATE")
+
+
+class TeleopRate:
+    """TELEOP_RATE for one user's teleoperation input over the past-view socket (the
+    same counts as ActionRateThrottle, keyed by user): `wait_s` is None while under it."""
+
+    def __init__(self, user: Any) -> None:
+        self.throttle = action_throttles("teleop", "TELEOP_RATE")[0]()
+        self.request = _Caller(user)
+
+    def wait_s(self) -> float | None:
+        if self.throttle.allow_request(self.request, None):
+            return None
+        return self.throttle.wait() or 0.0
+
+
+class _Caller:
+    def __init__(self, user: Any) -> None:
+        self.user = user
+        self.auth = None

@@ -18,6 +18,7 @@ from rest_framework.response import Response
 from rest_framework.views import APIView
 
 from config.api import StrictSerializer
+from config.throttling import COMMAND_THROTTLES
 from onboard.envelope import EnvelopeError
 
 from . import commands, credentials, envelopes
@@ -174,6 +175,7 @@ class DroneCommandView(AsyncAPIView):
     """`POST /api/v1/drones/{drone_id}/commands/`: the drone's own reply, or an error."""
 
     permission_classes = [OrganisationRole]
+    throttle_classes = COMMAND_THROTTLES
     prepared: commands.Prepared | None = None
 
     def _prepare(self, request: Request, *args: Any, **kwargs: Any) -> None:

@@ -18,6 +18,8 @@ from rest_framework import serializers
 from rest_framework.request import Request
 from rest_framework.response import Response
 
+from config.throttling import COMMAND_THROTTLES
+
 from . import commands
 from .async_views import AsyncAPIView
 from .commands import CommandRefused
@@ -95,6 +97,8 @@ def _flag(value: Any) -> bool:
 
 class ControlView(AsyncAPIView):
     """The `/control` command set: every command, answered with the drone's own reply."""
+
+    throttle_classes = COMMAND_THROTTLES
 
     @extend_schema(
         operation_id="control_get",

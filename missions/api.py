@@ -19,6 +19,7 @@ from rest_framework.parsers import FormParser, JSONParser, MultiPartParser
 from rest_framework.request import Request
 from rest_framework.response import Response
 
+from config.throttling import MISSION_START_THROTTLES
 from fleet import envelopes
 from fleet.models import Drone, Membership, Organisation, Role
 from fleet.permissions import OrganisationRole, require_role
@@ -323,7 +324,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         return Response(MissionDetailSerializer(mission).data, status=status.HTTP_201_CREATED)
 
     @extend_schema(request=StartRequest, responses=MissionDetailSerializer)
-    @action(detail=True, methods=["post"])
+    @action(detail=True, methods=["post"], throttle_classes=MISSION_START_THROTTLES)
     def start(self, request: Request, pk: str | None = None) -> Response:
         """Send the mission to `drone` (an id of the same organisation) or, without one,
         to the nearest available drone."""

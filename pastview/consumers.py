@@ -24,6 +24,7 @@ from channels.db import database_sync_to_async
 from django.conf import settings
 from django.utils.module_loading import import_string
 
+from config.throttling import TeleopRate
 from fleet import commands
 from fleet.consumers import CLOSE_NOT_FOUND, GroupConsumer
 from fleet.models import Drone, Role
@@ -89,6 +90,8 @@ class PastViewConsumer(GroupConsumer):
         self.pending: Stick | None = None
         self.wakeup = asyncio.Event()
         self.worker: asyncio.Task | None = None
+        # TELEOP_RATE per user (config/throttling.py), across their sockets.
+        self.rate = TeleopRate(self.scope["user"])
         self.watch = asyncio.ensure_future(self._keep_watching(self.drone.drone_id))
 
     async def welcome(self, target: tuple[Drone, bool]) -> None:
@@ -154,8 +157,12 @@ class PastViewConsumer(GroupConsumer):
         if not self.can_operate:
             await self._teleop_reply(False, "Only operators and admins may command drones.")
             return
-        if kind == "stop":
+        if kind == "stop":  # never limited: stopping a drone must always get through
             self.pending = None
+            return
+        wait_s = await sync_to_async(self.rate.wait_s)()
+        if wait_s is not None:
+            await self._teleop_reply(False, f"Too many moves; try again in {wait_s:.1f} s.")
             return
         try:
             stick = Stick.parse(content)

@@ -185,6 +185,15 @@ REST_FRAMEWORK = {
 # per username (config/throttling.py), like "10/min".
 AUTH_TOKEN_RATE = env.str("AUTH_TOKEN_RATE", "10/min")
 LOGIN_RATE = env.str("LOGIN_RATE", "10/min")
+# Actions that move a drone, per user and, for API tokens, per token (config/throttling.py;
+# 429 with Retry-After, docs/security.md "Rate limits"). Set well above what a person or
+# a steering script sends, so only a runaway or stolen credential meets them: a click is
+# one command and a script steering one drone by `navigate` needs about 10/s, so 30/s;
+# starting a mission plans and sends every step, and a person starts one at a time, so
+# 10/s; the past view's page sends teleoperation input at PASTVIEW_TELEOP_HZ (4/s), so 20/s.
+COMMAND_RATE = env.str("COMMAND_RATE", "30/s")
+MISSION_START_RATE = env.str("MISSION_START_RATE", "10/s")
+TELEOP_RATE = env.str("TELEOP_RATE", "20/s")
 
 SPECTACULAR_SETTINGS = {
     "TITLE": "Skyhive API",

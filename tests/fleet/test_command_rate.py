@@ -1,0 +1,92 @@
+"""Commands and mission starts are rate-limited per user and per token (config/throttling.py):
+a flood from one credential is answered 429 with Retry-After past the stated limit, and
+nobody else is slowed. A flood is what one client sends in one second, up to 1 000
+commands (the window is DRF's sliding one, in real time, as in production).
+"""
+
+from __future__ import annotations
+
+import time
+import uuid
+
+import pytest
+from django.conf import settings
+
+from accounts import tokens
+from config.throttling import parse_rate
+from fleet.models import Drone, Role
+from tests import factories
+
+from .conftest import client_for
+
+ARM = {"command": "arm", "params": {}}
+
+
+def flood(client, most: int = 1000) -> list:  # type: ignore[no-untyped-def]
+    """As many commands as the client gets answered within one second, up to `most`:
+    each an unknown command, refused (400) before any database work, so that a 2-core
+    machine sends more than the limit in the second."""
+    answers, started = [], time.monotonic()
+    while len(answers) < most and time.monotonic() - started < 1.0:
+        answers.append(command(client, {"command": "warp"}))
+    return answers
+
+
+def token_client(user):  # type: ignore[no-untyped-def]
+    client = client_for()
+    client.defaults["HTTP_AUTHORIZATION"] = f"Token {tokens.issue(user, name='flood').key}"
+    return client
+
+
+def command(client, body: dict = ARM):  # type: ignore[no-untyped-def]
+    return client.post("/api/v1/drones/ACME_1/commands/", body, content_type="application/json")
+
+
+def test_a_thousand_commands_in_a_second_from_one_token_are_refused_past_the_limit(world_tx):
+    limit, _ = parse_rate(settings.COMMAND_RATE)
+    answers = flood(token_client(world_tx.operator))
+    statuses = [answer.status_code for answer in answers]
+    assert len(statuses) > limit, "this machine sent too few commands in a second to tell"
+    assert statuses[:limit] == [400] * limit
+    assert statuses[limit:] == [429] * (len(statuses) - limit)
+    assert 0 < float(answers[-1]["Retry-After"]) <= 1
+
+    # The drone is offline: a command is checked and refused (409) without a broker.
+    Drone.objects.filter(drone_id="ACME_1").update(online=False)
+    colleague = factories.person(world_tx.org, Role.OPERATOR, f"op-{uuid.uuid4().hex[:6]}")
+    assert command(token_client(colleague)).status_code == 409  # checked, not throttled
+
+
+@pytest.fixture
+def slow_rates(settings):  # type: ignore[no-untyped-def]
+    """Rates per minute, so what follows does not depend on this machine's speed."""
+    settings.COMMAND_RATE = "5/min"
+    settings.MISSION_START_RATE = "3/min"
+
+
+def test_the_limit_is_per_user_across_their_tokens(world_tx, slow_rates):
+    Drone.objects.filter(drone_id="ACME_1").update(online=False)
+    user = factories.person(world_tx.org, Role.OPERATOR, f"op-{uuid.uuid4().hex[:6]}")
+    clients = [token_client(user) for _ in range(6)]
+    assert [command(client).status_code for client in clients[:5]] == [409] * 5
+    assert command(clients[5]).status_code == 429  # a fresh token: the same user
+    assert command(client_for(user)).status_code == 429  # and their session
+
+
+def test_the_control_endpoint_shares_the_limit(world_tx, slow_rates):
+    Drone.objects.filter(drone_id="ACME_1").update(online=False)
+    user = factories.person(world_tx.org, Role.OPERATOR, f"op-{uuid.uuid4().hex[:6]}")
+    client = token_client(user)
+    for _ in range(5):
+        command(client)
+    answer = client.post("/control", {"command": "arm", "droneID": "ACME_1"})
+    assert answer.status_code == 429 and answer.json()["ok"] is False
+    assert "Retry-After" in answer
+
+
+def test_mission_starts_are_limited_per_user(world_tx, slow_rates):
+    user = factories.person(world_tx.org, Role.OPERATOR, f"op-{uuid.uuid4().hex[:6]}")
+    client = token_client(user)
+    url = f"/api/v1/missions/{uuid.uuid4()}/start/"
+    statuses = [client.post(url, {}, content_type="application/json").status_code for _ in range(5)]
+    assert statuses == [404] * 3 + [429] * 2
