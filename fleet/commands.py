@@ -34,6 +34,8 @@ log = logging.getLogger(__name__)
 # The command set: queries answered by the Drone Identifier (GET) ...
 QUERY_COMMANDS = ("discover", "getgear")
 GET_COMMANDS = ("discover", "getgear", "objrequest")
+# ... of which these ask the drone itself (a command sent), not the database.
+DRONE_GET_COMMANDS = tuple(c for c in GET_COMMANDS if c not in QUERY_COMMANDS)
 # ... and the Mission Planner's two (POST), routed to the hooks in settings.
 CHAIN_COMMANDS = ("startchain", "stopchain")
 ALL_COMMANDS = (*QUERY_COMMANDS, *protocol.CONTROL_COMMANDS, *CHAIN_COMMANDS)

@@ -95,6 +95,22 @@ def _flag(value: Any) -> bool:
     return value is True or str(value).strip().lower() in ("true", "1", "yes", "on")
 
 
+def _cookie_command(request: Request) -> Response | None:
+    """A GET that sends the drone a command answers only to an operate API token: a
+    browser sends its cookie with any cross-site link or image, and a GET is not checked
+    for CSRF, so a session (or a read-only token) may only read by GET."""
+    if request.query_params.get("command") not in commands.DRONE_GET_COMMANDS:
+        return None
+    token = request.auth
+    if token is None or getattr(token, "read_only", False):
+        return _error(
+            403,
+            "command: objrequest by GET needs an operate API token (Authorization: Token); "
+            "from a browser, POST /api/v1/drones/{id}/commands/ as the drone's page does",
+        )
+    return None
+
+
 class ControlView(AsyncAPIView):
     """The `/control` command set: every command, answered with the drone's own reply."""
 
@@ -104,9 +120,16 @@ class ControlView(AsyncAPIView):
         operation_id="control_get",
         parameters=[ControlParams],
         responses={200: CONTROL_OK, **ERRORS},
-        description="GET commands: discover, getgear, objrequest.",
+        description=(
+            "GET commands: discover, getgear, objrequest. objrequest asks the drone, so it "
+            "needs an operate API token (`Authorization: Token …`): a session cookie or a "
+            "read-only token gets 403."
+        ),
     )
     async def get(self, request: Request) -> Response:
+        refusal = _cookie_command(request)
+        if refusal is not None:
+            return refusal
         return await self.control(request, request.query_params, commands.GET_COMMANDS)
 
     @extend_schema(

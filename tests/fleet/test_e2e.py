@@ -70,7 +70,11 @@ def control(client, **params: str) -> tuple[int, dict]:
 
 
 def test_two_simulated_drones_are_discovered_and_flown_through_control(world_tx, fleet):
+    from accounts import tokens
+
     client = client_for(world_tx.operator)
+    # objrequest by GET sends a command: only an operate token may (fleet/control.py).
+    client.defaults["HTTP_AUTHORIZATION"] = f"Token {tokens.issue(world_tx.operator).key}"
 
     status, body = control(client, command="discover")
     assert status == 200
