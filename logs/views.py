@@ -23,7 +23,8 @@ def log_list(request: HttpRequest) -> HttpResponse:
     if organisation is None:
         raise Http404("You are not a member of any organisation.")
     logs = FlightLog.objects.filter(organisation=organisation).select_related("owner")
-    query = request.GET.get("q", "").strip()
+    # PostgreSQL text holds no NUL, so no log's text has one: it is dropped, not a 500.
+    query = request.GET.get("q", "").replace("\x00", "").strip()
     logs = logs.search(query)
     wanted = request.GET.get("status", "")
     if wanted in LogStatus.values:

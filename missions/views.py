@@ -3,6 +3,8 @@ viewer, the panic button, and the pictures behind the organisation check."""
 
 from __future__ import annotations
 
+import uuid
+
 from django.conf import settings
 from django.contrib.auth.decorators import login_required
 from django.http import FileResponse, Http404, HttpRequest, HttpResponse
@@ -46,10 +48,11 @@ def mission_list(request: HttpRequest) -> HttpResponse:
     status = request.GET.get("status", "")
     if status in MissionStatus.values:
         missions = missions.filter(status=status)
-    query = request.GET.get("q", "").strip()
+    # PostgreSQL text holds no NUL, so no name or id has one: it is dropped, not a 500.
+    query = request.GET.get("q", "").replace("\x00", "").strip()
     if query:
         missions = missions.filter(name__icontains=query)
-    drone = request.GET.get("drone", "").strip()
+    drone = request.GET.get("drone", "").replace("\x00", "").strip()
     if drone:
         missions = missions.filter(assignments__drone__drone_id=drone).distinct()
     return render(
@@ -117,13 +120,22 @@ def planner(request: HttpRequest) -> HttpResponse:
     )
 
 
+def _mission_id(value: str) -> uuid.UUID:
+    """A mission id from a query parameter; anything that is not one is an unknown
+    mission (404), not a server error."""
+    try:
+        return uuid.UUID(value)
+    except ValueError:
+        raise Http404("No such mission.") from None
+
+
 @login_required
 def log_viewer(request: HttpRequest) -> HttpResponse:
     organisation = _organisation(request)
     mission = None
     if request.GET.get("mission"):
         mission = Mission.objects.filter(
-            organisation=organisation, pk=request.GET["mission"]
+            organisation=organisation, pk=_mission_id(request.GET["mission"])
         ).first()
     return render(
         request,
