@@ -78,12 +78,14 @@ def _leaves(patterns, prefix: str = ""):  # type: ignore[no-untyped-def]
             yield route
 
 
-def _path(route: str) -> str | None:
+def _path(route: str, ids: dict[str, str]) -> str | None:
     """A concrete path for a pattern, its captured parts filled with the first plausible
-    value it resolves with (the world's drone, an id of each kind)."""
+    value it resolves with: the world's mission or log (by the path's app), its drone,
+    a fresh id of each kind."""
     if "format" in route:
         return None  # DRF's `.json` twins of the same views
-    for filler in ("ACME_1", str(uuid.uuid4()), "1"):
+    owned = [ids[app] for app in ids if app in route]
+    for filler in (*owned, "ACME_1", str(uuid.uuid4()), "1"):
         path = _filled(route, filler)
         try:
             resolve(path)
@@ -95,24 +97,41 @@ def _path(route: str) -> str | None:
 
 def _filled(route: str, filler: str) -> str:
     route = re.sub(r"\(\?P<\w+>[^)]*\)", filler, route)  # regex patterns (DRF, admin)
-    route = re.sub(r"<uuid:\w+>", str(uuid.uuid4()), route)
+    route = re.sub(r"<uuid:\w+>", filler if _is_uuid(filler) else str(uuid.uuid4()), route)
     route = re.sub(r"<int:\w+>", "1", route)
     route = re.sub(r"<(?:\w+:)?\w+>", filler, route)
     return "/" + route.replace("^", "").replace("$", "").replace("\\", "").replace("/?", "/")
 
 
-def all_paths() -> list[str]:
-    found = {_path(route) for route in _leaves(get_resolver().url_patterns)}
+def _is_uuid(value: str) -> bool:
+    try:
+        uuid.UUID(value)
+    except ValueError:
+        return False
+    return True
+
+
+def all_paths(ids: dict[str, str] | None = None) -> list[str]:
+    found = {_path(route, ids or {}) for route in _leaves(get_resolver().url_patterns)}
     return sorted(path for path in found if path)
 
 
 @pytest.mark.django_db
 def test_no_page_answers_500_to_malformed_query_parameters(world):
+    from logs.models import FlightLog
+    from missions.models import Mission
+
+    mission = Mission.objects.create(organisation=world.org, name="walked")
+    log = FlightLog.objects.create(
+        organisation=world.org, owner=world.operator, name="walked.bin", size=1
+    )
     client = Client(raise_request_exception=False)
     client.force_login(world.operator)
     names = parameter_names()
+    paths = all_paths({"missions": str(mission.pk), "logs": str(log.pk)})
+    assert {f"/missions/{mission.pk}/", f"/api/v1/logs/{log.pk}/series/"} <= set(paths)
     failures = []
-    for path in all_paths():
+    for path in paths:
         for value in MALFORMED:
             response = client.get(path, {name: value for name in names})
             if response.status_code == 500:
