@@ -278,7 +278,8 @@ def one_sample(fleet: Fleet, observer: Observer, steps: list[dict], n: int) -> t
     """Start a mission on the failing drone, raise its alarm: (seconds until a candidate
     accepted, the mission)."""
     from fleet.models import Drone, Organisation
-    from missions.services import create_mission, start_mission
+    from missions.creation import create_mission
+    from missions.startstop import start_mission
 
     organisation = Organisation.objects.get(slug="bench")
     mission = create_mission(organisation=organisation, name=f"bench {n}", steps=steps)
@@ -310,7 +311,7 @@ def measure(fleet_size: int, broker, passwords: dict[str, str], observer: Observ
     from django.db import connections
 
     from bench.common import percentile
-    from missions.services import stop_mission
+    from missions.startstop import stop_mission
 
     fleet = Fleet(fleet_size, broker, passwords).start()
     steps = survey_steps(fleet.frame)

@@ -8,17 +8,10 @@ from django.db import transaction
 
 from fleet.models import Drone
 from missions import tasks
+from missions.journal import already_recorded, message_key, record
 from missions.models import Assignment, Event, Mission, MissionStatus
-from missions.services import (
-    already_recorded,
-    find_assignment,
-    find_mission,
-    lock_mission,
-    message_key,
-    position_dict,
-    record,
-    send_alarm_ack,
-)
+from missions.progress import find_assignment, find_mission, lock_mission, position_dict
+from missions.sending import send_alarm_ack
 from missions.signals import critical_alarm_outside_mission
 from onboard import protocol
 

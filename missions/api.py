@@ -25,6 +25,9 @@ from fleet.models import Drone, Membership, Organisation, Role
 from fleet.permissions import OrganisationRole, require_role
 from fleet.signals import note_refusal
 from fleet.tenancy import current_membership
+from missions.creation import create_mission, validate_steps
+from missions.errors import MissionError
+from missions.startstop import start_mission, stop_mission
 
 from . import hold, logs, panic, pictures, plan_files, planning, qgc_plan
 from .models import Mission, Picture
@@ -34,7 +37,6 @@ from .serializers import (
     PictureSerializer,
     StepSerializer,
 )
-from .services import MissionError, create_mission, start_mission, stop_mission, validate_steps
 
 # A QGroundControl plan of thousands of items is a few MiB; anything bigger is not a plan.
 MAX_PLAN_BYTES = 8 * 1024 * 1024

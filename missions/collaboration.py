@@ -18,9 +18,11 @@ from django.db import transaction
 from fleet import envelopes
 from fleet.models import Drone
 from missions.handover import Handover, plan_collaboration
+from missions.journal import record
 from missions.models import STEP_DONE, Assignment, Event, Mission, MissionStatus, Step, StepStatus
 from missions.planning import Extension, PlanningError, Vectors, extend_from_vectors
-from missions.services import nearest_available, record, send_assignment, send_stop
+from missions.selection import nearest_available
+from missions.sending import send_assignment, send_stop
 
 
 def _center(alarm: Event | None, alarming: Assignment) -> tuple[float, float] | None:

@@ -2,7 +2,7 @@
 
 Besides the mission's own events, the socket follows the live state of the mission's
 drones (from the organisation's fleet group) and sends, per drone, where it is and its
-progress estimate (missions.progress) as each heartbeat arrives."""
+progress estimate (missions.estimates) as each heartbeat arrives."""
 
 from __future__ import annotations
 
@@ -14,9 +14,9 @@ from django.conf import settings
 from fleet.consumers import GroupConsumer
 from fleet.models import Drone
 from fleet.state import describe
+from missions.estimates import DroneRoute, mission_routes
 from missions.live import group_name
 from missions.models import Mission
-from missions.progress import DroneRoute, mission_routes
 
 # What of a drone's live state the mission page draws.
 LIVE_FIELDS = ("drone_id", "position", "heading", "state", "battery", "ground_speed")

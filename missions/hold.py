@@ -3,7 +3,7 @@ carry on from the step each was on (docs/protocol.md, mission pause and resume).
 
 Holding is per drone: each assignment has its own `held` state, set here (the whole
 mission, or one `drone`) and by the drone's own paused / resumed reports (its page's Hold;
-missions.services). The mission's `held` is the operator's Pause of the whole mission.
+missions.progress). The mission's `held` is the operator's Pause of the whole mission.
 """
 
 from __future__ import annotations
@@ -12,8 +12,9 @@ from typing import Any
 
 from django.db import transaction
 
+from missions.errors import MissionError
+from missions.journal import record
 from missions.models import Assignment, Event, Mission, MissionStatus
-from missions.services import MissionError, record
 from onboard import protocol
 from workers import outbox
 

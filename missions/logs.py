@@ -10,8 +10,8 @@ import json
 from collections import defaultdict
 from typing import Any
 
+from missions.errors import MissionError
 from missions.models import Assignment, Event, Mission, Step
-from missions.services import MissionError
 
 FORMAT = "skyhive-mission-log"
 VERSION = 1

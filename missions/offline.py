@@ -11,8 +11,9 @@ from django.conf import settings
 from django.db import transaction
 
 from fleet.models import Drone
+from missions.journal import record
 from missions.models import Assignment, Event, MissionStatus
-from missions.services import lock_mission, record
+from missions.progress import lock_mission
 
 
 def note_offline(drone_ids: list[str]) -> list[int]:

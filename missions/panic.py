@@ -13,17 +13,13 @@ from django.conf import settings
 from django.db import transaction
 
 from fleet.models import Organisation
+from missions.creation import create_mission
+from missions.errors import MissionError
+from missions.journal import move_mission, record
 from missions.models import Assignment, Event, Mission, MissionStatus
-from missions.services import (
-    MissionError,
-    Started,
-    create_mission,
-    lock_mission,
-    move_mission,
-    record,
-    send_stop,
-    start_mission,
-)
+from missions.progress import lock_mission
+from missions.sending import send_stop
+from missions.startstop import Started, start_mission
 from onboard import protocol
 
 NAME = "Panic call at"

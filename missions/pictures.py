@@ -30,7 +30,7 @@ from PIL import Image, ImageOps
 from fleet.models import Drone
 from missions import live
 from missions.models import Mission, Picture
-from missions.services import find_mission
+from missions.progress import find_mission
 from onboard import protocol
 from workers.images import ImageRefused, open_image
 

@@ -20,12 +20,13 @@ from django.db import transaction
 
 from fleet import envelopes
 from fleet.models import Membership, Organisation, Role
+from missions.creation import create_mission
+from missions.errors import MissionError
 from onboard.envelope import EnvelopeError
 
 from . import qgc_plan
 from .models import Assignment, Mission
 from .planning import PlanningError
-from .services import MissionError, create_mission
 
 FENCE_SCOPES = ("mission", "organisation")
 

@@ -18,6 +18,7 @@ from fleet import envelopes
 from fleet.models import Drone
 from missions.handover import Assignment as PlannedAssignment
 from missions.handover import Handover, plan_replacement
+from missions.journal import move_mission, record
 from missions.models import (
     STEP_DONE,
     Assignment,
@@ -28,14 +29,8 @@ from missions.models import (
     StepStatus,
 )
 from missions.planning import PlanningError
-from missions.services import (
-    move_mission,
-    nearest_available,
-    record,
-    send_assignment,
-    send_control,
-    send_stop,
-)
+from missions.selection import nearest_available
+from missions.sending import send_assignment, send_control, send_stop
 
 log = logging.getLogger(__name__)
 

@@ -17,7 +17,7 @@ from django.db import DatabaseError, InterfaceError, OperationalError
 from fleet.models import Drone
 from missions.alarms import apply_alarm
 from missions.pictures import store_picture
-from missions.services import apply_progress
+from missions.progress import apply_progress
 from onboard import protocol
 
 log = logging.getLogger(__name__)

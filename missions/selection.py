@@ -1,4 +1,5 @@
-"""Which drones may join or replace a mission, on plain values.
+"""Which drones may join or replace a mission: the rule on plain values (`select_drones`),
+and the one read of an organisation's drones it is applied to (`nearest_available`).
 
 A drone is available when it is online, not flying another mission and its battery is
 above the reserve. Available drones are taken nearest first to where they are needed,
@@ -8,10 +9,15 @@ and between equally distant ones the fuller battery first.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+from django.conf import settings
+
+from fleet.models import Drone
+from missions.errors import MissionError
 from missions.geo import distance_m
+from missions.models import Assignment, Mission, MissionStatus
 
 DEFAULT_BATTERY_RESERVE = 0.3
 # Two drones this close to each other count as equally far; battery then decides.
@@ -72,3 +78,80 @@ def select_drones(
         ),
     )
     return [candidate for candidate, _ in ranked[:count]]
+
+
+def busy_drone_ids(organisation_id: int) -> set[str]:
+    """Drones holding an unfinished assignment of a running or paused mission."""
+    return set(
+        Assignment.objects.filter(
+            drone__organisation_id=organisation_id,
+            status__in=Assignment.ACTIVE,
+            mission__status__in=(MissionStatus.RUNNING, MissionStatus.PAUSED),
+        ).values_list("drone__drone_id", flat=True)
+    )
+
+
+def candidates(organisation_id: int) -> list[Candidate]:
+    busy = busy_drone_ids(organisation_id)
+    out = []
+    for drone in Drone.objects.filter(organisation_id=organisation_id, credentials_revoked=False):
+        position = None if drone.lat is None or drone.lon is None else (drone.lat, drone.lon)
+        out.append(
+            Candidate(
+                drone_id=drone.drone_id,
+                online=drone.online,
+                in_mission=drone.drone_id in busy,
+                battery=drone.battery_remaining,
+                position=position,
+            )
+        )
+    return out
+
+
+def nearest_available(
+    organisation_id: int,
+    *,
+    target: tuple[float, float] | None,
+    count: int = 1,
+    exclude: Sequence[str] = (),
+) -> list[Drone]:
+    """Up to `count` available drones of the organisation, nearest to `target` first."""
+    pool = candidates(organisation_id)
+    if target is None:
+        # Nothing to fly to: any place among the drones will do; battery then decides.
+        placed = [c.position for c in pool if c.position is not None]
+        if not placed:
+            return []
+        target = placed[0]
+    chosen = select_drones(
+        pool,
+        target=target,
+        count=count,
+        reserve=settings.MISSIONS_BATTERY_RESERVE,
+        exclude=exclude,
+    )
+    by_id = {d.drone_id: d for d in Drone.objects.filter(drone_id__in=[c.drone_id for c in chosen])}
+    return [by_id[c.drone_id] for c in chosen]
+
+
+def first_target(steps: Iterable[Mapping]) -> tuple[float, float] | None:
+    for step in steps:
+        if step["command"] == "navigate":
+            return float(step["params"]["lat"]), float(step["params"]["lon"])
+    return None
+
+
+def check_chosen(mission: Mission, drone: Drone) -> None:
+    if drone.organisation_id != mission.organisation_id:
+        raise MissionError("drone", f"no drone {drone.drone_id!r} in this organisation", 404)
+    pool = {c.drone_id: c for c in candidates(mission.organisation_id)}
+    candidate = pool[drone.drone_id]
+    if not candidate.online:
+        raise MissionError("drone", f"drone {drone.drone_id} is offline", 409)
+    if candidate.in_mission:
+        raise MissionError("drone", f"drone {drone.drone_id} is flying another mission", 409)
+    reserve = settings.MISSIONS_BATTERY_RESERVE
+    if candidate.battery is None or candidate.battery <= reserve:
+        raise MissionError(
+            "drone", f"drone {drone.drone_id} has not reported a battery above {reserve:.0%}", 409
+        )

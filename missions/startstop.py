@@ -1,19 +1,125 @@
-"""`startchain` / `stopchain` on `/control`, tracked as missions.
-
-Named by settings.MISSION_START_STOP_HANDLERS, which `fleet.commands` calls.
-"""
+"""Starting and stopping missions: the drone a mission starts on (the operator's choice, or
+the nearest available), its envelope check, and the stop of every drone flying it; also
+`startchain` / `stopchain` on `/control` (named by settings.MISSION_START_STOP_HANDLERS,
+which `fleet.commands` calls), tracked as missions."""
 
 from __future__ import annotations
 
 import base64
 import binascii
 import json
+import time
+from dataclasses import dataclass
 from typing import Any
 
+from django.db import transaction
+
+from fleet import envelopes
 from fleet.commands import CommandRefused
 from fleet.models import Drone
-from missions.models import Assignment, MissionStatus
-from missions.services import MissionError, create_mission, start_mission, stop_mission
+from missions.creation import create_mission
+from missions.errors import MissionError, outside_envelope
+from missions.journal import move_mission, record
+from missions.models import Assignment, Event, Mission, MissionStatus
+from missions.selection import check_chosen, first_target, nearest_available
+from missions.sending import send_assignment, send_stop, step_dicts
+
+
+@dataclass(frozen=True)
+class Started:
+    mission: Mission
+    assignment: Assignment
+    select_ms: float
+
+
+def start_mission(
+    mission: Mission, *, drone: Drone | None = None, user: Any = None, confirmed: bool = False
+) -> Started:
+    """Give every step to one drone (the chosen one, or the nearest available) and send.
+
+    Steps beyond the envelope's defaults, flown from that drone, need `confirmed`.
+    """
+    began = time.perf_counter()
+    with transaction.atomic():
+        mission = Mission.objects.select_for_update().get(pk=mission.pk)
+        if mission.status != MissionStatus.DRAFT:
+            raise MissionError("status", f"the mission is {mission.status}, not a draft", 409)
+        steps = list(mission.steps.order_by("index"))
+        if not steps:
+            raise MissionError("steps", "the mission has no steps")
+        plain = step_dicts(steps)
+        if drone is not None:
+            check_chosen(mission, drone)
+            how = "chosen by the operator"
+        else:
+            found = nearest_available(mission.organisation_id, target=first_target(plain))
+            if not found:
+                raise MissionError("drone", "no drone is available (online, free, charged)", 409)
+            drone = found[0]
+            how = "nearest available"
+        try:
+            envelopes.check_steps(drone, plain, fence=mission.fence)
+            if not confirmed:
+                envelopes.confirm_steps(mission.organisation, plain, drone)
+        except envelopes.EnvelopeRefusal as exc:
+            raise outside_envelope(exc) from None
+        envelopes.forget_target(drone)
+        assignment = Assignment.objects.create(
+            mission=mission,
+            drone=drone,
+            step_indexes=[s.index for s in steps],
+            reason=Assignment.Reason.INITIAL,
+            status=Assignment.Status.SENT,
+        )
+        move_mission(mission, MissionStatus.RUNNING)
+        select_ms = (time.perf_counter() - began) * 1000
+        record(
+            mission,
+            Event.Kind.DECISION,
+            f"{drone.drone_id} starts the mission ({how})",
+            drone=drone,
+            data={
+                "decision": "start",
+                "assignment": str(assignment.id),
+                "drone_id": drone.drone_id,
+                "how": how,
+                "select_ms": round(select_ms, 3),
+                "user": getattr(user, "username", None),
+            },
+        )
+        transaction.on_commit(lambda: send_assignment(assignment))
+    return Started(mission, assignment, select_ms)
+
+
+def stop_mission(
+    mission: Mission, *, user: Any = None, reason: str = "stopped by the operator"
+) -> Mission:
+    """Stop every drone flying the mission (stopchain) and mark it stopped."""
+    with transaction.atomic():
+        mission = Mission.objects.select_for_update().get(pk=mission.pk)
+        if mission.status not in (MissionStatus.RUNNING, MissionStatus.PAUSED, MissionStatus.DRAFT):
+            raise MissionError("status", f"the mission is already {mission.status}", 409)
+        active = list(
+            mission.assignments.filter(status__in=Assignment.ACTIVE).select_related("drone")
+        )
+        mission.assignments.filter(status__in=Assignment.ACTIVE).update(
+            status=Assignment.Status.STOPPED
+        )
+        move_mission(mission, MissionStatus.STOPPED)
+        record(
+            mission,
+            Event.Kind.OPERATOR,
+            reason,
+            data={
+                "user": getattr(user, "username", None),
+                "drones": [a.drone.drone_id for a in active],
+            },
+        )
+        for assignment in active:
+            if assignment.status != Assignment.Status.QUEUED:
+                drone_id = assignment.drone.drone_id
+                transaction.on_commit(lambda d=drone_id: send_stop(d, str(mission.pk)))
+    return mission
 
 
 def _steps(mission: str) -> list:

@@ -16,8 +16,9 @@ import pytest
 from PIL import Image
 
 from fleet.models import Drone
+from missions.creation import create_mission
 from missions.models import Picture
-from missions.services import create_mission, start_mission
+from missions.startstop import start_mission
 from onboard.processes import wait_for
 from workers import outbox
 from workers.counters import REFUSAL_DRONES_KEY, REFUSALS_KEY, refusals

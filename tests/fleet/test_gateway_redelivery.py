@@ -9,8 +9,9 @@ import time
 
 import pytest
 
+from missions.creation import create_mission
 from missions.models import Event
-from missions.services import create_mission, start_mission
+from missions.startstop import start_mission
 from onboard.processes import wait_for
 
 from ..missions.conftest import online_drone

@@ -17,8 +17,9 @@ from django.utils import timezone
 
 from fleet.heartbeats import sweep_offline
 from fleet.models import Drone
+from missions.creation import create_mission
 from missions.models import Mission, MissionStatus, StepStatus
-from missions.services import create_mission, start_mission
+from missions.startstop import start_mission
 from onboard.processes import wait_for
 from telemetry.ingest import DroneMap, IngestConfig, Ingestor, load_drone_ids
 from telemetry.queries import conninfo_from_settings

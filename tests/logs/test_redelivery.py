@@ -91,9 +91,10 @@ def queues(request, settings, outbox, tmp_path):  # type: ignore[no-untyped-def]
 
 
 def _mission_with_a_critical_alarm(org):  # type: ignore[no-untyped-def]
+    from missions.creation import create_mission
     from missions.models import Event
     from missions.planning import mission_steps
-    from missions.services import create_mission, start_mission
+    from missions.startstop import start_mission
 
     first = online_drone(org, "ACME_A")
     online_drone(org, "ACME_B", north=50)

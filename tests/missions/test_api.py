@@ -11,8 +11,8 @@ from rest_framework.test import APIClient
 
 from logs.importers.base import Limits
 from logs.importers.mission import MissionLogImporter
+from missions.creation import create_mission
 from missions.models import Mission, MissionStatus
-from missions.services import create_mission
 
 from .conftest import online_drone, point_at, rectangle
 

@@ -134,7 +134,7 @@ def test_the_planner_marks_a_step_whose_leg_crosses_an_exclusion_zone(page, live
 def test_the_mission_page_starts_a_draft_beyond_the_defaults_once_confirmed(
     page, live_asgi, world_tx
 ):
-    from missions.services import create_mission
+    from missions.creation import create_mission
 
     from .test_envelope import body
 

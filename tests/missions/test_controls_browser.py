@@ -9,8 +9,10 @@ import threading
 import pytest
 
 from fleet.models import Drone
+from missions.creation import create_mission
 from missions.models import Mission
-from missions.services import apply_progress, create_mission, start_mission
+from missions.progress import apply_progress
+from missions.startstop import start_mission
 from onboard import protocol
 from tests.conftest import login
 

@@ -13,9 +13,11 @@ from rest_framework.test import APIClient
 
 from fleet.models import Drone, Organisation
 from missions import collaboration, replacement
+from missions.creation import create_mission
+from missions.errors import MissionError
 from missions.models import Assignment, Event, Mission
 from missions.planning import coverage, mission_steps
-from missions.services import MissionError, create_mission, start_mission
+from missions.startstop import start_mission
 
 from .conftest import online_drone, point_at, rectangle
 from .test_services import _alarm_event, _complete, _steps

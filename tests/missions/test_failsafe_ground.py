@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 
 from missions.alarms import apply_alarm
-from missions.services import create_mission, start_mission
+from missions.creation import create_mission
+from missions.startstop import start_mission
 from onboard import protocol
 
 from .conftest import online_drone

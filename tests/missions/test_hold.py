@@ -8,7 +8,8 @@ import pytest
 from fleet.models import Drone
 from missions import live
 from missions.models import Event, Mission
-from missions.services import apply_progress, send_assignment
+from missions.progress import apply_progress
+from missions.sending import send_assignment
 from onboard import protocol
 
 from .conftest import online_drone

@@ -8,7 +8,7 @@ import threading
 import pytest
 
 from missions.models import Assignment, Mission
-from missions.services import apply_progress
+from missions.progress import apply_progress
 from onboard import protocol
 from tests.conftest import login
 

@@ -10,8 +10,10 @@ from __future__ import annotations
 import pytest
 
 from fleet.models import Drone
+from missions.creation import create_mission
 from missions.models import Assignment, Mission
-from missions.services import apply_progress, create_mission, start_mission
+from missions.progress import apply_progress
+from missions.startstop import start_mission
 from onboard import protocol
 
 from .conftest import online_drone

@@ -7,15 +7,15 @@ from datetime import UTC, datetime, timedelta
 
 import pytest
 
-from missions.geo import LocalFrame
-from missions.models import Assignment, Mission, Step, StepStatus
-from missions.progress import (
+from missions.estimates import (
     DEFAULT_SPEED_M_S,
     estimate,
     measured_speed,
     mission_routes,
     route_length,
 )
+from missions.geo import LocalFrame
+from missions.models import Assignment, Mission, Step, StepStatus
 
 ORIGIN = (40.0, -8.0)
 FRAME = LocalFrame(*ORIGIN)

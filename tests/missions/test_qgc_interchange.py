@@ -11,9 +11,10 @@ from pathlib import Path
 import pytest
 from rest_framework.test import APIClient
 
+from missions.errors import MissionError
 from missions.models import Mission
 from missions.qgc_plan import QgcPlanError, dumps, export_plan, export_qgc_plan, import_plan
-from missions.services import MissionError, start_mission
+from missions.startstop import start_mission
 from onboard.protocol import encode_mission_payload
 
 from .conftest import online_drone

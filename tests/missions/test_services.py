@@ -8,9 +8,12 @@ import time
 import pytest
 
 from missions import collaboration, replacement
+from missions.creation import create_mission
+from missions.errors import MissionError
 from missions.models import Assignment, Event, MissionStatus, Step, StepStatus
 from missions.planning import coverage, mission_steps
-from missions.services import MissionError, apply_progress, create_mission, start_mission
+from missions.progress import apply_progress
+from missions.startstop import start_mission
 from onboard import protocol
 
 from .conftest import online_drone, point_at, rectangle

@@ -17,8 +17,9 @@ import django
 def main(failing_id: str, spare_id: str) -> dict:
     django.setup()
     from fleet.models import Drone, Organisation
+    from missions.creation import create_mission
     from missions.models import Assignment
-    from missions.services import create_mission, start_mission
+    from missions.startstop import start_mission
     from tests.missions.planning import point_at
 
     org, _ = Organisation.objects.get_or_create(slug="outage", defaults={"name": "Outage"})
