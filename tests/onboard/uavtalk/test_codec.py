@@ -21,6 +21,8 @@ from onboard.uavtalk import (
     encode_frame,
 )
 
+from .test_definitions import RELEASE_IDS
+
 REGISTRY = ObjectRegistry.load()
 CODEC = Codec(REGISTRY)
 
@@ -41,27 +43,7 @@ def test_crc8_matches_the_standard_check_value():
 
 
 # dRonin Release-20180729's ids of the objects we define (docs/uavtalk.md).
-FIRMWARE_IDS = {
-    "GCSTelemetryStats": 0xABC72744,
-    "FlightTelemetryStats": 0x2F7E2902,
-    "FlightStatus": 0x4D924972,
-    "GPSPosition": 0x5C1D189E,
-    "AttitudeActual": 0x33DAD5E6,
-    "PositionActual": 0xFA9E2D42,
-    "VelocityActual": 0x5A08F61A,
-    "FlightBatteryState": 0xCAC62F5E,
-    "Waypoint": 0xE02C8266,
-    "PathDesired": 0x3AF5274A,
-    "HomeLocation": 0xCA32B032,
-    "SystemStats": 0xE1DF2D70,
-    "Accels": 0xDD9D5FC0,
-    "Gyros": 0x04228AF6,
-    "BaroAltitude": 0x99622E6A,
-    "FirmwareIAPObj": 0x5E6E8FDC,
-    "UAVTalkReceiver": 0x0D2720A4,
-    "ManualControlCommand": 0x1C994034,
-    "ManualControlSettings": 0x884ED0E6,
-}
+FIRMWARE_IDS = RELEASE_IDS
 # Objects whose id no reference lists: pinned to the id our definition (dRonin's own XML,
 # as the release ships it) hashes to, so an edit that changes a field shows here.
 PINNED_IDS = {"SystemAlarms": 0x24364184}
