@@ -253,6 +253,8 @@ class Broker:
         self.script_env = {
             "DATA_DIR": str(self.data_dir),
             "MQTT_PORT": str(config.mqtt_port),
+            # Its own drones' listener: never one inherited from the caller's profile.
+            "MQTT_DRONE_PORT": str(config.mqtt_port + 1000),
             "RABBIT_PORT_BASE": str(config.rabbit_port_base),
         }
 
@@ -264,7 +266,7 @@ class Broker:
             password = (self.data_dir / "secrets" / "mqtt_ground_password").read_text().strip()
             url = f"mqtt://ground:{password}@127.0.0.1:{self.config.mqtt_port}"
             # Drones have a listener of their own (scripts/services.sh, MQTT_DRONE_PORT).
-            drones = str(self.config.mqtt_port + 1000)
+            drones = self.script_env["MQTT_DRONE_PORT"]
             return {"MQTT_BROKER": "mosquitto", "MQTT_URL": url, "MQTT_URLS": url,
                     "MQTT_PUBLIC_PORT": drones,
                     "MOSQUITTO_DIR": str(self.data_dir / "mosquitto")}  # fmt: skip

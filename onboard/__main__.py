@@ -17,7 +17,7 @@ from typing import Any
 
 from .agent import Agent, AgentConfig
 from .arming import ArmingError, GpiodLine, SimulatedLine, UAVTalkReceiverSwitch
-from .failsafe import LINK_LOSS_ACTIONS, parse_bounds
+from .failsafe import LINK_LOSS_ACTIONS, Limits, parse_bounds
 from .heartbeat import DEFAULT_PREFIX, derive_drone_id
 from .protocol import is_drone_id
 from .sensors import SensorConfigError, SensorField, load_field, parse_plume_option
@@ -165,13 +165,31 @@ def _add_connections(p: argparse.ArgumentParser) -> None:
 def _add_failsafe(p: argparse.ArgumentParser) -> None:
     """The fail-safe's limits (onboard.failsafe.Limits): waits on the ground in wall
     seconds, the auto-disarm delay in flight seconds."""
-    p.add_argument("--battery-reserve", type=_fraction, default=0.30, help="hold → return")
-    p.add_argument("--alarm-repeat", type=_positive, default=10.0, help="CRITICAL resend, s")
-    p.add_argument("--critical-takeover", type=_positive, default=30.0, help="then return, s")
-    p.add_argument("--link-loss-timeout", type=_positive, default=30.0, help="seconds")
-    p.add_argument("--link-loss-action", choices=LINK_LOSS_ACTIONS, default="return")
-    p.add_argument("--return-speed", type=_positive, default=5.0, help="m/s, energy estimate")
-    p.add_argument("--auto-disarm-delay", type=_positive, default=2.0, help="after landing, s")
+    p.add_argument(
+        "--battery-reserve", type=_fraction, default=Limits.battery_reserve, help="hold → return"
+    )
+    p.add_argument(
+        "--alarm-repeat", type=_positive, default=Limits.alarm_repeat, help="CRITICAL resend, s"
+    )
+    p.add_argument(
+        "--critical-takeover",
+        type=_positive,
+        default=Limits.critical_takeover,
+        help="then return, s",
+    )
+    p.add_argument(
+        "--link-loss-timeout", type=_positive, default=Limits.link_loss_timeout, help="seconds"
+    )
+    p.add_argument("--link-loss-action", choices=LINK_LOSS_ACTIONS, default=Limits.link_loss_action)
+    p.add_argument(
+        "--return-speed", type=_positive, default=Limits.return_speed, help="m/s, energy estimate"
+    )
+    p.add_argument(
+        "--auto-disarm-delay",
+        type=_positive,
+        default=Limits.auto_disarm_delay,
+        help="after landing, s",
+    )
     p.add_argument("--max-control-age", type=_positive, default=10.0, help="wall s; older refused")
     p.add_argument("--max-mission-age", type=_positive, default=60.0, help="wall s; older refused")
 
@@ -190,7 +208,9 @@ def _add_behaviour(p: argparse.ArgumentParser) -> None:
     p.add_argument("--time-scale", type=_positive, default=1.0, help="simulation speed-up")
     p.add_argument("--heartbeat-interval", type=_positive, default=5.0, help="seconds")
     p.add_argument("--telemetry-interval", type=_positive, default=0.1, help="batch period, s")
-    p.add_argument("--battery-critical", type=_fraction, default=0.25, help="0..1")
+    p.add_argument(
+        "--battery-critical", type=_fraction, default=Limits.battery_critical, help="0..1"
+    )
     p.add_argument(
         "--bounds",
         type=_bounds,

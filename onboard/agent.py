@@ -53,17 +53,17 @@ class AgentConfig:
     time_scale: float = 1.0
     heartbeat_interval: float = 5.0
     telemetry_interval: float = 0.1
-    battery_critical: float = 0.25
+    battery_critical: float = Limits.battery_critical
     bounds: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)
     # Fail-safe limits (onboard.failsafe.Limits): waits on the ground in wall seconds,
     # the auto-disarm delay in flight seconds.
-    battery_reserve: float = 0.30
-    alarm_repeat: float = 10.0
-    critical_takeover: float = 30.0
-    link_loss_timeout: float = 30.0
-    link_loss_action: str = "return"
-    return_speed: float = 5.0
-    auto_disarm_delay: float = 2.0
+    battery_reserve: float = Limits.battery_reserve
+    alarm_repeat: float = Limits.alarm_repeat
+    critical_takeover: float = Limits.critical_takeover
+    link_loss_timeout: float = Limits.link_loss_timeout
+    link_loss_action: str = Limits.link_loss_action
+    return_speed: float = Limits.return_speed
+    auto_disarm_delay: float = Limits.auto_disarm_delay
     # Requests older than this (wall seconds since the ground issued them) are refused, so
     # nothing queued while the drone was away flies later.
     max_control_age: float = 10.0

@@ -414,14 +414,7 @@ class NativeMissionWorker(MissionWorker):
                         failed = step
                         break
             if not ok:
-                if mission.stop.is_set():
-                    self._finish(mission, "stopped", mission.stop_reason)
-                else:
-                    self._finish(
-                        mission,
-                        "stopped",
-                        f"Step {failed.index} ({failed.command}) failed: {error}",
-                    )
+                self._end_on_failure(mission, failed, error)
                 return
         self._finish(mission, "completed", None)
 

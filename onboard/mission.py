@@ -362,15 +362,18 @@ class MissionWorker:
                 mission.retry = step
                 continue
             if not ok:
-                if mission.stop.is_set():
-                    self._finish(mission, "stopped", mission.stop_reason)
-                else:
-                    self._finish(
-                        mission,
-                        "stopped",
-                        f"Step {step.index} ({step.command}) failed: {error}",
-                    )
+                self._end_on_failure(mission, step, error)
                 return
+
+    def _end_on_failure(
+        self, mission: RunningMission, step: protocol.Step, error: str | None
+    ) -> None:
+        """A failed step ends the mission as stopped: with the operator's reason when a
+        stop caused it, else naming the step; the mission's end behaviour follows."""
+        if mission.stop.is_set():
+            self._finish(mission, "stopped", mission.stop_reason)
+        else:
+            self._finish(mission, "stopped", f"Step {step.index} ({step.command}) failed: {error}")
 
     def _close_retry(self, mission: RunningMission) -> None:
         """A step a pause interrupted, then a stop ended, is reported failed like any

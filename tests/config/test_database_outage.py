@@ -26,6 +26,9 @@ from workers.ground import web_argv
 pytestmark = pytest.mark.django_db(transaction=True)
 
 WRONG_LOGIN = {"username": "nobody", "password": "wrong"}
+# The web process under test names its connections (libpq's PGAPPNAME), so that only they
+# are ended: this worker's own connections, used by the tests after this one, stay.
+APP_NAME = "skyhive-outage-test"
 
 
 def _web(tmp_path, **env: str) -> Supervised:  # type: ignore[no-untyped-def]
@@ -33,6 +36,7 @@ def _web(tmp_path, **env: str) -> Supervised:  # type: ignore[no-untyped-def]
     environment = python_env(
         DJANGO_SETTINGS_MODULE="config.settings.test",
         TEST_WORKER_DB_NAME=connection.settings_dict["NAME"],
+        PGAPPNAME=APP_NAME,
         **env,
     )
     web = Supervised("web", web_argv(port), environment, tmp_path / "web.log", port=port)
@@ -58,10 +62,12 @@ def _json(body: bytes) -> dict:
 
 
 def _end_every_backend_of_this_database() -> int:
+    """What a restart does to the web process's connections."""
     with connection.cursor() as cursor:
         cursor.execute(
             "SELECT count(pg_terminate_backend(pid)) FROM pg_stat_activity "
-            "WHERE datname = current_database() AND pid <> pg_backend_pid()"
+            "WHERE datname = current_database() AND application_name = %s",
+            [APP_NAME],
         )
         return cursor.fetchone()[0]
 
