@@ -197,8 +197,10 @@ class Vehicle:
         self._turn(dt)
 
     def _turn(self, dt: float) -> None:
-        """Yaw toward the region of interest at the yaw rate limit, or else along the
-        horizontal velocity (once it is fast enough for a direction to mean anything)."""
+        """Yaw toward the region of interest at the yaw rate limit, or else, on a leg to an
+        endpoint, along the horizontal velocity (once it is fast enough for a direction to
+        mean anything), as autopilots face the next waypoint; holding or landing keeps the
+        heading, whatever drift is left."""
         if self.roi is not None:
             dn, de = self.roi[0] - self.ned[0], self.roi[1] - self.ned[1]
             if math.hypot(dn, de) < 0.5:
@@ -207,7 +209,7 @@ class Vehicle:
             error = (goal - self.yaw + 180.0) % 360.0 - 180.0
             turn = max(-self.config.max_yaw_rate * dt, min(self.config.max_yaw_rate * dt, error))
             self.yaw = (self.yaw + turn) % 360.0
-        elif math.hypot(self.velocity[0], self.velocity[1]) > 0.5:
+        elif self.target.mode == "Endpoint" and math.hypot(*self.velocity[:2]) > 0.5:
             self.yaw = math.degrees(math.atan2(self.velocity[1], self.velocity[0])) % 360.0
 
     def _fall_or_rest(self, dt: float) -> None:

@@ -10,7 +10,7 @@ import asyncio
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
-from asgiref.sync import sync_to_async
+from channels.db import database_sync_to_async
 from channels.testing import WebsocketCommunicator
 
 from logs.synth import synthetic_dataflash
@@ -55,13 +55,13 @@ def test_outsiders_and_anonymous_visitors_cannot_follow_a_log(world_tx, tmp_path
 async def _follow_processing(world_tx, tmp_path):  # type: ignore[no-untyped-def]
     from logs import services
 
-    log = await sync_to_async(_uploaded_log)(world_tx, tmp_path)
+    log = await database_sync_to_async(_uploaded_log)(world_tx, tmp_path)
     communicator, connected, _ = await _connect(world_tx.viewer, str(log.pk))
     assert connected
     try:
         snapshot = await communicator.receive_json_from(timeout=5)
         assert snapshot == {"type": "status", "status": "processing", "progress": 0.0, "error": ""}
-        assert await sync_to_async(services.process_log)(str(log.pk)) == "ready"
+        assert await database_sync_to_async(services.process_log)(str(log.pk)) == "ready"
         events = []
         while not events or events[-1].get("status") == "processing":
             events.append(await communicator.receive_json_from(timeout=5))
@@ -73,7 +73,7 @@ async def _follow_processing(world_tx, tmp_path):  # type: ignore[no-untyped-def
 
 
 async def _refused(world_tx, tmp_path):  # type: ignore[no-untyped-def]
-    log = await sync_to_async(_uploaded_log)(world_tx, tmp_path)
+    log = await database_sync_to_async(_uploaded_log)(world_tx, tmp_path)
     communicator, connected, code = await _connect(world_tx.outsider, str(log.pk))
     assert not connected and code == 4404
     await communicator.disconnect()
