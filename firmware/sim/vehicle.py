@@ -198,9 +198,8 @@ class Vehicle:
 
     def _turn(self, dt: float) -> None:
         """Yaw toward the region of interest at the yaw rate limit, or else, on a leg to an
-        endpoint, along the horizontal velocity (once it is fast enough for a direction to
-        mean anything), as autopilots face the next waypoint; holding or landing keeps the
-        heading, whatever drift is left."""
+        endpoint, along the horizontal velocity, as autopilots face the next waypoint;
+        holding or landing keeps the heading, whatever drift is left."""
         if self.roi is not None:
             dn, de = self.roi[0] - self.ned[0], self.roi[1] - self.ned[1]
             if math.hypot(dn, de) < 0.5:
@@ -209,8 +208,16 @@ class Vehicle:
             error = (goal - self.yaw + 180.0) % 360.0 - 180.0
             turn = max(-self.config.max_yaw_rate * dt, min(self.config.max_yaw_rate * dt, error))
             self.yaw = (self.yaw + turn) % 360.0
-        elif self.target.mode == "Endpoint" and math.hypot(*self.velocity[:2]) > 0.5:
+        elif self.target.mode == "Endpoint" and self._far_from_endpoint():
             self.yaw = math.degrees(math.atan2(self.velocity[1], self.velocity[0])) % 360.0
+
+    def _far_from_endpoint(self) -> bool:
+        """Whether the nose still follows the leg: moving fast enough for a direction to mean
+        anything and more than 2 m short of the endpoint (ArduCopter's WPNAV_YAW_DIST_MIN;
+        PX4 likewise keeps the heading inside the acceptance radius), so arriving, or the
+        end of a region of interest near the endpoint, never swings the nose."""
+        remaining = math.hypot(self.target.end[0] - self.ned[0], self.target.end[1] - self.ned[1])
+        return math.hypot(*self.velocity[:2]) > 0.5 and remaining > 2.0
 
     def _fall_or_rest(self, dt: float) -> None:
         # Not flying autonomously: come down (motors stop when disarmed on the ground).

@@ -165,6 +165,13 @@ class Watch:
             self.tiles.append((response.status, response.url))
 
 
+def map_pages(ids: dict[str, str], width: int) -> list[str]:
+    """The pages that draw a geographic map on their first screen (the log's map is drawn once
+    scrolled into view, which a phone's first screen is not)."""
+    maps = ["/", "/organisation/envelope/", "/missions/plan/", f"/missions/{ids['mission']}/"]
+    return maps + ([f"/logs/{ids['log']}/"] if width > 1000 else [])
+
+
 def visit_every_page(browser, server, ids: dict[str, str], width: int, height: int) -> dict:
     context = browser.new_context(viewport={"width": width, "height": height})
     page = context.new_page()
@@ -176,7 +183,9 @@ def visit_every_page(browser, server, ids: dict[str, str], width: int, height: i
         for url in sorted({u.format(**ids) for u in ROUTES.values() if u}):
             before = (len(watch.outside), len(watch.errors))
             response = page.goto(f"{server.url}{url}", wait_until="networkidle")
-            page.wait_for_timeout(300)  # late scripts (maps, charts) finish drawing
+            if url in map_pages(ids, width):  # the map's scale and grid are drawn by script
+                page.locator(".map-grid-label").nth(1).wait_for(timeout=15_000)
+            page.wait_for_timeout(300)  # late scripts (charts) finish drawing
             assert response is not None and response.status == 200, url
             seen[url] = {
                 "outside": watch.outside[before[0] :],
@@ -195,10 +204,8 @@ def test_no_page_asks_another_host_or_logs_an_error(browser, live_offline, porta
     visited = visit_every_page(browser, live_offline, portal, width, height)["pages"]
     problems = {url: v for url, v in visited.items() if v["outside"] or v["errors"]}
     assert problems == {}, problems
-    # No tiles anywhere: each geographic map still has its scale and grid (the log's map is
-    # drawn once scrolled into view, which a phone's first screen is not).
-    maps = ["/", "/organisation/envelope/", "/missions/plan/", f"/missions/{portal['mission']}/"]
-    for url in maps + ([f"/logs/{portal['log']}/"] if width > 1000 else []):
+    # No tiles anywhere: each geographic map still has its scale and grid.
+    for url in map_pages(portal, width):
         page = visited[url]
         assert page["maps"] >= 1 and page["scales"] >= 1 and page["grid"] >= 2, url
     assert len(visited) == len([u for u in ROUTES.values() if u])

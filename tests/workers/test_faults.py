@@ -103,6 +103,15 @@ REPLACEMENT_RECEIVED = r"Task missions\.replace_drone\[([0-9a-f-]+)\] received"
 REPLACEMENT_DONE = r"Task missions\.replace_drone\[([0-9a-f-]+)\] succeeded"
 
 
+def waiting_on_locks() -> int:
+    """How many database sessions wait for a lock someone else holds."""
+    from django.db import connection
+
+    with connection.cursor() as cursor:
+        cursor.execute("SELECT count(*) FROM pg_locks WHERE NOT granted")
+        return cursor.fetchone()[0]
+
+
 def kill_mid_replacement(failing_drone: str, workers, kill) -> str:  # type: ignore[no-untyped-def]
     """Hold the failing drone's assignment row, so the replacement task, once a worker
     takes it, waits inside its transaction (mid-task); `kill(worker)` then; let go.
@@ -129,7 +138,8 @@ def kill_mid_replacement(failing_drone: str, workers, kill) -> str:  # type: ign
     try:
         taken = wait_for(lambda: [w for w in workers if "replace_drone[" in w.output()], 60)
         assert taken, "no worker took the replacement task"
-        time.sleep(0.5)  # it is now blocked on our lock, in the middle of its work
+        # Received is not yet running: kill only once the task waits on our lock.
+        assert wait_for(lambda: waiting_on_locks() > 0, 30), "the task never reached the lock"
         kill(taken[0])
         return taken[0].name
     finally:
@@ -203,7 +213,7 @@ def test_a_pool_process_killed_mid_task_has_its_task_put_back_at_once_and_run_on
         victim_ids = re.findall(REPLACEMENT_RECEIVED, ground.processes[victim].output())
         everything = "".join(w.output() for w in ground.processes.of_kind("worker"))
         assert victim_ids and victim_ids[0] in re.findall(REPLACEMENT_DONE, everything)
-        assert "WorkerLostError" in ground.processes[victim].output()
+        assert wait_for(lambda: "WorkerLostError" in ground.processes[victim].output(), 10)
         assert all(w.alive for w in ground.processes.of_kind("worker"))
 
 
