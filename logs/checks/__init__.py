@@ -1,0 +1,66 @@
+"""Automatic checks of a flight log: vibration, clipping, GPS, battery sag, RC loss, motor
+balance, estimator, failsafes, processor load and logging gaps.
+
+Plain modules over the columnar store (`logs.store.LogStore`): `run_checks(store)` returns
+one result per check, whatever the log's format; a check whose topics the log lacks says
+`not_checked` with the reason, never `pass`. Thresholds and their sources are in
+`thresholds.py`; docs/log-checks.md describes each check.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+
+from logs.checks import sensors, vehicle
+from logs.checks.base import NOT_CHECKED, STATUSES, LogView, Result, not_checked
+from logs.checks.thresholds import DEFAULTS, ThresholdError, merged
+from logs.store import LogStore
+
+logger = logging.getLogger(__name__)
+
+CHECKS: dict[str, Callable[[LogView, dict], Result]] = {
+    "vibration": sensors.vibration,
+    "clipping": sensors.clipping,
+    "gps": sensors.gps,
+    "battery_sag": vehicle.battery_sag,
+    "rc_loss": vehicle.rc_loss,
+    "motor_imbalance": vehicle.motor_imbalance,
+    "estimator": sensors.estimator,
+    "failsafe": vehicle.failsafe,
+    "cpu_load": vehicle.cpu_load,
+    "logging_dropouts": vehicle.logging_dropouts,
+}
+# Under this much recorded time no check can tell anything (our choice: a second).
+MIN_DURATION_S = 1.0
+
+__all__ = [
+    "CHECKS",
+    "DEFAULTS",
+    "NOT_CHECKED",
+    "STATUSES",
+    "Result",
+    "ThresholdError",
+    "merged",
+    "run_checks",
+]
+
+
+def run_checks(store: LogStore, thresholds: dict | None = None) -> list[dict]:
+    """Every check on one log, in CHECKS order, as JSON-ready dicts. `thresholds` is a
+    full set (`merged(...)`); the defaults when None. A check that raises is reported
+    as not_checked with the error's kind, and the others still run."""
+    levels = thresholds or merged()
+    view = LogView(store)
+    if view.duration < MIN_DURATION_S:
+        reason = f"log too short ({max(view.duration, 0.0):.2f} s of records)"
+        return [not_checked(name, reason).to_dict() for name in CHECKS]
+    results = []
+    for name, check in CHECKS.items():
+        try:
+            result = check(view, levels)
+        except Exception as exc:  # noqa: BLE001 - one check's bug must not hide the others
+            logger.exception("log check %s failed on %s", name, store.directory)
+            result = not_checked(name, f"the check could not read this log ({type(exc).__name__})")
+        results.append(result.to_dict())
+    return results

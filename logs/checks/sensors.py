@@ -1,0 +1,402 @@
+"""Checks of what the sensors saw: vibration, accelerometer clipping, GPS quality and the
+estimator's innovation test ratios. Each takes a LogView and its thresholds."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from logs.checks.base import (
+    FAIL,
+    PASS,
+    WARNING,
+    LogView,
+    Result,
+    grade,
+    not_checked,
+    window_around,
+    worst,
+)
+from logs.checks.signals import first_time, held, px4_accel_vibration, timed_runs
+
+# Consecutive records a test ratio must hold before it counts: one record over the line
+# at a reset or a takeoff is not a failing estimator (our choice).
+HELD_RECORDS = 3
+
+
+def _armed_values(view: LogView, path: str) -> tuple[np.ndarray, np.ndarray]:
+    t, v = view.read(path)
+    keep = view.armed_at(t) & np.isfinite(v)
+    return t[keep], v[keep]
+
+
+def _peak_result(
+    name: str,
+    view: LogView,
+    curves: list[tuple[str, np.ndarray, np.ndarray]],
+    threshold: dict[str, float],
+    unit: str,
+    what: str,
+) -> Result:
+    """Grade the highest value of several curves; t is where the level reached is first
+    crossed (the peak's own time when all pass)."""
+    curves = [c for c in curves if len(c[1])]
+    if not curves:
+        return not_checked(name, f"no {what} samples while armed")
+    peak_path, peak_t, peak_v = max(curves, key=lambda c: float(np.max(c[2])))
+    value = float(np.max(peak_v))
+    status = grade(value, threshold)
+    if status == PASS:
+        t = float(peak_t[int(np.argmax(peak_v))])
+    else:
+        limit = threshold["fail" if status == FAIL else "warning"]
+        t = min(x for x in (first_time(ct, cv > limit) for _, ct, cv in curves) if x is not None)
+    series = [peak_path, *[p for p, _, _ in curves if p != peak_path]][:6]
+    reason = f"highest {what} {value:.3g} {unit} at {t:.1f} s" + (
+        "" if status == PASS else f" (over {threshold['fail' if status == FAIL else 'warning']:g})"
+    )
+    return Result(
+        name,
+        status,
+        value,
+        unit,
+        dict(threshold),
+        t,
+        reason,
+        series=series,
+        window=window_around(view, t),
+    )
+
+
+# --- vibration ---
+
+
+def vibration(view: LogView, thresholds: dict) -> Result:
+    """PX4: vehicle_imu_status.accel_vibration_metric as Flight Review plots it, else the
+    estimator's older vibe[2], else the metric recomputed from sensor_combined;
+    ArduPilot VIBE; MAVLink VIBRATION."""
+    name = "vibration"
+    levels = thresholds["vibration"]
+    flavour = view.autopilot()
+    curves, old_schema = [], False
+    for layer in view.instances("vehicle_imu_status"):
+        p = view.path(layer, "accel_vibration_metric")
+        if p:
+            curves.append((p, *_armed_values(view, p)))
+            # PX4 up to v1.12 (the schema with gyro_coning_vibration) kept the metric on
+            # the delta velocity, in m/s; later versions on the acceleration, in m/s².
+            old_schema = old_schema or bool(view.path(layer, "gyro_coning_vibration"))
+    if curves:
+        if old_schema:
+            return _peak_result(
+                name, view, curves, levels["px4_delta_velocity"], "m/s", "delta velocity vibration"
+            )
+        return _peak_result(name, view, curves, levels["px4"], "m/s²", "accel vibration metric")
+    for layer in view.instances("estimator_status"):
+        p = view.path(layer, "vibe[2]")
+        if p:
+            return _peak_result(
+                name,
+                view,
+                [(p, *_armed_values(view, p))],
+                levels["px4_delta_velocity"],
+                "m/s",
+                "delta velocity vibration",
+            )
+    for layer in view.instances("sensor_combined"):
+        paths = [view.path(layer, f"accelerometer_m_s2[{i}]") for i in range(3)]
+        if all(paths):
+            t, ax = view.read(paths[0])
+            ay, az = view.read(paths[1])[1], view.read(paths[2])[1]
+            if len(t) < 2:
+                return not_checked(name, "too few sensor_combined samples")
+            metric = px4_accel_vibration(ax, ay, az)
+            keep = view.armed_at(t)
+            result = _peak_result(
+                name,
+                view,
+                [(paths[2], t[keep], metric[keep])],
+                levels["px4"],
+                "m/s²",
+                "accel vibration (recomputed from sensor_combined)",
+            )
+            result.series = list(paths)
+            return result
+    for topic, fields in (
+        ("VIBE", ("VibeX", "VibeY", "VibeZ")),
+        ("VIBRATION", ("vibration_x", "vibration_y", "vibration_z")),
+    ):
+        if topic == "VIBRATION" and flavour == "px4":
+            # PX4 sends accel_vibration_metric as vibration_x (its mavlink VIBRATION stream).
+            fields = ("vibration_x",)
+        curves = []
+        for layer in view.instances(topic):
+            for f in fields:
+                p = view.path(layer, f)
+                if p:
+                    curves.append((p, *_armed_values(view, p)))
+        if curves:
+            level = levels["px4" if flavour == "px4" else "ardupilot"]
+            return _peak_result(name, view, curves, level, "m/s²", "vibration level")
+    return not_checked(
+        name, "no vehicle_imu_status, estimator_status, sensor_combined, VIBE or VIBRATION"
+    )
+
+
+# --- clipping ---
+
+_CLIP_COUNTERS = (
+    # (topic, fields, cumulative): PX4 totals per axis; sensor_accel counts per sample
+    # period; ArduPilot and MAVLink keep a running count per accelerometer.
+    ("vehicle_imu_status", ("accel_clipping[0]", "accel_clipping[1]", "accel_clipping[2]"), True),
+    ("sensor_accel", ("clip_counter[0]", "clip_counter[1]", "clip_counter[2]"), False),
+    ("VIBE", ("Clip0", "Clip1", "Clip2", "Clip"), True),
+    ("VIBRATION", ("clipping_0", "clipping_1", "clipping_2"), True),
+)
+
+
+def clipping(view: LogView, thresholds: dict) -> Result:
+    """New clips counted while armed, from the first set of counters the log has."""
+    name = "clipping"
+    level = thresholds["clipping"]
+    for topic, fields, cumulative in _CLIP_COUNTERS:
+        events_t, events_n, paths = [], [], []
+        for layer in view.instances(topic):
+            for f in fields:
+                p = view.path(layer, f)
+                if not p:
+                    continue
+                t, v = view.read(p)
+                if not len(t):
+                    continue
+                paths.append(p)
+                if cumulative:
+                    # A counter that goes down restarted (a reboot): only rises count.
+                    new = np.concatenate([[0.0], np.clip(np.diff(v), 0, None)])
+                else:
+                    new = np.clip(v, 0, None)
+                new = np.where(view.armed_at(t) & np.isfinite(new), new, 0.0)
+                hit = new > 0
+                events_t.append(t[hit])
+                events_n.append(new[hit])
+        if not paths:
+            continue
+        if not events_t or not sum(len(x) for x in events_t):
+            return Result(
+                name,
+                PASS,
+                0.0,
+                "clips",
+                dict(level),
+                None,
+                f"no clipping counted in {topic}",
+                series=paths[:6],
+                window=window_around(view, None),
+            )
+        t = np.concatenate(events_t)
+        n = np.concatenate(events_n)
+        order = np.argsort(t, kind="stable")
+        t, total = t[order], np.cumsum(n[order])
+        value = float(total[-1])
+        status = grade(value, level)
+        limit = level["fail"] if status == FAIL else level["warning"]
+        at = float(t[np.flatnonzero(total > limit)[0]])
+        return Result(
+            name,
+            status,
+            value,
+            "clips",
+            dict(level),
+            at,
+            f"{value:.0f} accelerometer clips in {topic}, the first at {float(t[0]):.1f} s",
+            series=paths[:6],
+            window=window_around(view, at),
+        )
+    return not_checked(name, "no vehicle_imu_status, sensor_accel, VIBE or VIBRATION")
+
+
+# --- GPS ---
+
+_GPS = (
+    # topic, fix field, satellites field, hdop field (and its scale), jamming field
+    ("vehicle_gps_position", "fix_type", "satellites_used", ("hdop", 1.0), "jamming_indicator"),
+    ("sensor_gps", "fix_type", "satellites_used", ("hdop", 1.0), "jamming_indicator"),
+    ("GPS", "Status", "NSats", ("HDop", 1.0), None),
+    # MAVLink GPS_RAW_INT.eph is HDOP x 100 (UINT16_MAX when unknown).
+    ("GPS_RAW_INT", "fix_type", "satellites_visible", ("eph", 0.01), None),
+)
+FIX_3D = 3  # GPS_FIX_TYPE_3D_FIX (MAVLink), PX4 fix_type 3, ArduPilot GPS status 3
+
+
+def gps(view: LogView, thresholds: dict) -> Result:
+    """Outages (fix below 3D, or no GPS record for outage_s) once a fix was had and while
+    armed, too few satellites, a high HDOP and jamming."""
+    name = "gps"
+    level = thresholds["gps"]
+    for topic, fix_f, sats_f, (hdop_f, hdop_scale), jam_f in _GPS:
+        layers = [x for x in view.instances(topic) if view.path(x, fix_f)]
+        if not layers:
+            continue
+        layer = layers[0]
+        fix_path = view.path(layer, fix_f)
+        t, fix = view.read(fix_path)
+        if len(t) < 2:
+            return not_checked(name, f"too few {topic} samples")
+        has_fix = fix >= FIX_3D
+        if not has_fix.any():
+            return not_checked(name, f"no 3D fix in {topic}")
+        first_fix = float(t[np.argmax(has_fix)])
+        armed = view.armed_at(t) & (t >= first_fix)
+        findings: list[Result] = []
+        series = [fix_path]
+        # Fix lost.
+        lost = timed_runs(t, armed & ~has_fix)
+        # No record at all for outage_s (the receiver or its link went silent).
+        gaps = np.flatnonzero((np.diff(t) >= level["outage_s"]) & armed[:-1])
+        lost += [(float(t[i]), float(t[i + 1])) for i in gaps]
+        lost.sort()
+        if lost:
+            longest = max(b - a for a, b in lost)
+            findings.append(
+                Result(
+                    name,
+                    FAIL,
+                    longest,
+                    "s",
+                    {"outage_s": level["outage_s"]},
+                    lost[0][0],
+                    f"GPS outage at {lost[0][0]:.1f} s ({len(lost)} in all, longest {longest:.1f} s)",
+                )
+            )
+        sats_path = view.path(layer, sats_f)
+        if sats_path:
+            series.append(sats_path)
+            ts, sats = view.read(sats_path)
+            ok = view.armed_at(ts) & (ts >= first_fix) & np.isfinite(sats)
+            if ok.any():
+                low = float(np.min(sats[ok]))
+                at = first_time(ts, ok & (sats < level["min_satellites"]))
+                findings.append(
+                    Result(
+                        name,
+                        WARNING if at is not None else PASS,
+                        low,
+                        "satellites",
+                        {"min_satellites": level["min_satellites"]},
+                        at if at is not None else float(ts[ok][np.argmin(sats[ok])]),
+                        f"{low:.0f} satellites at least"
+                        + (
+                            f", below {level['min_satellites']:g} from {at:.1f} s"
+                            if at is not None
+                            else ""
+                        ),
+                    )
+                )
+        hdop_path = view.path(layer, hdop_f)
+        if hdop_path:
+            th, hdop = view.read(hdop_path)
+            hdop = np.where(hdop >= 65535, np.nan, hdop) * hdop_scale
+            ok = view.armed_at(th) & (th >= first_fix) & np.isfinite(hdop)
+            at = first_time(th, ok & (hdop > level["max_hdop"]))
+            if at is not None:
+                series.append(hdop_path)
+                findings.append(
+                    Result(
+                        name,
+                        WARNING,
+                        float(np.nanmax(hdop[ok])),
+                        "HDOP",
+                        {"max_hdop": level["max_hdop"]},
+                        at,
+                        f"HDOP over {level['max_hdop']:g} from {at:.1f} s",
+                    )
+                )
+        jam_path = view.path(layer, jam_f) if jam_f else None
+        if jam_path:
+            tj, jam = _armed_values(view, jam_path)
+            if len(tj):
+                value = float(np.max(jam))
+                status = grade(value, level["jamming"])
+                if status != PASS:
+                    series.append(jam_path)
+                    limit = level["jamming"]["fail" if status == FAIL else "warning"]
+                    at = first_time(tj, jam > limit)
+                    findings.append(
+                        Result(
+                            name,
+                            status,
+                            value,
+                            "",
+                            dict(level["jamming"]),
+                            at,
+                            f"jamming indicator {value:.0f} (over {limit:g}) from {at:.1f} s",
+                        )
+                    )
+        if not findings:
+            findings.append(Result(name, PASS, None, "", None, None, f"{topic} had a 3D fix"))
+        result = worst(findings)
+        if result.status == PASS:
+            result.reason = f"no outage; {result.reason}"
+        result.series = series
+        result.window = window_around(view, result.t)
+        return result
+    return not_checked(name, "no vehicle_gps_position, GPS or GPS_RAW_INT")
+
+
+# --- estimator ---
+
+_RATIOS = (
+    # PX4 estimator_status test ratios; ArduPilot XKF4/NKF4 innovation test ratios (the
+    # square root of the normalised innovation); MAVLink EKF_STATUS_REPORT (ArduPilot)
+    # and ESTIMATOR_STATUS (PX4).
+    (
+        "estimator_status",
+        (
+            "vel_test_ratio",
+            "pos_test_ratio",
+            "hgt_test_ratio",
+            "mag_test_ratio",
+            "tas_test_ratio",
+            "hagl_test_ratio",
+        ),
+    ),
+    ("XKF4", ("SV", "SP", "SH", "SM", "SVT")),
+    ("NKF4", ("SV", "SP", "SH", "SMX", "SVT")),
+    (
+        "EKF_STATUS_REPORT",
+        (
+            "velocity_variance",
+            "pos_horiz_variance",
+            "pos_vert_variance",
+            "compass_variance",
+            "terrain_alt_variance",
+        ),
+    ),
+    (
+        "ESTIMATOR_STATUS",
+        ("vel_ratio", "pos_horiz_ratio", "pos_vert_ratio", "mag_ratio", "hagl_ratio", "tas_ratio"),
+    ),
+)
+
+
+def estimator(view: LogView, thresholds: dict) -> Result:
+    """The highest innovation test ratio held for HELD_RECORDS records while armed."""
+    name = "estimator"
+    for topic, fields in _RATIOS:
+        curves = []
+        for layer in view.instances(topic):
+            for f in fields:
+                p = view.path(layer, f)
+                if p:
+                    t, v = _armed_values(view, p)
+                    curves.append((p, t, held(v, HELD_RECORDS)))
+        if curves:
+            result = _peak_result(
+                name, view, curves, thresholds["estimator"], "", f"{topic} test ratio"
+            )
+            if result.status != "not_checked":
+                peak = result.series[0]
+                result.reason = result.reason.replace(
+                    "test ratio", f"test ratio ({peak.split('/')[-1]})", 1
+                )
+            return result
+    return not_checked(name, "no estimator_status, XKF4, NKF4 or EKF_STATUS_REPORT")

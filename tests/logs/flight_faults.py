@@ -1,0 +1,351 @@
+"""Flight logs with known faults, written in each format's own structure: PX4 ULog by
+logs.synth.write_ulog (read back by pyulog in test_ulog.py), ArduPilot DataFlash by
+logs.synth.write_dataflash (read back by pymavlink in test_dataflash.py), and MAVLink
+.tlog packets encoded by pymavlink itself.
+
+A flight lasts SECONDS: disarmed for the first ARM_AT seconds and after DISARM_AT, hovering
+in between. Each fault happens at its time in FAULT_AT, so a check must report it there.
+"""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from logs.synth import dataflash_dtype, write_dataflash, write_ulog
+
+SECONDS = 60.0
+ARM_AT, DISARM_AT = 5.0, 55.0
+FAULTS = ("motor", "clipping", "gps", "battery", "rc")
+FAULT_AT = {"motor": 20.0, "clipping": 40.0, "gps": 30.0, "battery": 45.0, "rc": 50.0}
+FAULT_FOR = {"motor": 5.0, "clipping": 0.5, "gps": 4.0, "battery": 3.0, "rc": 2.0}
+# The check each fault must trip, its severity, and any check it also trips by design
+# (an RC loss is a failsafe too).
+EXPECTED = {
+    "motor": {"motor_imbalance": "fail"},
+    "clipping": {"clipping": "fail"},
+    "gps": {"gps": "fail"},
+    "battery": {"battery_sag": "fail"},
+    "rc": {"rc_loss": "fail", "failsafe": "fail"},
+}
+CELLS = 4
+
+
+def _times(hz: float, seconds: float = SECONDS) -> np.ndarray:
+    return np.arange(int(seconds * hz)) / hz
+
+
+def _during(t: np.ndarray, fault: str, faults: set[str]) -> np.ndarray:
+    if fault not in faults:
+        return np.zeros(len(t), dtype=bool)
+    return (t >= FAULT_AT[fault]) & (t < FAULT_AT[fault] + FAULT_FOR[fault])
+
+
+def _armed(t: np.ndarray) -> np.ndarray:
+    return (t >= ARM_AT) & (t < DISARM_AT)
+
+
+def _motors(t: np.ndarray, faults: set[str], rng: np.random.Generator) -> np.ndarray:
+    """Four PWM outputs: 1000 µs disarmed, about 1500 µs hovering; motor 3 (index 2) held
+    at 2000 µs during the motor fault."""
+    out = np.full((len(t), 4), 1000.0)
+    armed = _armed(t)
+    hover = 1500 + np.array([-15.0, 10.0, 5.0, -5.0]) + rng.normal(0, 8, size=(len(t), 4))
+    out[armed] = hover[armed]
+    out[_during(t, "motor", faults), 2] = 2000.0
+    return out
+
+
+def _cell_volts(t: np.ndarray, faults: set[str]) -> np.ndarray:
+    """4.1 V per cell at rest, falling from 3.95 to 3.75 V in flight; 3.2 V in the sag."""
+    v = np.full(len(t), 4.1)
+    armed = _armed(t)
+    v[armed] = 3.95 - 0.2 * (t[armed] - ARM_AT) / (DISARM_AT - ARM_AT)
+    v[_during(t, "battery", faults)] = 3.2
+    return v * CELLS
+
+
+def _clips(t: np.ndarray, faults: set[str]) -> np.ndarray:
+    """A running clip count: 120 clips a record through the burst."""
+    return np.cumsum(np.where(_during(t, "clipping", faults), 120, 0)).astype(np.uint32)
+
+
+def _gps_ok(t: np.ndarray, faults: set[str]) -> np.ndarray:
+    return ~_during(t, "gps", faults)
+
+
+# --- PX4 ULog ---
+
+
+def _topic(hz: float, fields: list[tuple[str, str]]) -> tuple[np.ndarray, np.ndarray]:
+    t = _times(hz)
+    arr = np.zeros(len(t), dtype=np.dtype([("timestamp", "<u8"), *fields]))
+    arr["timestamp"] = np.round(t * 1e6).astype(np.uint64)
+    return t, arr
+
+
+def px4_ulog(path: Path, faults: set[str] = frozenset(), *, topics: set[str] | None = None) -> Path:
+    """A PX4 (v1.13-style topics) hover with the given faults; `topics` keeps only those."""
+    rng = np.random.default_rng(5)
+    out: dict[str, np.ndarray] = {}
+
+    t, a = _topic(
+        5,
+        [
+            ("arming_state", "u1"),
+            ("nav_state", "u1"),
+            ("failsafe", "?"),
+            ("vehicle_type", "u1"),
+            ("is_vtol", "?"),
+        ],
+    )
+    a["arming_state"] = np.where(_armed(t), 2, 1)
+    a["nav_state"] = np.where(_during(t, "rc", faults), 5, 2)  # 5 = AUTO_RTL
+    a["failsafe"] = _during(t, "rc", faults)
+    a["vehicle_type"] = 1
+    out["vehicle_status"] = a
+
+    t, a = _topic(200, [("gyro_rad", "(3,)<f4"), ("accelerometer_m_s2", "(3,)<f4")])
+    a["gyro_rad"] = rng.normal(0, 0.02, size=(len(t), 3))
+    a["accelerometer_m_s2"] = rng.normal(0, 0.5, size=(len(t), 3)) + [0, 0, -9.81]
+    out["sensor_combined"] = a
+
+    t, a = _topic(
+        10,
+        [
+            ("accel_clipping", "(3,)<u4"),
+            ("accel_vibration_metric", "<f4"),
+            ("gyro_vibration_metric", "<f4"),
+        ],
+    )
+    a["accel_clipping"][:, 2] = _clips(t, faults)
+    a["accel_vibration_metric"] = np.where(_armed(t), 2.0, 0.3) + rng.normal(0, 0.1, len(t))
+    a["gyro_vibration_metric"] = 0.01
+    out["vehicle_imu_status"] = a
+
+    t, a = _topic(
+        5,
+        [
+            ("lat", "<i4"),
+            ("lon", "<i4"),
+            ("hdop", "<f4"),
+            ("jamming_indicator", "u1"),
+            ("fix_type", "u1"),
+            ("satellites_used", "u1"),
+        ],
+    )
+    ok = _gps_ok(t, faults)
+    a["lat"], a["lon"] = 473977420, 85455940
+    a["hdop"] = np.where(ok, 0.8, 99.0)
+    a["jamming_indicator"] = 20
+    a["fix_type"] = np.where(ok, 3, 0)
+    a["satellites_used"] = np.where(ok, 14, 0)
+    out["vehicle_gps_position"] = a
+
+    t, a = _topic(
+        10, [("voltage_v", "<f4"), ("current_a", "<f4"), ("remaining", "<f4"), ("cell_count", "u1")]
+    )
+    a["voltage_v"] = _cell_volts(t, faults)
+    a["current_a"] = np.where(_armed(t), 18.0, 0.5) + np.where(_during(t, "battery", faults), 40, 0)
+    a["remaining"] = 0.8
+    a["cell_count"] = CELLS
+    out["battery_status"] = a
+
+    t, a = _topic(
+        10, [("rc_lost_frame_count", "<u2"), ("rc_total_frame_count", "<u2"), ("rc_lost", "?")]
+    )
+    a["rc_total_frame_count"] = np.arange(len(t)) * 5
+    a["rc_lost"] = _during(t, "rc", faults)
+    out["input_rc"] = a
+
+    t, a = _topic(50, [("noutputs", "<u4"), ("output", "(16,)<f4")])
+    a["noutputs"] = 4
+    a["output"][:, :4] = _motors(t, faults, rng)
+    out["actuator_outputs"] = a
+
+    t, a = _topic(
+        10,
+        [
+            ("vel_test_ratio", "<f4"),
+            ("pos_test_ratio", "<f4"),
+            ("hgt_test_ratio", "<f4"),
+            ("mag_test_ratio", "<f4"),
+        ],
+    )
+    for name in ("vel_test_ratio", "pos_test_ratio", "hgt_test_ratio", "mag_test_ratio"):
+        a[name] = np.abs(rng.normal(0.1, 0.05, len(t)))
+    out["estimator_status"] = a
+
+    t, a = _topic(2, [("load", "<f4"), ("ram_usage", "<f4")])
+    a["load"], a["ram_usage"] = 0.45, 0.6
+    out["cpuload"] = a
+
+    if topics is not None:
+        out = {k: v for k, v in out.items() if k in topics}
+    write_ulog(path, out, info={"sys_name": "PX4", "ver_hw": "SKYHIVE_TEST"})
+    return path
+
+
+# --- ArduPilot DataFlash ---
+
+
+def _message(chars: str, columns: str, hz: float) -> tuple[np.ndarray, np.ndarray]:
+    t = _times(hz)
+    arr = np.zeros(len(t), dtype=dataflash_dtype(chars, columns.split(",")))
+    arr["TimeUS"] = np.round(t * 1e6).astype(np.uint64)
+    return t, arr
+
+
+def ardupilot_bin(path: Path, faults: set[str] = frozenset()) -> Path:
+    """An ArduCopter hover with the given faults (message layouts as ArduCopter 4 logs
+    them, scaled types included)."""
+    rng = np.random.default_rng(6)
+    out: dict[str, tuple[str, np.ndarray]] = {}
+
+    events = np.zeros(2, dtype=dataflash_dtype("QB", ["TimeUS", "Id"]))
+    events["TimeUS"] = [int(ARM_AT * 1e6), int(DISARM_AT * 1e6)]
+    events["Id"] = [10, 11]  # ArduPilot LogEvent ARMED, DISARMED
+    out["EV"] = ("QB", events)
+
+    t, a = _message("Qffffff", "TimeUS,GyrX,GyrY,GyrZ,AccX,AccY,AccZ", 100)
+    a["AccX"], a["AccY"] = rng.normal(0, 0.5, len(t)), rng.normal(0, 0.5, len(t))
+    a["AccZ"] = -9.81 + rng.normal(0, 0.5, len(t))
+    out["IMU"] = ("Qffffff", a)
+
+    t, a = _message("QfffIII", "TimeUS,VibeX,VibeY,VibeZ,Clip0,Clip1,Clip2", 10)
+    for axis in ("VibeX", "VibeY", "VibeZ"):
+        a[axis] = np.where(_armed(t), 12.0, 2.0) + np.abs(rng.normal(0, 1, len(t)))
+    a["Clip0"] = _clips(t, faults)
+    out["VIBE"] = ("QfffIII", a)
+
+    t, a = _message("QBccccc", "TimeUS,C,SV,SP,SH,SM,SVT", 10)
+    for col in ("SV", "SP", "SH", "SM", "SVT"):
+        a[col] = np.abs(rng.normal(10, 5, len(t))).astype(np.int16)  # x 0.01: about 0.1
+    out["XKF4"] = ("QBccccc", a)
+
+    t, a = _message("QBIHBcLLe", "TimeUS,Status,GMS,GWk,NSats,HDop,Lat,Lng,Alt", 5)
+    ok = _gps_ok(t, faults)
+    a["Status"] = np.where(ok, 3, 1)
+    a["NSats"] = np.where(ok, 15, 2)
+    a["HDop"] = np.where(ok, 75, 9999)  # x 0.01
+    a["Lat"], a["Lng"], a["Alt"] = 473977420, 85455940, 50000
+    out["GPS"] = ("QBIHBcLLe", a)
+
+    t, a = _message("Qfff", "TimeUS,Volt,VoltR,Curr", 10)
+    a["Volt"] = _cell_volts(t, faults)
+    a["VoltR"] = a["Volt"]
+    a["Curr"] = np.where(_armed(t), 20.0, 0.4)
+    out["BAT"] = ("Qfff", a)
+
+    t, a = _message("QHHHH", "TimeUS,C1,C2,C3,C4", 25)
+    a["C1"] = a["C2"] = a["C4"] = 1500
+    a["C3"] = np.where(_armed(t), 1500, 1000)
+    out["RCIN"] = ("QHHHH", a)
+
+    t, a = _message("QHHHH", "TimeUS,C1,C2,C3,C4", 25)
+    motors = _motors(t, faults, rng)
+    for i in range(4):
+        a[f"C{i + 1}"] = np.round(motors[:, i]).astype(np.uint16)
+    out["RCOU"] = ("QHHHH", a)
+
+    t, a = _message("QHHIH", "TimeUS,NLon,NLoop,MaxT,Load", 1)
+    a["NLoop"], a["MaxT"], a["Load"] = 400, 3000, 350  # Load in tenths of a percent
+    out["PM"] = ("QHHIH", a)
+
+    if "rc" in faults:
+        err = np.zeros(2, dtype=dataflash_dtype("QBB", ["TimeUS", "Subsys", "ECode"]))
+        start = FAULT_AT["rc"]
+        err["TimeUS"] = [int(start * 1e6), int((start + FAULT_FOR["rc"]) * 1e6)]
+        err["Subsys"] = 5  # FAILSAFE_RADIO
+        err["ECode"] = [1, 0]
+        out["ERR"] = ("QBB", err)
+    write_dataflash(path, out)
+    return path
+
+
+# --- MAVLink .tlog ---
+
+T0_US = 1_700_000_000_000_000
+
+
+def mavlink_tlog(path: Path, faults: set[str] = frozenset(), *, hz: float = 10.0) -> Path:
+    """What a ground station records from an ArduCopter: HEARTBEAT, SYS_STATUS,
+    GPS_RAW_INT, VIBRATION, SERVO_OUTPUT_RAW and EKF_STATUS_REPORT at `hz`, each record an
+    8-byte big-endian µs stamp and the packet as pymavlink encodes it."""
+    rng = np.random.default_rng(8)
+    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+    t = _times(hz)
+    armed = _armed(t)
+    volts = _cell_volts(t, faults)
+    clips = _clips(t, faults)
+    gps_ok = _gps_ok(t, faults)
+    motors = np.round(_motors(t, faults, rng)).astype(int)
+    rc_lost = _during(t, "rc", faults)
+    rc_bit = mavlink2.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
+    with open(path, "wb") as f:
+        for i, now in enumerate(t):
+            stamp = struct.pack(">Q", T0_US + int(now * 1e6))
+            base = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
+                mavlink2.MAV_MODE_FLAG_SAFETY_ARMED if armed[i] else 0
+            )
+            state = mavlink2.MAV_STATE_CRITICAL if rc_lost[i] else mavlink2.MAV_STATE_ACTIVE
+            msgs = [
+                mavlink2.MAVLink_heartbeat_message(
+                    mavlink2.MAV_TYPE_QUADROTOR,
+                    mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                    base,
+                    6 if rc_lost[i] else 5,
+                    state,
+                    3,
+                ),
+                mavlink2.MAVLink_sys_status_message(
+                    rc_bit,
+                    rc_bit,
+                    0 if rc_lost[i] else rc_bit,
+                    350,
+                    int(volts[i] * 1000),
+                    1800 if armed[i] else 40,
+                    80,
+                    0,
+                    0,
+                    0,
+                    0,
+                    0,
+                    0,
+                ),
+                mavlink2.MAVLink_gps_raw_int_message(
+                    int(now * 1e6),
+                    3 if gps_ok[i] else 1,
+                    473977420,
+                    85455940,
+                    50000,
+                    80 if gps_ok[i] else 9999,
+                    120,
+                    0,
+                    0,
+                    14 if gps_ok[i] else 2,
+                ),
+                mavlink2.MAVLink_vibration_message(
+                    int(now * 1e6),
+                    *(12.0 + abs(rng.normal(0, 1)) for _ in range(3)),
+                    int(clips[i]),
+                    0,
+                    0,
+                ),
+                mavlink2.MAVLink_servo_output_raw_message(
+                    int(now * 1e6) & 0xFFFFFFFF,
+                    0,
+                    *motors[i].tolist(),
+                    0,
+                    0,
+                    0,
+                    0,
+                ),
+                mavlink2.MAVLink_ekf_status_report_message(0x1FF, 0.1, 0.12, 0.08, 0.05, 0.0),
+            ]
+            for msg in msgs:
+                f.write(stamp + msg.pack(mav))
+    return path
