@@ -19,9 +19,12 @@ refused. It re-exports as those simple items.
 | 2000 IMAGE_START_CAPTURE, 203 DO_DIGICAM_CONTROL | takepic |
 
 Altitudes: relative (frame 3, AltitudeMode 1) as they are; AMSL (frame 0, AltitudeMode 2)
-minus plannedHomePosition's altitude; terrain (AltitudeMode 3 "calculated above terrain",
-or frame 10 / AltitudeMode 4) from the item's AMSLAltAboveTerrain minus home's altitude —
-we have no terrain data, so an item without that value is refused.
+minus plannedHomePosition's altitude; above terrain (AltitudeMode 3 "calculated above
+terrain", or frame 10 MAV_FRAME_GLOBAL_TERRAIN_ALT / AltitudeMode 4 "terrain frame"): with
+imported terrain covering the item and home, the terrain's elevation at the item plus the
+height above it, minus the terrain's elevation at home (home is on the ground); without,
+the item's AMSLAltAboveTerrain (QGroundControl's own calculation) minus home's altitude,
+and an item with neither is refused.
 
 Where the step list cannot tell two items apart (a hold waypoint from a loiter, RTL from
 a land at home, the two camera commands) or has no place for a value (takeoff
@@ -37,7 +40,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -115,6 +118,8 @@ _DEFAULT_CAMERA = {
     DO_DIGICAM_CONTROL: [0, 0, 0, 0, 1, 0, 0],
 }
 DEFAULT_ALTITUDE = 10.0
+# The terrain's elevation above mean sea level at (lat, lon), None where it is unknown.
+Terrain = Callable[[float, float], float | None]
 
 
 class QgcPlanError(PlanningError):
@@ -193,8 +198,9 @@ class _Reader:
     """Turns mission items into steps, tracking the altitude, where the drone is and the
     settings (speed, region of interest, camera trigger distance) of the legs to come."""
 
-    def __init__(self, home: list[float] | None) -> None:
+    def __init__(self, home: list[float] | None, terrain: Terrain | None = None) -> None:
         self.home = home
+        self.terrain = terrain
         self.altitude: float | None = None
         self.position: tuple[float, float] | None = None
         self.armed = False
@@ -216,19 +222,14 @@ class _Reader:
             raise QgcPlanError(where, "an AMSL altitude needs plannedHomePosition")
         return amsl - self.home[2]
 
-    def relative_altitude(self, item: Mapping, alt: float | None, where: str) -> float:
-        """The item's altitude above home, whatever frame QGroundControl wrote it in."""
+    def relative_altitude(
+        self, item: Mapping, alt: float | None, where: str, point: tuple[float, float] | None
+    ) -> float:
+        """The item's altitude above home, whatever frame QGroundControl wrote it in;
+        `point` is where the item is (None: over home)."""
         frame, mode = item.get("frame"), item.get("AltitudeMode")
         if mode in TERRAIN_MODES or frame == FRAME_GLOBAL_TERRAIN_ALT:
-            amsl = item.get("AMSLAltAboveTerrain")
-            if amsl is None:
-                raise QgcPlanError(
-                    where,
-                    "its altitude is above terrain and the plan holds no AMSL altitude for it "
-                    "(AMSLAltAboveTerrain); without terrain data it cannot be flown — let "
-                    "QGroundControl calculate it, or use relative altitudes",
-                )
-            return self.amsl_to_relative(_num(amsl, f"{where}.AMSLAltAboveTerrain"), where)
+            return self.above_terrain(item, alt, where, point)
         if alt is None:
             raise QgcPlanError(f"{where}.params[6]", "the altitude is missing")
         if frame == FRAME_GLOBAL_RELATIVE_ALT:
@@ -236,6 +237,37 @@ class _Reader:
         if frame == FRAME_GLOBAL:
             return self.amsl_to_relative(alt, where)
         raise QgcPlanError(where, f"frame {frame!r} is not supported (use relative altitude)")
+
+    def above_terrain(
+        self, item: Mapping, alt: float | None, where: str, point: tuple[float, float] | None
+    ) -> float:
+        """A height above the terrain → above home: by the imported terrain, else by the
+        AMSL altitude QGroundControl calculated for the item."""
+        height = item.get("Altitude") if item.get("AltitudeMode") in TERRAIN_MODES else alt
+        if item.get("frame") == FRAME_GLOBAL_TERRAIN_ALT and alt is not None:
+            height = alt  # MAV_FRAME_GLOBAL_TERRAIN_ALT: param 7 is above terrain
+        height = None if height is None else _num(height, f"{where}.Altitude")
+        over = point or (tuple(self.home[:2]) if self.home else None)
+        ground = self.ground_between(over) if height is not None else None
+        if ground is not None:
+            return height + ground  # type: ignore[operator]
+        amsl = item.get("AMSLAltAboveTerrain")
+        if amsl is None:
+            raise QgcPlanError(
+                where,
+                "its altitude is above terrain, no imported terrain covers it and home, and "
+                "the plan holds no AMSL altitude for it (AMSLAltAboveTerrain) — import the "
+                "terrain (manage.py import_terrain), let QGroundControl calculate it, or use "
+                "relative altitudes",
+            )
+        return self.amsl_to_relative(_num(amsl, f"{where}.AMSLAltAboveTerrain"), where)
+
+    def ground_between(self, point: tuple[float, float] | None) -> float | None:
+        """How much higher the terrain is at `point` than at home, or None when unknown."""
+        if self.terrain is None or self.home is None or point is None:
+            return None
+        here, home = self.terrain(*point), self.terrain(self.home[0], self.home[1])
+        return None if here is None or home is None else here - home
 
     def navigate(self, lat: float, lon: float, alt: float | None, hint: dict | None) -> None:
         params: dict = {"lat": lat, "lon": lon}
@@ -296,7 +328,7 @@ class _Reader:
 
     def coordinate_item(self, item: Mapping, command: int, p: list, hint: dict, where: str) -> None:
         coordinate = None if p[4] is None and p[5] is None else _latlon(p[4], p[5], where)
-        alt = self.relative_altitude(item, p[6], where)
+        alt = self.relative_altitude(item, p[6], where, coordinate)
         if command in TAKEOFF_COMMANDS:
             self.takeoff(p, hint, coordinate, alt, where)
             return
@@ -472,8 +504,11 @@ def _read_rally(data: Any) -> list[list[float]]:
     return points
 
 
-def import_plan(source: str | bytes | Mapping) -> QgcPlan:
-    """A .plan file (text, bytes or parsed JSON) → QgcPlan, or QgcPlanError saying where."""
+def import_plan(source: str | bytes | Mapping, terrain: Terrain | None = None) -> QgcPlan:
+    """A .plan file (text, bytes or parsed JSON) → QgcPlan, or QgcPlanError saying where.
+
+    `terrain` (the imported terrain's elevation) turns heights above terrain into heights
+    above home."""
     if isinstance(source, bytes | str):
         if len(source) > MAX_PLAN_BYTES:
             raise QgcPlanError("file", f"is over {MAX_PLAN_BYTES} bytes")
@@ -502,7 +537,7 @@ def import_plan(source: str | bytes | Mapping) -> QgcPlan:
             *_latlon(home[0], home[1], "mission.plannedHomePosition"),
             _num(home[2], "mission.plannedHomePosition[2]"),
         ]
-    reader = _Reader(home)
+    reader = _Reader(home, terrain)
     items = _list(mission.get("items"), "mission.items")
     for i, raw in enumerate(items):
         reader.item(_obj(raw, f"mission.items[{i}]"), f"mission.items[{i}]", number=i + 1)
