@@ -1,6 +1,6 @@
 """An import function that kills the worker process running it, for the redelivery tests.
 
-Selected in a worker's environment with LOGS_IMPORT_FUNCTION (config/settings/base.py):
+Selected in a worker's environment with LOGS_IMPORT_FUNCTION (config/settings/logs.py):
 it parses nothing, waits CRASH_AFTER_S seconds (the import looks busy) and then ends the
 process at once, as a segfault in a parser or the kernel's OOM killer would.
 """

@@ -1,0 +1,34 @@
+"""Airspace: reservations and the separation minima between the platform's own drones
+(docs/airspace.md, "Separation")."""
+
+from __future__ import annotations
+
+from config.env import env
+
+# Separation minima: two drones' corridors must stay this far apart horizontally (metres
+# between the corridors' edges) unless their altitude bands are this far apart vertically.
+# The platform's own numbers for small drones (ICAO's rule, not its distances for manned
+# aircraft: [ICAO Doc 4444], ch. 5); an organisation may set its own (admin).
+AIRSPACE_HORIZONTAL_MIN_M = env.float("AIRSPACE_HORIZONTAL_MIN_M", 30.0)
+AIRSPACE_VERTICAL_MIN_M = env.float("AIRSPACE_VERTICAL_MIN_M", 10.0)
+# One airspace for the whole site: every organisation's flights are checked against every
+# other's (each pair held to the larger of its two organisations' minima).
+AIRSPACE_SITE_WIDE = env.bool("AIRSPACE_SITE_WIDE", False)
+# A corridor's horizontal radius and a band's widening: the tolerance within which a drone
+# counts as on its waypoint (onboard/protocol.py DEFAULT_TOLERANCE, [Paula 2018] algorithm 1).
+AIRSPACE_CORRIDOR_RADIUS_M = env.float("AIRSPACE_CORRIDOR_RADIUS_M", 2.0)
+AIRSPACE_VERTICAL_TOLERANCE_M = env.float("AIRSPACE_VERTICAL_TOLERANCE_M", 2.0)
+# Speeds a flight's time windows are computed with: the cruise speed of a drone whose gear
+# states no CRUISE_SPEED_M_S (as the survey estimates assume), and the climb rate.
+AIRSPACE_CRUISE_SPEED_M_S = env.float("AIRSPACE_CRUISE_SPEED_M_S", 5.0)
+AIRSPACE_CLIMB_SPEED_M_S = env.float("AIRSPACE_CLIMB_SPEED_M_S", 2.0)
+# A leg's window opens this much before its nominal start and closes this much after its
+# nominal end, which is stretched by the slack (0.5: the drone half as slow again).
+AIRSPACE_TIME_BUFFER_S = env.float("AIRSPACE_TIME_BUFFER_S", 30.0)
+AIRSPACE_TIME_SLACK = env.float("AIRSPACE_TIME_SLACK", 0.5)
+# How long a drone is assumed to hover after its last step or command, and how long an
+# airborne drone with no plan known holds the column under it.
+AIRSPACE_HOLD_S = env.float("AIRSPACE_HOLD_S", 300.0)
+# What fleet/envelopes.py calls for a command (named, not imported: fleet sits below).
+AIRSPACE_COMMAND_CHECK = "airspace.separation.check_command"
+AIRSPACE_COMMAND_RESERVE = "airspace.separation.reserve_command"
