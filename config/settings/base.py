@@ -8,6 +8,7 @@ from .alerts import *  # noqa: F403
 from .broker import *  # noqa: F403
 from .core import *  # noqa: F403
 from .fleet import *  # noqa: F403
+from .logchecks import *  # noqa: F403
 from .logs import *  # noqa: F403
 from .missions import *  # noqa: F403
 from .operations import *  # noqa: F403
@@ -15,4 +16,5 @@ from .pastview import *  # noqa: F403
 from .security import *  # noqa: F403
 from .tasks import *  # noqa: F403
 from .telemetry import *  # noqa: F403
+from .terrain import *  # noqa: F403
 from .tiles import *  # noqa: F403
