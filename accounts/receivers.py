@@ -88,10 +88,30 @@ def refused(
     )
 
 
+def zone_authorised(sender: Any, instance: Any, created: bool, **kwargs: Any) -> None:
+    """An organisation's admin recorded an authorisation to fly in a published zone."""
+    if not created:
+        return
+    audit.record(
+        instance.organisation_id,
+        audit.Kind.ENVELOPE,
+        "zone.authorisation",
+        target=f"{instance.zone.identifier} {instance.zone.name}",
+        actor=instance.recorded_by,
+        detail={
+            "zone": instance.zone_id,
+            "issued_by": instance.issued_by,
+            "reference": instance.reference,
+            "expires_at": instance.expires_at.isoformat(),
+        },
+    )
+
+
 def connect() -> None:
     """Called once from AppConfig.ready(); senders by label, so no import of their apps."""
     post_save.connect(command_logged, sender="fleet.CommandLog", dispatch_uid="audit-command")
     post_save.connect(mission_event, sender="missions.Event", dispatch_uid="audit-mission")
+    post_save.connect(zone_authorised, sender="zones.Authorisation", dispatch_uid="audit-zone")
     envelope_changed.connect(envelope_stored, dispatch_uid="audit-envelope")
     action_refused.connect(refused, dispatch_uid="audit-refused")
     user_logged_in.connect(signin.signed_in, dispatch_uid="sign-in-record")

@@ -57,6 +57,7 @@ api_v1 = [
     path("missions/survey/", survey_api.plan, name="mission-survey"),
     path("missions/survey/cameras/", survey_api.cameras, name="mission-survey-cameras"),
     path("alerts/", alerts_api.recent, name="alerts"),
+    path("zones/", include("zones.urls")),
     path("", include(router.urls)),
 ]
 

@@ -9,11 +9,13 @@ rest), and refused before anything is sent.
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
+from django.conf import settings
 from django.db import transaction
+from django.utils.module_loading import import_string
 
 from onboard import envelope as env
 from onboard import protocol
@@ -40,6 +42,8 @@ class EnvelopeRefusal(Exception):
     def __init__(self, violation: env.Violation, step: int | None = None) -> None:
         prefix = "" if step is None else f"Step {step}: "
         self.message = prefix + violation.message
+        # A published zone's violation carries its own code (`zone`).
+        self.code = getattr(violation, "code", self.code)
         self.limit = violation.limit
         self.step = step
         super().__init__(self.message)
@@ -198,6 +202,9 @@ def check_command(
     violation = env.check(
         drone_envelope(drone), home, move, drone.airborne, _battery_percent(drone), base
     )
+    violation = violation or published_zones("move")(
+        drone.organisation, home, move, base, drone.airborne
+    )
     if violation is not None:
         raise OutsideEnvelope(violation)
     beyond = None if confirmed else env.beyond_defaults(move)
@@ -217,17 +224,28 @@ def step_violations(
     QGroundControl geoFence, e.g. an imported plan's own) applies on top."""
     if drone is not None:
         home = home_of(drone)
-        return env.step_violations(
+        start, airborne = current_target(drone, home), drone.airborne
+        found = env.step_violations(
             with_fence(drone_envelope(drone), fence),
             home,
             steps,
-            current_target(drone, home),
-            drone.airborne,
+            start,
+            airborne,
             _battery_percent(drone),
         )
-    home = home if home is not None else plan_home(organisation, steps)
-    envelope = with_fence(organisation_envelope(organisation), fence)
-    return env.step_violations(envelope, home, steps, (0.0, 0.0, 0.0), False, None)
+    else:
+        home = home if home is not None else plan_home(organisation, steps)
+        envelope = with_fence(organisation_envelope(organisation), fence)
+        start, airborne = (0.0, 0.0, 0.0), False
+        found = env.step_violations(envelope, home, steps, start, airborne, None)
+    found += published_zones("steps")(organisation, home, steps, start, airborne)
+    return sorted(found, key=lambda v: v.index)
+
+
+def published_zones(check: str) -> Callable:
+    """The published zones' check named `check` (settings.PUBLISHED_ZONE_CHECKS: the zones
+    app builds on this one, so it is named there rather than imported)."""
+    return import_string(settings.PUBLISHED_ZONE_CHECKS[check])
 
 
 def with_fence(envelope: env.Envelope, fence: Mapping | None) -> env.Envelope:

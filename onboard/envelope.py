@@ -576,7 +576,7 @@ class StepViolation:
     violation: Violation
 
 
-def _walk(
+def walk(
     home: Sequence[float] | None,
     steps: Sequence[Mapping[str, Any]],
     start: NED | None,
@@ -610,7 +610,7 @@ def step_violations(
     every offending step at once.
     """
     found = []
-    for index, move, leg_start, flying in _walk(home, steps, start, airborne):
+    for index, move, leg_start, flying in walk(home, steps, start, airborne):
         violation = check(envelope, home, move, flying, battery, leg_start)
         if violation is not None:
             found.append(StepViolation(index, violation))
@@ -648,7 +648,7 @@ def steps_beyond_defaults(
 ) -> list[StepViolation]:
     """Every step of a mission flown from `start` whose move goes beyond the defaults."""
     found = []
-    for index, move, _, _ in _walk(home, steps, start, False):
+    for index, move, _, _ in walk(home, steps, start, False):
         beyond = beyond_defaults(move)
         if beyond is not None:
             found.append(StepViolation(index, beyond))

@@ -4,7 +4,8 @@ onboard (installed alone on drones, no Django) <- workers (broker, counters, out
 gateway, operations figures) <- fleet <- missions; telemetry, logs and pastview import
 fleet, workers and onboard; accounts imports fleet and workers, and nothing imports
 accounts but config (fleet reaches it through signals and settings); alerts listens to
-fleet and missions and reads accounts' recipients, and nothing imports alerts but config. Every import statement counts, including ones inside
+fleet and missions and reads accounts' recipients, and nothing imports alerts but config; zones builds on fleet, which names the zones' checks in settings.
+Every import statement counts, including ones inside
 functions; a handler named by a dotted path string (workers/dispatch.py) is not an import.
 Migrations and tests are left out. No Django needed: the sources are parsed, not imported.
 
@@ -30,10 +31,20 @@ DJANGO_APPS = (
     "accounts",
     "alerts",
     "tiles",
+    "zones",
 )
 PLAIN_PACKAGES = ("onboard", "firmware")
 PACKAGES = DJANGO_APPS + PLAIN_PACKAGES
-DOMAIN_APPS = ("fleet", "missions", "telemetry", "logs", "pastview", "accounts", "alerts")
+DOMAIN_APPS = (
+    "fleet",
+    "missions",
+    "telemetry",
+    "logs",
+    "pastview",
+    "accounts",
+    "alerts",
+    "zones",
+)
 # Our own top-level packages that onboard must not import: it runs on drones without them.
 NOT_FOR_ONBOARD = (*DOMAIN_APPS, "workers", "config", "firmware", "tests")
 

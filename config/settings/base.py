@@ -18,3 +18,4 @@ from .tasks import *  # noqa: F403
 from .telemetry import *  # noqa: F403
 from .terrain import *  # noqa: F403
 from .tiles import *  # noqa: F403
+from .zones import *  # noqa: F403

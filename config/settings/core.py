@@ -35,6 +35,7 @@ INSTALLED_APPS = [
     "accounts",
     "alerts",
     "tiles",
+    "zones",
     "terrain",
     # Swagger UI and Redoc from the installed package, never from a CDN.
     "drf_spectacular_sidecar",

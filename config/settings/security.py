@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from config.env import env
 
+from .zones import ZONES_MAX_FILE_BYTES
+
 AUTH_PASSWORD_VALIDATORS = [
     {"NAME": "django.contrib.auth.password_validation.UserAttributeSimilarityValidator"},
     {"NAME": "django.contrib.auth.password_validation.MinimumLengthValidator"},
@@ -27,6 +29,8 @@ REQUEST_BODY_MAX_BYTES = env.int("REQUEST_BODY_MAX_BYTES", 1024 * 1024)
 REQUEST_BODY_LIMITS = [
     # The admin's map-tile upload has its own limit (TILES_UPLOAD_MAX_BYTES, config/asgi.py).
     (r"^/admin/tiles/tileset/add/$", None),
+    # A published zone file (ZONES_MAX_FILE_BYTES, zones/admin.py) and its multipart framing.
+    (r"^/admin/zones/zone/import/$", ZONES_MAX_FILE_BYTES + 64 * 1024),
     # Flight logs stream to disk with their own limit (LOG_UPLOAD_MAX_BYTES, logs/asgi.py).
     (r"^/api/v1/logs/$", None),
     # A mission log to view (missions/logs.py reads up to 50 MiB) and its multipart framing.

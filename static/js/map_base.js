@@ -88,6 +88,8 @@
     addTiles(map, layerConfig());
     L.control.scale({ imperial: false, maxWidth: 140 }).addTo(map);
     addGrid(map);
+    // Published zones (map_zones.js), on every geographic map.
+    if (window.SkyhiveZones) window.SkyhiveZones.add(map);
     return map;
   }
 

@@ -1,0 +1,206 @@
+"""Published zones on every move: a leg (or a point) inside a zone's volume while it
+applies is refused, like the envelope's exclusion zones, within the zone's altitude band.
+
+Prohibited zones refuse always; zones requiring authorisation refuse unless the
+organisation recorded one that has not expired; conditional zones are shown, not refused
+(their conditions are in their message). Heights are metres above the drone's home
+(zones/bands.py places each band there). A drone already inside a zone's volume in the
+air may fly out of it (as with the geofence: wind, or a zone published meanwhile); its
+target is checked anyway. Time is now: a command is sent now, a mission starts now.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from datetime import datetime
+from functools import cached_property
+from typing import Any
+
+from django.db.models import Q
+from django.utils import timezone
+
+from onboard import envelope as env
+
+from .bands import Band
+from .models import Authorisation, Restriction, Zone
+from .windows import applies_at
+
+ZONE = "zone"
+ENFORCED = (Restriction.PROHIBITED, Restriction.AUTHORISATION_REQUIRED)
+
+
+@dataclass(frozen=True)
+class ZoneViolation(env.Violation):
+    """A move a published zone refuses; `code` is the API's error code."""
+
+    code: str = ZONE
+
+
+@dataclass(eq=False)
+class Volume:
+    """One zone as the checks see it: its shapes as an envelope of exclusions, and its
+    band about home."""
+
+    zone: Zone
+
+    @cached_property
+    def fence(self) -> env.Envelope:
+        polygons, circles = [], []
+        for shape in self.zone.shapes:
+            if shape["type"] == "polygon":
+                polygons.append(env.Polygon(False, tuple(tuple(p) for p in shape["points"])))
+            else:
+                circles.append(env.Circle(False, tuple(shape["center"]), shape["radius"]))
+        return env.Envelope(polygons=tuple(polygons), circles=tuple(circles))
+
+    @cached_property
+    def band(self) -> Band:
+        z = self.zone
+        return Band(z.lower_m, z.lower_ref, z.upper_m, z.upper_ref)
+
+    def covers(self, home: Sequence[float], point: env.NED) -> bool:
+        lower, upper = self.band.about_home()
+        return lower <= -point[2] <= upper and self.over(home, point)
+
+    def over(self, home: Sequence[float], point: env.NED) -> bool:
+        return env.local_fence_breach(self.fence, home, (point[0], point[1])) is not None
+
+    def crossed(self, home: Sequence[float], start: env.NED, end: env.NED) -> bool:
+        """Does the part of the leg within the band pass over the zone?"""
+        span = band_span(-start[2], -end[2], *self.band.about_home())
+        if span is None:
+            return False
+        a, b = (_along(start, end, t) for t in span)
+        if self.over(home, a) or self.over(home, b):
+            return True
+        return env.leg_breach(self.fence, home, a, b) is not None
+
+    def describe(self) -> str:
+        """`the published zone 'Name' (ID, prohibited, 0 m AGL – 60 m AGL …).` and, where
+        one would open it, that no authorisation is recorded."""
+        z = self.zone
+        kind = z.get_restriction_display().lower()
+        text = f"the published zone {z.name!r} ({z.identifier}, {kind}, {self.band.text()})."
+        if z.restriction == Restriction.AUTHORISATION_REQUIRED:
+            text += " No valid authorisation is recorded for it."
+        return text
+
+
+def band_span(h0: float, h1: float, lower: float, upper: float) -> tuple[float, float] | None:
+    """The fractions (t0, t1) of a leg climbing linearly from h0 to h1 where its height is
+    within [lower, upper], or None."""
+    if h0 == h1:
+        return (0.0, 1.0) if lower <= h0 <= upper else None
+    ends = sorted(((lower - h0) / (h1 - h0), (upper - h0) / (h1 - h0)))
+    t0, t1 = max(ends[0], 0.0), min(ends[1], 1.0)
+    return (t0, t1) if t0 <= t1 else None
+
+
+def _along(start: env.NED, end: env.NED, t: float) -> env.NED:
+    return tuple(s + t * (e - s) for s, e in zip(start, end, strict=True))  # type: ignore[return-value]
+
+
+# -- which zones ---------------------------------------------------------------------------
+
+
+def candidates(
+    organisation: Any, home: Sequence[float], points: Sequence[env.NED], at: datetime
+) -> list[Volume]:
+    """The enforced zones of the organisation (and site-wide ones) near the points, that
+    apply at `at` and that the organisation holds no valid authorisation for."""
+    latlons = [env.ned_to_latlon(p[0], p[1], home) for p in points]
+    lats, lons = [p[0] for p in latlons], [p[1] for p in latlons]
+    zones = Zone.objects.filter(
+        Q(organisation=organisation) | Q(organisation__isnull=True),
+        restriction__in=ENFORCED,
+        min_lat__lte=max(lats),
+        max_lat__gte=min(lats),
+        min_lon__lte=max(lons),
+        max_lon__gte=min(lons),
+    )
+    zones = [z for z in zones if applies_at(z.applicability, at)]
+    authorised = authorised_zone_ids(organisation, [z.pk for z in zones], at)
+    return [Volume(z) for z in zones if z.pk not in authorised]
+
+
+def authorised_zone_ids(organisation: Any, zone_ids: Sequence[int], at: datetime) -> set[int]:
+    if not zone_ids:
+        return set()
+    valid = Authorisation.objects.filter(
+        organisation=organisation, zone_id__in=zone_ids, expires_at__gt=at
+    )
+    return set(valid.values_list("zone_id", flat=True))
+
+
+# -- the checks ------------------------------------------------------------------------------
+
+
+def leg_violation(
+    volumes: Sequence[Volume],
+    home: Sequence[float],
+    start: env.NED | None,
+    move: env.Move,
+    airborne: bool,
+) -> ZoneViolation | None:
+    """The first zone the move's target is inside of, or its leg crosses."""
+    if move.kind == "land":
+        return None  # landing is always allowed, as by the envelope
+    end = move.ned
+    if move.kind == "takeoff":
+        start = (end[0], end[1], start[2] if start else 0.0)
+    for volume in volumes:
+        if volume.covers(home, end):
+            return ZoneViolation(ZONE, f"The target is inside {volume.describe()}")
+        if start is None or (airborne and volume.covers(home, start)):
+            continue
+        if volume.crossed(home, start, end):
+            leg = (env.ned_to_latlon(*start[:2], home), env.ned_to_latlon(*end[:2], home))
+            return ZoneViolation(
+                ZONE, f"The straight leg to the target crosses {volume.describe()}", leg
+            )
+    return None
+
+
+def move_violation(
+    organisation: Any,
+    home: Sequence[float] | None,
+    move: env.Move,
+    start: env.NED | None,
+    airborne: bool,
+    at: datetime | None = None,
+) -> ZoneViolation | None:
+    """What fleet/envelopes.py asks for a command's move (from `start`, the drone's
+    current target), at `at` (now)."""
+    if home is None or move.kind == "land":
+        return None
+    points = [move.ned] if start is None else [start, move.ned]
+    volumes = candidates(organisation, home, points, at or timezone.now())
+    return leg_violation(volumes, home, start, move, airborne)
+
+
+def step_violations(
+    organisation: Any,
+    home: Sequence[float] | None,
+    steps: Sequence[Mapping[str, Any]],
+    start: env.NED | None,
+    airborne: bool,
+    at: datetime | None = None,
+) -> list[env.StepViolation]:
+    """Every mission step whose move or leg a published zone refuses, walked as the
+    envelope walks them (onboard/envelope.py `walk`)."""
+    if home is None:
+        return []
+    legs = list(env.walk(home, steps, start, airborne))
+    points = [p for _, move, leg_start, _ in legs for p in (move.ned, leg_start) if p]
+    if not points:
+        return []
+    volumes = candidates(organisation, home, points, at or timezone.now())
+    if not volumes:
+        return []
+    found = []
+    for index, move, leg_start, flying in legs:
+        violation = leg_violation(volumes, home, leg_start, move, flying)
+        if violation is not None:
+            found.append(env.StepViolation(index, violation))
+    return found
