@@ -17,13 +17,16 @@ from rest_framework.response import Response
 from fleet.models import Membership, Organisation, Role
 from fleet.permissions import OrganisationRole
 from fleet.tenancy import acting_organisation
-from logs import services, uploads
+from logs import reports, services, uploads
+from logs import spectrum as spectra
+from logs.checks import STATUSES
 from logs.importers import HEAD_BYTES, pick_importer
 from logs.importers.base import LogFormatError
 from logs.models import FlightLog, LogStatus
 from logs.store import LogStore
 
 MAX_TIMELINE_BINS = 4000
+MAX_SPECTRUM_SERIES = 6
 
 
 class NotReady(exceptions.APIException):
@@ -51,6 +54,36 @@ SERIES_INFO = inline_serializer(
         "kind": serializers.CharField(),
         "time_source": serializers.CharField(),
         "labels": serializers.DictField(child=serializers.CharField(), allow_null=True),
+    },
+)
+CHECK_RESULT = inline_serializer(
+    "FlightLogCheck",
+    {
+        "name": serializers.CharField(),
+        "status": serializers.ChoiceField(list(STATUSES)),
+        "value": serializers.FloatField(allow_null=True),
+        "unit": serializers.CharField(),
+        "threshold": serializers.DictField(allow_null=True),
+        "t": serializers.FloatField(
+            allow_null=True, help_text="Seconds since the log's start where it shows."
+        ),
+        "reason": serializers.CharField(),
+        "series": serializers.ListField(child=serializers.CharField()),
+        "window": serializers.ListField(child=serializers.FloatField(), allow_null=True),
+        "link": serializers.CharField(help_text="The viewer at that moment, on that plot."),
+    },
+)
+SPECTRUM = inline_serializer(
+    "FlightLogSpectrumSeries",
+    {
+        "path": serializers.CharField(),
+        "unit": serializers.CharField(),
+        "fs": serializers.FloatField(),
+        "nperseg": serializers.IntegerField(),
+        "segments": serializers.IntegerField(),
+        "segments_available": serializers.IntegerField(),
+        "frequency": NUMBERS,
+        "psd": NUMBERS,
     },
 )
 
@@ -399,3 +432,91 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
         store = self._store(self.get_object())
         points = _points(request.query_params.get("points"), default=4000) or 4000
         return Response(services.attitude(store, points=points))
+
+    @extend_schema(
+        responses=inline_serializer(
+            "FlightLogChecks",
+            {
+                "checked_at": serializers.DateTimeField(),
+                "airframe": serializers.CharField(allow_null=True),
+                "checks": serializers.ListField(child=CHECK_RESULT),
+            },
+        )
+    )
+    @action(detail=True, methods=["get"])
+    def checks(self, request: Request, pk: str | None = None) -> Response:
+        """The log's health report: each automatic check (vibration, clipping, gps,
+        battery_sag, rc_loss, motor_imbalance, estimator, failsafe, cpu_load,
+        logging_dropouts) with its status, figure, threshold, the time it shows and a
+        link opening the viewer there (docs/log-checks.md)."""
+        log = self.get_object()
+        store = self._store(log)
+        report = reports.report_of(log, store)
+        checks = [{**c, "link": reports.viewer_link(log, c)} for c in report["checks"]]
+        return Response(
+            {"checked_at": report["checked_at"], "airframe": report["airframe"], "checks": checks}
+        )
+
+    @extend_schema(
+        parameters=[
+            _query(
+                "series",
+                OpenApiTypes.STR,
+                f"Series paths, comma-separated (at most {MAX_SPECTRUM_SERIES}).",
+                required=True,
+            ),
+            START,
+            END,
+            _query(
+                "nperseg",
+                OpenApiTypes.INT,
+                f"Samples per Welch segment, {spectra.MIN_NPERSEG}-{spectra.MAX_NPERSEG} "
+                f"(default {spectra.DEFAULT_NPERSEG}).",
+            ),
+        ],
+        responses=inline_serializer(
+            "FlightLogSpectrum",
+            {
+                "start": serializers.FloatField(allow_null=True),
+                "end": serializers.FloatField(allow_null=True),
+                "series": serializers.ListField(child=SPECTRUM),
+            },
+        ),
+    )
+    @action(detail=True, methods=["get"])
+    def spectrum(self, request: Request, pk: str | None = None) -> Response:
+        """`?series=&start=&end=&nperseg=` → the power spectral density (Welch) of each
+        series over the window (the whole log when absent); at most
+        LOGS_SPECTRUM_MAX_SEGMENTS segments are read, spread over the window."""
+        store = self._store(self.get_object())
+        paths = [p for p in (request.query_params.get("series") or "").split(",") if p]
+        if not paths:
+            raise exceptions.ValidationError({"series": ["Name the series to analyse."]})
+        if len(paths) > MAX_SPECTRUM_SERIES:
+            raise exceptions.ValidationError(
+                {"series": [f"At most {MAX_SPECTRUM_SERIES} series at once."]}
+            )
+        for path in paths:
+            if path not in store.index["series"]:
+                raise exceptions.NotFound(f"There is no series {path!r} in this log.")
+        start, end = _seconds(request, "start"), _seconds(request, "end")
+        raw = request.query_params.get("nperseg")
+        try:
+            nperseg = int(raw) if raw not in (None, "") else spectra.DEFAULT_NPERSEG
+        except ValueError:
+            raise exceptions.ValidationError({"nperseg": ["Must be a whole number."]}) from None
+        out = []
+        for path in paths:
+            try:
+                result = spectra.spectrum(
+                    store,
+                    path,
+                    start=start,
+                    end=end,
+                    nperseg=nperseg,
+                    max_segments=int(settings.LOGS_SPECTRUM_MAX_SEGMENTS),
+                )
+            except spectra.SpectrumError as exc:
+                raise exceptions.ValidationError({"series": [str(exc)]}) from None
+            out.append(result.to_dict())
+        return Response({"start": start, "end": end, "series": out})

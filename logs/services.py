@@ -25,7 +25,7 @@ from django.db import transaction
 from django.utils import timezone
 from django.utils.module_loading import import_string
 
-from logs import attempts, units
+from logs import attempts, reports, units
 from logs.analysis import trajectory_of, values_at, values_tree
 from logs.importers.base import Limits, LogFormatError
 from logs.models import FlightLog, LogStatus
@@ -142,9 +142,10 @@ def process_log(log_id: str, task_id: str | None = None) -> str:
 def _import(log: FlightLog) -> str:
     importer = import_string(settings.LOGS_IMPORT_FUNCTION)
     try:
-        index = importer(
+        store = importer(
             log.upload_path, log.store_path, limits=limits(), progress=_progress_reporter(log)
-        ).index
+        )
+        index = store.index
     except LogFormatError as exc:
         fail(log, str(exc))
         return LogStatus.FAILED
@@ -158,6 +159,7 @@ def _import(log: FlightLog) -> str:
         logger.exception("importing log %s (%s) failed", log.pk, log.name)
         fail(log, GENERIC_FAILURE)
         return LogStatus.FAILED
+    _check(log, store)
     done = _finish(
         log,
         status=LogStatus.READY,
@@ -172,6 +174,15 @@ def _import(log: FlightLog) -> str:
         return "deleted"
     publish(log, {"type": "status", "status": LogStatus.READY, "progress": 1.0})
     return LogStatus.READY
+
+
+def _check(log: FlightLog, store: LogStore) -> None:
+    """The log's health report (logs.reports); a check that cannot run never fails the
+    import, and the report is made again when first asked for."""
+    try:
+        reports.check(log, store)
+    except Exception:
+        logger.exception("checking log %s (%s) failed", log.pk, log.name)
 
 
 def sweep_stuck() -> dict[str, list[str]]:

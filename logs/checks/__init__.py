@@ -9,58 +9,26 @@ one result per check, whatever the log's format; a check whose topics the log la
 
 from __future__ import annotations
 
-import logging
-from collections.abc import Callable
+from importlib import import_module
 
-from logs.checks import sensors, vehicle
-from logs.checks.base import NOT_CHECKED, STATUSES, LogView, Result, not_checked
-from logs.checks.thresholds import DEFAULTS, ThresholdError, merged
-from logs.store import LogStore
-
-logger = logging.getLogger(__name__)
-
-CHECKS: dict[str, Callable[[LogView, dict], Result]] = {
-    "vibration": sensors.vibration,
-    "clipping": sensors.clipping,
-    "gps": sensors.gps,
-    "battery_sag": vehicle.battery_sag,
-    "rc_loss": vehicle.rc_loss,
-    "motor_imbalance": vehicle.motor_imbalance,
-    "estimator": sensors.estimator,
-    "failsafe": vehicle.failsafe,
-    "cpu_load": vehicle.cpu_load,
-    "logging_dropouts": vehicle.logging_dropouts,
+# Names load lazily, as in `logs`: the thresholds (and the settings check that reads
+# them when Django starts) need no numpy.
+_EXPORTS = {
+    "CHECKS": "logs.checks.runner",
+    "MIN_DURATION_S": "logs.checks.runner",
+    "run_checks": "logs.checks.runner",
+    "NOT_CHECKED": "logs.checks.base",
+    "STATUSES": "logs.checks.base",
+    "Result": "logs.checks.base",
+    "DEFAULTS": "logs.checks.thresholds",
+    "ThresholdError": "logs.checks.thresholds",
+    "merged": "logs.checks.thresholds",
 }
-# Under this much recorded time no check can tell anything (our choice: a second).
-MIN_DURATION_S = 1.0
 
-__all__ = [
-    "CHECKS",
-    "DEFAULTS",
-    "NOT_CHECKED",
-    "STATUSES",
-    "Result",
-    "ThresholdError",
-    "merged",
-    "run_checks",
-]
+__all__ = sorted(_EXPORTS)
 
 
-def run_checks(store: LogStore, thresholds: dict | None = None) -> list[dict]:
-    """Every check on one log, in CHECKS order, as JSON-ready dicts. `thresholds` is a
-    full set (`merged(...)`); the defaults when None. A check that raises is reported
-    as not_checked with the error's kind, and the others still run."""
-    levels = thresholds or merged()
-    view = LogView(store)
-    if view.duration < MIN_DURATION_S:
-        reason = f"log too short ({max(view.duration, 0.0):.2f} s of records)"
-        return [not_checked(name, reason).to_dict() for name in CHECKS]
-    results = []
-    for name, check in CHECKS.items():
-        try:
-            result = check(view, levels)
-        except Exception as exc:  # noqa: BLE001 - one check's bug must not hide the others
-            logger.exception("log check %s failed on %s", name, store.directory)
-            result = not_checked(name, f"the check could not read this log ({type(exc).__name__})")
-        results.append(result.to_dict())
-    return results
+def __getattr__(name: str) -> object:
+    if name in _EXPORTS:
+        return getattr(import_module(_EXPORTS[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -28,15 +28,17 @@ DEFAULTS: dict[str, dict] = {
     "clipping": {"warning": 0.0, "fail": 100.0},
     # [PX4 EKF2]: EKF2_REQ_NSATS defaults to 6 satellites for GPS use; [PX4 Flight Review]
     # jamming indicator "around or below 40", "80 or higher are too high". A fix lost
-    # (fix type below 3D) or no GPS message for `outage_s` while armed is an outage.
+    # (fix type below 3D) or no GPS message for `outage_s` while armed is an outage;
+    # the HDOP level and the outage length are our choice.
     "gps": {
         "min_satellites": 6.0,
         "jamming": {"warning": 40.0, "fail": 80.0},
         "max_hdop": 2.0,
         "outage_s": 1.0,
     },
-    # [PX4 Battery Estimation]: BAT1_V_EMPTY defaults to 3.5 V per cell (warning below it
-    # under load); [ArduPilot Battery Failsafe] cites 3.3 V per cell as critical for LiPo.
+    # [PX4 Battery Estimation]: BAT_V_EMPTY defaults to 3.5 V per cell (under load); so
+    # does ArduCopter's default low-battery voltage (10.5 V, a 3S pack). Warning below it;
+    # the fail level, 0.2 V lower where a LiPo's voltage falls steeply, is our choice.
     # A cell count is read from the log, else guessed from the first voltage at 4.25 V
     # per cell at most (a full LiPo cell is 4.2 V).
     "battery_sag": {"warning": 3.5, "fail": 3.3, "full_cell_v": 4.25},

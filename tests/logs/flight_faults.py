@@ -44,8 +44,14 @@ def _during(t: np.ndarray, fault: str, faults: set[str]) -> np.ndarray:
     return (t >= FAULT_AT[fault]) & (t < FAULT_AT[fault] + FAULT_FOR[fault])
 
 
+def _disarm_at(t: np.ndarray) -> float:
+    """DISARM_AT in a flight of SECONDS; as long before the end in a longer one."""
+    step = float(t[1] - t[0]) if len(t) > 1 else 0.0
+    return float(t[-1]) + step - (SECONDS - DISARM_AT) if len(t) else DISARM_AT
+
+
 def _armed(t: np.ndarray) -> np.ndarray:
-    return (t >= ARM_AT) & (t < DISARM_AT)
+    return (t >= ARM_AT) & (t < _disarm_at(t))
 
 
 def _motors(t: np.ndarray, faults: set[str], rng: np.random.Generator) -> np.ndarray:
@@ -63,7 +69,7 @@ def _cell_volts(t: np.ndarray, faults: set[str]) -> np.ndarray:
     """4.1 V per cell at rest, falling from 3.95 to 3.75 V in flight; 3.2 V in the sag."""
     v = np.full(len(t), 4.1)
     armed = _armed(t)
-    v[armed] = 3.95 - 0.2 * (t[armed] - ARM_AT) / (DISARM_AT - ARM_AT)
+    v[armed] = 3.95 - 0.2 * (t[armed] - ARM_AT) / (_disarm_at(t) - ARM_AT)
     v[_during(t, "battery", faults)] = 3.2
     return v * CELLS
 
@@ -80,16 +86,28 @@ def _gps_ok(t: np.ndarray, faults: set[str]) -> np.ndarray:
 # --- PX4 ULog ---
 
 
-def _topic(hz: float, fields: list[tuple[str, str]]) -> tuple[np.ndarray, np.ndarray]:
-    t = _times(hz)
+def _ulog_topic(
+    hz: float, fields: list[tuple[str, str]], seconds: float = SECONDS
+) -> tuple[np.ndarray, np.ndarray]:
+    t = _times(hz, seconds)
     arr = np.zeros(len(t), dtype=np.dtype([("timestamp", "<u8"), *fields]))
     arr["timestamp"] = np.round(t * 1e6).astype(np.uint64)
     return t, arr
 
 
-def px4_ulog(path: Path, faults: set[str] = frozenset(), *, topics: set[str] | None = None) -> Path:
+def px4_ulog(
+    path: Path,
+    faults: set[str] = frozenset(),
+    *,
+    topics: set[str] | None = None,
+    seconds: float = SECONDS,
+) -> Path:
     """A PX4 (v1.13-style topics) hover with the given faults; `topics` keeps only those."""
     rng = np.random.default_rng(5)
+
+    def _topic(hz: float, fields: list[tuple[str, str]]) -> tuple[np.ndarray, np.ndarray]:
+        return _ulog_topic(hz, fields, seconds)
+
     out: dict[str, np.ndarray] = {}
 
     t, a = _topic(
