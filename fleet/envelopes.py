@@ -19,6 +19,7 @@ from django.utils.module_loading import import_string
 
 from onboard import envelope as env
 from onboard import protocol
+from terrain import guard as terrain
 from workers import outbox
 
 from .models import Drone, Organisation
@@ -205,6 +206,7 @@ def check_command(
     violation = violation or published_zones("move")(
         drone.organisation, home, move, base, drone.airborne
     )
+    violation = violation or terrain.move_violation(drone.organisation_id, home, base, move)
     if violation is not None:
         raise OutsideEnvelope(violation)
     beyond = None if confirmed else env.beyond_defaults(move)
@@ -239,6 +241,7 @@ def step_violations(
         start, airborne = (0.0, 0.0, 0.0), False
         found = env.step_violations(envelope, home, steps, start, airborne, None)
     found += published_zones("steps")(organisation, home, steps, start, airborne)
+    found += terrain.step_violations(organisation.pk, home, steps, start)
     return sorted(found, key=lambda v: v.index)
 
 
@@ -280,6 +283,21 @@ def steps_beyond_defaults(
         return env.steps_beyond_defaults(home, steps, current_target(drone, home))
     home = home if home is not None else plan_home(organisation, steps)
     return env.steps_beyond_defaults(home, steps, (0.0, 0.0, 0.0))
+
+
+def terrain_warnings(
+    organisation: Organisation,
+    steps: Sequence[Mapping[str, Any]],
+    drone: Drone | None = None,
+    home: Sequence | None = None,
+) -> list[dict]:
+    """Where the terrain clearance of a mission could not be checked (no terrain, voids),
+    walked as step_violations does."""
+    if drone is not None:
+        home = home_of(drone)
+        return terrain.plan_warnings(organisation.pk, home, steps, current_target(drone, home))
+    home = home if home is not None else plan_home(organisation, steps)
+    return terrain.plan_warnings(organisation.pk, home, steps, (0.0, 0.0, 0.0))
 
 
 def confirm_steps(

@@ -323,7 +323,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             )
         except MissionError as exc:
             raise refuse(exc) from None
-        return Response(MissionDetailSerializer(mission).data, status=status.HTTP_201_CREATED)
+        return Response(_created(mission), status=status.HTTP_201_CREATED)
 
     @extend_schema(request=StartRequest, responses=MissionDetailSerializer)
     @action(detail=True, methods=["post"], throttle_classes=MISSION_START_THROTTLES)
@@ -420,6 +420,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             {
                 "violations": [_violation_row(v) for v in found],
                 "beyond_defaults": [_violation_row(v) for v in beyond],
+                "terrain_warnings": envelopes.terrain_warnings(organisation, steps, drone),
                 "envelope": envelopes.envelope_body(organisation),
             }
         )
@@ -558,7 +559,15 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             )
         except (planning.PlanningError, MissionError) as exc:
             raise refuse(exc) from None
-        return Response(MissionDetailSerializer(mission).data, status=status.HTTP_201_CREATED)
+        return Response(_created(mission), status=status.HTTP_201_CREATED)
+
+
+def _created(mission: Mission) -> dict:
+    """A new mission, and where its terrain clearance could not be checked
+    (`terrain_warnings`: the envelope's other limits still held)."""
+    steps = list(mission.steps.order_by("index").values("command", "params"))
+    warnings = envelopes.terrain_warnings(mission.organisation, steps, home=mission.plan_home)
+    return {**MissionDetailSerializer(mission).data, "terrain_warnings": warnings}
 
 
 def _for_drone(request: Request, operation: Any) -> Any:

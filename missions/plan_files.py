@@ -8,6 +8,7 @@ geoFence is the organisation's fence together with the mission's own.
 Import: every item goes through the flight envelope as any mission does. The plan's
 geoFence becomes the mission's own fence (checked again at start), or, asked for with
 `fence="organisation"` by an admin, the organisation's fence (its other limits kept).
+Heights above terrain are turned into heights above home with the imported terrain.
 Anything refused leaves nothing behind: no mission, no envelope change.
 """
 
@@ -23,6 +24,7 @@ from fleet.models import Membership, Organisation, Role
 from missions.creation import create_mission
 from missions.errors import MissionError
 from onboard.envelope import EnvelopeError
+from terrain import elevation
 
 from . import qgc_plan
 from .models import Assignment, Mission
@@ -96,7 +98,7 @@ def import_document(
     """A draft mission from a plan; PlanningError / MissionError say what is wrong."""
     if fence_scope not in FENCE_SCOPES:
         raise MissionError("fence", f"must be one of {', '.join(FENCE_SCOPES)}")
-    plan = qgc_plan.import_plan(source)
+    plan = qgc_plan.import_plan(source, terrain=elevation)
     has_fence = bool(plan.geofence["polygons"] or plan.geofence["circles"])
     with transaction.atomic():
         if has_fence and fence_scope == "organisation":

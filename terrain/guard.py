@@ -173,8 +173,16 @@ def assess(
 def mission_moves(
     home: Sequence[float] | None, steps: Sequence[Mapping[str, Any]], start: env.NED | None
 ) -> list[Walked]:
-    """A mission's moves as the envelope walks them (fleet.envelopes.step_violations)."""
-    return [(i, move, leg_start) for i, move, leg_start, _ in env.walk(home, steps, start, False)]
+    """A mission's moves flown from `start`, each leg from the previous target, as the
+    envelope walks them (onboard.envelope.step_violations)."""
+    moves: list[Walked] = []
+    target = start
+    for index, step in enumerate(steps):
+        move = env.resolve(step["command"], step.get("params") or {}, target, target, home)
+        if move is not None:
+            moves.append((index, move, target))
+            target = move.ned
+    return moves
 
 
 def step_violations(
