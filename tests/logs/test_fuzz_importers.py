@@ -7,8 +7,8 @@ within the bounds docs/security.md states for the importers: CPU time at most
 TIME_FLOOR_S plus TIME_PER_MB_S per MB of input, and Python memory (tracemalloc, numpy
 included) at most MEMORY_FLOOR_BYTES plus MEMORY_PER_BYTE times the input.
 
-Every random generator starts from RANDOM_START, so a failure repeats; the file costs
-under a minute of CPU.
+Every random generator starts from RANDOM_START (and the part's number), so a failure
+repeats; the file costs about three minutes of CPU, spread over the parallel workers.
 """
 
 from __future__ import annotations
@@ -104,7 +104,15 @@ def within_bounds(read: Callable[[Path], object], path: Path) -> tuple[object, f
     return outcome, spent, peak
 
 
-def fuzz(read: Callable[[Path], object], original: bytes, *, count: int, suffix: str, tmp_path):  # type: ignore[no-untyped-def]
+def fuzz(
+    read: Callable[[Path], object],
+    original: bytes,
+    *,
+    count: int,
+    suffix: str,
+    tmp_path,
+    part: int = 0,
+):  # type: ignore[no-untyped-def]
     """Every mutant imported or cleanly refused, within the time and memory bounds."""
     outcomes: Counter[str] = Counter()
     warm = tmp_path / f"original{suffix}"
@@ -115,7 +123,9 @@ def fuzz(read: Callable[[Path], object], original: bytes, *, count: int, suffix:
         pass
     tracemalloc.start()
     try:
-        for number, data in enumerate(mutants(original, count, RANDOM_START + len(suffix))):
+        for number, data in enumerate(
+            mutants(original, count, RANDOM_START + len(suffix) + 1000 * part)
+        ):
             path = tmp_path / f"case{suffix}"
             path.write_bytes(data)
             outcome, spent, peak = within_bounds(read, path)
@@ -177,23 +187,21 @@ def _fixture(kind: str, directory: Path) -> bytes:
     return path.read_bytes()
 
 
-@pytest.mark.parametrize(
-    ("kind", "count"),
-    [
-        # Counts keep the whole file under a minute of CPU: a .tlog case costs ~10 ms
-        # (pymavlink decodes in Python), a bag ~40 ms (rosbags builds its type store per file).
-        ("ulg", 1000),
-        ("bin", 1000),
-        ("tlog", 600),
-        ("bz2.bag", 400),
-        ("lz4.bag", 400),
-        ("dfi", 1500),
-        ("json", 1500),
-    ],
-)
-def test_every_mutant_of_a_log_imports_or_is_refused_within_bounds(tmp_path, kind, count):
+# Cases per importer, in parts of FUZZ_PART (each its own seed) so parallel workers share
+# them: a .tlog case costs ~10 ms (pymavlink decodes in Python), a bag ~40 ms (rosbags
+# builds its type store per file), the others a few ms.
+FUZZ_CASES = 2000
+FUZZ_PART = 500
+FUZZ_KINDS = ["ulg", "bin", "tlog", "bz2.bag", "lz4.bag", "dfi", "json"]
+
+
+@pytest.mark.parametrize("part", range(FUZZ_CASES // FUZZ_PART))
+@pytest.mark.parametrize("kind", FUZZ_KINDS)
+def test_every_mutant_of_a_log_imports_or_is_refused_within_bounds(tmp_path, kind, part):
     original = _fixture(kind, tmp_path)
-    outcomes = fuzz(_import, original, count=count, suffix=f".{kind}", tmp_path=tmp_path)
+    outcomes = fuzz(
+        _import, original, count=FUZZ_PART, suffix=f".{kind}", tmp_path=tmp_path, part=part
+    )
     # The mutations both keep some files readable and break others.
     assert outcomes["imported"] and outcomes["refused"], outcomes
 

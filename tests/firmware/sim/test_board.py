@@ -73,13 +73,23 @@ def test_objects_stream_at_their_update_periods_in_simulated_time(board):
     ground = RawGround(board.pty_path)
     ground.connect()
     ground.frames.clear()
-    ground.pump(1.0)  # ten simulated seconds at time scale 10
+    # Ten simulated seconds (one at time scale 10), measured on the board's own clock: from
+    # one PositionActual (every 1 s simulated) to the tenth after it, however loaded the host.
+    # The ground keeps its side of the link alive meanwhile, as a real one does.
+    positions = []
+    deadline = time.monotonic() + 20.0
+    while len(positions) < 11 and time.monotonic() < deadline:
+        ground.send(CODEC.encode_object("GCSTelemetryStats", GCS | {"Status": "Connected"}))
+        ground.pump(0.1)
+        positions = [i for i, f in enumerate(ground.frames) if f.name == "PositionActual"]
+    assert len(positions) >= 11, "the board sent too few PositionActual"
     counts = {}
-    for frame in ground.frames:
+    for frame in ground.frames[positions[0] : positions[10]]:
         counts[frame.name] = counts.get(frame.name, 0) + 1
-    assert 80 <= counts["AttitudeActual"] <= 110  # every 100 ms simulated
+    # Every 100 ms simulated; a loaded host may make the board skip a late period, as a
+    # real one skips an overrun, never send extra.
+    assert 80 <= counts["AttitudeActual"] <= 110
     assert 4 <= counts["GPSPosition"] <= 6  # every 2 s simulated
-    assert 8 <= counts["PositionActual"] <= 11  # every 1 s simulated
     gps = next(f for f in ground.frames if f.name == "GPSPosition").fields()
     assert gps["Status"] == "Fix3D" and gps["Satellites"] >= 7
     ground.close()
