@@ -471,7 +471,7 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
                 "nperseg",
                 OpenApiTypes.INT,
                 f"Samples per Welch segment, {spectra.MIN_NPERSEG}-{spectra.MAX_NPERSEG} "
-                f"(default {spectra.DEFAULT_NPERSEG}).",
+                f"(default {spectra.DEFAULT_NPERSEG}, halved until a short window holds one).",
             ),
         ],
         responses=inline_serializer(
@@ -502,7 +502,7 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
         start, end = _seconds(request, "start"), _seconds(request, "end")
         raw = request.query_params.get("nperseg")
         try:
-            nperseg = int(raw) if raw not in (None, "") else spectra.DEFAULT_NPERSEG
+            nperseg = int(raw) if raw not in (None, "") else None
         except ValueError:
             raise exceptions.ValidationError({"nperseg": ["Must be a whole number."]}) from None
         out = []

@@ -78,12 +78,14 @@ def spectrum(
     *,
     start: float | None = None,
     end: float | None = None,
-    nperseg: int = DEFAULT_NPERSEG,
+    nperseg: int | None = None,
     max_segments: int = DEFAULT_MAX_SEGMENTS,
 ) -> Spectrum:
     """The PSD of `path` between start and end (seconds on the log's clock, the whole
-    log when None). Raises SpectrumError when the series is not numeric or too short."""
-    if not MIN_NPERSEG <= nperseg <= MAX_NPERSEG:
+    log when None). Without `nperseg`, DEFAULT_NPERSEG samples a segment, fewer (a power
+    of two) for a short window. Raises SpectrumError when the series is not numeric or
+    too short."""
+    if nperseg is not None and not MIN_NPERSEG <= nperseg <= MAX_NPERSEG:
         raise SpectrumError(f"nperseg must be between {MIN_NPERSEG} and {MAX_NPERSEG}.")
     info = store.info(path)
     if info["kind"] not in ("int", "double"):
@@ -94,6 +96,10 @@ def spectrum(
         None if end is None else math.ceil(end * NS),
     )
     n = len(t_all)
+    if nperseg is None:
+        nperseg = DEFAULT_NPERSEG
+        while nperseg > n and nperseg > MIN_NPERSEG:
+            nperseg //= 2
     if n < nperseg:
         raise SpectrumError(
             f"{path} has {n} samples in this window; a spectrum needs at least {nperseg}."

@@ -116,7 +116,7 @@ def test_the_spectrum_of_any_series_over_a_window(world_tx, motor_log):
         ({"series": "sensor_combined/accelerometer_m_s2[2]", "start": "nan"}, 400, "start"),
         ({"series": ",".join(["sensor_combined/accelerometer_m_s2[2]"] * 7)}, 400, "series"),
         (
-            {"series": "sensor_combined/accelerometer_m_s2[2]", "start": 10, "end": 10.5},
+            {"series": "sensor_combined/accelerometer_m_s2[2]", "start": 10, "end": 10.05},
             400,
             "series",
         ),

@@ -71,6 +71,13 @@ def test_bad_requests_are_refused(store):
     with pytest.raises(SpectrumError, match="nperseg"):
         spectrum(store, "imu/accel", nperseg=8)
     with pytest.raises(SpectrumError, match="at least 256"):
-        spectrum(store, "imu/accel", start=10, end=10.1)
+        spectrum(store, "imu/accel", start=10, end=10.1, nperseg=256)
+    with pytest.raises(SpectrumError, match="at least 16"):
+        spectrum(store, "imu/accel", start=10, end=10.02)
+
+
+def test_a_short_window_gets_shorter_segments(store):
+    short = spectrum(store, "imu/accel", start=10, end=10.5)  # 201 samples
+    assert short.nperseg == 128 and short.segments == 2
     with pytest.raises(KeyError):
         spectrum(store, "imu/nothing")
