@@ -14,6 +14,12 @@ if (viewers.length === 1) {
     applyHash(viewers[0]);
     followView(viewers[0], document.getElementById("share-url"));
   });
+  // A health check's link on this page moves the viewer to its moment and plot.
+  window.addEventListener("hashchange", () => {
+    if (!viewers[0].state) return;
+    applyHash(viewers[0]);
+    viewers[0].root.querySelector(".lv-multi")?.scrollIntoView({ block: "center" });
+  });
 }
 
 // Comparison: a cursor moved in one log moves the others to the same time since start.

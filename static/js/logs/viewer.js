@@ -2,9 +2,11 @@
 // plots, multi-plot, map and 3D attitude around one TimeState, and the replay controls.
 
 import { escapeHtml, getJSON, watchProgress } from "./api.js";
+import { HealthReport } from "./health.js";
 import { MapView } from "./map.js";
 import { Chart } from "./plots.js";
 import { Replay } from "./replay.js";
+import { SpectrumView } from "./spectrum.js";
 import { formatDuration, PALETTE, TimeState } from "./state.js";
 import { Timeline } from "./timeline.js";
 import { ValuesTree } from "./tree.js";
@@ -85,6 +87,7 @@ export class LogViewer extends EventTarget {
     }
     this.part("processing").hidden = true;
     this.part("body").hidden = false;
+    this.health = new HealthReport(this.part("health"), this);
     this.bindToolbar();
     const plotted = new Promise((resolve) => this.addEventListener("plotted", resolve, { once: true }));
     this.buildQuickPlots();
@@ -129,6 +132,10 @@ export class LogViewer extends EventTarget {
       "zoom-selection": () => state.selection && state.setView(...state.selection),
       "clear-selection": () => state.setSelection(null),
       "zoom-reset": () => state.setView(state.start, state.end),
+      spectrum: () => {
+        this.spectrum ||= new SpectrumView(this.part("spectrum-card"), this);
+        this.spectrum.show(this.plotPaths().map((path) => this.multi.lines.find((l) => l.path === path) || { path }));
+      },
     };
     this.root.addEventListener("click", (event) => {
       const action = event.target.closest("[data-action]")?.dataset.action;

@@ -1,0 +1,55 @@
+"""The health report on a log's page in headless Chromium: first panel, coloured status per
+check, a finding's link moving the viewer to its moment and plot, and the spectrum."""
+
+from __future__ import annotations
+
+import pytest
+from playwright.sync_api import expect
+
+from tests.conftest import login
+from tests.logs.conftest import upload, wait_until_processed
+from tests.logs.flight_faults import FAULT_AT, px4_ulog
+from tests.logs.test_api import client_for
+
+pytestmark = [pytest.mark.browser, pytest.mark.e2e, pytest.mark.usefixtures("logs_settings")]
+
+
+def test_the_health_report_leads_the_page_and_its_links_open_the_finding(
+    world_tx, worker, live_logs, page, tmp_path
+):
+    client = client_for(world_tx.operator)
+    created = upload(client, px4_ulog(tmp_path / "sagging.ulg", {"battery"})).json()
+    assert wait_until_processed(client, created["id"])["status"] == "ready"
+    login(page, live_logs, "viewer")
+    page.goto(f"{live_logs.url}/logs/{created['id']}/")
+
+    viewer = page.locator("[data-log-viewer]")
+    health = viewer.locator('[data-part="health"]')
+    expect(health).to_have_attribute("data-loaded", "true", timeout=15_000)
+    # The report is the first thing in the viewer's body, above the replay toolbar.
+    first = viewer.locator('[data-part="body"] > *').first
+    expect(first).to_have_attribute("data-part", "health")
+    rows = health.locator("[data-check]")
+    expect(rows).to_have_count(10)
+    # Failures first, coloured; the rest pass.
+    expect(rows.first).to_have_attribute("data-check", "battery_sag")
+    expect(rows.first).to_have_class("lv-check bad")
+    expect(rows.first.locator(".badge")).to_have_text("fail")
+    expect(health.locator('[data-status="pass"]')).to_have_count(9)
+    expect(health.locator('[data-part="health-summary"]')).to_have_text("1 failed · 9 passed")
+
+    rows.first.locator("[data-check-link]").click()
+    expect(viewer.locator('[data-part="clock"]')).to_have_text("t = 00:45.000")
+    lines = viewer.locator('[data-part="lines"] tbody tr')
+    expect(lines.first).to_have_attribute("data-path", "battery_status/voltage_v")
+    view = page.evaluate("window.logViewers[0].state.view")
+    start = page.evaluate("window.logViewers[0].state.start")
+    assert view[0] - start < FAULT_AT["battery"] < view[1] - start
+
+    viewer.locator('[data-action="spectrum"]').click()
+    card = viewer.locator('[data-part="spectrum-card"]')
+    expect(card).to_have_attribute("data-loaded", "true", timeout=10_000)
+    expect(card.locator("canvas")).to_have_count(1)
+    expect(card.locator('[data-part="spectrum-note"]')).to_contain_text("10 Hz")
+    if shots := __import__("os").environ.get("LOGS_SCREENSHOTS"):
+        page.screenshot(path=f"{shots}/health.png", full_page=True)
