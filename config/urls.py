@@ -18,6 +18,7 @@ from fleet.control import ControlView
 from logs import urls as logs_urls
 from missions import api as missions_api
 from missions import survey_api
+from records import api as records_api
 from telemetry import views as operations_views
 
 from .health import health
@@ -30,6 +31,7 @@ def favicon(request: HttpRequest) -> HttpResponsePermanentRedirect:
 router = DefaultRouter()
 router.register("drones", fleet_api.DroneViewSet, basename="drone")
 router.register("missions", missions_api.MissionViewSet, basename="mission")
+router.register("flights", records_api.FlightViewSet, basename="flight")
 
 api_v1 = [
     path("me/", fleet_api.me, name="me"),
@@ -94,6 +96,7 @@ urlpatterns = [
     path("telemetry/", include("telemetry.urls")),
     path("pastview/", include("pastview.urls")),
     path("logs/", include("logs.urls")),
+    path("records/", include("records.urls")),
     path("operations/", operations_views.operations_page, name="operations"),
     path("", include("fleet.urls")),
 ]

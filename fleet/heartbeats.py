@@ -23,7 +23,7 @@ from workers import outbox
 
 from . import events
 from .models import ConnectionEvent, Drone
-from .signals import drones_came_online, drones_went_offline
+from .signals import drones_arming_changed, drones_came_online, drones_went_offline
 
 log = logging.getLogger(__name__)
 
@@ -43,7 +43,7 @@ WITH v AS (
         remaining float8, armed boolean, airborne boolean, mode text, mission jsonb, fc jsonb
     )
 ), old AS (
-    SELECT id, online FROM fleet_drone
+    SELECT id, online, armed FROM fleet_drone
     WHERE drone_id IN (SELECT drone_id FROM v) AND NOT credentials_revoked
     ORDER BY id FOR UPDATE
 )
@@ -53,7 +53,7 @@ UPDATE fleet_drone AS d SET
     airborne = v.airborne, flight_mode = v.mode, mission = v.mission, fc = v.fc
 FROM v, old
 WHERE d.drone_id = v.drone_id AND d.id = old.id
-RETURNING d.drone_id, d.id, d.organisation_id, old.online
+RETURNING d.drone_id, d.id, d.organisation_id, old.online, old.armed, d.armed
 """
 
 
@@ -191,7 +191,7 @@ def _store(heartbeats: list[Heartbeat], seen: datetime) -> list:
             ConnectionEvent(
                 drone_id=pk, kind=ConnectionEvent.Kind.ONLINE, at=seen, reason="heartbeat"
             )
-            for _drone_id, pk, _org, was_online in rows
+            for _drone_id, pk, _org, was_online, *_armed in rows
             if not was_online
         ]
         if came_online:
@@ -201,18 +201,37 @@ def _store(heartbeats: list[Heartbeat], seen: datetime) -> list:
 
 def _announce(rows: list, latest: dict[str, Heartbeat], seen: datetime) -> None:
     """Tell who listens: drones that came online, and the live fleet state (throttled)."""
-    back = [(drone_id, org) for drone_id, _pk, org, was_online in rows if not was_online]
+    back = [(drone_id, org) for drone_id, _pk, org, was_online, *_armed in rows if not was_online]
     if back:
         drones_came_online.send(
             sender=ConnectionEvent,
             organisation_ids={org for _drone_id, org in back},
             drone_ids=[drone_id for drone_id, _org in back],
         )
-    for drone_id, _pk, organisation_id, was_online in rows:
+    _announce_arming(rows, latest, seen)
+    for drone_id, _pk, organisation_id, was_online, *_armed in rows:
         if _throttle.allow(drone_id, force=not was_online):
             events.publish_nowait(
                 organisation_id, {"type": "drone", "drone": live_state(latest[drone_id], seen)}
             )
+
+
+def _announce_arming(rows: list, latest: dict[str, Heartbeat], seen: datetime) -> None:
+    """Tell who listens (flight records) which drones armed or disarmed, once stored."""
+    changes = [
+        (pk, armed, seen, _mission_of(latest[drone_id]))
+        for drone_id, pk, _org, _online, was_armed, armed in rows
+        if armed != was_armed
+    ]
+    if not changes:
+        return
+    for receiver, outcome in drones_arming_changed.send_robust(sender=Drone, changes=changes):
+        if isinstance(outcome, Exception):
+            log.error("arming change not taken by %s: %s", receiver, outcome)
+
+
+def _mission_of(heartbeat: Heartbeat) -> dict | None:
+    return None if heartbeat.mission is None else heartbeat.mission.to_dict()
 
 
 def handle_gear(drone_id: str, message: GearAnnouncement | GearReply) -> str | None:

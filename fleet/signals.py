@@ -11,6 +11,10 @@ drones_came_online = Signal()
 # Sent by the offline sweep after it marked drones offline. Arguments: drone_ids (list[str]).
 drones_went_offline = Signal()
 
+# Sent by the Drone Identifier after heartbeats showed drones arming or disarming.
+# Arguments: changes (list of (drone pk, armed: bool, seen: datetime, mission: dict | None)).
+drones_arming_changed = Signal()
+
 # Sent after an organisation's envelope was stored. Arguments: organisation, envelope (dict).
 envelope_changed = Signal()
 

@@ -27,6 +27,8 @@ if [ "$PROFILE" = test ]; then
   have_cmd chromium || [ -x /usr/bin/chromium ] || need+=(chromium)
   # The arming-switch sketch is linked for the Nano's ATmega328P in the firmware tests.
   have_cmd avr-g++ || need+=(gcc-avr avr-libc binutils-avr)
+  # The logbook PDF is read back by poppler, a reader independent of our writer.
+  have_cmd pdftoppm || need+=(poppler-utils)
 fi
 if [ ${#need[@]} -gt 0 ]; then
   log "installing OS packages: ${need[*]}"

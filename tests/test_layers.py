@@ -4,8 +4,11 @@ onboard (installed alone on drones, no Django) <- workers (broker, counters, out
 gateway, operations figures) <- fleet <- missions; telemetry, logs and pastview import
 fleet, workers and onboard; accounts imports fleet and workers, and nothing imports
 accounts but config (fleet reaches it through signals and settings); alerts listens to
-fleet and missions and reads accounts' recipients, and nothing imports alerts but config; zones builds on fleet, which names the zones' checks in settings.
-Every import statement counts, including ones inside
+fleet and missions and reads accounts' recipients, and nothing imports alerts but config and
+records (which lists the alerts raised during a flight); records listens to fleet and reads
+missions, and nothing imports records but config; zones builds on fleet, which names the
+zones' checks in settings; airspace builds on fleet (which names its checks in settings)
+and missions builds on airspace. Every import statement counts, including ones inside
 functions; a handler named by a dotted path string (workers/dispatch.py) is not an import.
 Migrations and tests are left out. No Django needed: the sources are parsed, not imported.
 
@@ -30,8 +33,10 @@ DJANGO_APPS = (
     "workers",
     "accounts",
     "alerts",
+    "records",
     "tiles",
     "zones",
+    "airspace",
 )
 PLAIN_PACKAGES = ("onboard", "firmware")
 PACKAGES = DJANGO_APPS + PLAIN_PACKAGES
@@ -43,7 +48,9 @@ DOMAIN_APPS = (
     "pastview",
     "accounts",
     "alerts",
+    "records",
     "zones",
+    "airspace",
 )
 # Our own top-level packages that onboard must not import: it runs on drones without them.
 NOT_FOR_ONBOARD = (*DOMAIN_APPS, "workers", "config", "firmware", "tests")
@@ -175,7 +182,17 @@ def test_no_app_imports_accounts() -> None:
 
 def test_nothing_but_config_imports_alerts() -> None:
     graph = import_graph()
-    found = [package for package in PACKAGES if "alerts" in graph[package]]
+    # records sits above alerts: a flight's record lists the alerts raised during it.
+    found = [p for p in PACKAGES if "alerts" in graph[p] and p != "records"]
     assert not found, "alerts is imported by:\n" + "\n".join(
         _shown(graph, package, "alerts") for package in found
+    )
+
+
+def test_nothing_but_config_imports_records() -> None:
+    """Flight records sit on top: they hear the fleet's signals and read the other apps."""
+    graph = import_graph()
+    found = [package for package in PACKAGES if "records" in graph[package]]
+    assert not found, "records is imported by:\n" + "\n".join(
+        _shown(graph, package, "records") for package in found
     )

@@ -34,6 +34,7 @@ INSTALLED_APPS = [
     "django_otp.plugins.otp_totp",
     "accounts",
     "alerts",
+    "records",
     "tiles",
     "zones",
     "terrain",

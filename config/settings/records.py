@@ -20,3 +20,6 @@ RECORDS_SAMPLE_BATCH = env.int("RECORDS_SAMPLE_BATCH", 5000)
 RECORDS_SETTLE_INTERVAL_S = env.float("RECORDS_SETTLE_INTERVAL_S", 30.0)
 # A logbook's CSV export holds at most this many flights (newest first).
 RECORDS_EXPORT_MAX_ROWS = env.int("RECORDS_EXPORT_MAX_ROWS", 10000)
+# A logbook's PDF export holds at most this many flights, a page each (built in memory,
+# a few kilobytes a page).
+RECORDS_PDF_MAX_FLIGHTS = env.int("RECORDS_PDF_MAX_FLIGHTS", 500)

@@ -9,6 +9,7 @@ from .core import REDIS_URL
 from .fleet import OFFLINE_SWEEP_INTERVAL_S
 from .logs import LOGS_SWEEP_INTERVAL_S
 from .missions import MISSIONS_RESUME_INTERVAL_S
+from .records import RECORDS_SETTLE_INTERVAL_S
 
 CELERY_BROKER_URL = env.str("CELERY_BROKER_URL", REDIS_URL)
 CELERY_RESULT_BACKEND = env.str("CELERY_RESULT_BACKEND", REDIS_URL)
@@ -71,4 +72,5 @@ CELERY_BEAT_SCHEDULE = {
         "missions.relieve_panic_stations", MISSIONS_RESUME_INTERVAL_S
     ),
     "logs.sweep_stuck": _every("logs.sweep_stuck", LOGS_SWEEP_INTERVAL_S),
+    "records.settle": _every("records.settle", RECORDS_SETTLE_INTERVAL_S),
 }
