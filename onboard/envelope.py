@@ -279,12 +279,22 @@ def _segments_cross(p1, p2, q1, q2) -> bool:  # type: ignore[no-untyped-def]
 
 
 def _self_intersects(ring: list[tuple[float, float]]) -> bool:
-    """Any two non-adjacent edges crossing (touching at a shared vertex is not crossing)."""
-    edges = [(ring[i], ring[(i + 1) % len(ring)]) for i in range(len(ring))]
-    for i in range(len(edges)):
-        for j in range(i + 2, len(edges)):
-            if i == 0 and j == len(edges) - 1:
-                continue
+    """Any two non-adjacent edges crossing (touching at a shared vertex is not crossing).
+
+    Edges are swept in order of their lowest first coordinate: only pairs whose extents
+    overlap along it are compared (others cannot cross), so a ring of n vertices costs
+    about n log n rather than n² comparisons.
+    """
+    count = len(ring)
+    edges = [(ring[i], ring[(i + 1) % count]) for i in range(count)]
+    order = sorted(range(count), key=lambda i: min(edges[i][0][0], edges[i][1][0]))
+    for position, i in enumerate(order):
+        top = max(edges[i][0][0], edges[i][1][0])
+        for j in order[position + 1 :]:
+            if min(edges[j][0][0], edges[j][1][0]) > top:
+                break
+            if abs(i - j) in (1, count - 1):
+                continue  # neighbours share a vertex
             if _segments_cross(*edges[i], *edges[j]):
                 return True
     return False

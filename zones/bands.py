@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-# The international foot, 0.3048 m exactly [ICAO Annex 5, table 3-3].
+# The foot, 0.3048 m exactly [ICAO Annex 5].
 FOOT_M = 0.3048
 UNITS = {"M": 1.0, "FT": FOOT_M}
 REFERENCES = ("AGL", "AMSL", "WGS84", "HOME")

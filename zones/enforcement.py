@@ -17,7 +17,7 @@ from datetime import datetime
 from functools import cached_property
 from typing import Any
 
-from django.db.models import Q
+from django.db.models import Exists, OuterRef, Q
 from django.utils import timezone
 
 from onboard import envelope as env
@@ -108,29 +108,22 @@ def candidates(
     organisation: Any, home: Sequence[float], points: Sequence[env.NED], at: datetime
 ) -> list[Volume]:
     """The enforced zones of the organisation (and site-wide ones) near the points, that
-    apply at `at` and that the organisation holds no valid authorisation for."""
+    apply at `at` and that the organisation holds no valid authorisation for: one query."""
     latlons = [env.ned_to_latlon(p[0], p[1], home) for p in points]
     lats, lons = [p[0] for p in latlons], [p[1] for p in latlons]
+    valid = Authorisation.objects.filter(
+        organisation=organisation, zone=OuterRef("pk"), expires_at__gt=at
+    )
     zones = Zone.objects.filter(
         Q(organisation=organisation) | Q(organisation__isnull=True),
+        ~Exists(valid),
         restriction__in=ENFORCED,
         min_lat__lte=max(lats),
         max_lat__gte=min(lats),
         min_lon__lte=max(lons),
         max_lon__gte=min(lons),
     )
-    zones = [z for z in zones if applies_at(z.applicability, at)]
-    authorised = authorised_zone_ids(organisation, [z.pk for z in zones], at)
-    return [Volume(z) for z in zones if z.pk not in authorised]
-
-
-def authorised_zone_ids(organisation: Any, zone_ids: Sequence[int], at: datetime) -> set[int]:
-    if not zone_ids:
-        return set()
-    valid = Authorisation.objects.filter(
-        organisation=organisation, zone_id__in=zone_ids, expires_at__gt=at
-    )
-    return set(valid.values_list("zone_id", flat=True))
+    return [Volume(z) for z in zones if applies_at(z.applicability, at)]
 
 
 # -- the checks ------------------------------------------------------------------------------

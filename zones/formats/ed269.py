@@ -1,5 +1,5 @@
 """EUROCAE ED-269 zone files, the JSON form EU member states publish their UAS
-geographical zones in [EUROCAE ED-269; (EU) 2019/947 Art. 15].
+geographical zones in [EUROCAE ED-269; EU 2019/947, Art. 15].
 
 The document is an object whose `features` list the zones: `identifier`, `name`,
 `restriction` (PROHIBITED, REQ_AUTHORISATION, CONDITIONAL, NO_RESTRICTION), `message`,

@@ -1,7 +1,7 @@
 """KML zone files: Placemarks with Polygons (or MultiGeometry of Polygons) [OGC KML 2.2].
 
 A polygon is its `outerBoundaryIs/LinearRing/coordinates` ("lon,lat[,alt]" tuples
-separated by white space, OGC KML 2.2 §10.8 and §16.9); inner boundaries are flown as part
+separated by white space [OGC KML 2.2]); inner boundaries are flown as part
 of the zone. KML has no altitude band of its own: it is read from the Placemark's
 `ExtendedData` (`Data name=…><value>` or `SchemaData/SimpleData name=…`) under the names
 ED-269 uses: `lowerLimit`, `upperLimit`, `uomDimensions`, `lowerVerticalReference`,
