@@ -46,7 +46,7 @@ from urllib.parse import urlsplit, urlunsplit
 
 from bench import private_ground
 from bench.common import test_profile_env
-from onboard.processes import Supervised, wait_for
+from runtime.processes import Supervised, wait_for
 from workers.ground import gateway_argv
 
 ROOT = Path(__file__).resolve().parents[1]

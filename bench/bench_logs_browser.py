@@ -20,7 +20,7 @@ import tempfile
 from pathlib import Path
 
 from bench.browser import launch_chromium, serve_app
-from onboard.processes import Supervised
+from runtime.processes import Supervised
 
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.test")
 os.environ["TEST_DB_NAME"] = f"bench_logs_browser_{os.getpid()}"

@@ -32,7 +32,7 @@ from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
 from bench.common import test_profile_env
-from onboard.processes import Supervised, free_port, python_env, wait_for
+from runtime.processes import Supervised, free_port, python_env, wait_for
 from workers.ground import gateway_argv, worker_argv
 
 DB_NAME = "bench_missions_live"

@@ -32,8 +32,8 @@ from multiprocessing.synchronize import Event as ProcessEvent
 from pathlib import Path
 
 from bench.common import record
-from onboard.mqttwire import connect_packet, publish_packet
-from onboard.processes import Supervised, free_port
+from runtime.mqttwire import connect_packet, publish_packet
+from runtime.processes import Supervised, free_port
 from workers.broker import share_filter
 from workers.broker.mqtt_reader import Subscriber
 

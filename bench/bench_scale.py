@@ -4,7 +4,7 @@ and on a two-node RabbitMQ cluster, in the same run.
     .venv/bin/python -m bench.bench_scale [--drones 1000] [--duration 20] [--per-message 1]
 
 Each run is bench/scale_harness.py's `run_load`: a private broker, the real web (ASGI),
-gateway and ingest processes, and N load drones (onboard.loaddrone) at 10 Hz telemetry
+gateway and ingest processes, and N load drones (firmware.loaddrone) at 10 Hz telemetry
 and a heartbeat every 5 s. Four main runs: 100 drones on Mosquitto (the small-fleet baseline),
 1 000 on Mosquitto, then 100 and 1 000 on the RabbitMQ cluster (drones spread over both
 nodes, two gateways and two ingests reading the shared AMQP queues). The small cluster run

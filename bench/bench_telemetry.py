@@ -40,8 +40,8 @@ import psutil
 import psycopg
 
 from bench.common import best_of, percentile, record, test_profile_env
-from onboard.mqttwire import connect_packet, publish_packet
-from onboard.processes import Supervised, free_port, python_env, wait_for
+from runtime.mqttwire import connect_packet, publish_packet
+from runtime.processes import Supervised, free_port, python_env, wait_for
 from workers.mosquitto import GROUND_AND_DRONES_ACL, Broker
 
 DB_NAME = "bench_telemetry"

@@ -36,7 +36,7 @@ from urllib.parse import urlsplit, urlunsplit
 
 from bench import private_ground
 from bench.common import test_profile_env
-from onboard.processes import Supervised, wait_for
+from runtime.processes import Supervised, wait_for
 from workers.ground import gateway_argv, pastview_argv
 
 DB_NAME = "bench_teleop"

@@ -24,7 +24,7 @@ def launch_chromium(playwright: Any) -> Any:
 def serve_app(database: str, logs_dir: Any, **env: str) -> Any:
     """The ASGI app under uvicorn (as `make run` serves it) on `database`, with no map
     tiles; its log in `logs_dir`/web.log. Returns the started Supervised process."""
-    from onboard.processes import Supervised, free_port, python_env
+    from runtime.processes import Supervised, free_port, python_env
     from workers.ground import web_argv
 
     port = free_port()

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from onboard.processes import Supervised, free_port, python_env
+from runtime.processes import Supervised, free_port, python_env
 from workers.ground import web_argv
 
 

@@ -4,7 +4,7 @@ One run (`run_load`) starts what it needs on ports of its own and stops it all a
 the test profile's PostgreSQL and Redis (scripts/services.sh, shared and idempotent) with a
 database (`skyhive_loadtest`) and a Redis db index of our own; a private broker (Mosquitto,
 or a RabbitMQ cluster through scripts/rabbitmq.sh); the ground processes (web, gateway,
-ingest) as subprocesses; and N load drones (onboard.loaddrone) in a few processes.
+ingest) as subprocesses; and N load drones (firmware.loaddrone) in a few processes.
 
 It measures, with the fleet streaming:
 - ingest lag: every second, per drone, how old the newest stored sample is (its `ts` is
@@ -42,8 +42,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from onboard.loaddrone import Account, grid_home, position_age  # noqa: E402
-from onboard.processes import Supervised, port_open, python_env, wait_for  # noqa: E402
+from firmware.loaddrone import Account, grid_home, position_age  # noqa: E402
+from runtime.processes import Supervised, port_open, python_env, wait_for  # noqa: E402
 from workers.ground import GroundProcesses  # noqa: E402
 
 PY = sys.executable
@@ -476,14 +476,14 @@ def _provision_drones(count: int) -> tuple[list[dict], dict[str, int], float]:
 
 
 class LoadProcess:
-    """One `python -m onboard.loaddrone` process; its latest stats line is kept."""
+    """One `python -m firmware.loaddrone` process; its latest stats line is kept."""
 
     def __init__(self, accounts: list[Account], config: LoadConfig, folder: Path, name: str):
         self.path = folder / f"{name}.json"
         self.path.write_text(json.dumps([a.to_dict() for a in accounts]))
         self.latest: dict = {}
         self.final: dict | None = None
-        argv = [PY, "-m", "onboard.loaddrone", "--fleet", str(self.path),
+        argv = [PY, "-m", "firmware.loaddrone", "--fleet", str(self.path),
                 "--rate", str(config.rate), "--heartbeat", str(config.heartbeat),
                 "--stats-interval", "1", "--per-message", str(config.per_message),
                 "--connect-spread", str(config.connect_spread)]  # fmt: skip

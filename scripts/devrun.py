@@ -34,7 +34,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from onboard.processes import Supervised  # noqa: E402
+from runtime.processes import Supervised  # noqa: E402
 from scripts.reaper import GRACE_S  # noqa: E402
 from scripts.runlog import LOG_DIR, ProcessOutput  # noqa: E402
 from workers.ground import (  # noqa: E402

@@ -11,7 +11,7 @@ process drains on it), and SIGKILL after GRACE_S for whatever is left, so nothin
 theirs outlives the supervisor by more than GRACE_S plus one poll.
 
 A group is watched, not a process: a Celery worker's pool, uvicorn's children and the
-simulated drones' boards and agents share their leader's group (onboard.processes
+simulated drones' boards and agents share their leader's group (runtime.processes
 Supervised starts each leader in one of its own).
 """
 

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 import psycopg
 
 from onboard.protocol import OBJECT_NAME_RE, ProtocolError, parse_telemetry, text_problem
-from onboard.retry import Backoff
+from runtime.retry import Backoff
 
 from . import storage
 

@@ -38,7 +38,7 @@ from django.utils.module_loading import import_string
 
 from onboard import protocol
 from onboard.mqtt import parse_broker_url
-from onboard.retry import Backoff, retry_call
+from runtime.retry import Backoff, retry_call
 from workers import broker, outbox
 from workers.broker.figures import RabbitMQPoller
 from workers.broker.mosquitto_sys import SYS_FILTER, SysView

@@ -13,7 +13,7 @@ import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
-from onboard.processes import REPO_ROOT, Supervised, free_port
+from runtime.processes import REPO_ROOT, Supervised, free_port
 
 MANAGE = str(REPO_ROOT / "manage.py")
 # Worker-to-worker chatter nothing here reads; without it a worker starts faster.

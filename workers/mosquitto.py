@@ -16,7 +16,7 @@ import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from onboard.processes import free_port, port_open, wait_for
+from runtime.processes import free_port, port_open, wait_for
 from workers.dispatch import MAX_PAYLOAD_BYTES
 
 MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"

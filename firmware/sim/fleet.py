@@ -56,7 +56,7 @@ from firmware.sim import SimulatorProcess, start_simulator
 from onboard import protocol
 from onboard.mqtt import parse_broker_urls
 from onboard.navigation import ned_to_lla
-from onboard.processes import Supervised, python_env
+from runtime.processes import Supervised, python_env
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 GEAR_EXAMPLE = Path(onboard.__file__).resolve().parent / "gear_example"

@@ -17,7 +17,7 @@ from accounts import tokens
 from accounts.models import Invitation
 from fleet.consumers import CLOSE_FORBIDDEN
 from fleet.models import Membership, Role
-from onboard.processes import free_port
+from runtime.processes import free_port
 from tests.support.websocket import connect_websocket
 
 PASSWORD = "correct horse battery staple"

@@ -19,7 +19,7 @@ from email.message import Message
 import pytest
 from django.db import connection
 
-from onboard.processes import Supervised, free_port, python_env
+from runtime.processes import Supervised, free_port, python_env
 from tests.support.outage import REDIS_SERVER
 from workers.ground import web_argv
 

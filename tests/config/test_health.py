@@ -7,7 +7,7 @@ from django.contrib.auth.models import User
 from django.test import Client
 
 from config import health
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 
 
 @pytest.fixture(autouse=True)

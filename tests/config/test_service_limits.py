@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import redis
 
-from onboard.processes import free_port, wait_for
+from runtime.processes import free_port, wait_for
 from tests.fleet.conftest import mqtt_client
 from workers.dispatch import MAX_PAYLOAD_BYTES
 from workers.mosquitto import MESSAGE_SIZE_LIMIT, start_broker

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from onboard.processes import stop_process
+from runtime.processes import stop_process
 from tests.support.celery_worker import start_worker, worker_env
 
 ROOT = Path(__file__).resolve().parents[2]

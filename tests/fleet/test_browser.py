@@ -7,7 +7,7 @@ import pytest
 from django.db import connection
 
 from fleet.models import Drone
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 
 from .conftest import client_for
 from .test_e2e import HEARTBEAT_S, IDS, start_fleet

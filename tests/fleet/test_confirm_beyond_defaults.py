@@ -15,7 +15,7 @@ import pytest
 
 from fleet.models import CommandLog, Drone, Organisation
 from onboard import envelope as env
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 
 from .conftest import client_for
 from .test_envelope import HOME, command, flying  # noqa: F401 (fixture)

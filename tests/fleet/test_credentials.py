@@ -12,7 +12,7 @@ from django.core.management import call_command
 
 from fleet import credentials
 from fleet.models import Drone
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 
 from .conftest import client_for, mqtt_client
 

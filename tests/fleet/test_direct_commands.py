@@ -18,7 +18,7 @@ from django.db.models.signals import post_save
 from fleet import commands
 from fleet.models import CommandLog, Drone
 from onboard import protocol
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from workers import direct, outbox
 
 from .conftest import GROUND_PASSWORD, Responder, client_for, drone_url, mqtt_client

@@ -10,7 +10,7 @@ import pytest
 from fleet import credentials
 from fleet.heartbeats import sweep_offline
 from fleet.models import ConnectionEvent, Drone
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 
 from .conftest import client_for
 

@@ -11,7 +11,7 @@ import pytest
 from fleet import credentials, envelopes
 from fleet.models import CommandLog, Drone, Organisation
 from onboard import envelope as env
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 
 from .conftest import Responder, client_for, mqtt_client
 

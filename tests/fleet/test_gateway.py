@@ -14,7 +14,7 @@ from django.utils import timezone
 from fleet import credentials
 from fleet.heartbeats import sweep_offline
 from fleet.models import ConnectionEvent, Drone
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from workers.counters import Counters, snapshot
 from workers.gateway import Gateway
 

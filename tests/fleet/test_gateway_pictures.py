@@ -19,7 +19,7 @@ from fleet.models import Drone
 from missions.creation import create_mission
 from missions.models import Picture
 from missions.startstop import start_mission
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from workers import outbox
 from workers.counters import REFUSAL_DRONES_KEY, REFUSALS_KEY, refusals
 from workers.images import MAX_PIXELS, ImageRefused, open_image

@@ -12,7 +12,7 @@ import pytest
 from missions.creation import create_mission
 from missions.models import Event
 from missions.startstop import start_mission
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 
 from ..missions.conftest import online_drone
 from .conftest import mqtt_client

@@ -17,7 +17,7 @@ from django.db import connection
 from django.test.utils import CaptureQueriesContext
 
 from fleet.models import ConnectionEvent, Drone
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from tests import factories
 from workers.counters import Counters, refusals
 from workers.dispatch import MAX_BATCH

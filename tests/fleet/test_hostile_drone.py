@@ -20,7 +20,7 @@ from fleet.models import Drone
 from missions.creation import create_mission
 from missions.models import Mission, MissionStatus, StepStatus
 from missions.startstop import start_mission
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from telemetry.ingest import DroneMap, IngestConfig, Ingestor, load_drone_ids
 from telemetry.queries import conninfo_from_settings
 from workers import outbox

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from onboard.processes import stop_process
+from runtime.processes import stop_process
 from tests.support.celery_worker import start_worker, worker_env
 
 QUEUE = f"logs-test-{uuid.uuid4().hex[:8]}"

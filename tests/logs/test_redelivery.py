@@ -21,7 +21,7 @@ from django.utils import timezone
 from logs import attempts, services
 from logs.models import FlightLog, LogStatus
 from logs.uploads import StoredUpload
-from onboard.processes import Supervised, wait_for
+from runtime.processes import Supervised, wait_for
 from tests.missions.conftest import online_drone, outbox, point_at  # noqa: F401 - a fixture
 from tests.support.celery_worker import worker_env
 from workers.ground import worker_argv

@@ -18,7 +18,7 @@ from typing import Any
 from django.conf import settings
 
 from firmware.sim.fleet import Drone, start_drone
-from onboard.processes import stop_process, wait_for
+from runtime.processes import stop_process, wait_for
 from tests.support.celery_worker import start_worker, worker_env
 from workers.mosquitto import Broker, start_broker
 

@@ -9,7 +9,7 @@ import time
 import pytest
 
 from missions.models import Assignment, Event, Mission, MissionStatus, Picture, StepStatus
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from tests.support.experiments import (  # noqa: F401 - `ground` is a shared fixture
     accepted_completions,
     api,

@@ -12,7 +12,7 @@ import pytest
 
 from missions import panic
 from missions.models import Assignment, Mission, MissionStatus
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from tests.support.experiments import api, ground  # noqa: F401 - `ground` is a shared fixture
 
 from .conftest import point_at

@@ -13,7 +13,7 @@ from paho.mqtt.enums import CallbackAPIVersion
 
 from firmware.sim.fleet import agent_process, copy_gear
 from onboard import protocol
-from onboard.processes import Supervised
+from runtime.processes import Supervised
 
 
 class Ground:

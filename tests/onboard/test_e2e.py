@@ -10,7 +10,7 @@ import pytest
 from firmware.sim import start_simulator
 from onboard import protocol
 from onboard.bridge import bridge_config
-from onboard.processes import stop_process
+from runtime.processes import stop_process
 from workers.mosquitto import start_broker
 
 from .dfi_rules import check_dfi, labels

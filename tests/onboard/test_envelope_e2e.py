@@ -15,7 +15,7 @@ import pytest
 
 from onboard import envelope as env
 from onboard import protocol
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 
 from .ground import Ground
 from .test_e2e import DRONE, HOME, _pos, agent_for, broker, sim  # noqa: F401 (fixtures)

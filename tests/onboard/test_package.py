@@ -19,7 +19,7 @@ import pytest
 from firmware.sim import start_simulator
 from onboard import protocol
 from onboard.__main__ import parse_args
-from onboard.processes import REPO_ROOT, Supervised
+from runtime.processes import REPO_ROOT, Supervised
 from workers.mosquitto import start_broker
 
 from .ground import Ground

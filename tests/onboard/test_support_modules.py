@@ -16,8 +16,8 @@ from onboard.bridge import bridge_config, internal_broker_config
 from onboard.gear import GearError, GearManager
 from onboard.heartbeat import build_heartbeat, derive_drone_id
 from onboard.navigation import ned_to_lla
-from onboard.processes import wait_for
 from onboard.sensors import SensorField, parse_plume_option
+from runtime.processes import wait_for
 
 from .fakes import HOME, FakeFlightController
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from firmware.sim import start_simulator
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from tests.onboard.ground import Ground, start_agent
 from workers.mosquitto import start_broker
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from workers.mosquitto import start_broker
 
 from .support import DronePublisher, GroupListener, ServiceThread, close, in_own_loop, level

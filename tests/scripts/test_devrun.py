@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from django.db import connection
 
-from onboard.processes import Supervised, free_port, port_open, python_env, wait_for
+from runtime.processes import Supervised, free_port, port_open, python_env, wait_for
 from scripts.devrun import STOP_GRACE_S
 from scripts.reaper import GRACE_S, living_groups
 from tests.support.outage import REDIS_SERVER

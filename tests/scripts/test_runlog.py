@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from onboard.processes import Supervised, free_port, python_env, wait_for
+from runtime.processes import Supervised, free_port, python_env, wait_for
 from scripts.runlog import ProcessOutput, rotate
 from workers.ground import beat_argv, web_argv
 

@@ -43,7 +43,7 @@ def api(user: Any) -> APIClient:
 
 def wait_status(mission_id: str, wanted: set[str], timeout: float) -> Mission:
     from missions.models import Mission
-    from onboard.processes import wait_for
+    from runtime.processes import wait_for
 
     def done() -> Mission | None:
         mission = Mission.objects.get(pk=mission_id)

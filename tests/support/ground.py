@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from firmware.sim.fleet import Drone, start_drone
-from onboard.processes import Supervised, free_port, python_env
-from onboard.processes import wait_for as poll
+from runtime.processes import Supervised, free_port, python_env
+from runtime.processes import wait_for as poll
 from workers import ground as replicas
 
 

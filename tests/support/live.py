@@ -8,7 +8,7 @@ from pathlib import Path
 from django.conf import settings
 
 from bench.browser import launch_chromium
-from onboard.processes import Supervised, free_port, python_env
+from runtime.processes import Supervised, free_port, python_env
 from workers.ground import web_argv
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import psycopg
 
 from config.queues import all_queues
-from onboard.processes import REPO_ROOT, Supervised, free_port, python_env
+from runtime.processes import REPO_ROOT, Supervised, free_port, python_env
 from tests.telemetry.private_postgres import PrivatePostgres, start_private_postgres
 from workers.ground import gateway_argv, worker_argv
 from workers.mosquitto import Broker, start_broker

@@ -14,7 +14,7 @@ from pathlib import Path
 import psycopg
 import pytest
 
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from telemetry.ingest import (
     CounterSink,
     DroneMap,

@@ -10,7 +10,7 @@ import time
 import psycopg
 import pytest
 
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from telemetry.ingest import CounterSink, DroneMap, IngestConfig, Ingestor, load_drone_ids
 from workers.mosquitto import start_broker
 

@@ -7,7 +7,7 @@ import struct
 
 import pytest
 
-from onboard.mqttwire import encode_string, encode_varint
+from runtime.mqttwire import encode_string, encode_varint
 from workers.broker.mqtt_reader import ProtocolViolation, Subscriber
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import pytest
 
 from fleet import credentials
-from onboard.processes import free_port, wait_for
+from runtime.processes import free_port, wait_for
 from workers.broker.credentials import MosquittoBackend, stored_hash
 
 from .test_rabbitmq_credentials import Peer, drone_url, ground_peer, rabbit  # noqa: F401

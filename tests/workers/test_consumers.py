@@ -22,7 +22,7 @@ import psycopg
 import pytest
 
 from fleet import credentials
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from telemetry.ingest import CounterSink, DroneMap, IngestConfig, Ingestor, load_drone_ids
 from workers import broker, outbox
 from workers.counters import Counters

@@ -18,7 +18,7 @@ import pytest
 
 from fleet import credentials
 from onboard.mqtt import MqttLink
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from workers import outbox
 from workers.mosquitto import start_broker
 

@@ -18,9 +18,9 @@ from pathlib import Path
 import paho.mqtt.client as mqtt
 import pytest
 
+from firmware.loaddrone import Account, Fleet, grid_home, position_age
 from onboard import protocol
-from onboard.loaddrone import Account, Fleet, grid_home, position_age
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from workers.mosquitto import Broker, start_broker
 
 
@@ -337,7 +337,7 @@ def test_the_load_harness_sees_every_sample_stored_and_every_command_answered(
     tmp_path: Path,
 ) -> None:
     from bench.scale_harness import LoadConfig, run_load
-    from onboard.processes import free_port
+    from runtime.processes import free_port
 
     config = LoadConfig(
         drones=20, broker="mosquitto", duration=3.0, baseline_commands=3, mqtt_port=free_port(),

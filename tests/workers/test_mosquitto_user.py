@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from onboard.processes import free_port, wait_for
+from runtime.processes import free_port, wait_for
 from tests.support.mqtt_check import round_trip
 from tests.support.paths import ROOT
 from workers.broker.credentials import MosquittoBackend, stored_hash

@@ -15,8 +15,8 @@ import pytest
 from django.test import Client, override_settings
 from rest_framework.test import APIClient
 
-from onboard import processes
-from onboard.processes import free_port, stop_process
+from runtime import processes
+from runtime.processes import free_port, stop_process
 from tests.conftest import login
 from tests.support.celery_worker import start_worker, worker_env
 from workers import operations, outbox

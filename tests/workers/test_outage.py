@@ -18,7 +18,7 @@ from urllib.parse import urlsplit
 import paho.mqtt.client as mqtt
 import pytest
 
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from tests.support.outage import OutageGround
 
 pytestmark = pytest.mark.e2e

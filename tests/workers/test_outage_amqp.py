@@ -10,7 +10,7 @@ import threading
 
 import pytest
 
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from workers import broker
 from workers.broker.amqp import STRAGGLER_ACK_S
 

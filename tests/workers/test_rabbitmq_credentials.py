@@ -23,7 +23,7 @@ from django.test import Client
 
 from fleet import credentials
 from fleet.models import Drone
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from workers.broker.rabbitmq_admin import RabbitMQAdmin, RabbitMQAdminError, rabbit_password_hash
 from workers.mosquitto import start_broker
 

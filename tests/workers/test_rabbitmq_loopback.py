@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from onboard.mqtt import MqttLink
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 from tests.support.mqtt_check import round_trip
 from tests.support.paths import ROOT
 from tests.support.rabbitmq import RabbitCluster, available

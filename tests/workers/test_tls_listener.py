@@ -17,7 +17,7 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import NameOID
 
 from onboard.mqtt import MqttLink
-from onboard.processes import free_port, wait_for
+from runtime.processes import free_port, wait_for
 from tests.support.mqtt_check import round_trip
 from tests.support.paths import ROOT
 from workers.mosquitto import start_broker

@@ -18,7 +18,7 @@ from urllib.parse import unquote, urlsplit
 
 import amqp
 
-from onboard.retry import Backoff, keep_connected
+from runtime.retry import Backoff, keep_connected
 
 log = logging.getLogger(__name__)
 

@@ -24,8 +24,8 @@ import time
 from collections.abc import Callable
 from urllib.parse import urlsplit
 
-from onboard.mqttwire import MqttError, connect_packet, packet_at, subscribe_packet
-from onboard.retry import Backoff, keep_connected
+from runtime.mqttwire import MqttError, connect_packet, packet_at, subscribe_packet
+from runtime.retry import Backoff, keep_connected
 
 log = logging.getLogger(__name__)
 

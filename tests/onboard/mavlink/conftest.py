@@ -9,8 +9,8 @@ from typing import Any
 import pytest
 
 from firmware.sim import start_simulator
-from onboard import processes
 from onboard.fc.mavlink import MavlinkFlightController
+from runtime import processes
 
 # Simulated seconds per wall second: a 10 m climb takes about a quarter of a second.
 TIME_SCALE = 20.0

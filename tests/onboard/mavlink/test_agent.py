@@ -12,7 +12,7 @@ import pytest
 from firmware.sim import start_simulator
 from firmware.sim.fleet import agent_process, copy_gear
 from onboard import protocol
-from onboard.processes import Supervised
+from runtime.processes import Supervised
 from tests.onboard.ground import Ground
 from workers.mosquitto import start_broker
 

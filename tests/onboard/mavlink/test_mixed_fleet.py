@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from onboard.processes import REPO_ROOT, python_env, stop_process
+from runtime.processes import REPO_ROOT, python_env, stop_process
 from tests.onboard.ground import Ground
 from workers.mosquitto import start_broker
 

@@ -14,7 +14,7 @@ from onboard.arming_frames import load_frames
 from onboard.fc.base import CommandTimeout, FlightControllerError, NotConnected
 from onboard.fc.uavtalk import UAVTalkFlightController
 from onboard.links import LinkError, parse_link_url
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 
 SCALE = 20.0
 HOME = (38.736946, -9.142685, 100.0)

@@ -12,8 +12,8 @@ import pytest
 
 from firmware.sim import start_simulator
 from onboard.fc.base import FlightControllerError
-from onboard.processes import wait_for
 from onboard.uavtalk import default_objects_dir
+from runtime.processes import wait_for
 
 from .test_driver import HOME, SCALE
 from .test_receiver_setup import _driver

@@ -14,7 +14,7 @@ from onboard.controller import Controller
 from onboard.fc.uavtalk import UAVTalkFlightController
 from onboard.mission import MissionWorker
 from onboard.navigation import NavigationProcessor, ned_to_lla
-from onboard.processes import wait_for
+from runtime.processes import wait_for
 
 from .test_driver import HOME, SCALE, LineSwitch
 

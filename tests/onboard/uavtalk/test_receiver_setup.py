@@ -16,9 +16,9 @@ from onboard.arming import UAVTalkReceiverSwitch
 from onboard.fc.base import FlightControllerError, VehicleState
 from onboard.fc.uavtalk import UAVTalkFlightController
 from onboard.heartbeat import build_heartbeat
-from onboard.processes import wait_for
 from onboard.protocol import parse_heartbeat
 from onboard.uavtalk import ObjectRegistry, default_objects_dir, receiver_setup
+from runtime.processes import wait_for
 
 from .test_driver import HOME, SCALE
 

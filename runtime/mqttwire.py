@@ -1,6 +1,6 @@
 """MQTT 3.1.1 packets as bytes, without sockets: the few a lean client needs.
 
-Both hand-written clients use it: the load drones (`onboard.loaddrone`) and the ground's
+Both hand-written clients use it: the load drones (`firmware.loaddrone`) and the ground's
 telemetry reader (`workers.broker.mqtt_reader`), which live without paho for speed. It lives in
 onboard because onboard must not import the ground, and it imports nothing but the
 standard library.

@@ -13,7 +13,7 @@ Position: a load drone on the ground drifts on a 20 m circle around its flight p
 one turn per hour. The drift is a known function of time, so whoever sees a reported
 position (the fleet map) can tell how old it is: `position_age(home, lat, lon, now)`.
 
-    python -m onboard.loaddrone --fleet fleet.json [--rate 10] [--heartbeat 5] [--duration S]
+    python -m firmware.loaddrone --fleet fleet.json [--rate 10] [--heartbeat 5] [--duration S]
         [--per-message N]   (N samples per telemetry message: a period of N / rate s)
 
 `fleet.json` is a list of `{"drone_id", "password", "urls": ["mqtt://host:port", ...]}`.
@@ -37,11 +37,17 @@ from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlsplit
 
-from . import protocol
-from .mission import decode_mission
-from .mqttwire import MqttError, connect_packet, publish_packet, split_packets, subscribe_packet
-from .navigation import lla_to_ned, ned_to_lla
-from .retry import Backoff
+from onboard import protocol
+from onboard.mission import decode_mission
+from onboard.navigation import lla_to_ned, ned_to_lla
+from runtime.mqttwire import (
+    MqttError,
+    connect_packet,
+    publish_packet,
+    split_packets,
+    subscribe_packet,
+)
+from runtime.retry import Backoff
 
 log = logging.getLogger(__name__)
 

@@ -1,0 +1,4 @@
+"""What the ground's long-running processes, the development run, the benchmarks and the
+load drones share, and drones never run: supervising child processes (`processes`),
+retrying a connection with backoff (`retry`), and MQTT packets for the hand-written clients
+(`mqttwire`). Plain Python, no Django."""
