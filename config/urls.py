@@ -12,6 +12,7 @@ from rest_framework.routers import DefaultRouter
 
 from accounts import api as accounts_api
 from accounts.signin import LoginView
+from airspace import api as airspace_api
 from alerts import api as alerts_api
 from fleet import api as fleet_api
 from fleet.control import ControlView
@@ -52,6 +53,11 @@ api_v1 = [
         "organisations/<slug:slug>/envelope/plan/",
         fleet_api.envelope_plan,
         name="organisation-envelope-plan",
+    ),
+    path(
+        "organisations/<slug:slug>/reservations/",
+        airspace_api.ReservationsView.as_view(),
+        name="organisation-reservations",
     ),
     path("telemetry/", include("telemetry.api_urls")),
     path("logs/", include(logs_urls.api_urlpatterns)),

@@ -212,6 +212,8 @@ def check_command(
     beyond = None if confirmed else env.beyond_defaults(move)
     if beyond is not None:
         raise NeedsConfirmation(beyond)
+    # Separation from the other drones' reserved airspace (airspace/separation.py).
+    import_string(settings.AIRSPACE_COMMAND_CHECK)(drone, command, params)
 
 
 def step_violations(
@@ -354,6 +356,8 @@ def remember_target(drone: Drone, command: str, reply: Mapping[str, Any] | None)
     if command == "takeoff" and drone.lat is not None and not drone.airborne:
         fields["home"] = [drone.lat, drone.lon]
     Drone.objects.filter(pk=drone.pk).update(**fields)
+    # The accepted leg becomes the drone's reservation (airspace/separation.py).
+    import_string(settings.AIRSPACE_COMMAND_RESERVE)(drone, command, reply)
 
 
 def forget_target(drone: Drone) -> None:

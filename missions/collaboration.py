@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from django.conf import settings
 from django.db import transaction
 
+from airspace import separation
 from fleet import envelopes
 from fleet.models import Drone
 from missions.handover import Handover, plan_collaboration
@@ -74,6 +75,10 @@ def collaborate(
             extension, handover = _plan(mission, center, alarming, joining)
         except PlanningError as exc:
             return _decline(mission, f"extension impossible: {exc}", "collaboration_failed")
+        try:
+            handover = separation.layered_handover(handover, [alarming.drone, *joining])
+        except envelopes.OutsideEnvelope as exc:
+            return _decline(mission, f"extension refused: {exc.message}", "collaboration_failed")
         refusal = _outside_envelope(handover, [alarming.drone, *joining], mission.fence)
         if refusal is not None:
             return _decline(mission, f"extension refused: {refusal}", "collaboration_failed")

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 
 from django.db import transaction
 
+from airspace import separation
 from fleet import envelopes
 from fleet.models import Drone
 from missions.handover import Assignment as PlannedAssignment
@@ -205,6 +206,7 @@ def _plan_handover(
         handover = plan_replacement(
             view, stop_position=stop_position, altitude=mission.altitude, drone_id=drone.drone_id
         )
+        handover = separation.layered_handover(handover, [drone])
         envelopes.check_steps(drone, handover.assignments[0].steps, fence=mission.fence)
     except PlanningError as exc:
         record(
@@ -219,7 +221,7 @@ def _plan_handover(
             mission,
             Event.Kind.DECISION,
             f"replacement refused: {exc.message}",
-            data={"decision": "replacement_failed", "code": envelopes.OUTSIDE_ENVELOPE},
+            data={"decision": "replacement_failed", "code": exc.code},
         )
         return None
     return handover

@@ -14,6 +14,7 @@ from typing import Any
 
 from django.db import transaction
 
+from airspace import separation
 from fleet import envelopes
 from fleet.commands import CommandRefused
 from fleet.models import Drone
@@ -61,6 +62,7 @@ def start_mission(
             envelopes.check_steps(drone, plain, fence=mission.fence)
             if not confirmed:
                 envelopes.confirm_steps(mission.organisation, plain, drone)
+            separation.check_mission(drone, plain)
         except envelopes.EnvelopeRefusal as exc:
             raise outside_envelope(exc) from None
         envelopes.forget_target(drone)

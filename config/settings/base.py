@@ -4,6 +4,7 @@ environment (config/env.py). A new concern gets a module of its own, imported he
 from __future__ import annotations
 
 from .accounts import *  # noqa: F403
+from .airspace import *  # noqa: F403
 from .alerts import *  # noqa: F403
 from .broker import *  # noqa: F403
 from .core import *  # noqa: F403

@@ -38,6 +38,7 @@ INSTALLED_APPS = [
     "tiles",
     "zones",
     "terrain",
+    "airspace",
     # Swagger UI and Redoc from the installed package, never from a CDN.
     "drf_spectacular_sidecar",
 ]
