@@ -197,3 +197,47 @@ def test_too_many_vertices_are_refused(world, settings):
 def test_an_unknown_organisation_is_refused(world):
     with pytest.raises(CommandError, match="Unknown organisation"):
         import_file(FIXTURES / "field.geojson", "nowhere")
+
+
+def admin_upload(client, name: str, data: bytes, **fields):  # type: ignore[no-untyped-def]
+    from django.core.files.uploadedfile import SimpleUploadedFile
+
+    body = {"file": SimpleUploadedFile(name, data), **fields}
+    return client.post("/admin/zones/zone/import/", body)
+
+
+def test_the_admin_upload_is_for_staff_who_may_add_zones(world, client, settings):
+    from django.contrib.auth import get_user_model
+
+    client.force_login(world.owner)  # an organisation's admin, not staff
+    response = admin_upload(client, "field.geojson", fixture("field.geojson"))
+    assert response.status_code == 302 and "/login/" in response["Location"]
+    staff = get_user_model().objects.create_user("clerk", password="pw-for-tests-2", is_staff=True)
+    client.force_login(staff)
+    assert admin_upload(client, "field.geojson", fixture("field.geojson")).status_code == 403
+    assert not Zone.objects.exists()
+
+    client.force_login(get_user_model().objects.create_superuser("root", password="pw-3-x"))
+    response = admin_upload(client, "portugal.ed269.json", fixture("portugal.ed269.json"))
+    assert response.status_code == 302, response.content[:2000]
+    assert set(Zone.objects.values_list("organisation", flat=True)) == {None}
+    response = admin_upload(
+        client, "portugal.ed269.json", fixture("portugal.ed269.json"), organisation=world.org.pk
+    )
+    assert response.status_code == 302, response.content[:2000]
+    assert Zone.objects.filter(organisation=world.org).count() == 2
+    assert Zone.objects.filter(organisation=None).count() == 2
+
+
+def test_the_admin_refuses_a_malformed_or_oversized_upload(world, client, settings):
+    from django.contrib.auth import get_user_model
+
+    client.force_login(get_user_model().objects.create_superuser("root", password="pw-4-x"))
+    response = admin_upload(client, "bomb.kml", BOMB)
+    assert response.status_code == 200
+    assert b"Refused, nothing imported" in response.content
+    assert b"document type declarations and entities are refused" in response.content
+    settings.ZONES_MAX_FILE_BYTES = 100
+    response = admin_upload(client, "field.geojson", fixture("field.geojson"))
+    assert response.status_code == 200 and b"Larger than 100 bytes" in response.content
+    assert not Zone.objects.exists()
