@@ -3,7 +3,7 @@
 Run: .venv/bin/python -m bench.bench_terrain
 
 The figure is `terrain.clearance_along` for a 10 km leg across a synthetic N40W009 tile
-(3601 x 3601 samples, written byte-exact as SRTM) with a 200 m hill on it, in a database
+(3601 x 3601 samples, written byte-exact as SRTM) with a 200 m cone on it, in a database
 of its own: one query for the grids under the leg, then every sample of the leg (half a
 cell apart) interpolated at once. The baseline, measured in the same run, is the plain
 way: `terrain.elevation` point by point along the same samples, in a Python loop. Both
@@ -18,20 +18,33 @@ import shutil
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.test")
 os.environ["TEST_DB_NAME"] = f"bench_terrain_{os.getpid()}"
 
 LEG_M = 10_000.0
-ALTITUDE = 60.0  # metres above mean sea level: the hill (210 m) rises through the leg
+ALTITUDE = 60.0  # metres above mean sea level: the cone (210 m) rises through the leg
+TOP = (40.6358, -8.6575)  # the cone's top, in the tile N40W009
+SIDE = 3601  # samples per side of a 1 arc-second SRTM tile
 GOAL = "the terrain clearance of a 10 km leg in at most 10 ms"
+
+
+def srtm_tile() -> bytes:
+    """Flat ground 10 m high with a cone 200 m high and 500 m wide at its foot, as SRTM
+    writes a tile: big-endian int16 samples, rows from the north (latitude 41)."""
+    metres = 111_320.0
+    north = (41.0 - np.arange(SIDE) / (SIDE - 1) - TOP[0]) * metres
+    east = (-9.0 + np.arange(SIDE) / (SIDE - 1) - TOP[1]) * metres * math.cos(math.radians(TOP[0]))
+    cone = 200.0 * np.clip(1.0 - np.hypot(north[:, None], east[None, :]) / 500.0, 0.0, None)
+    return np.round(10.0 + cone).astype(">i2").tobytes()
 
 
 def _leg() -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     from onboard.envelope import ned_to_latlon
-    from tests.terrain.dem import HILL_NORTH, HOME
 
-    start = ned_to_latlon(HILL_NORTH - LEG_M / 2, 0.0, HOME)
-    end = ned_to_latlon(HILL_NORTH + LEG_M / 2, 0.0, HOME)
+    start = ned_to_latlon(-LEG_M / 2, 0.0, TOP)
+    end = ned_to_latlon(LEG_M / 2, 0.0, TOP)
     return (*start, ALTITUDE), (*end, ALTITUDE)
 
 
@@ -40,11 +53,12 @@ def _prepare(folder: Path) -> None:
     from django.db import connection
 
     from terrain.importer import import_path
-    from tests.terrain.dem import hill_tile, write_hgt
 
     connection.creation.create_test_db(verbosity=0, autoclobber=True, serialize=False)
     settings.TERRAIN_DIR = str(folder / "terrain")
-    import_path(write_hgt(folder, hill_tile(3601)))
+    tile = folder / "N40W009.hgt"
+    tile.write_bytes(srtm_tile())
+    import_path(tile)
 
 
 def point_by_point(start, end, samples: int) -> float:  # type: ignore[no-untyped-def]
@@ -93,7 +107,7 @@ def main() -> None:
             spacing_m=round(found.spacing_m or 0.0, 2),
             lowest_clearance_m=round(found.minimum or 0.0, 1),
             measured="one leg across a 1 arc-second SRTM tile (3601 x 3601) with a 200 m "
-            "hill, database and memory-mapped grid warm; best of 20",
+            "cone, database and memory-mapped grid warm; best of 20",
         )
     finally:
         if connection.settings_dict["NAME"] != original_database:
