@@ -18,16 +18,15 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
-from urllib.parse import unquote, urlsplit
+from urllib.parse import urlsplit
 
-import paho.mqtt.client as mqtt
 import redis
 from django.conf import settings
 from django.db import connection
 from django.http import HttpRequest, JsonResponse
 
-from onboard.mqtt import parse_broker_url, secure
-from workers.broker import mosquitto_sys
+from onboard.mqtt import parse_broker_url
+from workers.broker import mosquitto_sys, probe
 from workers.broker.figures import mosquitto_figures
 
 _lock = threading.Lock()
@@ -75,31 +74,6 @@ def check_mosquitto() -> dict[str, str | None]:
     return {address: None if up else figures.get("error") or "down"}
 
 
-def check_broker_node(url: str, timeout: float = 2.0) -> str | None:
-    """A real MQTT CONNECT with the ground's credentials to one node."""
-    parts = urlsplit(url)
-    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="", clean_session=True)
-    if parts.username:
-        client.username_pw_set(unquote(parts.username), unquote(parts.password or ""))
-    secure(client, parts.scheme == "mqtts")
-    result: dict[str, object] = {}
-    client.on_connect = lambda c, u, f, rc, p: result.setdefault("rc", rc)
-    try:
-        client.connect(parts.hostname or "127.0.0.1", parts.port or 1883, keepalive=5)
-    except OSError as exc:
-        return str(exc) or type(exc).__name__
-    deadline = time.monotonic() + timeout
-    while "rc" not in result and time.monotonic() < deadline:
-        client.loop(timeout=0.1)
-    client.disconnect()
-    rc = result.get("rc")
-    if rc is None:
-        return "no CONNACK from the broker"
-    if getattr(rc, "is_failure", False):
-        return f"broker refused the connection: {rc}"
-    return None
-
-
 def check_broker_nodes(timeout: float = 2.0) -> dict[str, str | None]:
     """Each node's error (None when up), keyed `host:port`. RabbitMQ nodes are connected
     to in parallel, so a dead node costs one timeout, not one per node."""
@@ -107,7 +81,7 @@ def check_broker_nodes(timeout: float = 2.0) -> dict[str, str | None]:
         return check_mosquitto()
     urls = broker_node_urls()
     with ThreadPoolExecutor(max_workers=len(urls)) as pool:
-        errors = list(pool.map(lambda url: check_broker_node(url, timeout), urls))
+        errors = list(pool.map(lambda url: probe.connect_error(url, timeout), urls))
     return {_address(url): error for url, error in zip(urls, errors, strict=True)}
 
 
