@@ -102,25 +102,16 @@ def vibration(view: LogView, thresholds: dict) -> Result:
                 "m/s",
                 "delta velocity vibration",
             )
-    for layer in view.instances("sensor_combined"):
-        paths = [view.path(layer, f"accelerometer_m_s2[{i}]") for i in range(3)]
-        if all(paths):
-            t, ax = view.read(paths[0])
-            ay, az = view.read(paths[1])[1], view.read(paths[2])[1]
-            if len(t) < 2:
-                return not_checked(name, "too few sensor_combined samples")
-            metric = px4_accel_vibration(ax, ay, az)
-            keep = view.armed_at(t)
-            result = _peak_result(
-                name,
-                view,
-                [(paths[2], t[keep], metric[keep])],
-                levels["px4"],
-                "m/s²",
-                "accel vibration (recomputed from sensor_combined)",
-            )
-            result.series = list(paths)
-            return result
+    # PX4's raw accelerations, else the filtered ones (vehicle_acceleration).
+    for topic, field in (
+        ("sensor_combined", "accelerometer_m_s2"),
+        ("vehicle_acceleration", "xyz"),
+    ):
+        for layer in view.instances(topic):
+            paths = [view.path(layer, f"{field}[{i}]") for i in range(3)]
+            if all(paths):
+                found = [p for p in paths if p]
+                return _recomputed(name, view, topic, found, levels["px4"])
     for topic, fields in (
         ("VIBE", ("VibeX", "VibeY", "VibeZ")),
         ("VIBRATION", ("vibration_x", "vibration_y", "vibration_z")),
@@ -138,8 +129,32 @@ def vibration(view: LogView, thresholds: dict) -> Result:
             level = levels["px4" if flavour == "px4" else "ardupilot"]
             return _peak_result(name, view, curves, level, "m/s²", "vibration level")
     return not_checked(
-        name, "no vehicle_imu_status, estimator_status, sensor_combined, VIBE or VIBRATION"
+        name,
+        "no vehicle_imu_status, estimator_status, sensor_combined, vehicle_acceleration, "
+        "VIBE or VIBRATION",
     )
+
+
+def _recomputed(
+    name: str, view: LogView, topic: str, paths: list[str], level: dict[str, float]
+) -> Result:
+    """PX4's vibration metric recomputed from logged accelerations (m/s²)."""
+    t, ax = view.read(paths[0])
+    ay, az = view.read(paths[1])[1], view.read(paths[2])[1]
+    if len(t) < 2:
+        return not_checked(name, f"too few {topic} samples")
+    metric = px4_accel_vibration(ax, ay, az)
+    keep = view.armed_at(t)
+    result = _peak_result(
+        name,
+        view,
+        [(paths[2], t[keep], metric[keep])],
+        level,
+        "m/s²",
+        f"accel vibration (recomputed from {topic})",
+    )
+    result.series = list(paths)
+    return result
 
 
 # --- clipping ---

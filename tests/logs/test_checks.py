@@ -194,3 +194,28 @@ def test_recomputed_vibration_follows_px4s_metric_on_a_full_rate_stream():
     # Unit white noise per axis: the change between samples is sqrt(2) times a 3D
     # standard normal, whose length averages 2 sqrt(2/pi): 4/sqrt(pi), about 2.26 m/s².
     assert np.mean(metric[2000:]) == pytest.approx(2.26, rel=0.05)
+
+
+def test_the_faults_are_in_the_files_as_the_formats_own_readers_see_them(tmp_path):
+    """pyulog and pymavlink (the readers PX4 Flight Review and ArduPilot's tools use) find
+    each fault where the checks report it."""
+    from pymavlink import mavutil
+
+    ulog = ULog(str(px4_ulog(tmp_path / "px4.ulg", {"clipping", "motor"})))
+    imu = ulog.get_dataset("vehicle_imu_status").data
+    first_clip = imu["timestamp"][np.argmax(imu["accel_clipping[2]"] > 0)] / 1e6
+    assert first_clip == pytest.approx(FAULT_AT["clipping"]) and imu["accel_clipping[2]"][-1] == 600
+    outputs = ulog.get_dataset("actuator_outputs").data
+    pinned = outputs["timestamp"][outputs["output[2]"] == 2000] / 1e6
+    assert pinned.min() == pytest.approx(FAULT_AT["motor"])
+
+    conn = mavutil.mavlink_connection(str(ardupilot_bin(tmp_path / "ap.bin", {"gps", "rc"})))
+    seen: dict[str, list] = {}
+    while (msg := conn.recv_match(type=["GPS", "ERR"])) is not None:
+        seen.setdefault(msg.get_type(), []).append(msg)
+    lost = [m.TimeUS / 1e6 for m in seen["GPS"] if m.Status < 3]
+    assert min(lost) == pytest.approx(FAULT_AT["gps"])
+    assert [(m.TimeUS / 1e6, m.Subsys, m.ECode) for m in seen["ERR"]] == [
+        (FAULT_AT["rc"], 5, 1),
+        (FAULT_AT["rc"] + 2.0, 5, 0),
+    ]
