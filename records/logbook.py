@@ -17,8 +17,11 @@ from django.db.models import Count, QuerySet, Sum
 from django.db.models.functions import TruncMonth, TruncYear
 from django.utils import timezone
 
+from fleet.models import DRONE_ID_RE
+
 from .models import FlightRecord
 
+MAX_USERNAME = 150  # Django's username field
 PERIODS = {"month": TruncMonth, "year": TruncYear}
 FILTERS = ("drone", "pilot", "mission", "since", "until")
 
@@ -50,9 +53,14 @@ def _moment(value: str, field: str, *, end: bool) -> datetime:
 def filtered(records: QuerySet, params: Mapping[str, str]) -> QuerySet:
     """`drone` (drone id), `pilot` (username), `mission` (id), `since`, `until`."""
     if params.get("drone"):
+        if not DRONE_ID_RE.match(params["drone"]):
+            raise BadFilter("drone", "must be a drone id (letters, digits, _ and -)")
         records = records.filter(drone_ident=params["drone"])
     if params.get("pilot"):
-        records = records.filter(pilot_name=params["pilot"])
+        pilot = params["pilot"]
+        if len(pilot) > MAX_USERNAME or "\x00" in pilot:
+            raise BadFilter("pilot", f"must be a username (at most {MAX_USERNAME} characters)")
+        records = records.filter(pilot_name=pilot)
     if params.get("mission"):
         mission = params["mission"]
         try:

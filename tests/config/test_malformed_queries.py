@@ -25,6 +25,7 @@ APPS = (
     "logs",
     "missions",
     "pastview",
+    "records",
     "telemetry",
     "tiles",
     "workers",
@@ -46,6 +47,12 @@ ALSO_READ = (
     "bins",
     "ids",
     "pick",
+    # The flight filters (records.logbook), read from the query by name.
+    "drone",
+    "pilot",
+    "mission",
+    "since",
+    "until",
 )
 MALFORMED = (
     "x",

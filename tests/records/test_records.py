@@ -406,3 +406,17 @@ def test_the_sweep_catches_up_with_arming_it_did_not_hear(world, settings):
     drone.save()
     assert building.reconcile() == {"opened": 0, "marked": 1, "closed": 1}
     assert FlightRecord.objects.get().duration_s == pytest.approx(30.0, abs=0.5)
+
+
+def test_malformed_filters_answer_400_or_404_not_500(world):
+    viewer = _api(world.viewer)
+    for name in ("drone", "pilot", "mission", "since", "until"):
+        for value in ("\x00", "ACME_1\x00", "2026-13-45T99:99", "x" * 300):
+            response = viewer.get("/api/v1/flights/", {name: value})
+            assert response.status_code in (200, 400), (name, value, response.status_code)
+    client = Client(raise_request_exception=False)
+    client.force_login(world.viewer)
+    for value in ("\x00", "2026-13-45", "-1"):
+        for query in ({"pilot": value}, {"since": value}, {"page": value}, {"period": value}):
+            response = client.get("/records/drones/ACME_1/", query)
+            assert response.status_code in (200, 404), (query, response.status_code)
