@@ -217,11 +217,18 @@ def _message(chars: str, columns: str, hz: float) -> tuple[np.ndarray, np.ndarra
     return t, arr
 
 
-def ardupilot_bin(path: Path, faults: set[str] = frozenset()) -> Path:
+def ardupilot_bin(
+    path: Path, faults: set[str] = frozenset(), *, parameters: dict[str, float] | None = None
+) -> Path:
     """An ArduCopter hover with the given faults (message layouts as ArduCopter 4 logs
-    them, scaled types included)."""
+    them, scaled types included) and PARM records for `parameters`."""
     rng = np.random.default_rng(6)
     out: dict[str, tuple[str, np.ndarray]] = {}
+    if parameters:
+        parm = np.zeros(len(parameters), dtype=dataflash_dtype("QNf", ["TimeUS", "Name", "Value"]))
+        parm["Name"] = [k.encode() for k in parameters]
+        parm["Value"] = list(parameters.values())
+        out["PARM"] = ("QNf", parm)
 
     events = np.zeros(2, dtype=dataflash_dtype("QB", ["TimeUS", "Id"]))
     events["TimeUS"] = [int(ARM_AT * 1e6), int(DISARM_AT * 1e6)]

@@ -219,3 +219,15 @@ def test_the_faults_are_in_the_files_as_the_formats_own_readers_see_them(tmp_pat
         (FAULT_AT["rc"], 5, 1),
         (FAULT_AT["rc"] + 2.0, 5, 0),
     ]
+
+
+def test_ardupilot_parameters_come_from_parm_records(tmp_path):
+    from logs.checks.base import LogView
+
+    path = ardupilot_bin(tmp_path / "p.bin", parameters={"MOT_PWM_MIN": 1100, "MOT_PWM_MAX": 1900})
+    view = LogView(import_to_store(path, tmp_path / "store"))
+    assert view.parameter("PWM_MAIN_MAX", "MOT_PWM_MAX") == 1900
+    assert view.parameter("NO_SUCH") is None
+    # Hovering at 1500 µs is now half of 1100-1900: no motor sits at its limit.
+    results = {r["name"]: r for r in run_checks(view.store)}
+    assert results["motor_imbalance"]["status"] == "pass"

@@ -150,3 +150,38 @@ def test_the_openapi_schema_lists_checks_and_spectrum(world):
     assert "/api/v1/logs/{id}/checks/" in text
     assert "/api/v1/logs/{id}/spectrum/" in text
     assert "FlightLogCheck" in text and "FlightLogSpectrum" in text
+
+
+def test_airframe_thresholds_apply_to_the_logs_of_that_airframe(
+    world_tx, worker, tmp_path, settings
+):
+    from logs.models import FlightLog
+
+    client = client_for(world_tx.operator)
+    path = ardupilot_bin(tmp_path / "hexa.bin", parameters={"FRAME_CLASS": 2, "MOT_PWM_MAX": 1950})
+    created = upload(client, path).json()
+    assert wait_until_processed(client, created["id"])["status"] == "ready"
+    log = FlightLog.objects.get(pk=created["id"])
+    settings.LOGS_CHECK_THRESHOLDS = {
+        f"{world_tx.org.slug}/airframe:2": {"vibration": {"ardupilot": {"warning": 10.0}}},
+        f"{world_tx.org.slug}/airframe:1": {"battery_sag": {"warning": 4.0}},
+    }
+    (log.directory / "checks.json").unlink()
+    body = client.get(f"/api/v1/logs/{log.pk}/checks/").json()
+    assert body["airframe"] == "2"
+    checks = {c["name"]: c for c in body["checks"]}
+    assert checks["vibration"]["status"] == "warning"
+    assert checks["vibration"]["threshold"] == {"warning": 10.0, "fail": 60.0}
+    assert checks["battery_sag"]["status"] == "pass"
+
+
+def test_bad_threshold_settings_are_named_by_the_system_check(settings):
+    from logs.apps import check_thresholds_setting
+
+    settings.LOGS_CHECK_THRESHOLDS = {"*": {"vibration": {"px4": {"warning": 1}}}}
+    assert check_thresholds_setting(None) == []
+    settings.LOGS_CHECK_THRESHOLDS = {"acme": {"vibrations": {}}, "*": {"gps": {"outage_s": "1"}}}
+    errors = check_thresholds_setting(None)
+    assert [e.id for e in errors] == ["logs.E001", "logs.E001"]
+    assert "LOGS_CHECK_THRESHOLDS['acme']: vibrations: no such threshold" in errors[0].msg
+    assert "gps.outage_s: expected a number" in errors[1].msg
