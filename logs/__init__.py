@@ -1,7 +1,9 @@
 """Flight-log import, columnar storage, level-of-detail and analysis.
 
 Plain modules without Django: the upload API, the Celery import task and the viewer call
-`import_log`, `store.import_to_store` / `store.open_store`, `lod.downsample` and `analysis`.
+`import_log`, `store.import_to_store` / `store.open_store`, `lod.downsample`, `analysis`,
+`checks.run_checks` (the health report of every imported log, docs/log-checks.md) and
+`spectrum.spectrum` (Welch power spectral density of a series).
 This package is also the `logs` Django app, so names load lazily: starting Django does
 not import numpy, pyulog, pymavlink and rosbags.
 """
