@@ -3,6 +3,8 @@ check, a finding's link moving the viewer to its moment and plot, and the spectr
 
 from __future__ import annotations
 
+import re
+
 import pytest
 from playwright.sync_api import expect
 
@@ -51,5 +53,10 @@ def test_the_health_report_leads_the_page_and_its_links_open_the_finding(
     expect(card).to_have_attribute("data-loaded", "true", timeout=10_000)
     expect(card.locator("canvas")).to_have_count(1)
     expect(card.locator('[data-part="spectrum-note"]')).to_contain_text("10 Hz")
+    # The address keeps the spectrum open: a shared link shows it again.
+    expect(page).to_have_url(re.compile(r"spec=1"))
+    page.reload()
+    card = page.locator('[data-log-viewer] [data-part="spectrum-card"]')
+    expect(card).to_have_attribute("data-loaded", "true", timeout=15_000)
     if shots := __import__("os").environ.get("LOGS_SCREENSHOTS"):
         page.screenshot(path=f"{shots}/health.png", full_page=True)

@@ -1,6 +1,7 @@
 // The view in the page's address: time cursor, selected interval, zoom and plotted
 // quantities, so a shared link opens on the same moment of the flight.
-//   #t=12.345&sel=10~20&view=0~60&plot=path1,path2   (seconds since the log's start)
+//   #t=12.345&sel=10~20&view=0~60&plot=path1,path2&spec=1   (seconds since the log's start;
+//   spec=1 opens the spectrum of the plotted quantities)
 
 import { debounce } from "./state.js";
 
@@ -19,6 +20,7 @@ export function applyHash(viewer, hash = location.hash) {
   const t = Number(params.get("t"));
   if (params.has("t") && Number.isFinite(t)) state.setCursor(state.start + t, "link");
   if (params.get("plot")) viewer.setPlotPaths(params.get("plot").split(",").map(decodeURIComponent));
+  if (params.get("spec") === "1") viewer.showSpectrum();
 }
 
 export function hashOf(viewer) {
@@ -31,6 +33,7 @@ export function hashOf(viewer) {
   }
   const plot = viewer.plotPaths();
   if (plot.length) parts.push(`plot=${plot.map(encodeURIComponent).join(",")}`);
+  if (viewer.spectrum && !viewer.spectrum.card.hidden) parts.push("spec=1");
   return `#${parts.join("&")}`;
 }
 

@@ -132,10 +132,7 @@ export class LogViewer extends EventTarget {
       "zoom-selection": () => state.selection && state.setView(...state.selection),
       "clear-selection": () => state.setSelection(null),
       "zoom-reset": () => state.setView(state.start, state.end),
-      spectrum: () => {
-        this.spectrum ||= new SpectrumView(this.part("spectrum-card"), this);
-        this.spectrum.show(this.plotPaths().map((path) => this.multi.lines.find((l) => l.path === path) || { path }));
-      },
+      spectrum: () => this.showSpectrum(),
     };
     this.root.addEventListener("click", (event) => {
       const action = event.target.closest("[data-action]")?.dataset.action;
@@ -146,6 +143,14 @@ export class LogViewer extends EventTarget {
       if (event.key === " ") { this.replay.toggle(); event.preventDefault(); }
       else if (event.key === "Home") { this.replay.rewind(); event.preventDefault(); }
     });
+  }
+
+  /** The spectrum of the plotted quantities over the selection (or the visible window). */
+  showSpectrum() {
+    this.spectrum ||= new SpectrumView(this.part("spectrum-card"), this);
+    const lines = this.plotPaths().map((path) => this.multi.lines.find((l) => l.path === path) || { path });
+    this.dispatchEvent(new Event("plotchange"));
+    return this.spectrum.show(lines);
   }
 
   line(path, i) {
