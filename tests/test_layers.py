@@ -8,7 +8,8 @@ fleet and missions and reads accounts' recipients, and nothing imports alerts bu
 records (which lists the alerts raised during a flight); records listens to fleet and reads
 missions, and nothing imports records but config; zones builds on fleet, which names the
 zones' checks in settings; airspace builds on fleet (which names its checks in settings)
-and missions builds on airspace. Every import statement counts, including ones inside
+and missions builds on airspace; terrain imports only onboard, and fleet builds on it (the
+envelope's terrain clearance). Every import statement counts, including ones inside
 functions; a handler named by a dotted path string (workers/dispatch.py) is not an import.
 Migrations and tests are left out. No Django needed: the sources are parsed, not imported.
 
@@ -37,6 +38,7 @@ DJANGO_APPS = (
     "tiles",
     "zones",
     "airspace",
+    "terrain",
 )
 PLAIN_PACKAGES = ("onboard", "firmware")
 PACKAGES = DJANGO_APPS + PLAIN_PACKAGES
@@ -51,6 +53,7 @@ DOMAIN_APPS = (
     "records",
     "zones",
     "airspace",
+    "terrain",
 )
 # Our own top-level packages that onboard must not import: it runs on drones without them.
 NOT_FOR_ONBOARD = (*DOMAIN_APPS, "workers", "config", "firmware", "tests")
@@ -195,4 +198,12 @@ def test_nothing_but_config_imports_records() -> None:
     found = [package for package in PACKAGES if "records" in graph[package]]
     assert not found, "records is imported by:\n" + "\n".join(
         _shown(graph, package, "records") for package in found
+    )
+
+
+def test_terrain_imports_only_onboard() -> None:
+    """The flight envelope (fleet) checks the terrain clearance: terrain may not reach back."""
+    graph = import_graph()
+    assert set(graph["terrain"]) <= {"onboard"}, "terrain imports:\n" + "\n".join(
+        _shown(graph, "terrain", target) for target in graph["terrain"] if target != "onboard"
     )
