@@ -3,6 +3,8 @@ their CSV export. Each page acts for the request's current organisation."""
 
 from __future__ import annotations
 
+from datetime import datetime
+
 from django.conf import settings
 from django.contrib.auth import get_user_model
 from django.contrib.auth.decorators import login_required
@@ -113,8 +115,20 @@ def flight_detail(request: HttpRequest, pk: int) -> HttpResponse:
     return render(
         request,
         "records/flight.html",
-        {"record": record, "track_svg": track_svg(record.track)},
+        {"record": record, "track_svg": track_svg(record.track), "events": _events(record)},
     )
+
+
+def _events(record: FlightRecord) -> list[dict]:
+    """The record's events with their times as datetimes, shown in the portal's zone."""
+    out = []
+    for event in record.events:
+        try:
+            at = datetime.fromisoformat(str(event.get("at")))
+        except ValueError:
+            at = None
+        out.append({**event, "at": at})
+    return out
 
 
 SVG_SIZE = 320

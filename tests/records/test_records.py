@@ -159,6 +159,11 @@ def test_alarms_during_the_flight_are_its_events(world):
     assert [e["message"] for e in record.events] == [
         "CRITICAL alarm from ACME_1: Outside the flight envelope: too high"
     ]
+    client = Client()
+    client.force_login(world.viewer)
+    page = client.get(f"/records/flights/{record.pk}/").content.decode()
+    assert "Outside the flight envelope: too high" in page
+    assert at(armed + 20).strftime("%H:%M:%S") in page
 
 
 # -- append-only, corrections ------------------------------------------------------------
