@@ -103,6 +103,52 @@ def test_onboard_imports_only_itself_the_standard_library_and_its_dependencies()
     assert not outside, sorted(outside)
 
 
+def _submodules_named(path: Path) -> set[str]:
+    """`a.b.c` for each `from a.b import c` (c may be a module of package a.b)."""
+    return {
+        f"{node.module}.{alias.name}"
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module
+        for alias in node.names
+    }
+
+
+# What a drone runs: the agent, and the command that writes its internal broker's bridge.
+ENTRY_POINTS = ("onboard.__main__", "onboard.bridge")
+
+
+def test_every_module_of_the_package_is_what_a_drone_runs() -> None:
+    """The package holds what flies: each module is imported, at any depth, from one of
+    the commands a drone runs; tools for the ground, benches or tests live elsewhere."""
+    sources = _sources()
+
+    def own(module: str) -> set[str]:
+        # `from onboard.fc import mavlink` names onboard.fc.mavlink; a name inside a module
+        # (onboard.protocol.Step) counts as its module.
+        found = set()
+        while module:
+            if module in sources:
+                found.add(module)
+                break
+            module = module.rpartition(".")[0]
+        return found
+
+    reached: set[str] = set()
+    todo = list(ENTRY_POINTS)
+    while todo:
+        module = todo.pop()
+        if module in reached:
+            continue
+        reached.add(module)
+        parent = module.rpartition(".")[0]  # importing a module runs its packages first
+        todo += [parent] if parent in sources else []
+        for imported in _imports(sources[module], top_level_only=False) | _submodules_named(
+            sources[module]
+        ):
+            todo += own(imported)
+    assert sorted(set(sources) - reached) == []
+
+
 def test_the_agent_starts_with_the_required_dependencies_alone() -> None:
     """What `python -m onboard` imports at load time needs no optional extra: those are
     imported inside the functions that use them, which say which extra is missing."""
