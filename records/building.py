@@ -62,13 +62,15 @@ def open_flight(drone: Drone, at: datetime, mission: dict | None = None) -> Open
         return None  # opened meanwhile by another gateway
 
 
-def mark_disarmed(drone: Drone, at: datetime) -> OpenFlight | None:
-    """The drone's open flight, marked disarmed at `at` (None when none is open)."""
+def mark_disarmed(drone: Drone, at: datetime, *, lost: bool = False) -> OpenFlight | None:
+    """The drone's open flight, marked disarmed at `at` (None when none is open); `lost`:
+    ended because the drone stayed offline while armed."""
     flight = OpenFlight.objects.filter(drone=drone, disarmed_at__isnull=True).first()
     if flight is None:
         return None
+    end = {**heartbeat_state(drone), "lost": True} if lost else heartbeat_state(drone)
     updated = OpenFlight.objects.filter(pk=flight.pk, disarmed_at__isnull=True).update(
-        disarmed_at=at, end=heartbeat_state(drone)
+        disarmed_at=at, end=end
     )
     return flight if updated else None
 
@@ -79,7 +81,7 @@ def reconcile(now: datetime | None = None) -> dict[str, int]:
     disarmed long enough ago for its telemetry to be stored."""
     now = now or timezone.now()
     opened = 0
-    for drone in Drone.objects.filter(armed=True, credentials_revoked=False).exclude(
+    for drone in Drone.objects.filter(armed=True, online=True, credentials_revoked=False).exclude(
         pk__in=OpenFlight.objects.filter(disarmed_at__isnull=True).values("drone_id")
     ):
         opened += open_flight(drone, drone.last_seen or now, drone.mission) is not None
@@ -87,10 +89,21 @@ def reconcile(now: datetime | None = None) -> dict[str, int]:
     for flight in OpenFlight.objects.filter(disarmed_at__isnull=True, drone__armed=False):
         drone = flight.drone
         marked += mark_disarmed(drone, drone.last_seen or now) is not None
+    marked += _end_lost(now)
     settle_before = now - timedelta(seconds=settings.RECORDS_CLOSE_DELAY_S)
     due = OpenFlight.objects.filter(disarmed_at__lte=settle_before).values_list("pk", flat=True)
     closed = sum(close_flight(pk) is not None for pk in list(due))
     return {"opened": opened, "marked": marked, "closed": closed}
+
+
+def _end_lost(now: datetime) -> int:
+    """End at its last heartbeat the flight of a drone offline for RECORDS_LOST_AFTER_S
+    while armed: the record says what is known, and that the drone was lost."""
+    lost_before = now - timedelta(seconds=settings.RECORDS_LOST_AFTER_S)
+    flights = OpenFlight.objects.filter(
+        disarmed_at__isnull=True, drone__online=False, drone__last_seen__lt=lost_before
+    ).select_related("drone")
+    return sum(mark_disarmed(f.drone, f.drone.last_seen, lost=True) is not None for f in flights)
 
 
 def close_flight(open_flight_pk: int) -> FlightRecord | None:
@@ -152,10 +165,25 @@ def _record(flight: OpenFlight) -> FlightRecord:
         voltage_end=found.voltage_end,
         energy_wh=_rounded(energy, 3),
         energy_method=method,
-        events=attribution.events(flight.drone, started, ended),
+        events=_events(flight, started, ended),
         track=found.track,
         samples=found.samples,
     )
+
+
+def _events(flight: OpenFlight, started: datetime, ended: datetime) -> list[dict]:
+    found = attribution.events(flight.drone, started, ended)
+    if (flight.end or {}).get("lost"):
+        found.append(
+            {
+                "at": ended.isoformat(),
+                "kind": "lost",
+                "level": "critical",
+                "message": "Offline while armed: the record ends at the last heartbeat.",
+                "source": f"lost:{flight.drone.drone_id}",
+            }
+        )
+    return found
 
 
 def _figures(flight: OpenFlight, margin: timedelta) -> figures.Figures:

@@ -23,3 +23,6 @@ RECORDS_EXPORT_MAX_ROWS = env.int("RECORDS_EXPORT_MAX_ROWS", 10000)
 # A logbook's PDF export holds at most this many flights, a page each (built in memory,
 # a few kilobytes a page).
 RECORDS_PDF_MAX_FLIGHTS = env.int("RECORDS_PDF_MAX_FLIGHTS", 500)
+# A drone offline this long while armed is taken as lost: its flight is recorded up to its
+# last heartbeat, with a `lost` event.
+RECORDS_LOST_AFTER_S = env.float("RECORDS_LOST_AFTER_S", 600.0)

@@ -403,7 +403,8 @@ def test_the_sweep_catches_up_with_arming_it_did_not_hear(world, settings):
 
     settings.RECORDS_CLOSE_DELAY_S = 0.0
     drone = world.drone
-    drone.armed, drone.last_seen = True, timezone.now() - timedelta(seconds=40)
+    drone.armed, drone.online = True, True
+    drone.last_seen = timezone.now() - timedelta(seconds=40)
     drone.save()
     assert building.reconcile() == {"opened": 1, "marked": 0, "closed": 0}
     assert building.reconcile() == {"opened": 0, "marked": 0, "closed": 0}
@@ -425,3 +426,22 @@ def test_malformed_filters_answer_400_or_404_not_500(world):
         for query in ({"pilot": value}, {"since": value}, {"page": value}, {"period": value}):
             response = client.get("/records/drones/ACME_1/", query)
             assert response.status_code in (200, 404), (query, response.status_code)
+
+
+def test_a_drone_lost_while_armed_ends_its_flight_at_its_last_heartbeat(world, settings):
+    from django.utils import timezone
+
+    settings.RECORDS_CLOSE_DELAY_S = 0.0
+    settings.RECORDS_LOST_AFTER_S = 60.0
+    drone = world.drone
+    drone.armed, drone.online, drone.last_seen = True, True, timezone.now() - timedelta(minutes=5)
+    drone.save()
+    assert building.reconcile()["opened"] == 1
+    drone.online, drone.last_seen = False, timezone.now() - timedelta(seconds=90)
+    drone.save()
+    assert building.reconcile() == {"opened": 0, "marked": 1, "closed": 1}
+    record = FlightRecord.objects.get()
+    assert record.duration_s == pytest.approx(210.0, abs=1.0)
+    assert [e["kind"] for e in record.events] == ["lost"]
+    # Still armed and offline: no new flight opens for it.
+    assert building.reconcile() == {"opened": 0, "marked": 0, "closed": 0}
