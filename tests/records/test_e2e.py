@@ -5,11 +5,12 @@ each flight becomes one record, checked against the telemetry the ingest stored.
 from __future__ import annotations
 
 import math
+from datetime import timedelta
 
 import pytest
 
 from tests.missions.planning import point_at
-from tests.support.ground import Api, mosquitto_ground, wait_for
+from tests.support.ground import TIME_SCALE, Api, mosquitto_ground, wait_for
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
@@ -23,6 +24,9 @@ RECORDS_ENV = {"RECORDS_CLOSE_DELAY_S": "1", "RECORDS_SETTLE_INTERVAL_S": "1"}
 # wait_for_flight (2 m) and the simulator's overshoot.
 SAME_SAMPLES = 0.05
 GEOMETRY_M = 5.0
+# The energy against the simulator's coulomb count: the two differ by the pack voltage's
+# sag over the flight and by the samples at either end.
+COULOMB_COUNT = 0.10
 
 
 def _mission_steps() -> list[dict]:
@@ -75,10 +79,22 @@ def _independent_figures(samples: list) -> dict:
     }
 
 
+def _armed_span(record) -> tuple[float, float]:  # type: ignore[no-untyped-def]
+    """When the drone's own FlightStatus samples say it armed and disarmed, read from the
+    stored telemetry around the record."""
+    around = timedelta(seconds=30)
+    samples = _stored(record.drone_id, record.started_at - around, record.ended_at + around)
+    changes = [(t, f["Armed"]) for t, n, f in samples if n == "FlightStatus"]
+    armed = next(t for t, state in changes if state == "Armed")
+    disarmed = next(t for t, state in changes if t > armed and state == "Disarmed")
+    return armed, disarmed
+
+
 def _check_against_telemetry(record) -> None:  # type: ignore[no-untyped-def]
+    armed, disarmed = _armed_span(record)
+    assert record.started_at.timestamp() == pytest.approx(armed, abs=0.001)
+    assert record.duration_s == pytest.approx(disarmed - armed, abs=0.1)
     samples = _stored(record.drone_id, record.started_at, record.ended_at)
-    statuses = [f["Armed"] for _, n, f in samples if n == "FlightStatus"]
-    assert statuses and statuses[0] == "Armed", statuses
     found = _independent_figures(samples)
     assert record.max_height_m == pytest.approx(found["max_height_m"], abs=0.01)
     assert record.max_distance_m == pytest.approx(found["max_distance_m"], abs=0.01)
@@ -87,6 +103,13 @@ def _check_against_telemetry(record) -> None:  # type: ignore[no-untyped-def]
     assert record.energy_method == "voltage_current"
     assert record.energy_wh == pytest.approx(found["energy_wh"], rel=SAME_SAMPLES)
     assert record.battery_start > record.battery_end
+    # The simulator's own coulomb count agrees: its ConsumedEnergy (mAh) runs on simulated
+    # seconds, the records' V·I on wall seconds, TIME_SCALE times fewer.
+    charge = [
+        (f["ConsumedEnergy"], f["Voltage"]) for _, n, f in samples if n == "FlightBatteryState"
+    ]
+    used_wh = (charge[-1][0] - charge[0][0]) / 1000 * sum(v for _, v in charge) / len(charge)
+    assert record.energy_wh * TIME_SCALE == pytest.approx(used_wh, rel=COULOMB_COUNT)
 
 
 def test_a_mission_and_a_manual_flight_make_one_record_each(world_tx, tmp_path, settings):
