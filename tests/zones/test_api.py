@@ -65,3 +65,22 @@ def test_a_bounding_box_narrows_the_list_and_a_bad_one_is_refused(world, setting
     assert response.status_code == 400 and "bbox" in response.json()["fields"]
     settings.ZONES_LIST_LIMIT = 1
     assert client.get("/api/v1/zones/").json()["truncated"] is True
+
+
+def test_a_token_bound_to_one_organisation_sees_its_zones_only(world):
+    from rest_framework.test import APIClient
+
+    from accounts import tokens
+    from fleet.models import Membership, Role
+
+    Membership.objects.create(user=world.operator, organisation=world.other_org, role=Role.VIEWER)
+    imported("field.geojson")
+    imported("portugal.ed269.json", world.org)
+    imported("reserve.kml", world.other_org)
+    everything = client_for(world.operator).get("/api/v1/zones/").json()
+    assert "LPK-RESERVE-1" in identifiers(everything)
+    issued = tokens.issue(world.operator, name="acme only", organisation=world.org, days=1)
+    client = APIClient()
+    client.credentials(HTTP_AUTHORIZATION=f"Token {issued.key}")
+    bound = client.get("/api/v1/zones/").json()
+    assert identifiers(bound) == ["LPR-CIRCLE-1", "LPR-POLY-2", "LPT-FIELD-1"]
