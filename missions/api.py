@@ -28,6 +28,7 @@ from fleet.tenancy import current_membership
 from missions.creation import create_mission, validate_steps
 from missions.errors import MissionError
 from missions.startstop import start_mission, stop_mission
+from terrain.guard import has_terrain
 
 from . import hold, logs, panic, pictures, plan_files, planning, qgc_plan
 from .models import Mission, Picture
@@ -421,6 +422,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 "violations": [_violation_row(v) for v in found],
                 "beyond_defaults": [_violation_row(v) for v in beyond],
                 "terrain_warnings": envelopes.terrain_warnings(organisation, steps, drone),
+                "terrain_imported": has_terrain(),
                 "envelope": envelopes.envelope_body(organisation),
             }
         )

@@ -24,7 +24,7 @@ from django.conf import settings
 
 from onboard import envelope as env
 from terrain.lookup import LegClearance, Surface
-from terrain.models import TerrainClearance
+from terrain.models import TerrainClearance, TerrainTile
 
 TERRAIN_CLEARANCE = "terrain_clearance"
 Walked = tuple[int | None, env.Move, env.NED | None]  # step index, move, the leg's start
@@ -48,6 +48,11 @@ class Assessment:
 
     def warn(self, index: int | None, message: str, gaps: list | None = None) -> None:
         self.warnings.append({"step": index, "message": message, "gaps": gaps or []})
+
+
+def has_terrain() -> bool:
+    """Whether any terrain is imported: without any, every leg is flown as before."""
+    return TerrainTile.objects.exists()
 
 
 def min_clearance(organisation_id: int | None) -> float:

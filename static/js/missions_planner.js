@@ -35,6 +35,8 @@
   // The operator's confirmation of steps beyond the defaults, and the draft already
   // created for this plan (a start refused is retried on it, not on a new mission).
   let confirmedBeyond = false;
+  // Legs whose terrain clearance could not be checked were shown, and Send pressed again.
+  let terrainSeen = false;
   let draftId = null;
 
   function showError(message) {
@@ -106,6 +108,7 @@
 
   function renderSteps() {
     confirmedBeyond = false;
+    terrainSeen = false;
     draftId = null;
     summarise();
     const list = $("step-list");
@@ -246,7 +249,23 @@
       const first = answer.violations[0];
       showError(`Outside the flight envelope (${answer.violations.length} step(s) marked). Step ${first.index}: ${first.message}`);
     }
-    return { inside: answer.violations.length === 0, beyond: answer.beyond_defaults || [] };
+    showTerrainWarnings(answer.terrain_warnings || []);
+    // Only where terrain is imported is a leg without it worth stopping for.
+    return { inside: answer.violations.length === 0, beyond: answer.beyond_defaults || [],
+             unchecked: answer.terrain_imported ? (answer.terrain_warnings || []).length : 0 };
+  }
+
+  /* Where no terrain (or a void) lies under a leg, or under home, its clearance is not
+     checked: say so, step by step, before anything is sent. */
+  function showTerrainWarnings(warnings) {
+    const box = $("terrain-warnings");
+    const list = box.querySelector("ul");
+    list.replaceChildren(...warnings.map((w) => {
+      const item = document.createElement("li");
+      item.textContent = w.step === null ? w.message : `Step ${w.step}: ${w.message}`;
+      return item;
+    }));
+    box.hidden = !warnings.length;
   }
 
   /* Steps beyond the envelope's defaults (allowed by raised limits) are sent only once
@@ -304,6 +323,11 @@
       return;
     }
     if (!checked.inside) return;
+    if (checked.unchecked && !terrainSeen) {
+      terrainSeen = true;
+      showError("The terrain clearance of some legs cannot be checked (listed below); press Send again to fly them under the envelope's other limits.");
+      return;
+    }
     if (checked.beyond.length && !confirmedBeyond) {
       const first = checked.beyond[0];
       askBeyondDefaults(`${checked.beyond.length} step(s) go beyond the envelope's defaults (marked). Step ${first.index}: ${first.message}`);
@@ -320,7 +344,7 @@
   });
 
   // A changed plan is a new mission: its confirmation and draft do not carry over.
-  $("step-list").addEventListener("change", () => { confirmedBeyond = false; draftId = null; });
+  $("step-list").addEventListener("change", () => { confirmedBeyond = false; terrainSeen = false; draftId = null; });
 
   // For tests and the console.
   window.skyhivePlanner = { map, get steps() { return steps; }, get area() { return area; }, get vertices() { return vertices; } };

@@ -1,0 +1,90 @@
+"""The planner in a real browser: a leg refused for its terrain clearance is marked and
+drawn, and legs whose clearance cannot be checked are listed before anything is sent."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+from fleet import envelopes
+from missions.models import Mission
+from onboard.envelope import ned_to_latlon
+from terrain.importer import delete_tiles, import_path
+from terrain.models import TerrainTile
+from tests.conftest import login
+
+from .dem import HILL_NORTH, HOME, Dem, hill_tile, with_void, write_hgt
+
+pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
+
+
+@contextmanager
+def terrain_on_the_server(folder: Path, dem: Dem) -> Iterator[None]:
+    """The DEM in the server's own TERRAIN_DIR (the live server is another process)."""
+    import_path(write_hgt(folder, dem))
+    try:
+        yield
+    finally:
+        delete_tiles(TerrainTile.objects.all())
+
+
+def plan(page, north: float) -> None:  # type: ignore[no-untyped-def]
+    """Take off at home to 50 m and fly `north` metres (south when negative), in the planner."""
+    lat, lon = ned_to_latlon(north, 0.0, HOME)
+    steps = [
+        {"command": "arm", "params": {}},
+        {"command": "takeoff", "params": {"altitude": 50}},
+        {"command": "navigate", "params": {"lat": lat, "lon": lon}},
+        {"command": "land", "params": {}},
+    ]
+    page.wait_for_function("window.skyhivePlanner && window.skyhivePlanner.map")
+    page.evaluate("(s) => window.skyhivePlanner.steps.push(...s)", steps)
+    page.click("#send-mission")
+
+
+def open_planner(page, live_asgi, world) -> None:  # type: ignore[no-untyped-def]
+    envelopes.set_envelope(world.org, {"home": list(HOME)})
+    login(page, live_asgi, "operator")
+    page.goto(f"{live_asgi.url}/missions/plan/")
+
+
+def sent(page) -> None:  # type: ignore[no-untyped-def]
+    """The mission was created (no drone is online to start it)."""
+    page.wait_for_function("document.querySelector('#planner-error').textContent.includes('draft')")
+    assert Mission.objects.count() == 1
+
+
+def test_a_leg_through_the_hill_is_marked_and_drawn(page, live_asgi, world_tx, tmp_path):
+    with terrain_on_the_server(tmp_path, hill_tile()):
+        open_planner(page, live_asgi, world_tx)
+        plan(page, 1.5 * HILL_NORTH)
+        page.wait_for_selector("#planner-error:not([hidden])")
+        error = page.locator("#planner-error").inner_text()
+        assert "Step 2: The straight leg to the target passes" in error
+        assert "minimum terrain clearance of 30 m" in error
+        page.wait_for_selector("path.offending-leg", state="attached")
+        assert page.locator("#terrain-warnings").is_hidden()
+        assert not Mission.objects.exists()
+
+
+def test_a_leg_over_voids_is_listed_and_sent_on_a_second_press(page, live_asgi, world_tx, tmp_path):
+    holed = with_void(hill_tile(), *ned_to_latlon(-450.0, 0.0, HOME))
+    with terrain_on_the_server(tmp_path, holed):
+        open_planner(page, live_asgi, world_tx)
+        plan(page, -900.0)
+        page.wait_for_selector("#terrain-warnings:not([hidden])")
+        assert "(void)" in page.locator("#terrain-warnings li").first.inner_text()
+        assert "press Send again" in page.locator("#planner-error").inner_text()
+        assert not Mission.objects.exists()
+        page.click("#send-mission")
+        sent(page)
+
+
+def test_without_any_terrain_the_planner_says_so_and_sends(page, live_asgi, world_tx):
+    open_planner(page, live_asgi, world_tx)
+    plan(page, 900.0)
+    sent(page)
+    assert "No terrain at home" in page.locator("#terrain-warnings li").first.inner_text()
