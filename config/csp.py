@@ -6,11 +6,10 @@ page ever lets one through.
 - Scripts: files from the server only, plus an inline block carrying the request's
   nonce (the one import map a module page needs; browsers load no external import
   map). No `unsafe-inline`, no `unsafe-eval`.
-- Styles: style sheets from the server, and `<style>` elements with the nonce; style
-  attributes stay allowed (`style-src-attr`), as the pages colour swatches and turn
-  heading arrows through them and an attribute cannot run code. The API's own pages
-  (Swagger UI, Redoc, DRF's browsable API), which insert `<style>` elements, also allow
-  inline styles.
+- Styles: style sheets from the server, and `<style>` elements with the nonce; no style
+  attributes (the pages set colours, widths and turns through the DOM, which the policy
+  does not govern). The API's own pages (Swagger UI, Redoc, DRF's browsable API), which
+  insert `<style>` elements and style attributes, alone allow inline styles.
 - Images: the server, and `data:`/`blob:` (map markers, rendered charts, camera frames);
   workers: the server and `blob:`; connections: the server, its websockets included.
 - No plugins, no foreign `<base>`, forms post to the server only, framed by the server
@@ -42,7 +41,6 @@ def policy(nonce: str, *, host: str, inline_styles: bool) -> str:
         "default-src": "'self'",
         "script-src": f"'self' 'nonce-{nonce}'",
         "style-src": f"'self' {styles}",
-        "style-src-attr": "'unsafe-inline'",
         "img-src": "'self' data: blob:",
         "font-src": "'self' data:",
         "connect-src": "'self'" + sockets,

@@ -42,12 +42,19 @@
 
   function icon(drone) {
     const p = drone.position || {};
-    const hasHeading = drone.heading !== null && drone.heading !== undefined;
-    const arrow = hasHeading ? `<span class="arrow" style="transform: rotate(${Math.round(drone.heading)}deg)"></span>` : "";
     const alt = p.alt === null || p.alt === undefined ? "" : ` · ${Math.round(p.alt)} m`;
+    // Built through the DOM: the page's Content-Security-Policy refuses style attributes.
+    const body = document.createElement("div");
+    body.innerHTML = `<span class="dot"></span><span class="label">${live.escapeHtml(drone.drone_id)}${alt}</span>`;
+    if (drone.heading !== null && drone.heading !== undefined) {
+      const arrow = document.createElement("span");
+      arrow.className = "arrow";
+      arrow.style.transform = `rotate(${Math.round(drone.heading)}deg)`;
+      body.prepend(arrow);
+    }
     return L.divIcon({
       className: `drone-marker state-${drone.state || "lost_link"}`,
-      html: `${arrow}<span class="dot"></span><span class="label">${live.escapeHtml(drone.drone_id)}${alt}</span>`,
+      html: body,
       iconSize: [18, 18],
       iconAnchor: [9, 9],
     });
@@ -317,7 +324,7 @@
     markerPosition(id) { const p = positions.get(id); return p ? { lat: p[1], lng: p[0] } : null; },
     markerIds() { return Array.from(positions.keys()); },
     markerState(id) { const d = live.drones.get(id); return positions.has(id) && d ? d.state : null; },
-    markerHtml(id) { const d = live.drones.get(id); return d && positions.has(id) ? icon(d).options.html : null; },
+    markerHtml(id) { const d = live.drones.get(id); return d && positions.has(id) ? icon(d).options.html.innerHTML : null; },
     shownMarkers() { return shown.size; },
     clusterZoom() { return indexZoom; },
     map,

@@ -75,5 +75,27 @@
     return { close() { closed = true; socket && socket.close(); } };
   }
 
-  window.SkyhiveMissions = { api, escapeHtml, makeMap, colourFor, seconds, distance, liveSocket };
+  /* Markup with no style attributes (the page's Content-Security-Policy refuses them):
+     colours, widths and turns named in data attributes are set through the DOM instead. */
+  function applyDataStyles(root) {
+    for (const el of root.querySelectorAll("[data-bg]")) el.style.background = el.dataset.bg;
+    for (const el of root.querySelectorAll("[data-width]")) el.style.width = el.dataset.width;
+    for (const el of root.querySelectorAll("[data-turn]")) el.style.transform = `rotate(${el.dataset.turn}deg)`;
+    return root;
+  }
+
+  function fill(element, html) {
+    element.innerHTML = html;
+    return applyDataStyles(element);
+  }
+
+  /* A drone on a map: its state's colour, its heading arrow, its name and altitude. */
+  function droneIcon(drone, label) {
+    const body = document.createElement("div");
+    const turn = drone.heading === null || drone.heading === undefined ? null : Math.round(drone.heading);
+    fill(body, `${turn === null ? "" : `<span class="arrow" data-turn="${turn}"></span>`}<span class="dot"></span><span class="label">${escapeHtml(label)}</span>`);
+    return L.divIcon({ className: `drone-marker state-${drone.state || "lost_link"}`, html: body, iconSize: [18, 18], iconAnchor: [9, 9] });
+  }
+
+  window.SkyhiveMissions = { api, escapeHtml, makeMap, colourFor, seconds, distance, liveSocket, fill, droneIcon };
 })();

@@ -35,9 +35,8 @@
   const drones = new Map();
   function droneIcon(live) {
     const p = live.position || {};
-    const arrow = live.heading === null || live.heading === undefined ? "" : `<span class="arrow" style="transform: rotate(${Math.round(live.heading)}deg)"></span>`;
     const alt = p.alt === null || p.alt === undefined ? "" : ` · ${Math.round(p.alt)} m`;
-    return L.divIcon({ className: `drone-marker state-${live.state || "lost_link"}`, html: `${arrow}<span class="dot"></span><span class="label">${M.escapeHtml(live.drone_id)}${alt}</span>`, iconSize: [18, 18], iconAnchor: [9, 9] });
+    return M.droneIcon(live, `${live.drone_id}${alt}`);
   }
   function showDrone(live) {
     const p = live.position;
@@ -86,12 +85,12 @@
       const item = document.createElement("li");
       item.className = "progress-item";
       item.dataset.drone = droneId;
-      item.innerHTML = `<div class="progress-head"><span class="swatch" style="background:${M.colourFor(droneId)}"></span><strong>${M.escapeHtml(droneId)}</strong>` +
+      M.fill(item, `<div class="progress-head"><span class="swatch" data-bg="${M.colourFor(droneId)}"></span><strong>${M.escapeHtml(droneId)}</strong>` +
         ` <span class="muted">${M.escapeHtml(p.assignment_status)}</span> <span class="steps">${p.steps_done} / ${p.steps_total} steps</span></div>` +
-        `<div class="progress-bar" role="progressbar" aria-valuemin="0" aria-valuemax="${p.steps_total}" aria-valuenow="${p.steps_done}"><span style="width:${(share * 100).toFixed(1)}%"></span></div>` +
+        `<div class="progress-bar" role="progressbar" aria-valuemin="0" aria-valuemax="${p.steps_total}" aria-valuenow="${p.steps_done}"><span data-width="${(share * 100).toFixed(1)}%"></span></div>` +
         `<div class="progress-figures"><span class="time-left">${durationText(p.time_remaining_s)} left</span>` +
         `<span>${Math.round(p.remaining_m)} m to fly</span>` +
-        `<span class="battery-end${tight ? " tight" : ""}">${batteryText(p, margin)}</span></div>`;
+        `<span class="battery-end${tight ? " tight" : ""}">${batteryText(p, margin)}</span></div>`);
       items.push(item);
     }
     if (items.length) list.replaceChildren(...items);
@@ -139,10 +138,10 @@
       const last = done.sort((x, y) => (x.ended_at || "").localeCompare(y.ended_at || "")).pop();
       const row = document.createElement("tr");
       row.dataset.drone = a.drone_id;
-      const swatch = `<span class="swatch" style="background:${M.colourFor(a.drone_id)}"></span>`;
+      const swatch = `<span class="swatch" data-bg="${M.colourFor(a.drone_id)}"></span>`;
       const state = a.held && ["sent", "accepted"].includes(a.status) ? `${a.status} (holding)` : a.status;
-      row.innerHTML = `<td>${swatch}${M.escapeHtml(a.drone_id)}</td><td>${a.reason}</td><td class="assignment">${state}</td>` +
-        `<td class="done">${done.length} / ${mine.size}</td><td>${last ? `#${last.index} ${M.escapeHtml(last.command)}` : "–"}</td>`;
+      M.fill(row, `<td>${swatch}${M.escapeHtml(a.drone_id)}</td><td>${a.reason}</td><td class="assignment">${state}</td>` +
+        `<td class="done">${done.length} / ${mine.size}</td><td>${last ? `#${last.index} ${M.escapeHtml(last.command)}` : "–"}</td>`);
       body.append(row);
     }
   }

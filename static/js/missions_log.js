@@ -47,7 +47,7 @@
       bounds.push(...points);
       const item = document.createElement("li");
       item.dataset.drone = drone;
-      item.innerHTML = `<span class="swatch" style="background:${colour}"></span>${M.escapeHtml(drone)} · ${points.length} positions`;
+      M.fill(item, `<span class="swatch" data-bg="${colour}"></span>${M.escapeHtml(drone)} · ${points.length} positions`);
       legend.append(item);
     }
     let marks = 0;
@@ -64,8 +64,8 @@
     body.replaceChildren();
     for (const s of stagesOf(log)) {
       const row = document.createElement("tr");
-      row.innerHTML = `<td><span class="swatch" style="background:${M.colourFor(s.drone_id)}"></span>${M.escapeHtml(s.drone_id)}</td>` +
-        `<td>${M.escapeHtml(s.stage)}${s.first_index !== undefined ? ` #${s.first_index}–${s.last_index}` : ""}</td><td>${s.steps}</td><td>${M.seconds(s.duration_s)}</td>`;
+      M.fill(row, `<td><span class="swatch" data-bg="${M.colourFor(s.drone_id)}"></span>${M.escapeHtml(s.drone_id)}</td>` +
+        `<td>${M.escapeHtml(s.stage)}${s.first_index !== undefined ? ` #${s.first_index}–${s.last_index}` : ""}</td><td>${s.steps}</td><td>${M.seconds(s.duration_s)}</td>`);
       body.append(row);
     }
     window.skyhiveLogViewer.shown = { drones: paths.size, marks, stages: body.children.length };

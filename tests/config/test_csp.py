@@ -28,6 +28,8 @@ def test_every_kind_of_answer_carries_the_policy(world):
         # Inline styles only on the API's own pages, whose bundles insert them.
         api = response.wsgi_request.path.startswith("/api/")
         assert ("unsafe-inline" in policy["style-src"]) == api
+        # No style attributes elsewhere: without style-src-attr they follow style-src.
+        assert "style-src-attr" not in policy
         assert "unsafe-eval" not in response[HEADER]
         assert "http" not in response[HEADER]  # no outside origin, none at all
 

@@ -67,6 +67,8 @@ def _portal_links(origin: str, links: list[str]) -> list[str]:
         parts = urlsplit(link)
         if f"{parts.scheme}://{parts.netloc}" != origin or any(n in parts.path for n in NOT_PAGES):
             continue
+        if "format=" in parts.query:  # an export (CSV, PDF) of the page, a download
+            continue
         found.append(f"{origin}{parts.path}" + (f"?{parts.query}" if parts.query else ""))
     return found
 

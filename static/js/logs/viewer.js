@@ -215,13 +215,15 @@ export class LogViewer extends EventTarget {
       tbody.innerHTML = lines
         .map(
           (line, i) => `<tr data-path="${escapeHtml(line.path)}">
-            <td title="${escapeHtml(line.path)}"><span style="color:${line.color}">●</span> ${escapeHtml(line.path)}</td>
+            <td title="${escapeHtml(line.path)}"><span class="lv-swatch">●</span> ${escapeHtml(line.path)}</td>
             <td><input type="color" value="${line.color}" data-field="color" aria-label="Colour of ${escapeHtml(line.path)}"></td>
             <td><input type="number" step="any" value="${line.scale}" data-field="scale" aria-label="Scale of ${escapeHtml(line.path)}"></td>
             <td><input type="number" step="any" value="${line.offset}" data-field="offset" aria-label="Offset of ${escapeHtml(line.path)}"></td>
             <td><button type="button" data-remove="${i}" aria-label="Remove ${escapeHtml(line.path)}">×</button></td></tr>`,
         )
         .join("");
+      // Each swatch in its line's colour, through the DOM: style attributes are refused.
+      tbody.querySelectorAll(".lv-swatch").forEach((swatch, i) => { swatch.style.color = lines[i].color; });
     };
     const setPaths = (paths) => {
       const old = new Map(lines.map((l) => [l.path, l]));
