@@ -44,6 +44,13 @@ class ZoneAdmin(admin.ModelAdmin):
         upload = self.admin_site.admin_view(self.import_view)
         return [path(IMPORT_PATH, upload, name="zones_zone_import"), *super().get_urls()]
 
+    def has_change_permission(self, request: HttpRequest, obj: object = None) -> bool:
+        return False  # a zone changes only by importing its publisher's file again
+
+    def add_view(self, request: HttpRequest, form_url: str = "", extra_context=None):  # type: ignore[no-untyped-def]
+        """Zones are added by importing a file, whose every zone is checked."""
+        return HttpResponseRedirect(reverse("admin:zones_zone_import"))
+
     def import_view(self, request: HttpRequest) -> HttpResponse:
         """Staff with the right to add zones upload a file; a refused one changes nothing."""
         if not self.has_add_permission(request):

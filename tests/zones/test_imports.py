@@ -241,3 +241,15 @@ def test_the_admin_refuses_a_malformed_or_oversized_upload(world, client, settin
     response = admin_upload(client, "field.geojson", fixture("field.geojson"))
     assert response.status_code == 200 and b"Larger than 100 bytes" in response.content
     assert not Zone.objects.exists()
+
+
+def test_the_admin_shows_zones_without_editing_them(world, client):
+    from django.contrib.auth import get_user_model
+
+    client.force_login(get_user_model().objects.create_superuser("root", password="pw-5-x"))
+    import_file(FIXTURES / "field.geojson")
+    zone = Zone.objects.get()
+    assert client.get("/admin/zones/zone/").status_code == 200
+    assert client.get("/admin/zones/zone/add/")["Location"] == "/admin/zones/zone/import/"
+    client.post(f"/admin/zones/zone/{zone.pk}/change/", {"name": "Renamed", "upper_m": 5})
+    assert Zone.objects.get().name == "Test field" and Zone.objects.get().upper_m == 60
