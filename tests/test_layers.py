@@ -9,7 +9,8 @@ records (which lists the alerts raised during a flight); records listens to flee
 missions, and nothing imports records but config; zones builds on fleet, which names the
 zones' checks in settings; airspace builds on fleet (which names its checks in settings)
 and missions builds on airspace; terrain imports only onboard, and fleet builds on it (the
-envelope's terrain clearance). Every import statement counts, including ones inside
+envelope's terrain clearance); runtime (processes, retry, MQTT packets for the ground's
+tools) imports only the standard library. Every import statement counts, including ones inside
 functions; a handler named by a dotted path string (workers/dispatch.py) is not an import.
 Migrations and tests are left out. No Django needed: the sources are parsed, not imported.
 
@@ -40,7 +41,7 @@ DJANGO_APPS = (
     "airspace",
     "terrain",
 )
-PLAIN_PACKAGES = ("onboard", "firmware")
+PLAIN_PACKAGES = ("onboard", "firmware", "runtime")
 PACKAGES = DJANGO_APPS + PLAIN_PACKAGES
 DOMAIN_APPS = (
     "fleet",
@@ -56,7 +57,7 @@ DOMAIN_APPS = (
     "terrain",
 )
 # Our own top-level packages that onboard must not import: it runs on drones without them.
-NOT_FOR_ONBOARD = (*DOMAIN_APPS, "workers", "config", "firmware", "tests")
+NOT_FOR_ONBOARD = (*DOMAIN_APPS, "workers", "config", "firmware", "runtime", "tests")
 
 # Imports that break the layering and are tolerated until they are moved, each with its
 # reason, as {(importer, imported): reason}. None today: firmware imports onboard, never
@@ -207,3 +208,9 @@ def test_terrain_imports_only_onboard() -> None:
     assert set(graph["terrain"]) <= {"onboard"}, "terrain imports:\n" + "\n".join(
         _shown(graph, "terrain", target) for target in graph["terrain"] if target != "onboard"
     )
+
+
+def test_runtime_imports_none_of_our_packages() -> None:
+    """The ground's process and connection tooling stands alone: no app, no drone code."""
+    graph = import_graph()
+    assert graph["runtime"] == {}, "\n".join(_shown(graph, "runtime", t) for t in graph["runtime"])
