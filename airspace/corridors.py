@@ -9,10 +9,11 @@ horizontal radius, an altitude band from its lowest to its highest height widene
 vertical tolerance, and a time window.
 
 Times: the flight's nominal clock runs at the leg's speed (a `navigate`'s own `speed`,
-else the drone's cruise speed) and the climb rate. A drone is never assumed faster than
-that, but it may be slower (wind, acceleration, waypoints' tolerance checks): a leg's
-window opens `buffer` seconds before its nominal start and closes `buffer` seconds after
-its nominal end stretched by `slack` (0.5: half as slow again). Heights are metres above
+else the drone's cruise speed) and the climb rate. A drone may be faster (an autopilot
+flying its own cruise speed) or slower (wind, acceleration, waypoints' tolerance
+checks): a leg's window opens `buffer` seconds before its nominal start shrunk by `early`
+(0.5: twice as fast) and closes `buffer` seconds after its nominal end stretched by
+`slack` (0.5: half as slow again). Heights are metres above
 the drone's home, as the envelope measures them.
 """
 
@@ -34,6 +35,7 @@ class Pace:
     speed_m_s: float = 5.0
     climb_m_s: float = 2.0
     slack: float = 0.5
+    early: float = 0.5
     buffer_s: float = 30.0
     hold_s: float = 300.0  # how long the drone is assumed to hover after its last step
     radius_m: float = 2.0
@@ -106,7 +108,7 @@ def _target(step: Mapping, here: _Where) -> tuple[float, float, float, float | N
 
 
 def _leg(start: _Where, end: _Where, pace: Pace, began: float) -> Leg:
-    t0 = began + start.seconds - pace.buffer_s
+    t0 = began + start.seconds * pace.early - pace.buffer_s
     t1 = began + end.seconds * (1.0 + pace.slack) + pace.buffer_s
     low = max(0.0, min(start.height, end.height) - pace.vertical_m)
     high = max(start.height, end.height) + pace.vertical_m

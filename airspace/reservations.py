@@ -49,6 +49,7 @@ def pace_for(drone: Drone) -> Pace:
         speed_m_s=float(speed),
         climb_m_s=settings.AIRSPACE_CLIMB_SPEED_M_S,
         slack=settings.AIRSPACE_TIME_SLACK,
+        early=settings.AIRSPACE_TIME_EARLY,
         buffer_s=settings.AIRSPACE_TIME_BUFFER_S,
         hold_s=settings.AIRSPACE_HOLD_S,
         radius_m=settings.AIRSPACE_CORRIDOR_RADIUS_M,

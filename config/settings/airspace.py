@@ -22,9 +22,11 @@ AIRSPACE_VERTICAL_TOLERANCE_M = env.float("AIRSPACE_VERTICAL_TOLERANCE_M", 2.0)
 # states no CRUISE_SPEED_M_S (as the survey estimates assume), and the climb rate.
 AIRSPACE_CRUISE_SPEED_M_S = env.float("AIRSPACE_CRUISE_SPEED_M_S", 5.0)
 AIRSPACE_CLIMB_SPEED_M_S = env.float("AIRSPACE_CLIMB_SPEED_M_S", 2.0)
-# A leg's window opens this much before its nominal start and closes this much after its
-# nominal end, which is stretched by the slack (0.5: the drone half as slow again).
+# A leg's window opens this much before its nominal start, shrunk by the early factor (0.5:
+# the drone twice as fast), and closes this much after its nominal end, stretched by the
+# slack (0.5: the drone half as slow again).
 AIRSPACE_TIME_BUFFER_S = env.float("AIRSPACE_TIME_BUFFER_S", 30.0)
+AIRSPACE_TIME_EARLY = env.float("AIRSPACE_TIME_EARLY", 0.5)
 AIRSPACE_TIME_SLACK = env.float("AIRSPACE_TIME_SLACK", 0.5)
 # How long a drone is assumed to hover after its last step or command, and how long an
 # airborne drone with no plan known holds the column under it.

@@ -40,6 +40,11 @@ os.environ.setdefault("LOGIN_RATE", "10000/min")
 # imports go to the default queue unless a test names theirs (tests/config/test_queues.py).
 os.environ.setdefault("SAFETY_TASK_QUEUE", "")
 os.environ.setdefault("LOGS_IMPORT_QUEUE", "")
+# The suite's flights keep drones closer than the separation minima (the experiments of
+# [Paula 2018], ch. 5, fly three drones 7 m apart): only overlapping corridors conflict.
+# The separation tests (tests/airspace) set the production minima themselves.
+os.environ.setdefault("AIRSPACE_HORIZONTAL_MIN_M", "0")
+os.environ.setdefault("AIRSPACE_VERTICAL_MIN_M", "0")
 
 from .base import *  # noqa: E402,F403
 from .base import DATABASES  # noqa: E402

@@ -90,7 +90,7 @@ def test_the_index_answers_as_every_pair_would():
 
 
 def test_a_flights_legs_are_timed_at_its_speeds_and_widened():
-    pace = Pace(speed_m_s=5.0, climb_m_s=2.0, slack=0.5, buffer_s=30.0, hold_s=60.0)
+    pace = Pace(speed_m_s=5.0, climb_m_s=2.0, slack=0.5, early=0.5, buffer_s=30.0, hold_s=60.0)
     target = offset(*ORIGIN, 100.0, 0.0)
     steps = [
         {"command": "arm"},
@@ -100,9 +100,10 @@ def test_a_flights_legs_are_timed_at_its_speeds_and_widened():
     ]
     legs, airborne_by = flight_legs(steps, (*ORIGIN, 0.0), T, pace)
     climb, cruise, descent = legs
-    # 10 s to climb 20 m, 20 s to fly 100 m, 10 s down; windows ±30 s, ends × 1.5.
+    # 10 s to climb 20 m, 20 s to fly 100 m, 10 s down; windows ±30 s, starts × 0.5,
+    # ends × 1.5.
     assert (climb.t0, climb.t1) == (T - 30, T + 10 * 1.5 + 30)
-    assert (cruise.t0, cruise.t1) == (T + 10 - 30, T + 30 * 1.5 + 30)
+    assert (cruise.t0, cruise.t1) == (T + 10 * 0.5 - 30, T + 30 * 1.5 + 30)
     assert (cruise.low, cruise.high) == (18.0, 22.0) and (descent.low, descent.high) == (0.0, 22.0)
     assert abs(cruise.lat1 - target[0]) < 1e-12 and airborne_by == T + 30
     # Not landing: it hovers at its last waypoint for hold_s.
