@@ -93,6 +93,20 @@ def test_the_same_crossing_twenty_metres_higher_is_accepted(two_drones):
     assert Reservation.objects.filter(ended_at__isnull=True).count() == 2
 
 
+def test_a_panic_call_across_another_drones_corridor_is_refused(two_drones):
+    world = two_drones
+    assert start(world.operator, crossing((-150, 0), (150, 0), 20), "ACME_A").status_code == 200
+    caller = point_at(0, 100)
+    # ACME_B, the one available, would fly from 150 m west to the caller at 10 m,
+    # across ACME_A's corridor at 20 m: bands 6 m apart.
+    refused = client_for(world.operator).post(
+        "/api/v1/missions/panic/", {"lat": caller[0], "lon": caller[1]}, format="json"
+    )
+    assert refused.status_code == 409, refused.json()
+    assert refused.json()["code"] == "conflict" and "drone ACME_A" in refused.json()["error"]
+    assert Mission.objects.count() == 1
+
+
 def test_an_organisations_own_minima_apply(two_drones):
     world = two_drones
     SeparationMinima.objects.create(organisation=world.org, horizontal_m=30.0, vertical_m=25.0)
