@@ -23,6 +23,7 @@ is the plain definition, every pair in pure Python: the index must answer as it 
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -234,8 +235,8 @@ class Airspace:
 
     def __init__(self, reserved: Sequence[Reserved]) -> None:
         self.reserved = list(reserved)
-        every = [leg for r in self.reserved for leg in r.legs]
-        self._rows = np.array(every, dtype=float).reshape(-1, 8)
+        values = itertools.chain.from_iterable(leg for r in self.reserved for leg in r.legs)
+        self._rows = np.fromiter(values, dtype=float).reshape(-1, 8)
         counts = [len(r.legs) for r in self.reserved]
         self._owner = np.repeat(np.arange(len(self.reserved)), counts)
         minima = np.array(
