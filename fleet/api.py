@@ -155,8 +155,11 @@ def _api_error(refusal: CommandRefused) -> exceptions.APIException:
     return Conflict(refusal.message, code=refusal.code)
 
 
-def command_reply(drone_id: str, outcome: commands.Outcome) -> Response:
-    """The answer to a sent command: the drone's own reply, or NoReply (504) without one."""
+def command_reply(
+    drone_id: str, outcome: commands.Outcome, terrain_warnings: list | None = None
+) -> Response:
+    """The answer to a sent command: the drone's own reply, or NoReply (504) without one;
+    `terrain_warnings` where its terrain clearance could not be checked, when any."""
     if outcome.timed_out:
         raise NoReply(f"No reply from {drone_id} within {settings.COMMAND_TIMEOUT_S:g} s.")
     reply = outcome.reply or {}
@@ -167,6 +170,7 @@ def command_reply(drone_id: str, outcome: commands.Outcome) -> Response:
             "ok": bool(reply.get("ok")),
             "result": reply.get("result"),
             "error": reply.get("error"),
+            **({"terrain_warnings": terrain_warnings} if terrain_warnings else {}),
         }
     )
 
@@ -232,7 +236,7 @@ class DroneCommandView(AsyncAPIView):
         if self.prepared is None:
             return await self.chain(request, drone_id, command)
         outcome = await commands.execute(self.prepared, after_answer=self.after_answer)
-        return command_reply(drone_id, outcome)
+        return command_reply(drone_id, outcome, self.prepared.terrain_warnings)
 
     async def chain(self, request: Request, drone_id: str, command: str) -> Response:
         """startchain / stopchain: the Mission Planner's hooks answer, not the drone."""

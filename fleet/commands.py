@@ -12,7 +12,7 @@ import asyncio
 import contextvars
 import logging
 from collections.abc import Callable, Coroutine
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from typing import Any
 
@@ -65,6 +65,8 @@ class Prepared:
     command: str
     params: dict
     entry: CommandLog
+    # Where the move's terrain clearance could not be checked (fleet.envelopes.check_command).
+    terrain_warnings: list[dict] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -160,14 +162,14 @@ def checked(
             409, f"Refusing {command} while {drone.drone_id} is airborne; send force=true."
         )
     try:
-        envelopes.check_command(drone, command, clean, confirmed)
+        unchecked = envelopes.check_command(drone, command, clean, confirmed)
     except envelopes.EnvelopeRefusal as exc:
         raise CommandRefused(409, exc.message, code=exc.code) from None
     # Written by `execute` (refusals are written by `prepare` at once).
     entry = CommandLog(
         drone=drone, user=user, request_id=protocol.new_request_id(), command=command, params=clean
     )
-    return Prepared(drone=drone, command=command, params=clean, entry=entry)
+    return Prepared(drone, command, clean, entry, terrain_warnings=unchecked)
 
 
 def record(entry: CommandLog, reply: dict | None) -> None:

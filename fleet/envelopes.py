@@ -189,15 +189,16 @@ def _battery_percent(drone: Drone) -> float | None:
 
 def check_command(
     drone: Drone, command: str, params: Mapping[str, Any], confirmed: bool = False
-) -> None:
+) -> list[dict]:
     """Raise OutsideEnvelope when the command's move (or its leg) breaks the drone's
-    envelope, NeedsConfirmation when it goes beyond the defaults unconfirmed."""
+    envelope, NeedsConfirmation when it goes beyond the defaults unconfirmed. Returns where
+    the move's terrain clearance could not be checked (terrain/guard.py)."""
     home = home_of(drone)
     here = position_ned(drone, home)
     base = current_target(drone, home)
     move = env.resolve(command, params, base, here, home)
     if move is None:
-        return
+        return []
     horizontal = command in env.HORIZONTAL_COMMANDS
     move = env.Move(move.kind, move.ned, horizontal)
     violation = env.check(
@@ -206,7 +207,8 @@ def check_command(
     violation = violation or published_zones("move")(
         drone.organisation, home, move, base, drone.airborne
     )
-    violation = violation or terrain.move_violation(drone.organisation_id, home, base, move)
+    assessed = terrain.move_assessment(drone.organisation_id, home, base, move)
+    violation = violation or assessed.violation
     if violation is not None:
         raise OutsideEnvelope(violation)
     beyond = None if confirmed else env.beyond_defaults(move)
@@ -214,6 +216,7 @@ def check_command(
         raise NeedsConfirmation(beyond)
     # Separation from the other drones' reserved airspace (airspace/separation.py).
     import_string(settings.AIRSPACE_COMMAND_CHECK)(drone, command, params)
+    return assessed.warnings
 
 
 def step_violations(

@@ -46,6 +46,10 @@ class Assessment:
     violations: list[env.StepViolation] = field(default_factory=list)
     warnings: list[dict] = field(default_factory=list)
 
+    @property
+    def violation(self) -> env.Violation | None:
+        return self.violations[0].violation if self.violations else None
+
     def warn(self, index: int | None, message: str, gaps: list | None = None) -> None:
         self.warnings.append({"step": index, "message": message, "gaps": gaps or []})
 
@@ -210,9 +214,9 @@ def plan_warnings(
     return assess(organisation_id, home, mission_moves(home, steps, start)).warnings
 
 
-def move_violation(
+def move_assessment(
     organisation_id: int | None, home: Sequence[float] | None, start: env.NED | None, move: env.Move
-) -> TerrainViolation | None:
-    """The terrain's refusal of one command's move from `start` (its current target)."""
-    found = assess(organisation_id, home, [(None, move, start)]).violations
-    return found[0].violation if found else None  # type: ignore[return-value]
+) -> Assessment:
+    """The terrain's refusal (`violation`) and warnings of one command's move from `start`
+    (its current target)."""
+    return assess(organisation_id, home, [(None, move, start)])
