@@ -20,6 +20,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+import numpy as np
 from django.conf import settings
 
 from onboard import envelope as env
@@ -73,14 +74,20 @@ def _lla(ned: env.NED, home: Sequence[float], home_elevation: float) -> tuple[fl
     return lat, lon, home_elevation - ned[2]
 
 
+def _latlon(ned: np.ndarray, home: Sequence[float]) -> np.ndarray:
+    """Rows of (north, east, ...) metres from home → rows of (lat, lon), as
+    onboard.envelope.ned_to_latlon does it."""
+    lat = home[0] + np.degrees(ned[:, 0] / env.EARTH_RADIUS)
+    across = env.EARTH_RADIUS * math.cos(math.radians(home[0]))
+    return np.column_stack((lat, home[1] + np.degrees(ned[:, 1] / across)))
+
+
 def _surface(home: Sequence[float], moves: Sequence[Walked]) -> Surface:
-    points = [(float(home[0]), float(home[1]))]
-    for _, move, start in moves:
-        points.append(env.ned_to_latlon(move.ned[0], move.ned[1], home))
-        if start is not None:
-            points.append(env.ned_to_latlon(start[0], start[1], home))
-    lats, lons = [p[0] for p in points], [p[1] for p in points]
-    return Surface.covering(min(lons), min(lats), max(lons), max(lats))
+    """The grids under home and every move's ends."""
+    ends = [m[1].ned for m in moves] + [m[2] for m in moves if m[2] is not None]
+    points = np.vstack(([float(home[0]), float(home[1])], _latlon(np.array(ends, float), home)))
+    (south, west), (north, east) = points.min(axis=0), points.max(axis=0)
+    return Surface.covering(float(west), float(south), float(east), float(north))
 
 
 def _is_leg(move: env.Move, start: env.NED | None) -> bool:
@@ -132,23 +139,55 @@ def _descent_violation(
     return TerrainViolation(TERRAIN_CLEARANCE, message, None, round(alt - ground, 1), minimum), None  # fmt: skip
 
 
-def _assess_move(
-    result: Assessment, surface: Surface, walked: Walked, home: Sequence, home_elevation: float, minimum: float
-) -> None:  # fmt: skip
-    index, move, start = walked
-    gaps = None
-    if not _is_leg(move, start):
-        violation, warning = _descent_violation(surface, move, start, home, home_elevation, minimum)
-    else:
-        a, b = _lla(start, home, home_elevation), _lla(move.ned, home, home_elevation)  # type: ignore[arg-type]
-        found = surface.clearance_along(a, b)
-        violation = _leg_violation(found, minimum, ((a[0], a[1]), (b[0], b[1])))
-        warning = None if found.fully_covered else _gap_warning(found)
-        gaps = [g.to_dict() for g in found.gaps]
-    if warning:
-        result.warn(index, warning, gaps)
+@dataclass(frozen=True)
+class _Ground:
+    """The terrain under a plan and how heights above home meet it."""
+
+    surface: Surface
+    home: Sequence[float]
+    home_elevation: float
+    minimum: float
+
+    def lla(self, ned: np.ndarray) -> np.ndarray:
+        """Rows of NED from home → rows of latitude, longitude, altitude above sea level."""
+        return np.column_stack((_latlon(ned, self.home), self.home_elevation - ned[:, 2]))
+
+
+def _assess_leg(
+    result: Assessment, ground: _Ground, index: int | None, ends: list, found: LegClearance
+) -> None:
+    """`ends`: the leg's start and end as [lat, lon, altitude]."""
+    a, b = ends
+    violation = _leg_violation(found, ground.minimum, ((a[0], a[1]), (b[0], b[1])))
+    if not found.fully_covered:
+        result.warn(index, _gap_warning(found), [g.to_dict() for g in found.gaps])
     if violation is not None:
         result.violations.append(env.StepViolation(index, violation))  # type: ignore[arg-type]
+
+
+def _assess_descent(result: Assessment, ground: _Ground, walked: Walked) -> None:
+    index, move, start = walked
+    violation, warning = _descent_violation(
+        ground.surface, move, start, ground.home, ground.home_elevation, ground.minimum
+    )
+    if warning:
+        result.warn(index, warning)
+    if violation is not None:
+        result.violations.append(env.StepViolation(index, violation))  # type: ignore[arg-type]
+
+
+def _assess_moves(result: Assessment, ground: _Ground, moves: Sequence[Walked]) -> None:
+    """Every leg sampled in one pass (Surface.clearances), then each move in step order."""
+    legs = [w for w in moves if _is_leg(w[1], w[2])]
+    starts = ground.lla(np.array([w[2] for w in legs], float).reshape(-1, 3))
+    ends = ground.lla(np.array([w[1].ned for w in legs], float).reshape(-1, 3))
+    found = iter(ground.surface.clearances(starts, ends) if legs else [])
+    pairs = iter(zip(starts.tolist(), ends.tolist(), strict=True))
+    for walked in moves:
+        if _is_leg(walked[1], walked[2]):
+            _assess_leg(result, ground, walked[0], list(next(pairs)), next(found))
+        else:
+            _assess_descent(result, ground, walked)
 
 
 def assess(
@@ -173,9 +212,8 @@ def assess(
             "home cannot be compared with the terrain, so the terrain clearance is not checked.",
         )
         return result
-    minimum = min_clearance(organisation_id)
-    for walked in moves:
-        _assess_move(result, surface, walked, home, home_elevation, minimum)
+    ground = _Ground(surface, home, home_elevation, min_clearance(organisation_id))
+    _assess_moves(result, ground, moves)
     return result
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from onboard.envelope import EARTH_RADIUS, latlon_to_ne
+from onboard.envelope import EARTH_RADIUS
 from terrain import store
 from terrain.models import TerrainTile
 
@@ -141,61 +141,98 @@ class Surface:
         heights, _ = self.sample(np.array([float(lat)]), np.array([float(lon)]))
         return None if math.isnan(heights[0]) else float(heights[0])
 
-    def spacing(self, start: LLA, end: LLA) -> float | None:
-        """Half the smallest cell (metres) of the grids under the leg; None without any."""
-        lats, lons = (start[0], end[0]), (start[1], end[1])
-        box = (min(lons), min(lats), max(lons), max(lats))
+    def spacing(self, starts: np.ndarray, ends: np.ndarray) -> float | None:
+        """Half the smallest cell (metres) of the grids under the legs; None without any."""
+        lats = np.concatenate((starts[:, 0], ends[:, 0]))
+        lons = np.concatenate((starts[:, 1], ends[:, 1]))
+        box = (lons.min(), lats.min(), lons.max(), lats.max())
         under = [t for t in self.tiles if t.west <= box[2] and t.east >= box[0]
                  and t.south <= box[3] and t.north >= box[1]]  # fmt: skip
         if not under:
             return None
-        widest = max(abs(lats[0]), abs(lats[1]))
+        widest = float(np.abs(lats).max())
         return min(t.cell_metres(widest) for t in under) / SAMPLES_PER_CELL
 
     def clearance_along(self, start: LLA, end: LLA, spacing: float | None = None) -> LegClearance:
         """The clearance of the straight leg start → end (altitude linear along it)."""
-        north, east = latlon_to_ne(end[0], end[1], start)
-        length = math.hypot(north, east)
-        grid_spacing = self.spacing(start, end)
-        if grid_spacing is None:
-            return LegClearance(length, 0, None, gaps=[Gap(0.0, length, NO_TERRAIN)])
-        step = min(grid_spacing, spacing) if spacing else grid_spacing
-        count = max(2, math.ceil(length / step) + 1) if length > 0 else 1
-        fractions = np.linspace(0.0, 1.0, count)
-        lats = start[0] + (end[0] - start[0]) * fractions
-        lons = start[1] + (end[1] - start[1]) * fractions
-        alts = start[2] + (end[2] - start[2]) * fractions
-        heights, covered = self.sample(lats, lons)
-        return _leg_result(length, step, fractions * length, lats, lons, alts, heights, covered)
+        return self.clearances(np.array([start], float), np.array([end], float), spacing)[0]
+
+    def clearances(
+        self, starts: np.ndarray, ends: np.ndarray, spacing: float | None = None
+    ) -> list[LegClearance]:
+        """The clearance of each leg starts[i] → ends[i] (rows of latitude, longitude and
+        altitude above mean sea level): every leg's samples, no farther apart than
+        `spacing` nor than half a cell, interpolated together in one pass."""
+        lengths = _lengths(starts, ends)
+        step = self.spacing(starts, ends)
+        if step is None:
+            return [LegClearance(float(n), 0, None, gaps=[Gap(0.0, float(n), NO_TERRAIN)]) for n in lengths]  # fmt: skip
+        step = min(step, spacing) if spacing else step
+        counts = np.where(lengths > 0, np.maximum(2, np.ceil(lengths / step).astype(int) + 1), 1)
+        offsets = np.concatenate(([0], np.cumsum(counts)[:-1]))
+        leg = np.repeat(np.arange(len(counts)), counts)
+        fractions = (np.arange(counts.sum()) - offsets[leg]) / np.maximum(counts - 1, 1)[leg]
+        points = starts[leg] + (ends[leg] - starts[leg]) * fractions[:, None]
+        heights, covered = self.sample(points[:, 0], points[:, 1])
+        samples = _Samples(points, fractions * lengths[leg], heights, covered, offsets, counts)
+        return samples.legs(lengths, step)
 
 
-def _leg_result(
-    length: float,
-    step: float,
-    along: np.ndarray,
-    lats: np.ndarray,
-    lons: np.ndarray,
-    alts: np.ndarray,
-    heights: np.ndarray,
-    covered: np.ndarray,
-) -> LegClearance:
-    missing = np.isnan(heights)
-    codes = np.where(missing, np.where(covered, 1, 2), 0)
-    reasons = {1: VOID, 2: NO_TERRAIN}
-    gaps = [Gap(float(along[a]), float(along[b]), reasons[c]) for a, b, c in _runs(codes)]
-    if missing.all():
-        return LegClearance(length, len(along), step, gaps=gaps)
-    clearance = np.where(missing, np.inf, alts - np.nan_to_num(heights))
-    i = int(np.argmin(clearance))
-    return LegClearance(
-        length_m=length,
-        samples=len(along),
-        spacing_m=step,
-        minimum=float(clearance[i]),
-        at=(float(lats[i]), float(lons[i]), float(along[i])),
-        terrain_at=float(heights[i]),
-        gaps=gaps,
-    )
+def _lengths(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Horizontal length of each leg in metres, in the local frame about its start
+    (onboard.envelope.latlon_to_ne)."""
+    north = EARTH_RADIUS * np.radians(ends[:, 0] - starts[:, 0])
+    dlon = (ends[:, 1] - starts[:, 1] + 180.0) % 360.0 - 180.0
+    east = EARTH_RADIUS * np.cos(np.radians(starts[:, 0])) * np.radians(dlon)
+    return np.hypot(north, east)
+
+
+@dataclass
+class _Samples:
+    """The samples of many legs, leg after leg (`offsets`, `counts`)."""
+
+    points: np.ndarray  # latitude, longitude, altitude
+    along: np.ndarray
+    heights: np.ndarray
+    covered: np.ndarray
+    offsets: np.ndarray
+    counts: np.ndarray
+
+    def lowest(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each leg's lowest clearance (inf without terrain) and the sample it is at."""
+        missing = np.isnan(self.heights)
+        clearance = np.where(missing, np.inf, self.points[:, 2] - np.nan_to_num(self.heights))
+        minima = np.minimum.reduceat(clearance, self.offsets)
+        leg = np.repeat(np.arange(len(self.counts)), self.counts)
+        candidates = np.flatnonzero(clearance == minima[leg])
+        _, first = np.unique(leg[candidates], return_index=True)
+        return minima, candidates[first]
+
+    def gaps(self, i: int) -> list[Gap]:
+        a, b = int(self.offsets[i]), int(self.offsets[i] + self.counts[i])
+        missing = np.isnan(self.heights[a:b])
+        codes = np.where(missing, np.where(self.covered[a:b], 1, 2), 0)
+        reasons = {1: VOID, 2: NO_TERRAIN}
+        along = self.along[a:b]
+        return [Gap(float(along[x]), float(along[y]), reasons[c]) for x, y, c in _runs(codes)]
+
+    def legs(self, lengths: np.ndarray, step: float) -> list[LegClearance]:
+        lowest, at = self.lowest()
+        missing = np.add.reduceat(np.isnan(self.heights).astype(int), self.offsets) > 0
+        minima, incomplete, counts = lowest.tolist(), missing.tolist(), self.counts.tolist()
+        along, heights = self.along[at].tolist(), self.heights[at].tolist()
+        places = self.points[at, :2].tolist()
+        found = []
+        for i, length in enumerate(lengths.tolist()):
+            gaps = self.gaps(i) if incomplete[i] else []
+            if not math.isfinite(minima[i]):
+                found.append(LegClearance(length, counts[i], step, gaps=gaps))
+                continue
+            lat, lon = places[i]
+            found.append(LegClearance(
+                length, counts[i], step, minima[i], (lat, lon, along[i]), heights[i], gaps,
+            ))  # fmt: skip
+        return found
 
 
 def _leg_box(start: LLA, end: LLA) -> tuple[float, float, float, float]:
