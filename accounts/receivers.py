@@ -10,6 +10,7 @@ from django.contrib.auth.signals import user_logged_in, user_login_failed
 from django.db.models.signals import post_save
 
 from fleet.signals import action_refused, envelope_changed
+from fleet.signals import identity_changed as fleet_identity_changed
 
 from . import admin_site, audit, passwords, signin
 
@@ -88,6 +89,20 @@ def refused(
     )
 
 
+def identity_changed(
+    sender: Any, organisation_id: int, user: Any, action: str, target: str, changed: dict, **kw: Any
+) -> None:
+    """An admin set a Remote ID identity: who, when, and the new values."""
+    audit.record(
+        organisation_id,
+        audit.Kind.ORGANISATION,
+        action,
+        target=target,
+        actor=user,
+        detail={"changed": changed},
+    )
+
+
 def zone_authorised(sender: Any, instance: Any, created: bool, **kwargs: Any) -> None:
     """An organisation's admin recorded an authorisation to fly in a published zone."""
     if not created:
@@ -114,6 +129,7 @@ def connect() -> None:
     post_save.connect(zone_authorised, sender="zones.Authorisation", dispatch_uid="audit-zone")
     envelope_changed.connect(envelope_stored, dispatch_uid="audit-envelope")
     action_refused.connect(refused, dispatch_uid="audit-refused")
+    fleet_identity_changed.connect(identity_changed, dispatch_uid="audit-remote-id")
     user_logged_in.connect(signin.signed_in, dispatch_uid="sign-in-record")
     user_login_failed.connect(signin.sign_in_failed, dispatch_uid="sign-in-failed-record")
     post_save.connect(

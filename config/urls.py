@@ -15,6 +15,7 @@ from accounts.signin import LoginView
 from airspace import api as airspace_api
 from alerts import api as alerts_api
 from fleet import api as fleet_api
+from fleet import remote_id_api
 from fleet.control import ControlView
 from logs import urls as logs_urls
 from missions import api as missions_api
@@ -48,6 +49,21 @@ api_v1 = [
         "organisations/<slug:slug>/envelope/",
         fleet_api.EnvelopeView.as_view(),
         name="organisation-envelope",
+    ),
+    re_path(
+        r"^drones/(?P<drone_id>[A-Za-z0-9_-]{1,64})/identity/$",
+        remote_id_api.DroneIdentityView.as_view(),
+        name="drone-identity",
+    ),
+    re_path(
+        r"^drones/(?P<drone_id>[A-Za-z0-9_-]{1,64})/airworthiness/$",
+        remote_id_api.AirworthinessView.as_view(),
+        name="drone-airworthiness",
+    ),
+    path(
+        "organisations/<slug:slug>/remote-id/",
+        remote_id_api.OrganisationRemoteIdView.as_view(),
+        name="organisation-remote-id",
     ),
     path(
         "organisations/<slug:slug>/envelope/plan/",

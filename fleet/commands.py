@@ -26,7 +26,7 @@ from django.utils.module_loading import import_string
 from onboard import protocol
 from workers import direct, outbox
 
-from . import envelopes
+from . import airworthiness, envelopes
 from .models import ROLE_RANK, CommandLog, Drone, Role
 
 log = logging.getLogger(__name__)
@@ -157,6 +157,10 @@ def checked(
         raise CommandRefused(400, f"{field}: {exc.message}", field) from None
     if not drone.online:
         raise CommandRefused(409, f"Drone {drone.drone_id} is offline.")
+    if command == "arm":
+        unfit = airworthiness.refusal(drone)
+        if unfit is not None:
+            raise CommandRefused(409, unfit, code="not_airworthy")
     if command in UNSAFE_IN_FLIGHT and drone.airborne and not clean.get("force"):
         raise CommandRefused(
             409, f"Refusing {command} while {drone.drone_id} is airborne; send force=true."

@@ -22,6 +22,7 @@ from onboard import protocol
 from terrain import guard as terrain
 from workers import outbox
 
+from .identity import identity_for
 from .models import Drone, Organisation
 from .signals import envelope_changed
 
@@ -140,7 +141,9 @@ def set_envelope(organisation: Organisation, body: Any) -> env.Envelope:
 def send_to_drones(drones: Iterable[Drone]) -> None:
     """Queue each drone's own envelope on `<id>/envelope/in`."""
     for drone in drones:
-        message = protocol.EnvelopeUpdate(drone_envelope(drone).to_dict())
+        message = protocol.EnvelopeUpdate(
+            drone_envelope(drone).to_dict(), remote_id=identity_for(drone)
+        )
         outbox.send_to_drone(drone.drone_id, "envelope", message.to_dict(), ttl=ENVELOPE_TTL_S)
 
 

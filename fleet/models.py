@@ -10,6 +10,8 @@ from django.core.validators import RegexValidator
 from django.db import models
 from django.utils import timezone
 
+from .identity import required_by_default
+
 DRONE_ID_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 # Broker accounts that are not drones: a drone's broker username is its id, so a drone
 # named like one would share (or take over) its account. RabbitMQ ships `admin`/`guest`.
@@ -37,6 +39,10 @@ class Organisation(models.Model):
     created_at = models.DateTimeField(auto_now_add=True)
     # The flight envelope (onboard/envelope.py's JSON form); empty means the defaults.
     envelope = models.JSONField(default=dict, blank=True)
+    # Remote ID (docs/remote-id.md): the operator registration number as broadcast (EU:
+    # its 16 public characters; FAA), and whether drones may fly without an identity.
+    operator_id = models.CharField(max_length=20, blank=True, default="", db_default="")
+    require_remote_id = models.BooleanField(default=required_by_default, db_default=True)
 
     class Meta:
         ordering = ["name"]
@@ -127,6 +133,11 @@ class Drone(models.Model):
     fc = models.JSONField(null=True, blank=True)
     specs = models.JSONField(default=dict, blank=True)
     sensors = models.JSONField(default=dict, blank=True)
+    # Remote ID (docs/remote-id.md): the ANSI/CTA-2063-A serial number it broadcasts, and
+    # whether an admin declared an external broadcast module fitted (drones whose flight
+    # controller speaks no Open Drone ID); who declared it and when is in the audit trail.
+    serial_number = models.CharField(max_length=20, blank=True, default="", db_default="")
+    remote_id_external = models.BooleanField(default=False, db_default=False)
 
     # The drone's own envelope limits; they can only lower the organisation's.
     max_height = models.FloatField(null=True, blank=True)

@@ -18,6 +18,16 @@ drones_arming_changed = Signal()
 # Sent after an organisation's envelope was stored. Arguments: organisation, envelope (dict).
 envelope_changed = Signal()
 
+# Sent after an admin changed Remote ID identity (a drone's serial number or external
+# module declaration, an organisation's operator registration), for the audit trail.
+# Arguments: organisation_id (int), user, action (like "remote_id.drone"), target (str),
+# changed (dict of the new values).
+identity_changed = Signal()
+
+# Sent by the Drone Identifier when heartbeats show airborne drones whose Remote ID
+# reports a failure. Arguments: failing (list of (drone_id, organisation_id, error, seen)).
+remote_id_failing = Signal()
+
 # Sent when a user's change was refused, for the audit trail. Arguments: organisation_id
 # (int), user, action (like "mission.start"), target (str), reason (str).
 action_refused = Signal()

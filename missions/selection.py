@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from django.conf import settings
 
+from fleet import airworthiness
 from fleet.models import Drone
 from missions.errors import MissionError
 from missions.geo import distance_m
@@ -31,12 +32,16 @@ class Candidate:
     in_mission: bool
     battery: float | None  # remaining, 0..1; None when the drone has not reported it
     position: tuple[float, float] | None  # (lat, lon); None before the first GPS fix
+    # fleet/airworthiness.py: no reason keeps it on the ground (Remote ID, ...).
+    airworthy: bool = True
 
 
 def is_available(candidate: Candidate, *, reserve: float = DEFAULT_BATTERY_RESERVE) -> bool:
-    """Online, free and above the reserve; a drone that never reported a battery is not."""
+    """Online, free, airworthy and above the reserve; a drone that never reported a battery
+    is not."""
     return (
         candidate.online
+        and candidate.airworthy
         and not candidate.in_mission
         and candidate.battery is not None
         and math.isfinite(candidate.battery)
@@ -94,7 +99,10 @@ def busy_drone_ids(organisation_id: int) -> set[str]:
 def candidates(organisation_id: int) -> list[Candidate]:
     busy = busy_drone_ids(organisation_id)
     out = []
-    for drone in Drone.objects.filter(organisation_id=organisation_id, credentials_revoked=False):
+    drones = Drone.objects.filter(
+        organisation_id=organisation_id, credentials_revoked=False
+    ).select_related("organisation")
+    for drone in drones:
         position = None if drone.lat is None or drone.lon is None else (drone.lat, drone.lon)
         out.append(
             Candidate(
@@ -103,6 +111,7 @@ def candidates(organisation_id: int) -> list[Candidate]:
                 in_mission=drone.drone_id in busy,
                 battery=drone.battery_remaining,
                 position=position,
+                airworthy=airworthiness.verdict(drone).airworthy,
             )
         )
     return out
@@ -150,6 +159,9 @@ def check_chosen(mission: Mission, drone: Drone) -> None:
         raise MissionError("drone", f"drone {drone.drone_id} is offline", 409)
     if candidate.in_mission:
         raise MissionError("drone", f"drone {drone.drone_id} is flying another mission", 409)
+    unfit = airworthiness.refusal(drone)
+    if unfit is not None:
+        raise MissionError("drone", unfit, 409, "not_airworthy")
     reserve = settings.MISSIONS_BATTERY_RESERVE
     if candidate.battery is None or candidate.battery <= reserve:
         raise MissionError(

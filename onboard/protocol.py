@@ -858,6 +858,8 @@ class Heartbeat:
     type: str = "heartbeat"
     # (optional) what to change on the flight controller before it can fly (sentences).
     fc_setup: tuple[str, ...] = ()
+    # (optional) the Remote ID broadcast's health, None when the drone knows nothing of it.
+    remote_id: RemoteIdHealth | None = None
 
     def to_dict(self) -> dict:
         return {
@@ -875,7 +877,32 @@ class Heartbeat:
                 "connected": self.fc_connected,
                 **({"setup": list(self.fc_setup)} if self.fc_setup else {}),
             },
+            **({} if self.remote_id is None else {"remote_id": self.remote_id.to_dict()}),
         }
+
+
+@dataclass(frozen=True)
+class RemoteIdHealth:
+    """What the Remote ID broadcast says (docs/remote-id.md): `ok` when it is good to arm
+    (OPEN_DRONE_ID_ARM_STATUS 0, or a declared external module), else `error` says why."""
+
+    ok: bool
+    error: str = ""
+    source: str = "odid"  # "odid": the module's own ARM_STATUS
+
+    def to_dict(self) -> dict:
+        return {"ok": self.ok, "error": self.error, "source": self.source}
+
+
+def _remote_id_health(obj: Any) -> RemoteIdHealth | None:
+    if obj is None:
+        return None
+    obj = _object(obj, "remote_id")
+    return RemoteIdHealth(
+        ok=_boolean(_require(obj, "ok", "remote_id."), "remote_id.ok"),
+        error=_string(obj.get("error") or "", "remote_id.error", empty=True, max_length=200),
+        source=_string(obj.get("source") or "odid", "remote_id.source", max_length=16),
+    )
 
 
 def _mission_ref(obj: Any, name: str = "mission") -> MissionRef | None:
@@ -918,6 +945,7 @@ def parse_heartbeat(obj: Any) -> Heartbeat:
         fc_protocol=_string(fc.get("protocol") or "unknown", "fc.protocol"),
         fc_connected=_boolean(fc.get("connected", False), "fc.connected"),
         fc_setup=_setup_list(fc.get("setup")),
+        remote_id=_remote_id_health(obj.get("remote_id")),
         type="heartbeat",
     )
 
@@ -1292,14 +1320,76 @@ def issued_at(obj: Any) -> float | None:
 # Flight envelope (optional): `<id>/envelope/in`, the limits and geofence the drone enforces.
 
 
+# The identity a drone broadcasts (Remote ID), carried by the envelope message (optional).
+SERIAL_NUMBER_RE = re.compile(r"^[0-9A-HJ-NP-Z]{6,20}$")  # ANSI/CTA-2063-A's characters
+OPERATOR_ID_RE = re.compile(r"^[0-9A-Za-z-]{1,20}$")
+
+
+@dataclass(frozen=True)
+class RemoteIdentity:
+    """What the drone's Remote ID broadcasts: its serial number (ANSI/CTA-2063-A), the
+    operator's registration number, the UA type (MAV_ODID_UA_TYPE), a Self ID text and the
+    operator's position ([lat, lon]; None: the take-off point)."""
+
+    serial_number: str
+    operator_id: str = ""
+    ua_type: int = 2  # MAV_ODID_UA_TYPE_HELICOPTER_OR_MULTIROTOR
+    description: str = ""
+    operator_location: tuple[float, float] | None = None
+
+    def to_dict(self) -> dict:
+        return {
+            "serial_number": self.serial_number,
+            "operator_id": self.operator_id,
+            "ua_type": self.ua_type,
+            "description": self.description,
+            "operator_location": None
+            if self.operator_location is None
+            else list(self.operator_location),
+        }
+
+
+def parse_remote_identity(obj: Any, name: str = "remote_id") -> RemoteIdentity:
+    obj = _object(obj, name)
+    serial = _string(_require(obj, "serial_number", f"{name}."), f"{name}.serial_number")
+    if not SERIAL_NUMBER_RE.match(serial):
+        raise ProtocolError(f"{name}.serial_number", "is not an ANSI/CTA-2063-A serial number")
+    operator = _string(obj.get("operator_id") or "", f"{name}.operator_id", empty=True)
+    if operator and not OPERATOR_ID_RE.match(operator):
+        raise ProtocolError(f"{name}.operator_id", "must be 1 to 20 letters, digits or -")
+    ua_type = _integer(obj.get("ua_type", 2), f"{name}.ua_type", lo=0)
+    if ua_type > 15:
+        raise ProtocolError(f"{name}.ua_type", "must be a MAV_ODID_UA_TYPE (0 to 15)")
+    # ASTM F3411's Self ID description is 23 characters.
+    description = _string(
+        obj.get("description") or "", f"{name}.description", empty=True, max_length=23
+    )
+    location = obj.get("operator_location")
+    if location is not None:
+        if not isinstance(location, list) or len(location) != 2:
+            raise ProtocolError(f"{name}.operator_location", "must be [lat, lon]")
+        location = (
+            latitude(location[0], f"{name}.operator_location[0]"),
+            longitude(location[1], f"{name}.operator_location[1]"),
+        )
+    return RemoteIdentity(serial, operator, ua_type, description, location)
+
+
 @dataclass(frozen=True)
 class EnvelopeUpdate:
     envelope: dict
     ts: float = field(default_factory=now)
     type: str = "envelope"
+    # (optional) the Remote ID identity the drone broadcasts.
+    remote_id: RemoteIdentity | None = None
 
     def to_dict(self) -> dict:
-        return {"type": "envelope", "ts": self.ts, "envelope": self.envelope}
+        return {
+            "type": "envelope",
+            "ts": self.ts,
+            "envelope": self.envelope,
+            **({} if self.remote_id is None else {"remote_id": self.remote_id.to_dict()}),
+        }
 
 
 def parse_envelope_update(obj: Any) -> EnvelopeUpdate:
@@ -1312,7 +1402,12 @@ def parse_envelope_update(obj: Any) -> EnvelopeUpdate:
         parsed = parse_envelope(body)
     except EnvelopeError as exc:
         raise ProtocolError(f"envelope.{exc.field}", exc.message) from None
-    return EnvelopeUpdate(parsed.to_dict(), _ts(obj))
+    identity = obj.get("remote_id")
+    return EnvelopeUpdate(
+        parsed.to_dict(),
+        _ts(obj),
+        remote_id=None if identity is None else parse_remote_identity(identity),
+    )
 
 
 PARSERS[("envelope", "in")] = parse_envelope_update

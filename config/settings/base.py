@@ -15,6 +15,7 @@ from .missions import *  # noqa: F403
 from .operations import *  # noqa: F403
 from .pastview import *  # noqa: F403
 from .records import *  # noqa: F403
+from .remoteid import *  # noqa: F403
 from .security import *  # noqa: F403
 from .tasks import *  # noqa: F403
 from .telemetry import *  # noqa: F403

@@ -45,6 +45,9 @@ os.environ.setdefault("LOGS_IMPORT_QUEUE", "")
 # The separation tests (tests/airspace) set the production minima themselves.
 os.environ.setdefault("AIRSPACE_HORIZONTAL_MIN_M", "0")
 os.environ.setdefault("AIRSPACE_VERTICAL_MIN_M", "0")
+# The suite's organisations fly drones that have no Remote ID identity; the Remote ID
+# tests (tests/remoteid) require it themselves.
+os.environ.setdefault("REMOTE_ID_REQUIRED_DEFAULT", "false")
 
 from .base import *  # noqa: E402,F403
 from .base import DATABASES  # noqa: E402
