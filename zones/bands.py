@@ -1,10 +1,12 @@
 """Altitude bands: published limits in metres with their references, placed about home.
 
-The ground knows a drone's height above its home only (fleet/envelopes.py): no terrain
-and no home elevation. So a limit above ground level (AGL) is taken as above home, which
-holds where the ground is flat around home and is said with every refusal; a limit above
-mean sea level or the WGS 84 ellipsoid cannot be placed at all, and the band is widened
-to be safe: such a lower limit reaches down to the ground, such an upper limit has no top.
+The ground knows a drone's height above its home. A limit above mean sea level (AMSL) is
+placed with the home's elevation when imported terrain gives it (terrain/); without it,
+and for a limit above the WGS 84 ellipsoid (which needs the geoid too), the limit cannot
+be placed and the band is widened to be safe: such a lower limit reaches down to the
+ground, such an upper limit has no top. A limit above ground level (AGL) is taken as
+above home, which holds where the ground around home is flat: the variation of the
+terrain across a zone is not used. Every refusal says how its band was placed.
 """
 
 from __future__ import annotations
@@ -51,24 +53,38 @@ class Band:
     upper_m: float
     upper_ref: str
 
-    def about_home(self) -> tuple[float, float]:
-        """(lowest, highest) height above home the band may cover."""
-        lower = self.lower_m if self.lower_ref in HOME_RELATIVE else -math.inf
-        upper = self.upper_m if self.upper_ref in HOME_RELATIVE else math.inf
-        return lower, upper
+    def about_home(self, home_elevation: float | None = None) -> tuple[float, float]:
+        """(lowest, highest) height above home the band may cover, the home being
+        `home_elevation` m above mean sea level (None: unknown)."""
+        return (
+            _placed(self.lower_m, self.lower_ref, home_elevation, -math.inf),
+            _placed(self.upper_m, self.upper_ref, home_elevation, math.inf),
+        )
 
-    def text(self) -> str:
-        """The band as published, and how it was placed: `0–60 m AGL (taken as above home:
-        terrain unknown)`."""
+    def text(self, home_elevation: float | None = None) -> str:
+        """The band as published, and how it was placed: `0 m AGL – 60 m AGL (AGL taken
+        as above home: terrain unknown)`."""
         lower = _limit(self.lower_m, self.lower_ref)
         upper = _limit(self.upper_m, self.upper_ref)
+        refs = {self.lower_ref, self.upper_ref}
         notes = []
-        if "AGL" in (self.lower_ref, self.upper_ref):
-            notes.append("AGL taken as above home: terrain unknown")
-        if {self.lower_ref, self.upper_ref} - set(HOME_RELATIVE):
+        if "AGL" in refs:
+            known = "terrain unknown" if home_elevation is None else "the zone's terrain unused"
+            notes.append(f"AGL taken as above home: {known}")
+        if "AMSL" in refs and home_elevation is not None:
+            notes.append(f"AMSL placed with home at {home_elevation:.0f} m AMSL")
+        if "WGS84" in refs or ("AMSL" in refs and home_elevation is None):
             notes.append("home elevation unknown: the band is widened to the ground and up")
         suffix = f" ({'; '.join(notes)})" if notes else ""
         return f"{lower} – {upper}{suffix}"
+
+
+def _placed(metres: float, ref: str, home_elevation: float | None, unknown: float) -> float:
+    if ref in HOME_RELATIVE:
+        return metres
+    if ref == "AMSL" and home_elevation is not None:
+        return metres - home_elevation
+    return unknown
 
 
 def _limit(metres: float, ref: str) -> str:

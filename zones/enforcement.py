@@ -20,6 +20,7 @@ from typing import Any
 from django.db.models import Exists, OuterRef, Q
 from django.utils import timezone
 
+import terrain
 from onboard import envelope as env
 
 from .bands import Band
@@ -43,6 +44,8 @@ class Volume:
     band about home."""
 
     zone: Zone
+    # Metres above mean sea level of the drone's home, from imported terrain (else None).
+    home_elevation: float | None = None
 
     @cached_property
     def fence(self) -> env.Envelope:
@@ -60,7 +63,7 @@ class Volume:
         return Band(z.lower_m, z.lower_ref, z.upper_m, z.upper_ref)
 
     def covers(self, home: Sequence[float], point: env.NED) -> bool:
-        lower, upper = self.band.about_home()
+        lower, upper = self.band.about_home(self.home_elevation)
         return lower <= -point[2] <= upper and self.over(home, point)
 
     def over(self, home: Sequence[float], point: env.NED) -> bool:
@@ -68,7 +71,7 @@ class Volume:
 
     def crossed(self, home: Sequence[float], start: env.NED, end: env.NED) -> bool:
         """Does the part of the leg within the band pass over the zone?"""
-        span = band_span(-start[2], -end[2], *self.band.about_home())
+        span = band_span(-start[2], -end[2], *self.band.about_home(self.home_elevation))
         if span is None:
             return False
         a, b = (_along(start, end, t) for t in span)
@@ -81,7 +84,7 @@ class Volume:
         one would open it, that no authorisation is recorded."""
         z = self.zone
         kind = z.get_restriction_display().lower()
-        text = f"the published zone {z.name!r} ({z.identifier}, {kind}, {self.band.text()})."
+        text = f"the published zone {z.name!r} ({z.identifier}, {kind}, {self.band.text(self.home_elevation)})."
         if z.restriction == Restriction.AUTHORISATION_REQUIRED:
             text += " No valid authorisation is recorded for it."
         return text
@@ -123,7 +126,10 @@ def candidates(
         min_lon__lte=max(lons),
         max_lon__gte=min(lons),
     )
-    return [Volume(z) for z in zones if applies_at(z.applicability, at)]
+    found = [z for z in zones if applies_at(z.applicability, at)]
+    amsl = any("AMSL" in (z.lower_ref, z.upper_ref) for z in found)
+    elevation = terrain.elevation(*home[:2]) if amsl else None
+    return [Volume(z, elevation) for z in found]
 
 
 # -- the checks ------------------------------------------------------------------------------
