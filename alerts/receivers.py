@@ -3,8 +3,11 @@ failed (all recorded as mission events), and a drone the offline sweep found los
 
 from __future__ import annotations
 
+import time
+
 from django.db.models.signals import post_save
 
+from airspace.signals import separation_lost
 from fleet.models import Drone
 from fleet.signals import drones_went_offline
 from missions.models import Event, Mission, MissionStatus
@@ -18,6 +21,7 @@ def connect() -> None:
     post_save.connect(on_mission_event, sender=Event, dispatch_uid="alerts-mission-event")
     drones_went_offline.connect(on_drones_offline, dispatch_uid="alerts-drones-offline")
     critical_alarm_outside_mission.connect(on_lone_alarm, dispatch_uid="alerts-lone-alarm")
+    separation_lost.connect(on_separation_lost, dispatch_uid="alerts-separation-lost")
 
 
 def on_mission_event(sender, instance: Event, created: bool, **kwargs) -> None:  # type: ignore[no-untyped-def]
@@ -103,3 +107,17 @@ def on_drones_offline(sender, drone_ids, **kwargs) -> None:  # type: ignore[no-u
             detail="It was airborne." if drone.airborne else "",
             drone_id=drone.drone_id,
         )
+
+
+def on_separation_lost(
+    sender: object, drone: Drone, other: Drone, in_s: float, action: str, **kwargs: object
+) -> None:
+    """The live watch held a drone predicted within the separation minima of another."""
+    raise_alert(
+        drone.organisation,
+        Alert.Kind.CRITICAL_ALARM,
+        f"Separation: {drone.drone_id} held, {other.drone_id} within the minima in {in_s:g} s",
+        source=f"separation:{drone.drone_id}:{other.drone_id}:{int(time.time())}",
+        detail=f"{drone.drone_id} was sent a {action}.",
+        drone_id=drone.drone_id,
+    )

@@ -12,7 +12,7 @@ log = logging.getLogger(__name__)
 
 app = Celery("skyhive")
 app.config_from_object("django.conf:settings", namespace="CELERY")
-app.autodiscover_tasks(["workers", "fleet", "telemetry", "logs", "missions", "records"])
+app.autodiscover_tasks(["workers", "fleet", "telemetry", "logs", "missions", "records", "airspace"])
 
 # How often a worker looks for messages of dead workers, at most (see RestoreUnacked).
 RESTORE_EVERY_S = 10.0

@@ -34,3 +34,11 @@ AIRSPACE_HOLD_S = env.float("AIRSPACE_HOLD_S", 300.0)
 # What fleet/envelopes.py calls for a command (named, not imported: fleet sits below).
 AIRSPACE_COMMAND_CHECK = "airspace.separation.check_command"
 AIRSPACE_COMMAND_RESERVE = "airspace.separation.reserve_command"
+# Live separation (airspace/live.py): how often the ground looks at its airborne drones,
+# how far ahead it flies them on at their velocity and in what steps, how old a previous
+# fix may be to give a velocity, and how long a held pair is not held again.
+AIRSPACE_LIVE_INTERVAL_S = env.float("AIRSPACE_LIVE_INTERVAL_S", 1.0)
+AIRSPACE_LIVE_HORIZON_S = env.float("AIRSPACE_LIVE_HORIZON_S", 10.0)
+AIRSPACE_LIVE_STEP_S = env.float("AIRSPACE_LIVE_STEP_S", 0.5)
+AIRSPACE_LIVE_FIX_S = env.float("AIRSPACE_LIVE_FIX_S", 5.0)
+AIRSPACE_LIVE_REPEAT_S = env.float("AIRSPACE_LIVE_REPEAT_S", 30.0)

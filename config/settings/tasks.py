@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from config.env import env
 
+from .airspace import AIRSPACE_LIVE_INTERVAL_S
 from .core import REDIS_URL
 from .fleet import OFFLINE_SWEEP_INTERVAL_S
 from .logs import LOGS_SWEEP_INTERVAL_S
@@ -54,6 +55,7 @@ SAFETY_TASKS = [
     "missions.resume_paused",
     "missions.relieve_panic_stations",
     "fleet.sweep_offline",
+    "airspace.watch_separation",
 ]
 CELERY_TASK_ROUTES = ["config.queues.route_task"]
 
@@ -73,4 +75,5 @@ CELERY_BEAT_SCHEDULE = {
     ),
     "logs.sweep_stuck": _every("logs.sweep_stuck", LOGS_SWEEP_INTERVAL_S),
     "records.settle": _every("records.settle", RECORDS_SETTLE_INTERVAL_S),
+    "airspace.watch_separation": _every("airspace.watch_separation", AIRSPACE_LIVE_INTERVAL_S),
 }
