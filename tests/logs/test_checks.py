@@ -231,3 +231,13 @@ def test_ardupilot_parameters_come_from_parm_records(tmp_path):
     # Hovering at 1500 µs is now half of 1100-1900: no motor sits at its limit.
     results = {r["name"]: r for r in run_checks(view.store)}
     assert results["motor_imbalance"]["status"] == "pass"
+
+
+def test_a_check_that_breaks_is_reported_and_the_others_still_run(tmp_path):
+    path = px4_ulog(tmp_path / "clean.ulg")
+    levels = merged()
+    del levels["gps"]  # the gps check now fails to read its thresholds
+    results = _checks(tmp_path, path, levels)
+    assert results["gps"]["status"] == "not_checked"
+    assert results["gps"]["reason"] == "the check could not read this log (KeyError)"
+    assert {r["status"] for n, r in results.items() if n != "gps"} == {"pass"}
