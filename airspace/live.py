@@ -77,6 +77,12 @@ def predicted_losses(tracks: Sequence[Track], horizon_s: float, step_s: float) -
         [[t.x, t.y, t.z, t.vx, t.vy, t.vz, t.horizontal_min_m, t.vertical_min_m] for t in tracks]
     )
     i, j = np.triu_indices(len(tracks), k=1)
+    # Only pairs that can close the distance within the horizon are flown on.
+    speed = np.hypot(cols[:, 3], cols[:, 4])
+    now_apart = np.hypot(cols[j, 0] - cols[i, 0], cols[j, 1] - cols[i, 1])
+    reach = np.maximum(cols[i, 6], cols[j, 6]) + (speed[i] + speed[j]) * horizon_s
+    near = now_apart < reach
+    i, j = i[near], j[near]
     moments = np.arange(0.0, horizon_s + step_s / 2, step_s)
     rel = cols[j, :6] - cols[i, :6]
     dx = rel[:, 0, None] + rel[:, 3, None] * moments
