@@ -6,6 +6,7 @@ class AlertsConfig(AppConfig):
     default_auto_field = "django.db.models.BigAutoField"
 
     def ready(self) -> None:
-        from . import receivers
+        from . import receivers, remote_id
 
         receivers.connect()
+        remote_id.connect()

@@ -16,6 +16,7 @@ class Alert(models.Model):
         DRONE_LOST = "drone_lost", "Drone lost"
         MISSION_COMPLETED = "mission_completed", "Mission completed"
         MISSION_FAILED = "mission_failed", "Mission failed"
+        REMOTE_ID = "remote_id", "Remote ID failing"
 
     class Severity(models.TextChoices):
         CRITICAL = "critical", "Critical"

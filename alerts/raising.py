@@ -23,6 +23,7 @@ SEVERITY = {
     Alert.Kind.DRONE_LOST: Alert.Severity.CRITICAL,
     Alert.Kind.MISSION_COMPLETED: Alert.Severity.INFO,
     Alert.Kind.MISSION_FAILED: Alert.Severity.CRITICAL,
+    Alert.Kind.REMOTE_ID: Alert.Severity.WARNING,
 }
 
 

@@ -23,7 +23,12 @@ from workers import outbox
 
 from . import events
 from .models import ConnectionEvent, Drone
-from .signals import drones_arming_changed, drones_came_online, drones_went_offline
+from .signals import (
+    drones_arming_changed,
+    drones_came_online,
+    drones_went_offline,
+    remote_id_failing,
+)
 
 log = logging.getLogger(__name__)
 
@@ -88,6 +93,8 @@ def fc_state(heartbeat: Heartbeat, seen: datetime) -> dict:
         "clock_trusted": abs(offset) <= CLOCK_TOLERANCE_S,
         # What the drone says must change on its flight controller before it can fly.
         "setup": list(heartbeat.fc_setup),
+        # Its Remote ID broadcast's health (fleet/airworthiness.py reads it), when known.
+        **({} if heartbeat.remote_id is None else {"remote_id": heartbeat.remote_id.to_dict()}),
     }
 
 
@@ -209,6 +216,7 @@ def _announce(rows: list, latest: dict[str, Heartbeat], seen: datetime) -> None:
             drone_ids=[drone_id for drone_id, _org in back],
         )
     _announce_arming(rows, latest, seen)
+    _announce_remote_id_failing(rows, latest, seen)
     for drone_id, _pk, organisation_id, was_online, *_armed in rows:
         if _throttle.allow(drone_id, force=not was_online):
             events.publish_nowait(
@@ -228,6 +236,22 @@ def _announce_arming(rows: list, latest: dict[str, Heartbeat], seen: datetime) -
     for receiver, outcome in drones_arming_changed.send_robust(sender=Drone, changes=changes):
         if isinstance(outcome, Exception):
             log.error("arming change not taken by %s: %s", receiver, outcome)
+
+
+def _announce_remote_id_failing(rows: list, latest: dict[str, Heartbeat], seen: datetime) -> None:
+    """Tell who listens (alerts) which airborne drones report a failing Remote ID."""
+    failing = [
+        (drone_id, org, beat.remote_id.error, seen)
+        for drone_id, _pk, org, *_rest in rows
+        if (beat := latest[drone_id]).airborne
+        and beat.remote_id is not None
+        and not beat.remote_id.ok
+    ]
+    if not failing:
+        return
+    for receiver, outcome in remote_id_failing.send_robust(sender=Drone, failing=failing):
+        if isinstance(outcome, Exception):
+            log.error("Remote ID failure not taken by %s: %s", receiver, outcome)
 
 
 def _mission_of(heartbeat: Heartbeat) -> dict | None:

@@ -28,6 +28,7 @@ from .logger import FlightLogger
 from .mission import MissionWorker, position_of
 from .mqtt import MqttLink
 from .navigation import NavigationProcessor, current_ned
+from .remote_id import RemoteId
 from .sensors import SensorField
 
 log = logging.getLogger(__name__)
@@ -106,6 +107,7 @@ class Agent:
         )
         self.navigation = NavigationProcessor(fc)
         self.envelope = EnvelopeGuard(config.envelope_file)
+        self.remote_id = RemoteId(fc)
         self.controller = Controller(
             fc,
             self.navigation,
@@ -165,6 +167,7 @@ class Agent:
     def start(self) -> None:
         self.fc.add_listener(self._on_object)
         self.fc.start()
+        self.remote_id.start()
         self.worker.start()
         self.gear.start()
         self.mqtt.start()
@@ -192,6 +195,7 @@ class Agent:
         self.mqtt.stop(flush_timeout=3.0)
         if self.logger is not None:
             self.logger.close()
+        self.remote_id.stop()
         self.fc.stop()
 
     # -- outgoing -------------------------------------------------------------------------
@@ -234,7 +238,10 @@ class Agent:
         )
 
     def _beat(self) -> None:
-        self.send("heartbeats", build_heartbeat(self.drone_id, self.fc.state, self.worker.current))
+        beat = build_heartbeat(
+            self.drone_id, self.fc.state, self.worker.current, self.remote_id.health()
+        )
+        self.send("heartbeats", beat)
 
     def _event(self, kind: str, details: dict) -> None:
         if self.logger is not None:
@@ -486,6 +493,7 @@ class Agent:
             self._drop("envelope", topic, exc)
             return
         envelope = self.envelope.update(update.envelope)
+        self.remote_id.set_identity(update.remote_id)
         log.info(
             "flight envelope: %g m high, %g m from home, %d fence(s)",
             envelope.max_height,

@@ -55,7 +55,10 @@ def derive_drone_id(prefix: str = DEFAULT_PREFIX, mac: bytes | None = None) -> s
 
 
 def build_heartbeat(
-    drone_id: str, state: VehicleState, mission: protocol.MissionRef | None
+    drone_id: str,
+    state: VehicleState,
+    mission: protocol.MissionRef | None,
+    remote_id: protocol.RemoteIdHealth | None = None,
 ) -> protocol.Heartbeat:
     position = None
     if state.lat is not None and state.lon is not None:
@@ -73,6 +76,7 @@ def build_heartbeat(
         fc_protocol=state.protocol,
         fc_connected=state.connected,
         fc_setup=state.setup,
+        remote_id=remote_id,
     )
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from firmware.sim.mavlink_server import MavlinkSession
 from firmware.sim.receiver import ReceiverArming
+from firmware.sim.remote_id import RemoteIdModule
 from firmware.sim.server import PtyTransport, TcpTransport, serve
 from firmware.sim.telemetry import BoardSession
 from firmware.sim.vehicle import Vehicle, VehicleConfig
@@ -93,6 +94,16 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         metavar="NAME=VALUE",
         help="mavlink parameter at boot, e.g. SIM_CMD_MUTE=400 or BATT_CRT_PCT=30 (repeatable)",
+    )
+    p.add_argument(
+        "--remote-id",
+        action="store_true",
+        help="mavlink: a Remote ID module on the bus answering OPEN_DRONE_ID_ARM_STATUS",
+    )
+    p.add_argument(
+        "--remote-id-fail",
+        metavar="REASON",
+        help="mavlink: the Remote ID module (implies --remote-id) reports this pre-arm failure",
     )
     _add_uavtalk_board_options(p)
     p.add_argument("-v", "--verbose", action="store_true")
@@ -200,6 +211,9 @@ def _session(args: argparse.Namespace) -> BoardSession | MavlinkSession:
         time_scale=args.time_scale,
         autopilot=args.autopilot,
         link_timeout_s=args.link_timeout,
+        remote_id=RemoteIdModule(fail_reason=args.remote_id_fail)
+        if args.remote_id or args.remote_id_fail
+        else None,
     )
     for name, value in args.param:
         if name not in session.params:

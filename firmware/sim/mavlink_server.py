@@ -47,6 +47,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from firmware.sim.mavlink_streams import STREAMED
 from firmware.sim.receiver import ARMED, DISARMED
+from firmware.sim.remote_id import RemoteIdModule
 from firmware.sim.vehicle import PathTarget, Vehicle, lla_to_ned
 from onboard.fc.mavlink import COPTER_MODES, FORCE_MAGIC, MavlinkCodec
 
@@ -199,6 +200,8 @@ class MavlinkSession:
     autopilot: str = "ardupilot"  # or "px4": PX4's modes, AMSL take-off, DO_REPOSITION
     on_reboot: Callable[[], None] | None = None
     stats: SimStats = field(default_factory=SimStats)
+    # A Remote ID module on the bus (`--remote-id`), answering OPEN_DRONE_ID_ARM_STATUS.
+    remote_id: RemoteIdModule | None = None
 
     def __post_init__(self) -> None:
         if self.autopilot not in AUTOPILOT_PARAMS:
@@ -257,6 +260,9 @@ class MavlinkSession:
         # PX4 streams on every link unasked; ArduPilot waits for SRx_/interval requests.
         if self.autopilot == "px4":
             self.intervals.update({name: 1.0 / hz for name, hz in PX4_DEFAULT_RATES.items()})
+        # A Remote ID transponder reports its arm status unasked, once a second.
+        if self.remote_id is not None:
+            self.intervals["OPEN_DRONE_ID_ARM_STATUS"] = 1.0
 
     @property
     def booting(self) -> bool:
@@ -491,6 +497,8 @@ class MavlinkSession:
             self._mission_message(kind, msg, now)
         elif kind.startswith("PARAM_"):
             self._param_message(kind, msg)
+        elif kind.startswith("OPEN_DRONE_ID_") and self.remote_id is not None:
+            self.remote_id.consume(msg, now)
 
     # --- commands ---------------------------------------------------------------------
     def _command(self, command: int, p: list[float], frame: int | None) -> None:
@@ -557,7 +565,14 @@ class MavlinkSession:
             return f"Arm: Mode {self.mode} not armable"
         if self.mode in POSITION_MODES and not self.has_position:
             return "PreArm: Need Position Estimate"
-        return None
+        return self._remote_id_refusal()
+
+    def _remote_id_refusal(self) -> str | None:
+        """ArduPilot's pre-arm check on its Remote ID module's OPEN_DRONE_ID_ARM_STATUS."""
+        if self.remote_id is None:
+            return None
+        status, error = self.remote_id.arm_status()
+        return None if status == 0 else f"PreArm: OpenDroneID: {error}"
 
     @property
     def px4(self) -> bool:
@@ -1048,6 +1063,8 @@ class MavlinkSession:
             sim_dt -= dt
         if self.booting:
             return
+        if self.remote_id is not None:
+            self.remote_id.tick(now)
         self._upload_watchdog(now)
         self._offboard_watch(now)
         self._battery_watch()

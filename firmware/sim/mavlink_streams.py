@@ -207,6 +207,14 @@ def autopilot_version(session: MavlinkSession) -> Fields:
     )
 
 
+def open_drone_id_arm_status(session: MavlinkSession) -> Fields:
+    """The Remote ID module's answer (firmware/sim/remote_id.py); none without a module."""
+    if session.remote_id is None:
+        return None
+    status, error = session.remote_id.arm_status()
+    return (status, error.encode("ascii", "replace"))
+
+
 STREAMED: dict[str, Callable[[MavlinkSession], Fields]] = {
     "SYS_STATUS": sys_status,
     "BATTERY_STATUS": battery_status,
@@ -219,4 +227,5 @@ STREAMED: dict[str, Callable[[MavlinkSession], Fields]] = {
     "MISSION_CURRENT": mission_current,
     "EXTENDED_SYS_STATE": extended_sys_state,
     "AUTOPILOT_VERSION": autopilot_version,
+    "OPEN_DRONE_ID_ARM_STATUS": open_drone_id_arm_status,
 }
