@@ -131,77 +131,97 @@ def polygon_check() -> None:
     )
 
 
+def command_check(organisation, stored: int) -> None:  # type: ignore[no-untyped-def]
+    from bench.common import best_of, record
+    from onboard import envelope as env
+    from zones.enforcement import move_violation
+
+    north, east = env.latlon_to_ne(*env.ned_to_latlon(600.0, 800.0, HOME), HOME)
+    move = env.Move("goto", (north, east, -40.0), True)
+    start = (0.0, 0.0, -40.0)
+    found = move_violation(organisation, HOME, move, start, True)
+    check = best_of(lambda: move_violation(organisation, HOME, move, start, True), repeat=50)
+    envelope = env.Envelope()
+    baseline = best_of(lambda: env.check(envelope, HOME, move, True, 90.0, start), repeat=50)
+    record(
+        "zones.command_check_s",
+        value=check,
+        unit="s",
+        baseline_name="the envelope's own check of the same move (onboard.envelope.check)",
+        baseline_value=baseline,
+        higher_is_better=False,
+        goal=CHECK_GOAL,
+        zones_stored=stored,
+        refused=found is not None,
+        measured="a 1 km navigate leg at 40 m from home, database warm; best of 50",
+    )
+
+
+def mission_check(organisation, stored: int) -> None:  # type: ignore[no-untyped-def]
+    from bench.common import best_of, record
+    from onboard import envelope as env
+    from zones.enforcement import step_violations
+
+    survey = survey_steps()
+    walked = best_of(
+        lambda: step_violations(organisation, HOME, survey, (0.0, 0.0, 0.0), False), repeat=3
+    )
+    wide = env.Envelope(max_distance=5000.0)
+    plain = best_of(
+        lambda: env.step_violations(wide, HOME, survey, (0.0, 0.0, 0.0), False, None), repeat=3
+    )
+    record(
+        "zones.mission_1000_steps_s",
+        value=walked,
+        unit="s",
+        baseline_name="the envelope's own walk of the same steps (onboard.envelope)",
+        baseline_value=plain,
+        higher_is_better=False,
+        goal="a 1 000-waypoint mission's zone check in at most 0.5 s",
+        zones_stored=stored,
+        measured="a 200 x 500 m survey at 100 m near home, every leg within the band "
+        "of the zones around it; best of 3",
+    )
+
+
+def import_check(data: bytes) -> int:
+    """Import the file (timed once) and record it; the zones stored."""
+    from bench.common import best_of, record
+    from zones.models import Zone
+    from zones.store import import_bytes
+
+    imported = best_of(lambda: import_bytes("national.json", data), repeat=1)
+    parsed = best_of(lambda: json.loads(data), repeat=3)
+    stored = Zone.objects.count()
+    record(
+        "zones.import_national_file_s",
+        value=imported,
+        unit="s",
+        baseline_name="json.loads of the same file",
+        baseline_value=parsed,
+        higher_is_better=False,
+        goal=IMPORT_GOAL,
+        file_bytes=len(data),
+        zones_stored=stored,
+    )
+    return stored
+
+
 def main() -> None:
     import django
 
     django.setup()
     from django.db import connection
 
-    from bench.common import best_of, record
     from fleet.models import Organisation
-    from onboard import envelope as env
-    from zones.enforcement import move_violation, step_violations
-    from zones.models import Zone
-    from zones.store import import_bytes
 
     original_database = connection.settings_dict["NAME"]
     connection.creation.create_test_db(verbosity=0, autoclobber=True, serialize=False)
     try:
-        data = national_file()
         organisation = Organisation.objects.create(slug="bench", name="Bench")
-        imported = best_of(lambda: import_bytes("national.json", data), repeat=1)
-        parsed = best_of(lambda: json.loads(data), repeat=3)
-        stored = Zone.objects.count()
-        north, east = env.latlon_to_ne(*env.ned_to_latlon(600.0, 800.0, HOME), HOME)
-        move = env.Move("goto", (north, east, -40.0), True)
-        start = (0.0, 0.0, -40.0)
-        found = move_violation(organisation, HOME, move, start, True)
-        check = best_of(lambda: move_violation(organisation, HOME, move, start, True), repeat=50)
-        envelope = env.Envelope()
-        baseline = best_of(lambda: env.check(envelope, HOME, move, True, 90.0, start), repeat=50)
-        record(
-            "zones.command_check_s",
-            value=check,
-            unit="s",
-            baseline_name="the envelope's own check of the same move (onboard.envelope.check)",
-            baseline_value=baseline,
-            higher_is_better=False,
-            goal=CHECK_GOAL,
-            zones_stored=stored,
-            refused=found is not None,
-            measured="a 1 km navigate leg at 40 m from home, database warm; best of 50",
-        )
-        survey = survey_steps()
-        walked = best_of(
-            lambda: step_violations(organisation, HOME, survey, (0.0, 0.0, 0.0), False), repeat=3
-        )
-        wide = env.Envelope(max_distance=5000.0)
-        plain = best_of(
-            lambda: env.step_violations(wide, HOME, survey, (0.0, 0.0, 0.0), False, None), repeat=3
-        )
-        record(
-            "zones.mission_1000_steps_s",
-            value=walked,
-            unit="s",
-            baseline_name="the envelope's own walk of the same steps (onboard.envelope)",
-            baseline_value=plain,
-            higher_is_better=False,
-            goal="a 1 000-waypoint mission's zone check in at most 0.5 s",
-            zones_stored=stored,
-            measured="a 200 x 500 m survey at 100 m near home, every leg within the band "
-            "of the zones around it; best of 3",
-        )
-        record(
-            "zones.import_national_file_s",
-            value=imported,
-            unit="s",
-            baseline_name="json.loads of the same file",
-            baseline_value=parsed,
-            higher_is_better=False,
-            goal=IMPORT_GOAL,
-            file_bytes=len(data),
-            zones_stored=stored,
-        )
+        stored = import_check(national_file())
+        command_check(organisation, stored)
+        mission_check(organisation, stored)
     finally:
         if connection.settings_dict["NAME"] != original_database:
             connection.creation.destroy_test_db(original_database, verbosity=0)
