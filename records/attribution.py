@@ -21,7 +21,7 @@ from django.contrib.auth import get_user_model
 from django.db.models import Q
 
 from alerts.models import Alert
-from fleet.models import CommandLog, Drone
+from fleet.models import CommandLog, ConnectionEvent, Drone
 from missions.models import Assignment, Event, Mission
 from missions.panic import NAME as PANIC_NAME
 
@@ -123,18 +123,23 @@ def _arming_command(drone: Drone, started: datetime) -> CommandLog | None:
 
 
 def events(drone: Drone, started: datetime, ended: datetime) -> list[dict]:
-    """Alarms (the mission log's), alerts raised for the drone, and commands refused by
-    the envelope or the drone, in time order; at most MAX_EVENTS."""
+    """Alarms (the mission log's), alerts raised for the drone, commands refused by the
+    envelope or the drone, and the link going and coming back, in time order; at most
+    MAX_EVENTS."""
     found = _mission_events(drone, started, ended)
     found += _alerts(drone, started, ended)
     found += _refused_commands(drone, started, ended)
+    found += _link(drone, started, ended)
     found.sort(key=lambda e: e["at"])
     return found[:MAX_EVENTS]
 
 
 def _kind_of_alarm(message: str) -> str:
-    # The drone's own envelope guard says so in its alarm (docs/protocol.md, envelope).
-    return "envelope" if message.startswith("Outside the flight envelope") else "alarm"
+    # The drone's envelope guard and its battery fail-safe say so in their alarms
+    # (docs/protocol.md, envelope; onboard/failsafe.py).
+    if message.startswith("Outside the flight envelope"):
+        return "envelope"
+    return "failsafe" if message.startswith("battery below") else "alarm"
 
 
 def _mission_events(drone: Drone, started: datetime, ended: datetime) -> list[dict]:
@@ -179,6 +184,24 @@ def _alerts(drone: Drone, started: datetime, ended: datetime) -> list[dict]:
             "source": f"alert:{alert.pk}",
         }
         for alert in rows
+    ]
+
+
+def _link(drone: Drone, started: datetime, ended: datetime) -> list[dict]:
+    """The drone going offline and coming back during the flight: the ground's view of a
+    lost link (the drone's own link-loss fail-safe acts meanwhile)."""
+    rows = ConnectionEvent.objects.filter(drone=drone, at__gte=started, at__lte=ended).order_by(
+        "at"
+    )[:MAX_EVENTS]
+    return [
+        {
+            "at": event.at.isoformat(),
+            "kind": "link",
+            "level": "warning" if event.kind == ConnectionEvent.Kind.OFFLINE else "",
+            "message": f"{event.get_kind_display()}: {event.reason}".rstrip(": "),
+            "source": f"connection:{event.pk}",
+        }
+        for event in rows
     ]
 
 

@@ -155,9 +155,22 @@ def test_alarms_during_the_flight_are_its_events(world):
         organisation=world.org, kind=Alert.Kind.CRITICAL_ALARM, severity="critical",
         title="before", drone_id="ACME_1", source="alarm:y", at=at(armed - 60),
     )  # fmt: skip
+    from fleet.models import ConnectionEvent
+    from missions.models import Event, Mission
+
+    mission = Mission.objects.create(organisation=world.org, name="Survey")
+    Event.objects.create(
+        mission=mission, drone=world.drone, kind=Event.Kind.ALARM, at=at(armed + 25),
+        message="battery below 25 % (24 % left)", data={"level": "CRITICAL"},
+    )  # fmt: skip
+    ConnectionEvent.objects.create(
+        drone=world.drone, kind="offline", at=at(armed + 30), reason="no heartbeat for 15.0 s"
+    )
     record, _ = fly(world.drone, armed)
-    assert [e["message"] for e in record.events] == [
-        "CRITICAL alarm from ACME_1: Outside the flight envelope: too high"
+    assert [(e["kind"], e["message"]) for e in record.events] == [
+        ("alert", "CRITICAL alarm from ACME_1: Outside the flight envelope: too high"),
+        ("failsafe", "battery below 25 % (24 % left)"),
+        ("link", "Offline: no heartbeat for 15.0 s"),
     ]
     client = Client()
     client.force_login(world.viewer)
