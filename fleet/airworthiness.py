@@ -7,7 +7,7 @@ collaboration and panic (missions/selection.py) all ask here. Further checks (ma
 due, battery cycles) are functions added to REASONS.
 
 Remote ID (docs/remote-id.md): in the EU a drone of class C1-C3 must broadcast its serial
-number and its operator's registration number [EU 2019/945, EU 2019/947]; a module that
+number [EU 2019/945] and its operator's registration number [EU 2019/947, Art. 14]; a module that
 cannot broadcast says so in OPEN_DRONE_ID_ARM_STATUS [MAVLink ODID], which the drone
 reports in its heartbeat's `remote_id`.
 """
