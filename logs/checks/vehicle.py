@@ -9,6 +9,7 @@ import numpy as np
 
 from logs.checks.base import (
     FAIL,
+    NOT_CHECKED,
     PASS,
     WARNING,
     LogView,
@@ -535,9 +536,29 @@ def cpu_load(view: LogView, thresholds: dict) -> Result:
 
 
 def logging_dropouts(view: LogView, thresholds: dict) -> Result:
-    """The longest gap in the log's densest stream against its usual interval."""
+    """The longest gap in the log's densest stream against its usual interval, and the
+    data a PX4 logger recorded it dropped (ULog dropout messages)."""
     name = "logging_dropouts"
-    level = thresholds["logging_dropouts"]
+    result = _stream_gaps(view, thresholds["logging_dropouts"])
+    dropped = (view.store.index.get("metadata") or {}).get("dropouts_ms")
+    if not isinstance(dropped, int) or dropped <= 0 or result.status == NOT_CHECKED:
+        return result
+    logger_result = Result(
+        name,
+        WARNING,
+        dropped / 1000.0,
+        "s",
+        result.threshold,
+        None,
+        f"the logger dropped {dropped} ms of data (ULog dropout records)",
+    )
+    combined = worst([result, logger_result])
+    combined.series, combined.window = result.series, result.window
+    return combined
+
+
+def _stream_gaps(view: LogView, level: dict) -> Result:
+    name = "logging_dropouts"
     series = view.store.index["series"]
     numeric = [(i["count"], p) for p, i in series.items() if i["kind"] in ("int", "double")]
     if not numeric:

@@ -59,6 +59,8 @@ class UlogImporter:
             "info": {k: _plain(v) for k, v in ulog.msg_info_dict.items()},
             "parameters": {k: _plain(v) for k, v in ulog.initial_parameters.items()},
             "start_timestamp_us": int(ulog.start_timestamp),
+            # Data the logger could not write (the file's dropout messages), in ms.
+            "dropouts_ms": int(ulog.dropouts_ms),
         }
         if ulog.file_corruption:
             log.warnings.append("The log has corrupt data; the readable messages were kept.")

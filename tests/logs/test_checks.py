@@ -241,3 +241,12 @@ def test_a_check_that_breaks_is_reported_and_the_others_still_run(tmp_path):
     assert results["gps"]["status"] == "not_checked"
     assert results["gps"]["reason"] == "the check could not read this log (KeyError)"
     assert {r["status"] for n, r in results.items() if n != "gps"} == {"pass"}
+
+
+def test_the_ulog_loggers_own_dropouts_are_reported(tmp_path):
+    """PX4's sample log records one dropout of 30 ms (pyulog reads the same)."""
+    path = REAL_ULOGS / "sample_log_small.ulg"
+    assert sum(d.duration for d in ULog(str(path)).dropouts) == 30
+    result = _checks(tmp_path, path)["logging_dropouts"]
+    assert result["status"] == "warning"
+    assert "the logger dropped 30 ms of data" in result["reason"]
