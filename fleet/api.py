@@ -131,6 +131,12 @@ CommandReplySerializer = inline_serializer(
         "ok": serializers.BooleanField(),
         "result": serializers.DictField(allow_null=True),
         "error": serializers.CharField(allow_null=True),
+        "terrain_warnings": serializers.ListField(
+            child=serializers.DictField(),
+            required=False,
+            help_text="Where the move's terrain clearance could not be checked (no terrain "
+            "or voids under its leg, or at home): `step`, `message`, `gaps`. Absent when none.",
+        ),
     },
 )
 
@@ -216,8 +222,10 @@ class DroneCommandView(AsyncAPIView):
             409: OpenApiResponse(
                 description=(
                     "drone offline or unsafe; `code: outside_envelope` when the move leaves "
-                    "the flight envelope, `code: confirmation_required` when it goes beyond "
-                    "the envelope's defaults without `confirm_beyond_defaults`"
+                    "the flight envelope, `code: terrain_clearance` when its leg comes below "
+                    "the organisation's minimum terrain clearance, `code: "
+                    "confirmation_required` when it goes beyond the envelope's defaults "
+                    "without `confirm_beyond_defaults`"
                 )
             ),
             504: OpenApiResponse(description="no reply in time"),
