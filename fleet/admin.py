@@ -11,6 +11,7 @@ from onboard.envelope import EnvelopeError, parse_envelope, parse_latlon
 from workers.counters import snapshot
 
 from . import credentials, envelopes
+from .identity import IdentityError, parse_operator_id, parse_serial_number
 from .models import CommandLog, ConnectionEvent, Drone, Membership, Organisation
 
 
@@ -23,7 +24,17 @@ class MembershipInline(admin.TabularInline):
 class OrganisationForm(forms.ModelForm):
     class Meta:
         model = Organisation
-        fields = ["name", "slug", "envelope"]
+        fields = ["name", "slug", "envelope", "operator_id", "require_remote_id"]
+
+    def clean_operator_id(self) -> str:
+        """EN 4709-002 (with its secret characters) or FAA; the stored public part stays."""
+        value = self.cleaned_data.get("operator_id") or ""
+        if value == self.instance.operator_id:
+            return value
+        try:
+            return parse_operator_id(value)
+        except IdentityError as exc:
+            raise forms.ValidationError(exc.message) from None
 
     def clean_envelope(self) -> dict:
         """The flight envelope's own checks (onboard/envelope.py), naming the bad field."""
@@ -48,13 +59,13 @@ class OrganisationAdmin(admin.ModelAdmin):
 
     def save_model(self, request, obj, form, change):  # type: ignore[no-untyped-def]
         super().save_model(request, obj, form, change)
-        if "envelope" in form.changed_data:
+        if {"envelope", "operator_id"} & set(form.changed_data):
             drones = list(obj.drones.select_related("organisation"))
             transaction.on_commit(lambda: envelopes.send_to_drones(drones))
 
 
 def _send_drone_envelope(drone: Drone, changed: list[str]) -> None:
-    if {"max_height", "max_distance"} & set(changed):
+    if {"max_height", "max_distance", "serial_number"} & set(changed):
         transaction.on_commit(lambda: envelopes.send_to_drones([drone]))
 
 
@@ -79,7 +90,21 @@ class DroneForm(forms.ModelForm):
     class Meta:
         model = Drone
         # The admin shows every field; these are the ones this form checks.
-        fields = ["organisation", "drone_id", "name", "max_height", "max_distance"]
+        fields = [
+            "organisation",
+            "drone_id",
+            "name",
+            "max_height",
+            "max_distance",
+            "serial_number",
+            "remote_id_external",
+        ]
+
+    def clean_serial_number(self) -> str:
+        try:
+            return parse_serial_number(self.cleaned_data.get("serial_number") or "")
+        except IdentityError as exc:
+            raise forms.ValidationError(exc.message) from None
 
     def clean(self) -> dict:
         """A drone's own height and distance limits may only lower its organisation's."""
