@@ -84,3 +84,19 @@ def test_a_body_over_the_limit_is_refused_before_it_is_read(live_asgi, world_tx)
     outcome = stream_upload(live_asgi.url, PATH, headers, chunked=False)
     assert outcome.status == 413 and outcome.body["code"] == "too_large", outcome
     assert outcome.taken < MB
+
+
+@pytest.mark.django_db
+def test_deleting_a_tile_in_the_admin_removes_its_grid(terrain_dir, hill, tmp_path):
+    from terrain.importer import import_path
+
+    from .dem import write_hgt
+
+    tile = import_path(write_hgt(tmp_path, hill)).tiles[0]
+    user = staff()
+    user.user_permissions.add(Permission.objects.get(codename="delete_terraintile"))
+    response = client_of(user).post(
+        f"/admin/terrain/terraintile/{tile.pk}/delete/", {"post": "yes"}
+    )
+    assert response.status_code == 302
+    assert not TerrainTile.objects.exists() and stored_files(terrain_dir) == []
