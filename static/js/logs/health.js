@@ -5,6 +5,11 @@
 import { escapeHtml, getJSON } from "./api.js";
 import { formatNumber } from "./plots.js";
 
+/** A figure to three significant digits (a status row has room for little more). */
+function short(v) {
+  return typeof v === "number" && Number.isFinite(v) ? formatNumber(Number(v.toPrecision(3))) : "";
+}
+
 const LABELS = {
   vibration: "Vibration",
   clipping: "Clipping",
@@ -54,15 +59,15 @@ export class HealthReport {
     ].filter(Boolean).join(" · ");
     const rows = [...checks].sort((a, b) => ORDER[a.status] - ORDER[b.status]).map((c) => {
       const status = STATUS[c.status] || STATUS.not_checked;
-      const value = c.value == null ? "" : `${formatNumber(c.value)}${c.unit ? ` ${escapeHtml(c.unit)}` : ""}`;
+      const value = c.value == null ? "" : `${short(c.value)}${c.unit ? ` ${escapeHtml(c.unit)}` : ""}`;
       const at = c.t == null ? "" : `<a href="${escapeHtml(c.link)}" data-check-link="${escapeHtml(c.name)}" title="Open the plot at this moment">at ${formatNumber(c.t)} s</a>`;
       const plot = c.t == null && c.series.length ? `<a href="${escapeHtml(c.link)}" data-check-link="${escapeHtml(c.name)}">plot</a>` : "";
       return `<li class="lv-check ${status.badge}" data-check="${escapeHtml(c.name)}" data-status="${escapeHtml(c.status)}">
         <span class="badge ${status.badge}">${status.text}</span>
         <strong>${escapeHtml(LABELS[c.name] || c.name)}</strong>
         <span class="lv-check-value">${value}</span>
-        <span class="lv-check-reason">${escapeHtml(c.reason)}</span>
-        <span class="lv-check-at">${at}${plot}</span></li>`;
+        <span class="lv-check-at">${at}${plot}</span>
+        <span class="lv-check-reason">${escapeHtml(c.reason)}</span></li>`;
     });
     this.root.querySelector("[data-part=health-body]").innerHTML = `<ul class="lv-checks">${rows.join("")}</ul>`;
     this.root.dataset.loaded = "true";

@@ -51,7 +51,8 @@ export class SpectrumView {
         ],
         axes: [
           { label: "Hz", labelSize: 16, font: "11px system-ui", labelFont: "11px system-ui", grid: { stroke: "#eef0f3" } },
-          { font: "11px system-ui", size: 54, values: (u, ticks) => (ticks || []).map(formatAxis), grid: { stroke: "#eef0f3" } },
+          // A log axis ticks every digit of each decade; only the decades are labelled.
+          { font: "11px system-ui", size: 54, values: (u, ticks) => (ticks || []).map((t) => (Number.isInteger(Math.round(Math.log10(t) * 1e6) / 1e6) ? formatAxis(t) : "")), grid: { stroke: "#eef0f3" } },
         ],
       },
       data,
