@@ -17,6 +17,8 @@ from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import reverse
 from django.views.decorators.http import require_POST
 
+from fleet import remote_id
+from fleet.identity import IdentityError
 from fleet.models import Membership, Role
 from fleet.tenancy import SESSION_KEY, acting_membership
 
@@ -191,8 +193,18 @@ def _join(request: HttpRequest, key: str, account: Callable[[], Any]) -> HttpRes
 def organisation_settings(request: HttpRequest) -> HttpResponse:
     """Name, default home, alert recipients and the second-factor rule (admins)."""
     organisation = admin_organisation(request)
-    status, error = 200, None
-    if request.method == "POST":
+    status, error, remote_id_error = 200, None, None
+    if request.method == "POST" and request.POST.get("section") == "remote_id":
+        try:
+            remote_id.set_organisation_remote_id(
+                organisation, remote_id_changes(organisation, request.POST), request.user
+            )
+        except IdentityError as exc:
+            status, remote_id_error = 400, exc.message
+        else:
+            messages.success(request, "Remote ID settings saved.")
+            return redirect("accounts:organisation")
+    elif request.method == "POST":
         try:
             org_settings.update(organisation, org_settings.clean(request.POST))
         except Refused as exc:
@@ -206,5 +218,17 @@ def organisation_settings(request: HttpRequest) -> HttpResponse:
         "recipients_text": "\n".join(stored.alert_recipients),
         "error": error,
         "form": request.POST if error else None,
+        "remote_id_error": remote_id_error,
+        "remote_id_form": request.POST if remote_id_error else None,
     }
     return render(request, "accounts/organisation.html", context, status=status)
+
+
+def remote_id_changes(organisation: Any, form: Any) -> dict:
+    """The Remote ID section's fields; the stored operator number (its public part, the
+    secret characters never kept) given back unchanged is no change."""
+    changes: dict[str, Any] = {"require_remote_id": form.get("require_remote_id") == "on"}
+    operator_id = str(form.get("operator_id") or "").strip()
+    if operator_id != organisation.operator_id:
+        changes["operator_id"] = operator_id
+    return changes
