@@ -110,18 +110,25 @@ def close_flight(open_flight_pk: int) -> FlightRecord | None:
     """Record the flight and forget the open one, in one transaction; None when it was
     recorded already (or is still in the air)."""
     with transaction.atomic():
-        flight = (
-            OpenFlight.objects.select_for_update(skip_locked=True)
-            .select_related("drone", "organisation")
-            .filter(pk=open_flight_pk, disarmed_at__isnull=False)
-            .first()
-        )
+        flight = lock_disarmed(open_flight_pk)
         if flight is None:
             return None
         record = _record(flight)
         flight.delete()
     log.info("recorded flight %s of %s", record.pk, record.drone_ident)
     return record
+
+
+def lock_disarmed(open_flight_pk: int) -> OpenFlight | None:
+    """The disarmed open flight, locked for this transaction (None when another holds it
+    or it is gone). Only its own row is locked, never its drone's: heartbeats go on
+    updating the drone while the flight's telemetry is read."""
+    return (
+        OpenFlight.objects.select_for_update(skip_locked=True, of=("self",))
+        .select_related("drone", "organisation")
+        .filter(pk=open_flight_pk, disarmed_at__isnull=False)
+        .first()
+    )
 
 
 def _record(flight: OpenFlight) -> FlightRecord:

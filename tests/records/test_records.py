@@ -458,3 +458,35 @@ def test_a_drone_lost_while_armed_ends_its_flight_at_its_last_heartbeat(world, s
     assert [e["kind"] for e in record.events] == ["lost"]
     # Still armed and offline: no new flight opens for it.
     assert building.reconcile() == {"opened": 0, "marked": 0, "closed": 0}
+
+
+@pytest.mark.django_db(transaction=True)
+def test_closing_a_flight_locks_neither_its_drone_nor_another_close(world_tx):
+    """While one process computes a flight, heartbeats still update its drone, and a second
+    close of the same flight passes it by instead of waiting."""
+    import psycopg
+    from django.db import transaction
+    from django.utils import timezone
+
+    from telemetry.queries import conninfo_from_settings
+
+    now = timezone.now()
+    flight = OpenFlight.objects.create(
+        drone=world_tx.drone,
+        organisation=world_tx.org,
+        armed_at=now - timedelta(minutes=2),
+        disarmed_at=now - timedelta(minutes=1),
+    )
+    with transaction.atomic():
+        assert building.lock_disarmed(flight.pk) is not None
+        with psycopg.connect(conninfo_from_settings(), autocommit=True) as other:
+            other.execute("SET lock_timeout = '2s'")
+            other.execute(
+                "UPDATE fleet_drone SET battery_remaining = 0.5 WHERE id = %s",
+                [world_tx.drone.pk],
+            )
+            skipped = other.execute(
+                "SELECT id FROM records_openflight WHERE id = %s FOR UPDATE SKIP LOCKED",
+                [flight.pk],
+            ).fetchall()
+            assert skipped == []
