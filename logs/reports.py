@@ -94,3 +94,20 @@ def viewer_link(log: FlightLog, result: dict) -> str:
     if result.get("series"):
         parts.append("plot=" + ",".join(quote(p, safe="") for p in result["series"]))
     return log.get_absolute_url() + ("#" + "&".join(parts) if parts else "")
+
+
+def summaries(logs: list[FlightLog]) -> None:
+    """Set `log.health` to {"fail": n, "warning": n, "checked": n} from each ready log's kept
+    report (None without one): the list page reads files only, it never runs checks."""
+    for log in logs:
+        log.health = None  # type: ignore[attr-defined]
+        try:
+            report = json.loads(report_path(log).read_text())
+        except (OSError, ValueError):
+            continue
+        statuses = [c.get("status") for c in report.get("checks", [])]
+        log.health = {  # type: ignore[attr-defined]
+            "fail": statuses.count("fail"),
+            "warning": statuses.count("warning"),
+            "checked": sum(s != "not_checked" for s in statuses),
+        }

@@ -11,6 +11,7 @@ from django.shortcuts import get_object_or_404, render
 
 from fleet.models import Role
 from fleet.tenancy import acting_membership, acting_organisation
+from logs import reports
 from logs.models import FlightLog, LogStatus
 from logs.uploads import human_bytes
 
@@ -30,11 +31,13 @@ def log_list(request: HttpRequest) -> HttpResponse:
     if wanted in LogStatus.values:
         logs = logs.filter(status=wanted)
     membership = acting_membership(request)
+    shown = list(logs[:500])
+    reports.summaries(shown)
     return render(
         request,
         "logs/list.html",
         {
-            "logs": logs[:500],
+            "logs": shown,
             "q": query,
             "status": wanted,
             "statuses": LogStatus.choices,

@@ -185,3 +185,13 @@ def test_bad_threshold_settings_are_named_by_the_system_check(settings):
     assert [e.id for e in errors] == ["logs.E001", "logs.E001"]
     assert "LOGS_CHECK_THRESHOLDS['acme']: vibrations: no such threshold" in errors[0].msg
     assert "gps.outage_s: expected a number" in errors[1].msg
+
+
+def test_the_list_page_shows_each_logs_health(world_tx, motor_log, logs_dir):
+    import re
+
+    page = client_for(world_tx.viewer).get("/logs/").content.decode()
+    row = re.search(rf'<tr data-log="{motor_log["id"]}">.*?</tr>', page, re.S).group(0)
+    assert '<span class="badge bad">1 failed</span>' in row
+    assert client_for(world_tx.outsider).get("/logs/").status_code in (200, 404)
+    assert motor_log["id"] not in client_for(world_tx.outsider).get("/logs/").content.decode()
