@@ -16,7 +16,6 @@ its plan changes, and read back as the airspace a new flight is checked against.
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Iterable, Mapping, Sequence
 from datetime import UTC, datetime
 from typing import Any
@@ -32,8 +31,6 @@ from fleet.models import Drone, Organisation
 from .corridors import Leg, Pace, flight_legs, hold_legs
 from .index import Reserved
 from .models import Reservation, SeparationMinima
-
-log = logging.getLogger(__name__)
 
 # Commands whose accepted target moves the drone (onboard/protocol.py NAVIGATION_COMMANDS).
 MOVING_COMMANDS = ("takeoff", "land", "changeN", "changeE", "altitude", "navigate")

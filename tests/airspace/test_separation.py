@@ -279,3 +279,18 @@ def test_a_collaboration_whose_parts_cannot_be_separated_is_declined(world, outb
     decision = mission.events.get(data__decision="collaboration_failed")
     assert "separation minima" in decision.message and "drone ACME_A" in decision.message
     assert outbox.items() == []
+
+
+def test_site_wide_another_organisations_drone_counts_and_is_not_named(world, settings):
+    settings.AIRSPACE_SITE_WIDE = True
+    online_drone(world.other_org, "GLOBEX_A", north=-150)
+    online_drone(world.org, "ACME_B", east=-150)
+    assert start(world.outsider, crossing((-150, 0), (150, 0), 20), "GLOBEX_A").status_code == 200
+    refused = start(world.operator, crossing((0, -150), (0, 150), 20), "ACME_B")
+    assert refused.status_code == 409 and refused.json()["code"] == "conflict"
+    assert "a drone of another organisation" in refused.json()["error"]
+    assert "GLOBEX" not in refused.json()["error"]
+    listed = client_for(world.operator).get(f"/api/v1/organisations/{world.org.slug}/reservations/")
+    assert listed.json()["reservations"] == []
+    settings.AIRSPACE_SITE_WIDE = False
+    assert start(world.operator, crossing((0, -150), (0, 150), 20), "ACME_B").status_code == 200
