@@ -1,8 +1,8 @@
 """Which drones may join or replace a mission: the rule on plain values (`select_drones`),
 and the one read of an organisation's drones it is applied to (`nearest_available`).
 
-A drone is available when it is online, not flying another mission and its battery is
-above the reserve. Available drones are taken nearest first to where they are needed,
+A drone is available when it is online, not flying another mission, airworthy
+(fleet/airworthiness.py: Remote ID, ...) and its battery is above the reserve. Available drones are taken nearest first to where they are needed,
 and between equally distant ones the fuller battery first.
 """
 

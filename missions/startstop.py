@@ -55,7 +55,9 @@ def start_mission(
         else:
             found = nearest_available(mission.organisation_id, target=first_target(plain))
             if not found:
-                raise MissionError("drone", "no drone is available (online, free, charged)", 409)
+                raise MissionError(
+                    "drone", "no drone is available (online, free, charged, airworthy)", 409
+                )
             drone = found[0]
             how = "nearest available"
         try:
