@@ -177,9 +177,13 @@ def reserve_when_assigned(sender: Any, instance: Any, created: bool = False, **k
 def reserve_command(drone: Drone, command: str, params: Mapping[str, Any]) -> None:
     """The drone accepted a navigation command: its leg and the hover after it (a land:
     the descent) replace its previous reservation."""
-    if command not in MOVING_COMMANDS:
-        return
-    planned = planned_legs(drone, [{"command": command, "params": dict(params)}])
+    if command in MOVING_COMMANDS:
+        reserve_steps(drone, [{"command": command, "params": dict(params)}], command)
+
+
+def reserve_steps(drone: Drone, steps: Sequence[Mapping], command: str) -> None:
+    """Steps the ground sent the drone outside a mission replace its reservation."""
+    planned = planned_legs(drone, steps)
     if planned is None:
         return
     legs, airborne_by = planned

@@ -120,6 +120,16 @@ def reserve_command(drone: Drone, command: str, reply: Mapping[str, Any] | None)
     reservations.reserve_command(drone, "navigate", params)
 
 
+def reserve_way_down(drone: Drone, then: str) -> None:
+    """A drone told to stop and come down ("land" where it is, "return" home at its
+    height then land) reserves that way down, in place of its plan's corridors."""
+    steps: list[dict] = [{"command": "land"}]
+    home = envelopes.home_of(drone)
+    if then == "return" and home is not None:
+        steps.insert(0, {"command": "navigate", "params": {"lat": home[0], "lon": home[1]}})
+    reservations.reserve_steps(drone, steps, then)
+
+
 # -- layers -------------------------------------------------------------------------------
 
 

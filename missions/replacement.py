@@ -168,6 +168,7 @@ def _stop_failing(mission: Mission, failing: Assignment, then: str = "land") -> 
         drone=failing.drone,
         data={"decision": "stop_failing", "assignment": str(failing.pk), "then": then},
     )
+    separation.reserve_way_down(failing.drone, then)
     if then == "return":
         # The stop itself sends it home: return, land, disarm (docs/failsafe.md).
         transaction.on_commit(lambda: send_stop(failing_id, str(mission.pk), then="return"))

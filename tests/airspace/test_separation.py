@@ -319,3 +319,7 @@ def test_a_replacement_flying_to_where_the_failing_drone_hovers_climbs_a_layer(w
     assert takeoff.params["altitude"] == 24.0
     reserved = Reservation.objects.get(assignment=replacing, ended_at__isnull=True)
     assert max(leg[5] for leg in reserved.legs) == 26.0
+    # The failing drone's way down (10 m at 2 m/s) is reserved, not a hover of minutes.
+    down = Reservation.objects.get(drone=failing, ended_at__isnull=True)
+    assert down.command == "land" and [leg[4:6] for leg in down.legs] == [[0.0, 12.0]]
+    assert (down.ends_at - down.starts_at).total_seconds() == pytest.approx(5 * 1.5 + 60)
