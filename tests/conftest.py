@@ -47,6 +47,7 @@ def build_world() -> World:
 # parallel run (scripts/test.sh) runs in one worker once every other test has finished.
 REAL_TIME = (
     "tests/missions/test_experiments.py",
+    "tests/airspace/test_e2e.py",
     "tests/missions/test_services.py::test_replacement_with_no_drone_available",
     "tests/pastview/test_e2e.py",
     "tests/workers/test_faults.py",
