@@ -11,67 +11,16 @@ from pathlib import Path
 
 import pytest
 
-from firmware.sim import start_simulator
-from firmware.sim.fleet import agent_process, copy_gear
 from onboard import protocol
-from runtime.processes import Supervised
 from tests.onboard.ground import Ground
-from tests.onboard.mavlink.conftest import HOME, TIME_SCALE
-from workers.mosquitto import start_broker
+from tests.onboard.mavlink.conftest import autopilot  # noqa: F401 (fixture)
+from tests.onboard.mavlink.test_agent import broker, fly  # noqa: F401 (fixtures)
 
 pytestmark = pytest.mark.e2e
 
-DRONE = "MAV_RID01"
 SERIAL = "MFR1C123456789ABC"
 OPERATOR = "FIN87astrdge12k8"
 STATION = (40.6301, -8.6579)
-
-
-@pytest.fixture
-def broker(tmp_path: Path):  # type: ignore[no-untyped-def]
-    b = start_broker(tmp_path / "broker", {"ground": "pw", DRONE: "dpw"})
-    yield b
-    b.stop()
-
-
-@pytest.fixture
-def fly(tmp_path: Path, broker):  # type: ignore[no-untyped-def]
-    """fly(*sim_args) → a Ground talking to the agent of a MAVLink sim started with them."""
-    started: list = []
-
-    def start(*sim_args: str) -> Ground:
-        sim = start_simulator(
-            home=HOME,
-            time_scale=TIME_SCALE,
-            fc="mavlink",
-            extra_args=list(sim_args),
-            log_file=tmp_path / "sim.log",
-        )
-        started.append(sim)
-        copy_gear(tmp_path)
-        agent = agent_process(
-            DRONE,
-            tmp_path,
-            sim.link_url,
-            broker.url_for(DRONE),
-            fc="mavlink",
-            time_scale=TIME_SCALE,
-            extra=["--heartbeat-interval", "0.5", "--arm-timeout", "6"],
-        ).start()
-        started.append(agent)
-        ground = Ground(broker.port, DRONE)
-        started.append(ground)
-        ground.wait_for("heartbeats", lambda m: m["fc"]["connected"], 20)
-        return ground
-
-    yield start
-    for thing in reversed(started):
-        if isinstance(thing, Supervised):
-            assert thing.stop() == 0, "the agent did not stop cleanly"
-        elif isinstance(thing, Ground):
-            thing.close()
-        else:
-            thing.stop()
 
 
 def send_identity(ground: Ground) -> None:
@@ -90,8 +39,8 @@ def received(tmp_path: Path, kind: str) -> dict | None:
     return ast.literal_eval(found[-1]) if found else None
 
 
-def test_the_module_gets_the_identity_and_reports_good_to_arm(fly, tmp_path):
-    ground = fly("--remote-id")
+def test_the_module_gets_the_identity_and_reports_good_to_arm(fly, tmp_path):  # noqa: F811
+    ground = fly(sim_args=("--remote-id",))
     # Before any identity the module refuses: it has nothing to broadcast.
     waiting = ground.wait_for("heartbeats", lambda m: "remote_id" in m, 20)
     assert waiting["remote_id"]["ok"] is False
@@ -117,8 +66,8 @@ def test_the_module_gets_the_identity_and_reports_good_to_arm(fly, tmp_path):
     assert ground.command("arm")["ok"]
 
 
-def test_a_failing_module_is_reported_and_refuses_arming(fly):
-    ground = fly("--remote-id-fail", "transmitter fault")
+def test_a_failing_module_is_reported_and_refuses_arming(fly):  # noqa: F811
+    ground = fly(sim_args=("--remote-id-fail", "transmitter fault"))
     send_identity(ground)
     beat = ground.wait_for("heartbeats", lambda m: "remote_id" in m, 20)
     assert beat["remote_id"] == {"ok": False, "error": "transmitter fault", "source": "odid"}
@@ -127,7 +76,7 @@ def test_a_failing_module_is_reported_and_refuses_arming(fly):
     assert "OpenDroneID: transmitter fault" in reply["error"]
 
 
-def test_without_a_module_an_identity_is_reported_unanswered(fly):
+def test_without_a_module_an_identity_is_reported_unanswered(fly):  # noqa: F811
     ground = fly()
     assert all("remote_id" not in m for m in ground.on("heartbeats"))
     send_identity(ground)

@@ -32,12 +32,19 @@ def broker(tmp_path: Path):  # type: ignore[no-untyped-def]
 
 @pytest.fixture
 def fly(tmp_path: Path, broker, autopilot):  # type: ignore[no-untyped-def]
-    """fly(*sim_params, agent_args=()) → Ground talking to an agent flying a MAVLink sim
-    (ArduPilot, or PX4 where the test parametrizes `autopilot`)."""
+    """fly(*sim_params, agent_args=(), sim_args=()) → Ground talking to an agent flying a
+    MAVLink sim (ArduPilot, or PX4 where the test parametrizes `autopilot`); `sim_args`
+    are further simulator options (`--remote-id`)."""
     started: list = []
 
-    def start(*params: str, agent_args: tuple[str, ...] = (), **sim_kwargs) -> Ground:  # type: ignore[no-untyped-def]
+    def start(  # type: ignore[no-untyped-def]
+        *params: str,
+        agent_args: tuple[str, ...] = (),
+        sim_args: tuple[str, ...] = (),
+        **sim_kwargs,
+    ) -> Ground:
         extra = [arg for p in params for arg in ("--param", p)] + ["--autopilot", autopilot]
+        extra += list(sim_args)
         sim = start_simulator(
             home=HOME,
             time_scale=TIME_SCALE,
