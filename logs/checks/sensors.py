@@ -69,6 +69,9 @@ def _peak_result(
 
 # --- vibration ---
 
+# (store path, times, values) of one curve a figure is read from.
+Curve = tuple[str, np.ndarray, np.ndarray]
+
 
 def vibration(view: LogView, thresholds: dict) -> Result:
     """PX4: vehicle_imu_status.accel_vibration_metric as Flight Review plots it, else the
@@ -77,7 +80,23 @@ def vibration(view: LogView, thresholds: dict) -> Result:
     name = "vibration"
     levels = thresholds["vibration"]
     flavour = view.autopilot()
-    curves, old_schema = [], False
+    found = (
+        _imu_status_vibration(name, view, levels)
+        or _estimator_vibration(name, view, levels)
+        or _recomputed_vibration(name, view, levels)
+        or _vibration_levels(name, view, levels, flavour)
+    )
+    return found or not_checked(
+        name,
+        "no vehicle_imu_status, estimator_status, sensor_combined, vehicle_acceleration, "
+        "VIBE or VIBRATION",
+    )
+
+
+def _imu_status_vibration(name: str, view: LogView, levels: dict) -> Result | None:
+    """PX4's vehicle_imu_status.accel_vibration_metric, graded in its schema's unit."""
+    curves: list[Curve] = []
+    old_schema = False
     for layer in view.instances("vehicle_imu_status"):
         p = view.path(layer, "accel_vibration_metric")
         if p:
@@ -85,12 +104,17 @@ def vibration(view: LogView, thresholds: dict) -> Result:
             # PX4 up to v1.12 (the schema with gyro_coning_vibration) kept the metric on
             # the delta velocity, in m/s; later versions on the acceleration, in m/s².
             old_schema = old_schema or bool(view.path(layer, "gyro_coning_vibration"))
-    if curves:
-        if old_schema:
-            return _peak_result(
-                name, view, curves, levels["px4_delta_velocity"], "m/s", "delta velocity vibration"
-            )
-        return _peak_result(name, view, curves, levels["px4"], "m/s²", "accel vibration metric")
+    if not curves:
+        return None
+    if old_schema:
+        return _peak_result(
+            name, view, curves, levels["px4_delta_velocity"], "m/s", "delta velocity vibration"
+        )
+    return _peak_result(name, view, curves, levels["px4"], "m/s²", "accel vibration metric")
+
+
+def _estimator_vibration(name: str, view: LogView, levels: dict) -> Result | None:
+    """PX4's older estimator_status.vibe[2], the delta velocity vibration in m/s."""
     for layer in view.instances("estimator_status"):
         p = view.path(layer, "vibe[2]")
         if p:
@@ -102,6 +126,11 @@ def vibration(view: LogView, thresholds: dict) -> Result:
                 "m/s",
                 "delta velocity vibration",
             )
+    return None
+
+
+def _recomputed_vibration(name: str, view: LogView, levels: dict) -> Result | None:
+    """PX4's metric from the first logged three-axis accelerations."""
     # PX4's raw accelerations, else the filtered ones (vehicle_acceleration).
     for topic, field in (
         ("sensor_combined", "accelerometer_m_s2"),
@@ -112,6 +141,11 @@ def vibration(view: LogView, thresholds: dict) -> Result:
             if all(paths):
                 found = [p for p in paths if p]
                 return _recomputed(name, view, topic, found, levels["px4"])
+    return None
+
+
+def _vibration_levels(name: str, view: LogView, levels: dict, flavour: str) -> Result | None:
+    """ArduPilot's VIBE levels, else MAVLink VIBRATION, graded by who made the log."""
     for topic, fields in (
         ("VIBE", ("VibeX", "VibeY", "VibeZ")),
         ("VIBRATION", ("vibration_x", "vibration_y", "vibration_z")),
@@ -119,20 +153,22 @@ def vibration(view: LogView, thresholds: dict) -> Result:
         if topic == "VIBRATION" and flavour == "px4":
             # PX4 sends accel_vibration_metric as vibration_x (its mavlink VIBRATION stream).
             fields = ("vibration_x",)
-        curves = []
-        for layer in view.instances(topic):
-            for f in fields:
-                p = view.path(layer, f)
-                if p:
-                    curves.append((p, *_armed_values(view, p)))
+        curves = _armed_curves(view, topic, fields)
         if curves:
             level = levels["px4" if flavour == "px4" else "ardupilot"]
             return _peak_result(name, view, curves, level, "m/s²", "vibration level")
-    return not_checked(
-        name,
-        "no vehicle_imu_status, estimator_status, sensor_combined, vehicle_acceleration, "
-        "VIBE or VIBRATION",
-    )
+    return None
+
+
+def _armed_curves(view: LogView, topic: str, fields: tuple[str, ...]) -> list[Curve]:
+    """The armed samples of each of `fields` in every instance of `topic`."""
+    curves: list[Curve] = []
+    for layer in view.instances(topic):
+        for f in fields:
+            p = view.path(layer, f)
+            if p:
+                curves.append((p, *_armed_values(view, p)))
+    return curves
 
 
 def _recomputed(
@@ -231,7 +267,8 @@ def clipping(view: LogView, thresholds: dict) -> Result:
 
 # --- GPS ---
 
-_GPS = (
+GpsRow = tuple[str, str, str, tuple[str, float], str | None]
+_GPS: tuple[GpsRow, ...] = (
     # topic, fix field, satellites field, hdop field (and its scale), jamming field
     ("vehicle_gps_position", "fix_type", "satellites_used", ("hdop", 1.0), "jamming_indicator"),
     ("sensor_gps", "fix_type", "satellites_used", ("hdop", 1.0), "jamming_indicator"),
@@ -247,114 +284,143 @@ def gps(view: LogView, thresholds: dict) -> Result:
     armed, too few satellites, a high HDOP and jamming."""
     name = "gps"
     level = thresholds["gps"]
-    for topic, fix_f, sats_f, (hdop_f, hdop_scale), jam_f in _GPS:
+    for row in _GPS:
+        topic, fix_f = row[0], row[1]
         layers = [x for x in view.instances(topic) if view.path(x, fix_f)]
-        if not layers:
-            continue
-        layer = layers[0]
-        fix_path = view.path(layer, fix_f)
-        t, fix = view.read(fix_path)
-        if len(t) < 2:
-            return not_checked(name, f"too few {topic} samples")
-        has_fix = fix >= FIX_3D
-        if not has_fix.any():
-            return not_checked(name, f"no 3D fix in {topic}")
-        first_fix = float(t[np.argmax(has_fix)])
-        armed = view.armed_at(t) & (t >= first_fix)
-        findings: list[Result] = []
-        series = [fix_path]
-        # Fix lost.
-        lost = timed_runs(t, armed & ~has_fix)
-        # No record at all for outage_s (the receiver or its link went silent).
-        gaps = np.flatnonzero((np.diff(t) >= level["outage_s"]) & armed[:-1])
-        lost += [(float(t[i]), float(t[i + 1])) for i in gaps]
-        lost.sort()
-        if lost:
-            longest = max(b - a for a, b in lost)
-            findings.append(
-                Result(
-                    name,
-                    FAIL,
-                    longest,
-                    "s",
-                    {"outage_s": level["outage_s"]},
-                    lost[0][0],
-                    f"GPS outage at {lost[0][0]:.1f} s ({len(lost)} in all, longest {longest:.1f} s)",
-                )
-            )
-        sats_path = view.path(layer, sats_f)
-        if sats_path:
-            series.append(sats_path)
-            ts, sats = view.read(sats_path)
-            ok = view.armed_at(ts) & (ts >= first_fix) & np.isfinite(sats)
-            if ok.any():
-                low = float(np.min(sats[ok]))
-                at = first_time(ts, ok & (sats < level["min_satellites"]))
-                findings.append(
-                    Result(
-                        name,
-                        WARNING if at is not None else PASS,
-                        low,
-                        "satellites",
-                        {"min_satellites": level["min_satellites"]},
-                        at if at is not None else float(ts[ok][np.argmin(sats[ok])]),
-                        f"{low:.0f} satellites at least"
-                        + (
-                            f", below {level['min_satellites']:g} from {at:.1f} s"
-                            if at is not None
-                            else ""
-                        ),
-                    )
-                )
-        hdop_path = view.path(layer, hdop_f)
-        if hdop_path:
-            th, hdop = view.read(hdop_path)
-            hdop = np.where(hdop >= 65535, np.nan, hdop) * hdop_scale
-            ok = view.armed_at(th) & (th >= first_fix) & np.isfinite(hdop)
-            at = first_time(th, ok & (hdop > level["max_hdop"]))
-            if at is not None:
-                series.append(hdop_path)
-                findings.append(
-                    Result(
-                        name,
-                        WARNING,
-                        float(np.nanmax(hdop[ok])),
-                        "HDOP",
-                        {"max_hdop": level["max_hdop"]},
-                        at,
-                        f"HDOP over {level['max_hdop']:g} from {at:.1f} s",
-                    )
-                )
-        jam_path = view.path(layer, jam_f) if jam_f else None
-        if jam_path:
-            tj, jam = _armed_values(view, jam_path)
-            if len(tj):
-                value = float(np.max(jam))
-                status = grade(value, level["jamming"])
-                if status != PASS:
-                    series.append(jam_path)
-                    limit = level["jamming"]["fail" if status == FAIL else "warning"]
-                    at = first_time(tj, jam > limit)
-                    findings.append(
-                        Result(
-                            name,
-                            status,
-                            value,
-                            "",
-                            dict(level["jamming"]),
-                            at,
-                            f"jamming indicator {value:.0f} (over {limit:g}) from {at:.1f} s",
-                        )
-                    )
-        if not findings:
-            findings.append(Result(name, PASS, None, "", None, None, f"{topic} had a 3D fix"))
-        result = worst(findings)
-        if result.status == PASS:
-            result.reason = f"no outage; {result.reason}"
-        result.series = series
-        result.window = window_around(view, result.t)
-        return result
+        if layers:
+            return _gps_receiver(name, view, level, layers[0], row)
     return not_checked(name, "no vehicle_gps_position, GPS or GPS_RAW_INT")
+
+
+def _gps_receiver(name: str, view: LogView, level: dict, layer: str, row: GpsRow) -> Result:
+    """The findings of one receiver (its _GPS row) from its first 3D fix on."""
+    topic, fix_f, sats_f, (hdop_f, hdop_scale), jam_f = row
+    fix_path = view.path(layer, fix_f)
+    t, fix = view.read(fix_path)
+    if len(t) < 2:
+        return not_checked(name, f"too few {topic} samples")
+    has_fix = fix >= FIX_3D
+    if not has_fix.any():
+        return not_checked(name, f"no 3D fix in {topic}")
+    first_fix = float(t[np.argmax(has_fix)])
+    outages = _gps_outages(name, t, view.armed_at(t) & (t >= first_fix), has_fix, level)
+    series = [fix_path]
+    sats_path = view.path(layer, sats_f)
+    satellites = None
+    if sats_path:
+        series.append(sats_path)
+        satellites = _fewest_satellites(name, view, sats_path, first_fix, level)
+    hdop_path = view.path(layer, hdop_f)
+    high_hdop = (
+        _high_hdop(name, view, hdop_path, hdop_scale, first_fix, level) if hdop_path else None
+    )
+    if high_hdop:
+        series.append(hdop_path)
+    jam_path = view.path(layer, jam_f) if jam_f else None
+    jamming = _jamming(name, view, jam_path, level["jamming"]) if jam_path else None
+    if jamming:
+        series.append(jam_path)
+    findings = [r for r in (outages, satellites, high_hdop, jamming) if r is not None]
+    if not findings:
+        findings.append(Result(name, PASS, None, "", None, None, f"{topic} had a 3D fix"))
+    result = worst(findings)
+    if result.status == PASS:
+        result.reason = f"no outage; {result.reason}"
+    result.series = series
+    result.window = window_around(view, result.t)
+    return result
+
+
+def _gps_outages(
+    name: str, t: np.ndarray, armed: np.ndarray, has_fix: np.ndarray, level: dict
+) -> Result | None:
+    """A failure for every outage while armed after the first fix, at the first one."""
+    # Fix lost.
+    lost = timed_runs(t, armed & ~has_fix)
+    # No record at all for outage_s (the receiver or its link went silent).
+    gaps = np.flatnonzero((np.diff(t) >= level["outage_s"]) & armed[:-1])
+    lost += [(float(t[i]), float(t[i + 1])) for i in gaps]
+    lost.sort()
+    if not lost:
+        return None
+    longest = max(b - a for a, b in lost)
+    return Result(
+        name,
+        FAIL,
+        longest,
+        "s",
+        {"outage_s": level["outage_s"]},
+        lost[0][0],
+        f"GPS outage at {lost[0][0]:.1f} s ({len(lost)} in all, longest {longest:.1f} s)",
+    )
+
+
+def _fewest_satellites(
+    name: str, view: LogView, path: str, first_fix: float, level: dict
+) -> Result | None:
+    """The fewest satellites while armed after the first fix: a warning below
+    min_satellites, else a pass at the lowest count."""
+    ts, sats = view.read(path)
+    ok = view.armed_at(ts) & (ts >= first_fix) & np.isfinite(sats)
+    if not ok.any():
+        return None
+    low = float(np.min(sats[ok]))
+    at = first_time(ts, ok & (sats < level["min_satellites"]))
+    return Result(
+        name,
+        WARNING if at is not None else PASS,
+        low,
+        "satellites",
+        {"min_satellites": level["min_satellites"]},
+        at if at is not None else float(ts[ok][np.argmin(sats[ok])]),
+        f"{low:.0f} satellites at least"
+        + (f", below {level['min_satellites']:g} from {at:.1f} s" if at is not None else ""),
+    )
+
+
+def _high_hdop(
+    name: str, view: LogView, path: str, scale: float, first_fix: float, level: dict
+) -> Result | None:
+    """A warning from the first HDOP over max_hdop while armed after the first fix."""
+    th, hdop = view.read(path)
+    # 65535 (UINT16_MAX) is an unknown HDOP.
+    hdop = np.where(hdop >= 65535, np.nan, hdop) * scale
+    ok = view.armed_at(th) & (th >= first_fix) & np.isfinite(hdop)
+    at = first_time(th, ok & (hdop > level["max_hdop"]))
+    if at is None:
+        return None
+    return Result(
+        name,
+        WARNING,
+        float(np.nanmax(hdop[ok])),
+        "HDOP",
+        {"max_hdop": level["max_hdop"]},
+        at,
+        f"HDOP over {level['max_hdop']:g} from {at:.1f} s",
+    )
+
+
+def _jamming(name: str, view: LogView, path: str, level: dict[str, float]) -> Result | None:
+    """The highest jamming indicator while armed graded against its levels, from the first
+    time over the level reached; nothing when it stays under both."""
+    tj, jam = _armed_values(view, path)
+    if not len(tj):
+        return None
+    value = float(np.max(jam))
+    status = grade(value, level)
+    if status == PASS:
+        return None
+    limit = level["fail" if status == FAIL else "warning"]
+    at = first_time(tj, jam > limit)
+    return Result(
+        name,
+        status,
+        value,
+        "",
+        dict(level),
+        at,
+        f"jamming indicator {value:.0f} (over {limit:g}) from {at:.1f} s",
+    )
 
 
 # --- estimator ---

@@ -4,6 +4,8 @@ failsafes, processor load and gaps in the log. Each takes a LogView and its thre
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -77,6 +79,41 @@ def _err_spans(t: np.ndarray, subsys: np.ndarray, codes: np.ndarray, wanted, end
             spans.append((open_at.pop(sub), when, sub))
     spans += [(a, end, sub) for sub, a in open_at.items()]
     return sorted(spans)
+
+
+class Sighting(NamedTuple):
+    """What one source recorded: its topic, the paths that show it and the spans it found
+    ((start, end) for RC loss, (start, end, kind) for failsafes)."""
+
+    source: str
+    series: list[str]
+    spans: list[tuple]
+
+
+def _combined(sightings: list[Sighting]) -> Sighting:
+    """The sources together, named after the first."""
+    return Sighting(
+        sightings[0].source,
+        [p for s in sightings for p in s.series],
+        [span for s in sightings for span in s.spans],
+    )
+
+
+def _armed_err_spans(
+    view: LogView, wanted: Callable[[int, int], bool]
+) -> tuple[list[str], list[tuple[float, float, int]]] | None:
+    """The ERR paths and the conditions of the wanted subsystems that began while armed,
+    or None when the log has no ERR records."""
+    err = _err_events(view)
+    if err is None:
+        return None
+    t, subsys, codes, paths = err
+    spans = [
+        (a, b, sub)
+        for a, b, sub in _err_spans(t, subsys, codes, wanted, view.duration)
+        if view.armed_at(np.array([a]))[0]
+    ]
+    return paths, spans
 
 
 # --- battery sag ---
@@ -170,10 +207,25 @@ def rc_loss(view: LogView, thresholds: dict) -> Result:
     ArduPilot ERR radio records; MAVLink SYS_STATUS RC receiver health), and PX4's
     lost-frame share."""
     name = "rc_loss"
-    spans: list[tuple[float, float]] = []
-    series: list[str] = []
-    source = ""
-    findings: list[Result] = []
+    flags = _px4_rc_lost(view)
+    lost_frames = _lost_frame_share(name, view, thresholds["rc_loss"])
+    sightings = [s for s in (flags, _err_rc_lost(view), _sys_status_rc_lost(view)) if s is not None]
+    if not sightings:
+        return _rc_unrecorded(name, view)
+    seen = _combined(sightings)
+    spans = sorted(seen.spans)
+    findings = [r for r in (lost_frames, _rc_lost_spans(name, spans)) if r is not None]
+    if not findings:
+        findings.append(Result(name, PASS, 0.0, "s", {}, None, f"no RC loss in {seen.source}"))
+    result = worst(findings)
+    result.series = list(dict.fromkeys(seen.series))[:6]
+    result.window = window_around(view, result.t)
+    return result
+
+
+def _px4_rc_lost(view: LogView) -> Sighting | None:
+    """PX4's RC-lost flags while armed, from every topic that has one."""
+    source, series, spans = "", [], []
     for topic, field in (
         ("input_rc", "rc_lost"),
         ("vehicle_status", "rc_signal_lost"),
@@ -185,8 +237,12 @@ def rc_loss(view: LogView, thresholds: dict) -> Result:
                 t, v = view.read(p)
                 source = source or topic
                 series.append(p)
-                lost = (v > 0) & view.armed_at(t)
-                spans += timed_runs(t, lost)
+                spans += timed_runs(t, (v > 0) & view.armed_at(t))
+    return Sighting(source, series, spans) if source else None
+
+
+def _lost_frame_share(name: str, view: LogView, level: dict) -> Result | None:
+    """A warning when PX4's share of RC frames lost while armed is over lost_frames."""
     lost_frames = next(
         (
             (view.path(x, "rc_lost_frame_count"), view.path(x, "rc_total_frame_count"))
@@ -195,83 +251,83 @@ def rc_loss(view: LogView, thresholds: dict) -> Result:
         ),
         None,
     )
-    if lost_frames:
-        t, lost_n = _read_armed(view, lost_frames[0])
-        _, total_n = _read_armed(view, lost_frames[1])
-        if len(t) >= 2 and total_n[-1] > total_n[0]:
-            share = float((lost_n[-1] - lost_n[0]) / (total_n[-1] - total_n[0]))
-            limit = thresholds["rc_loss"]["lost_frames"]
-            if share > limit:
-                findings.append(
-                    Result(
-                        name,
-                        WARNING,
-                        share,
-                        "",
-                        {"lost_frames": limit},
-                        float(t[0]),
-                        f"{share:.0%} of RC frames lost (over {limit:.0%})",
-                    )
-                )
-    err = _err_events(view)
-    if err is not None:
-        t, subsys, codes, paths = err
-        source = source or "ERR"
-        series += paths
-        for a, b, _ in _err_spans(
-            t,
-            subsys,
-            codes,
-            lambda s, c: s in (ERR_RADIO, ERR_FAILSAFE_RADIO),
-            view.duration,
-        ):
-            if view.armed_at(np.array([a]))[0]:
-                spans.append((a, b))
+    if not lost_frames:
+        return None
+    t, lost_n = _read_armed(view, lost_frames[0])
+    _, total_n = _read_armed(view, lost_frames[1])
+    if len(t) < 2 or not total_n[-1] > total_n[0]:
+        return None
+    share = float((lost_n[-1] - lost_n[0]) / (total_n[-1] - total_n[0]))
+    limit = level["lost_frames"]
+    if not share > limit:
+        return None
+    return Result(
+        name,
+        WARNING,
+        share,
+        "",
+        {"lost_frames": limit},
+        float(t[0]),
+        f"{share:.0%} of RC frames lost (over {limit:.0%})",
+    )
+
+
+def _err_rc_lost(view: LogView) -> Sighting | None:
+    """ArduPilot's radio and radio-failsafe ERR conditions begun while armed."""
+    found = _armed_err_spans(view, lambda s, c: s in (ERR_RADIO, ERR_FAILSAFE_RADIO))
+    if found is None:
+        return None
+    paths, spans = found
+    return Sighting("ERR", paths, [(a, b) for a, b, _ in spans])
+
+
+def _sys_status_rc_lost(view: LogView) -> Sighting | None:
+    """MAVLink SYS_STATUS: an RC receiver present but not healthy while armed."""
+    series, spans = [], []
     for layer in view.instances("SYS_STATUS"):
         present = view.path(layer, "onboard_control_sensors_present")
         health = view.path(layer, "onboard_control_sensors_health")
         if present and health:
             t, pres = view.read(present)
             _, heal = view.read(health)
-            source = source or "SYS_STATUS"
             series.append(health)
             has_rc = (pres.astype(np.int64) & MAV_SENSOR_RC_RECEIVER) > 0
             bad = has_rc & ((heal.astype(np.int64) & MAV_SENSOR_RC_RECEIVER) == 0)
             spans += timed_runs(t, bad & view.armed_at(t))
-    if not source:
-        if view.instances("RCIN"):
-            return Result(
-                name,
-                PASS,
-                0.0,
-                "s",
-                {},
-                None,
-                "RCIN recorded and no radio ERR record",
-                series=[p for p in (view.path(view.instances("RCIN")[0], "C3"),) if p],
-                window=window_around(view, None),
-            )
-        return not_checked(name, "no input_rc, vehicle_status, ERR or SYS_STATUS")
-    spans.sort()
-    if spans:
-        total = sum(b - a for a, b in spans)
-        findings.append(
-            Result(
-                name,
-                FAIL,
-                total,
-                "s",
-                {},
-                spans[0][0],
-                f"RC lost at {spans[0][0]:.1f} s while armed ({_times(len(spans))}, {total:.1f} s in all)",
-            )
+    return Sighting("SYS_STATUS", series, spans) if series else None
+
+
+def _rc_unrecorded(name: str, view: LogView) -> Result:
+    """No RC-loss record: an ArduPilot log with RC input and no radio ERR had none."""
+    if view.instances("RCIN"):
+        return Result(
+            name,
+            PASS,
+            0.0,
+            "s",
+            {},
+            None,
+            "RCIN recorded and no radio ERR record",
+            series=[p for p in (view.path(view.instances("RCIN")[0], "C3"),) if p],
+            window=window_around(view, None),
         )
-    if not findings:
-        findings.append(Result(name, PASS, 0.0, "s", {}, None, f"no RC loss in {source}"))
-    result = worst(findings)
-    result.series = list(dict.fromkeys(series))[:6]
-    result.window = window_around(view, result.t)
-    return result
+    return not_checked(name, "no input_rc, vehicle_status, ERR or SYS_STATUS")
+
+
+def _rc_lost_spans(name: str, spans: list[tuple[float, float]]) -> Result | None:
+    """Any RC loss while armed fails, at the first one."""
+    if not spans:
+        return None
+    total = sum(b - a for a, b in spans)
+    return Result(
+        name,
+        FAIL,
+        total,
+        "s",
+        {},
+        spans[0][0],
+        f"RC lost at {spans[0][0]:.1f} s while armed ({_times(len(spans))}, {total:.1f} s in all)",
+    )
 
 
 def _times(n: int) -> str:
@@ -416,56 +472,15 @@ def failsafe(view: LogView, thresholds: dict) -> Result:
     """Failsafes while armed: PX4 vehicle_status.failsafe, ArduPilot ERR failsafe
     subsystems, MAVLink HEARTBEAT system_status critical or emergency."""
     name = "failsafe"
-    spans: list[tuple[float, float, str]] = []
-    series: list[str] = []
-    source = ""
-    for layer in view.instances("vehicle_status"):
-        p = view.path(layer, "failsafe")
-        if p:
-            t, v = view.read(p)
-            source, series = "vehicle_status", [p]
-            nav = view.path(layer, "nav_state")
-            if nav:
-                series.append(nav)
-            spans += [(a, b, "failsafe") for a, b in timed_runs(t, (v > 0) & view.armed_at(t))]
-            break
-    err = _err_events(view)
-    if err is not None:
-        t, subsys, codes, paths = err
-        source = source or "ERR"
-        series += paths
-        for a, b, sub in _err_spans(
-            t, subsys, codes, lambda s, c: s in ERR_FAILSAFES, view.duration
-        ):
-            if view.armed_at(np.array([a]))[0]:
-                spans.append((a, b, f"{ERR_FAILSAFES[sub]} failsafe"))
-        mode = next(
-            (view.path(x, "ModeNum") or view.path(x, "Mode") for x in view.instances("MODE")), None
-        )
-        if mode:
-            series.append(mode)
-    if not source:
-        for layer in view.instances("HEARTBEAT"):
-            p = view.path(layer, "system_status")
-            if p:
-                t, v = view.read(p)
-                source, series = "HEARTBEAT", [p]
-                spans += [
-                    (a, b, "critical state")
-                    for a, b in timed_runs(t, (v >= MAV_STATE_CRITICAL) & view.armed_at(t))
-                ]
-                mode = view.path(layer, "custom_mode")
-                if mode:
-                    series.append(mode)
-                break
-    if not source and (view.instances("MODE") or view.instances("EV")):
-        # ArduPilot writes an ERR record at each failsafe: a log of modes and events
-        # without one had none.
-        source = "ERR (none recorded)"
-        series = [p for p in (view.path(x, "ModeNum") for x in view.instances("MODE")) if p]
-    if not source:
+    sightings = [s for s in (_px4_failsafes(view), _err_failsafes(view)) if s is not None]
+    # HEARTBEAT's state, else ArduPilot's modes, speak only for a log with neither
+    # vehicle_status nor ERR.
+    seen = (
+        _combined(sightings) if sightings else _heartbeat_critical(view) or _modes_without_err(view)
+    )
+    if seen is None:
         return not_checked(name, "no vehicle_status, ERR or HEARTBEAT")
-    if not spans:
+    if not seen.spans:
         return Result(
             name,
             PASS,
@@ -473,11 +488,11 @@ def failsafe(view: LogView, thresholds: dict) -> Result:
             "events",
             {},
             None,
-            f"no failsafe in {source}",
-            series=series[:6],
+            f"no failsafe in {seen.source}",
+            series=seen.series[:6],
             window=window_around(view, None),
         )
-    spans.sort()
+    spans = sorted(seen.spans)
     a, b, what = spans[0]
     kinds = ", ".join(dict.fromkeys(k for _, _, k in spans))
     return Result(
@@ -488,9 +503,62 @@ def failsafe(view: LogView, thresholds: dict) -> Result:
         {},
         a,
         f"{what} at {a:.1f} s while armed ({len(spans)} in all: {kinds})",
-        series=series[:6],
+        series=seen.series[:6],
         window=window_around(view, a),
     )
+
+
+def _px4_failsafes(view: LogView) -> Sighting | None:
+    """PX4's vehicle_status.failsafe flag while armed, shown with the navigation state."""
+    for layer in view.instances("vehicle_status"):
+        p = view.path(layer, "failsafe")
+        if p:
+            t, v = view.read(p)
+            nav = view.path(layer, "nav_state")
+            spans = [(a, b, "failsafe") for a, b in timed_runs(t, (v > 0) & view.armed_at(t))]
+            return Sighting("vehicle_status", [p, nav] if nav else [p], spans)
+    return None
+
+
+def _err_failsafes(view: LogView) -> Sighting | None:
+    """ArduPilot's failsafe ERR conditions begun while armed, shown with the flight mode."""
+    found = _armed_err_spans(view, lambda s, c: s in ERR_FAILSAFES)
+    if found is None:
+        return None
+    paths, spans = found
+    mode = next(
+        (view.path(x, "ModeNum") or view.path(x, "Mode") for x in view.instances("MODE")), None
+    )
+    return Sighting(
+        "ERR",
+        [*paths, mode] if mode else list(paths),
+        [(a, b, f"{ERR_FAILSAFES[sub]} failsafe") for a, b, sub in spans],
+    )
+
+
+def _heartbeat_critical(view: LogView) -> Sighting | None:
+    """MAVLink HEARTBEAT system_status critical or emergency while armed."""
+    for layer in view.instances("HEARTBEAT"):
+        p = view.path(layer, "system_status")
+        if p:
+            t, v = view.read(p)
+            spans = [
+                (a, b, "critical state")
+                for a, b in timed_runs(t, (v >= MAV_STATE_CRITICAL) & view.armed_at(t))
+            ]
+            mode = view.path(layer, "custom_mode")
+            return Sighting("HEARTBEAT", [p, mode] if mode else [p], spans)
+    return None
+
+
+def _modes_without_err(view: LogView) -> Sighting | None:
+    """An ArduPilot log of modes and events with no ERR record."""
+    if not (view.instances("MODE") or view.instances("EV")):
+        return None
+    # ArduPilot writes an ERR record at each failsafe: a log of modes and events
+    # without one had none.
+    series = [p for p in (view.path(x, "ModeNum") for x in view.instances("MODE")) if p]
+    return Sighting("ERR (none recorded)", series, [])
 
 
 # --- processor load ---
