@@ -9,7 +9,7 @@ from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import reverse
 from django.views.decorators.http import require_POST
 
-from . import listing
+from . import airworthiness, listing
 from .models import Drone, Membership, Role
 from .serializers import DroneDetailSerializer
 from .state import LABELS, describe
@@ -89,6 +89,8 @@ def drone_detail(request: HttpRequest, drone_id: str) -> HttpResponse:
             "state": config["drones"][0]["state"],
             "state_label": LABELS[config["drones"][0]["state"]],
             "fleet_config": config,
+            "airworthiness": airworthiness.verdict(drone),
+            "remote_id_health": airworthiness.remote_id_health(drone),
         },
     )
 
