@@ -22,7 +22,11 @@ class Command(BaseCommand):
     @transaction.atomic
     def handle(self, *args, **options):  # type: ignore[no-untyped-def]
         password_file = Path(settings.DATA_DIR) / "admin_password"
-        organisation, _ = Organisation.objects.get_or_create(slug="demo", defaults={"name": "Demo"})
+        # The demo's simulated drones carry no Remote ID identity (docs/remote-id.md): the
+        # demo organisation does not require one until its admin turns the rule on.
+        organisation, _ = Organisation.objects.get_or_create(
+            slug="demo", defaults={"name": "Demo", "require_remote_id": False}
+        )
         User = get_user_model()
         user = User.objects.filter(username="admin").first()
         if user is None or not password_file.exists():
