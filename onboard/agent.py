@@ -97,14 +97,7 @@ class Agent:
         self._recent = RecentIds(RECENT_REQUESTS)
         self.sent: Counter[str] = Counter()
         self.logger = FlightLogger(config.log_dir, self.drone_id) if config.log_dir else None
-        self.gear = GearManager(
-            config.gear_dir,
-            self.send,
-            reread_interval=config.gear_reread_interval,
-            sensor_field=config.sensor_field,
-            pictures_dir=config.pictures_dir,
-            camera=config.camera,
-        )
+        self.gear = self._gear_manager(config)
         self.navigation = NavigationProcessor(fc)
         self.envelope = EnvelopeGuard(config.envelope_file)
         self.remote_id = RemoteId(fc)
@@ -128,15 +121,7 @@ class Agent:
             flight_timeout=config.flight_timeout,
             events=self._event,
         )
-        self.failsafe = FailSafe(
-            fc,
-            self.raise_alarm,
-            navigation=self.navigation,
-            stop_mission=self.worker.stop_current,
-            bounds=config.bounds,
-            limits=failsafe_limits(config),
-            time_scale=config.time_scale,
-        )
+        self.failsafe = self._failsafe(config)
         self.worker.on_end = self.failsafe.mission_ended
         self.controller.actions.update(hold=self._hold, **{"return": self._return})
         self.ground_clock = GroundClock()
@@ -148,6 +133,29 @@ class Agent:
         self._telemetry_lock = threading.Lock()
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
+
+    def _gear_manager(self, config: AgentConfig) -> GearManager:
+        """The drone's gear (sensors, camera, pictures), reread as its files change."""
+        return GearManager(
+            config.gear_dir,
+            self.send,
+            reread_interval=config.gear_reread_interval,
+            sensor_field=config.sensor_field,
+            pictures_dir=config.pictures_dir,
+            camera=config.camera,
+        )
+
+    def _failsafe(self, config: AgentConfig) -> FailSafe:
+        """The fail-safes: they stop the running mission before they act."""
+        return FailSafe(
+            self.fc,
+            self.raise_alarm,
+            navigation=self.navigation,
+            stop_mission=self.worker.stop_current,
+            bounds=config.bounds,
+            limits=failsafe_limits(config),
+            time_scale=config.time_scale,
+        )
 
     def _mqtt_link(self, config: AgentConfig) -> MqttLink:
         """The broker connection: this drone's `in` channels, and the bridge's state topic
