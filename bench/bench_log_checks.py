@@ -34,7 +34,7 @@ def _timed(fn) -> tuple[float, object]:
 
 
 def _flight(path: Path, **options) -> Path:  # type: ignore[no-untyped-def]
-    from tests.logs.flight_faults import px4_ulog
+    from logs.synth_faults import px4_ulog
 
     px4_ulog(path, **options, seconds=PROBE_S)
     seconds = PROBE_S * TARGET / path.stat().st_size

@@ -1,5 +1,5 @@
 """The automatic log checks on logs with known faults, written in each format's own
-structure (tests/logs/flight_faults.py), on PX4's own sample logs, and on logs without
+structure (logs/synth_faults.py), on PX4's own sample logs, and on logs without
 the topics a check needs."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from logs.checks.signals import ema, px4_accel_vibration
 from logs.checks.thresholds import ThresholdError
 from logs.store import import_to_store
 from logs.synth import write_ulog
-from tests.logs.flight_faults import (
+from logs.synth_faults import (
     EXPECTED,
     FAULT_AT,
     FAULTS,

@@ -10,8 +10,8 @@ import pytest
 from django.test import Client
 
 from logs.checks import CHECKS
+from logs.synth_faults import FAULT_AT, ardupilot_bin, px4_ulog
 from tests.logs.conftest import upload, wait_until_processed
-from tests.logs.flight_faults import FAULT_AT, ardupilot_bin, px4_ulog
 
 pytestmark = [pytest.mark.e2e, pytest.mark.usefixtures("logs_settings")]
 

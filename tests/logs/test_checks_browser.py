@@ -8,9 +8,9 @@ import re
 import pytest
 from playwright.sync_api import expect
 
+from logs.synth_faults import FAULT_AT, px4_ulog
 from tests.conftest import login
 from tests.logs.conftest import upload, wait_until_processed
-from tests.logs.flight_faults import FAULT_AT, px4_ulog
 from tests.logs.test_api import client_for
 
 pytestmark = [pytest.mark.browser, pytest.mark.e2e, pytest.mark.usefixtures("logs_settings")]
