@@ -6,11 +6,13 @@ another drone to the caller, as for a CRITICAL alarm, and this one returns home 
 
 from __future__ import annotations
 
+import logging
 import time
 from typing import Any
 
+import psycopg
 from django.conf import settings
-from django.db import transaction
+from django.db import OperationalError, transaction
 
 from fleet.models import Organisation
 from missions.creation import create_mission
@@ -21,6 +23,8 @@ from missions.progress import lock_mission
 from missions.sending import send_stop
 from missions.startstop import Started, start_mission
 from onboard import protocol
+
+log = logging.getLogger(__name__)
 
 NAME = "Panic call at"
 # On station: the longest sleep a step may ask for (docs/protocol.md); a release ends it.
@@ -111,14 +115,35 @@ def relieve_stations() -> list[str]:
             event = _record_reserve(assignment)
         if event is not None:
             # It returns home to land: landing on station would put it down by the caller.
-            replacement.replace_drone(
-                mission_id=str(assignment.mission_id),
-                assignment_id=str(assignment.pk),
-                alarm_event_id=event.pk,
-                then="return",
+            _retrying_deadlocks(
+                lambda a=assignment, e=event: replacement.replace_drone(
+                    mission_id=str(a.mission_id),
+                    assignment_id=str(a.pk),
+                    alarm_event_id=e.pk,
+                    then="return",
+                )
             )
             relieved.append(assignment.drone.drone_id)
     return relieved
+
+
+DEADLOCK_ATTEMPTS = 3
+
+
+def _retrying_deadlocks(run: Any) -> None:
+    """Run `run` again when PostgreSQL ended it to break a deadlock (it kept nothing of the
+    ended transaction, and the replacement is idempotent), as PostgreSQL's manual asks of
+    applications; after DEADLOCK_ATTEMPTS the error stands."""
+    for attempt in range(1, DEADLOCK_ATTEMPTS + 1):
+        try:
+            run()
+            return
+        except OperationalError as exc:
+            if attempt == DEADLOCK_ATTEMPTS or not isinstance(
+                exc.__cause__, psycopg.errors.DeadlockDetected
+            ):
+                raise
+            log.warning("a replacement met a deadlock; trying again (%d)", attempt)
 
 
 def _record_reserve(assignment: Assignment) -> Event | None:

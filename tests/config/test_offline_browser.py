@@ -38,6 +38,10 @@ ROUTES: dict[str, str | None] = {
     "logs/compare/": "/logs/compare/?ids={log}",
     "logs/<uuid:pk>/": "/logs/{log}/",
     "operations/": "/operations/",
+    "records/drones/<str:drone_id>/": "/records/drones/ACME_1/",
+    "records/pilots/<str:username>/": "/records/pilots/operator/",
+    # Needs a recorded flight (only flights make records): tests/records/test_logbook_browser.py.
+    "records/flights/<int:pk>/": None,
     "accounts/password/": "/accounts/password/",
     "accounts/password/done/": "/accounts/password/done/",
     "api/docs/": "/api/docs/",

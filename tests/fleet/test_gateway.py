@@ -14,6 +14,7 @@ from django.utils import timezone
 from fleet import credentials
 from fleet.heartbeats import sweep_offline
 from fleet.models import ConnectionEvent, Drone
+from records.models import OpenFlight
 from runtime.processes import wait_for
 from workers.counters import Counters, snapshot
 from workers.gateway import Gateway
@@ -178,6 +179,9 @@ def test_a_message_arriving_while_the_database_connection_is_lost_is_still_handl
     client.publish("ACME_1/heartbeats/out", json.dumps(heartbeat("ACME_1")), qos=1)
     assert wait_for(lambda: Drone.objects.filter(drone_id="ACME_1", online=True).exists())
     assert wait_for(lambda: Drone.objects.filter(specs__TYPE="QUAD").exists())
+    # The batch thread is done with the first heartbeat, the armed drone's flight record
+    # opened, before its connection goes (else that record would meet the loss first).
+    assert wait_for(lambda: OpenFlight.objects.filter(drone__drone_id="ACME_1").exists())
     assert _drop_other_database_sessions(keep=before) >= 2
 
     gear("HEXACOPTER")
