@@ -8,6 +8,7 @@ from __future__ import annotations
 from urllib.parse import urljoin, urlsplit
 
 import pytest
+from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
 from missions.models import Mission, MissionStatus
 from tests.conftest import login
@@ -54,7 +55,12 @@ class Visits:
         response = self.page.goto(url, wait_until="load")
         assert response is not None and response.status < 500, url
         assert "default-src 'self'" in response.headers["content-security-policy"], url
-        self.page.wait_for_load_state("networkidle")
+        try:
+            self.page.wait_for_load_state("networkidle", timeout=15_000)
+        except PlaywrightTimeout:
+            # Its scripts ran at load, so what they did is checked; on a loaded host a
+            # request may keep the network from idling, which is not what this test asks.
+            pass
         for violation in self.page.evaluate("window.__csp || []"):
             self.problems.append(f"{url}: {violation}")
         hrefs = self.page.eval_on_selector_all("a[href]", "links => links.map(a => a.href)")
