@@ -111,6 +111,7 @@ class AuditEvent(models.Model):
         TOKEN = "token", "Token"
         SECURITY = "security", "Sign-in security"
         ORGANISATION = "organisation", "Organisation settings"
+        MAINTENANCE = "maintenance", "Maintenance"
 
     organisation = models.ForeignKey(
         "fleet.Organisation", on_delete=models.CASCADE, related_name="audit_events"

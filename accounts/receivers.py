@@ -7,9 +7,11 @@ from typing import Any
 
 from django.conf import settings
 from django.contrib.auth.signals import user_logged_in, user_login_failed
-from django.db.models.signals import post_save
+from django.db.models.signals import post_delete, post_save
 
-from fleet.signals import action_refused, envelope_changed
+from batteries.signals import changed as battery_changed
+from checklists.signals import definition_changed as checklist_definition_changed
+from fleet.signals import action_refused, drone_setting_changed, envelope_changed
 from fleet.signals import identity_changed as fleet_identity_changed
 
 from . import admin_site, audit, passwords, signin
@@ -92,7 +94,8 @@ def refused(
 def identity_changed(
     sender: Any, organisation_id: int, user: Any, action: str, target: str, changed: dict, **kw: Any
 ) -> None:
-    """An admin set a Remote ID identity: who, when, and the new values."""
+    """An admin set a Remote ID identity, or an operator a drone's setting (its log
+    collection): who, when, and the new values."""
     audit.record(
         organisation_id,
         audit.Kind.ORGANISATION,
@@ -122,6 +125,133 @@ def zone_authorised(sender: Any, instance: Any, created: bool, **kwargs: Any) ->
     )
 
 
+def checklist_run(sender: Any, instance: Any, created: bool, **kwargs: Any) -> None:
+    """A pre-flight checklist was run: its answers and automatic values, and the outcome."""
+    if not created:
+        return
+    audit.record(
+        instance.organisation_id,
+        audit.Kind.COMMAND,
+        "checklist.run",
+        target=instance.drone.drone_id,
+        outcome="ok" if instance.passed else "failed",
+        actor=instance.run_by,
+        detail={
+            "run": instance.pk,
+            "template": instance.template_name,
+            "results": instance.results,
+            "failures": instance.failures,
+            "expires_at": instance.expires_at.isoformat(),
+        },
+    )
+
+
+def checklist_defined(
+    sender: Any, organisation_id: int, user: Any, action: str, target: str, detail: dict, **kw: Any
+) -> None:
+    """An admin created, changed or retired a checklist template, or set the rule."""
+    audit.record(
+        organisation_id, audit.Kind.ORGANISATION, action, target=target, actor=user, detail=detail
+    )
+
+
+def maintenance_signed_off(sender: Any, instance: Any, created: bool, **kwargs: Any) -> None:
+    """A maintenance task signed off for a drone: who, the task, notes and parts."""
+    if not created:
+        return
+    audit.record(
+        instance.organisation_id,
+        audit.Kind.MAINTENANCE,
+        "maintenance.sign_off",
+        target=f"{instance.drone_ident} {instance.item_name}",
+        actor=instance.signed_by,
+        detail={
+            "entry": instance.pk,
+            "schedule": instance.schedule_id,
+            "bulletin": instance.bulletin_id,
+            "notes": instance.notes,
+            "parts": instance.parts,
+            "usage": instance.usage,
+        },
+    )
+
+
+def _schedule_detail(schedule: Any) -> dict:
+    return {
+        "schedule": schedule.pk,
+        "drone": schedule.drone.drone_id if schedule.drone_id else None,
+        "model": schedule.model,
+        "every_hours": schedule.every_hours,
+        "every_flights": schedule.every_flights,
+        "every_days": schedule.every_days,
+    }
+
+
+def maintenance_schedule_saved(sender: Any, instance: Any, created: bool, **kwargs: Any) -> None:
+    audit.record(
+        instance.organisation_id,
+        audit.Kind.MAINTENANCE,
+        "maintenance.schedule_" + ("add" if created else "change"),
+        target=instance.name,
+        detail=_schedule_detail(instance),
+    )
+
+
+def maintenance_schedule_deleted(sender: Any, instance: Any, **kwargs: Any) -> None:
+    audit.record(
+        instance.organisation_id,
+        audit.Kind.MAINTENANCE,
+        "maintenance.schedule_remove",
+        target=instance.name,
+        detail=_schedule_detail(instance),
+    )
+
+
+def maintenance_bulletin_issued(sender: Any, instance: Any, created: bool, **kwargs: Any) -> None:
+    if created:
+        audit.record(
+            instance.organisation_id,
+            audit.Kind.MAINTENANCE,
+            "maintenance.bulletin",
+            target=f"{instance.model or instance.drone.drone_id} {instance.title}",
+            actor=instance.issued_by,
+            detail={
+                "bulletin": instance.pk,
+                "model": instance.model,
+                "drone": instance.drone.drone_id if instance.drone_id else None,
+                "source": instance.source,
+                "text": instance.text,
+            },
+        )
+
+
+def battery_change(
+    sender: Any, organisation_id: int, user: Any, action: str, target: str, changed: dict, **kw: Any
+) -> None:
+    """A member changed the battery retirement rules (organisation settings), named or
+    re-rated a pack, or chose the pack a drone carries: who, and each field's old and new."""
+    kind = audit.Kind.ORGANISATION if action == "battery.rules" else audit.Kind.MAINTENANCE
+    audit.record(
+        organisation_id, kind, action, target=target, actor=user, detail={"changed": changed}
+    )
+
+
+def _connect_maintenance() -> None:
+    post_save.connect(
+        maintenance_signed_off, sender="maintenance.LogEntry", dispatch_uid="audit-maint-log"
+    )
+    post_save.connect(
+        maintenance_schedule_saved, sender="maintenance.Schedule", dispatch_uid="audit-maint-sch"
+    )
+    post_delete.connect(
+        maintenance_schedule_deleted, sender="maintenance.Schedule", dispatch_uid="audit-maint-del"
+    )
+    post_save.connect(
+        maintenance_bulletin_issued, sender="maintenance.Bulletin", dispatch_uid="audit-maint-bul"
+    )
+    battery_changed.connect(battery_change, dispatch_uid="audit-battery")
+
+
 def connect() -> None:
     """Called once from AppConfig.ready(); senders by label, so no import of their apps."""
     post_save.connect(command_logged, sender="fleet.CommandLog", dispatch_uid="audit-command")
@@ -130,6 +260,10 @@ def connect() -> None:
     envelope_changed.connect(envelope_stored, dispatch_uid="audit-envelope")
     action_refused.connect(refused, dispatch_uid="audit-refused")
     fleet_identity_changed.connect(identity_changed, dispatch_uid="audit-remote-id")
+    drone_setting_changed.connect(identity_changed, dispatch_uid="audit-drone-setting")
+    _connect_maintenance()
+    post_save.connect(checklist_run, sender="checklists.Run", dispatch_uid="audit-checklist-run")
+    checklist_definition_changed.connect(checklist_defined, dispatch_uid="audit-checklist")
     user_logged_in.connect(signin.signed_in, dispatch_uid="sign-in-record")
     user_login_failed.connect(signin.sign_in_failed, dispatch_uid="sign-in-failed-record")
     post_save.connect(

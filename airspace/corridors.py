@@ -13,15 +13,27 @@ else the drone's cruise speed) and the climb rate. A drone may be faster (an aut
 flying its own cruise speed) or slower (wind, acceleration, waypoints' tolerance
 checks): a leg's window opens `buffer` seconds before its nominal start shrunk by `early`
 (0.5: twice as fast) and closes `buffer` seconds after its nominal end stretched by
-`slack` (0.5: half as slow again). Heights are metres above
-the drone's home, as the envelope measures them.
+`slack` (0.5: half as slow again). A `sleep` before the drone has left the ground (a
+staggered departure) is timed by the drone itself and is never shorter: it is not shrunk.
+Heights are metres above the drone's home, as the envelope measures them.
+
+A sideways move sent while a climb (or descent) in place is still under way — a `navigate`
+straight after its `takeoff`, with no `wait_for_flight` between them — is flown on a slant:
+the drone climbs and moves at once (onboard/navigation.py sends the new target at once;
+the flight controller flies its horizontal and vertical axes together, each at its own
+rate). A drone flying its steps as an autopilot mission (onboard/mavlink_mission.py)
+finishes the take-off item first and flies level, as a paced leg does (its target waits
+for the climb: onboard/mission.py PacedLeg). Its leg is reserved for both: from
+where the climb began to the target, in pieces (`slant_pieces`), each with a band from the
+lowest height the drone can be at along it — climbing at its slowest while moving at its
+fastest, the pace's slack and early factors — up to its highest target.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 EARTH_RADIUS = 6_378_137.0  # WGS-84 equatorial radius, as onboard/envelope.py uses
 # Below this height a drone is on the ground: it takes no airspace.
@@ -40,12 +52,16 @@ class Pace:
     hold_s: float = 300.0  # how long the drone is assumed to hover after its last step
     radius_m: float = 2.0
     vertical_m: float = 2.0
+    # A slanted leg's pieces: the lowest height along it rises by at most this within one
+    # piece (the vertical minimum, so a piece's band is never a minimum too low).
+    step_m: float = 10.0
 
 
 @dataclass(frozen=True)
 class Leg:
     """One corridor: from (lat0, lon0) to (lat1, lon1), heights low..high above home,
-    reserved from t0 to t1 (seconds since the epoch)."""
+    reserved from t0 to t1 (seconds since the epoch); `step` is the position of the step
+    it flies in the steps walked (None: the hover after the last one). It is not stored."""
 
     lat0: float
     lon0: float
@@ -55,6 +71,7 @@ class Leg:
     high: float
     t0: float
     t1: float
+    step: int | None = field(default=None, compare=False)
 
     def to_list(self) -> list[float]:
         return [self.lat0, self.lon0, self.lat1, self.lon1, self.low, self.high, self.t0, self.t1]
@@ -70,6 +87,7 @@ class _Where:
     lon: float
     height: float
     seconds: float  # nominal time since the flight began
+    waited: float = 0.0  # of which spent waiting on the ground before leaving it
 
 
 def offset(lat: float, lon: float, north: float, east: float) -> tuple[float, float]:
@@ -107,33 +125,173 @@ def _target(step: Mapping, here: _Where) -> tuple[float, float, float, float | N
     return None
 
 
-def _leg(start: _Where, end: _Where, pace: Pace, began: float) -> Leg:
-    t0 = began + start.seconds * pace.early - pace.buffer_s
-    t1 = began + end.seconds * (1.0 + pace.slack) + pace.buffer_s
+SIDEWAYS = ("navigate", "changeN", "changeE")
+
+
+@dataclass
+class _Rise:
+    """A climb or descent in place still under way: from `start` metres, sent to each of
+    `heights` in turn, sent at `sent` seconds of the flight's clock (moved on by sleeps:
+    the drone goes on climbing through them). `least`: metres it has surely come from
+    `start` towards them (climbing at its slowest)."""
+
+    start: float
+    heights: list[float]
+    sent: float
+    least: float = 0.0
+
+    @property
+    def direction(self) -> float:
+        return 1.0 if self.heights[0] >= self.start else -1.0
+
+    def slept(self, seconds: float, pace: Pace) -> None:
+        reach = max(0.0, self.direction * (self.heights[-1] - self.start))
+        self.least = min(reach, self.least + seconds * _slowest_climb(pace))
+        self.sent += seconds
+
+    def sent_to(self, height: float) -> None:
+        self.heights.append(height)
+        self.least = min(self.least, max(0.0, self.direction * (height - self.start)))
+
+
+@dataclass(frozen=True)
+class _Move:
+    """One step's move: from `a` to `b`, its position among the steps, its leg's own speed
+    and, for a sideways move flown on a slant, the climb under way when it was sent."""
+
+    a: _Where
+    b: _Where
+    step: int
+    speed: float | None = None
+    rise: _Rise | None = None
+
+
+def _slowest_climb(pace: Pace) -> float:
+    return pace.climb_m_s / (1.0 + pace.slack)
+
+
+def _fastest_speed(speed: float, pace: Pace) -> float:
+    return speed / pace.early if pace.early > 0 else math.inf
+
+
+def _window(
+    start_s: float, end_s: float, waited: float, pace: Pace, began: float
+) -> tuple[float, float]:
+    t0 = began + waited + (start_s - waited) * pace.early - pace.buffer_s
+    t1 = began + end_s * (1.0 + pace.slack) + pace.buffer_s
+    return t0, t1
+
+
+def _leg(start: _Where, end: _Where, pace: Pace, began: float, step: int | None) -> Leg:
+    t0, t1 = _window(start.seconds, end.seconds, start.waited, pace, began)
     low = max(0.0, min(start.height, end.height) - pace.vertical_m)
     high = max(start.height, end.height) + pace.vertical_m
-    return Leg(start.lat, start.lon, end.lat, end.lon, low, high, t0, t1)
+    return Leg(start.lat, start.lon, end.lat, end.lon, low, high, t0, t1, step)
 
 
-def _moves(steps: Sequence[Mapping], start: _Where, pace: Pace) -> Iterator[tuple[_Where, _Where]]:
-    """(from, to) of each step that moves the drone or makes it hover, in flying order."""
+def _moves(steps: Sequence[Mapping], start: _Where, pace: Pace) -> Iterator[_Move]:
+    """Each step that moves the drone or makes it hover, in flying order. A climb or
+    descent in place stays under way until a `wait_for_flight` or the next move; a
+    sideways move sent meanwhile carries it (`rise`)."""
     here = start
-    for step in steps:
-        if step.get("command") == "sleep":
+    rise: _Rise | None = None
+    for position, step in enumerate(steps):
+        command = step.get("command")
+        if command == "wait_for_flight":
+            rise = None
+            continue
+        if command == "sleep":
             value = float((step.get("params") or {}).get("value", 0.0))
-            end = _Where(here.lat, here.lon, here.height, here.seconds + value)
-        else:
-            target = _target(step, here)
-            if target is None:
-                continue
-            lat, lon, height, speed = target
-            across = ground_distance(here.lat, here.lon, lat, lon)
-            seconds = (
-                across / (speed or pace.speed_m_s) + abs(height - here.height) / pace.climb_m_s
-            )
-            end = _Where(lat, lon, height, here.seconds + seconds)
-        yield here, end
+            before_leaving = here.height < GROUND_M and here.seconds == here.waited
+            waited = here.waited + value if before_leaving else here.waited
+            end = _Where(here.lat, here.lon, here.height, here.seconds + value, waited)
+            if rise is not None:
+                rise.slept(value, pace)
+            yield _Move(here, end, position)
+            here = end
+            continue
+        target = _target(step, here)
+        if target is None:
+            continue
+        lat, lon, height, speed = target
+        across = ground_distance(here.lat, here.lon, lat, lon)
+        seconds = across / (speed or pace.speed_m_s) + abs(height - here.height) / pace.climb_m_s
+        end = _Where(lat, lon, height, here.seconds + seconds, here.waited)
+        slanted = rise if command in SIDEWAYS and across > 0 else None
+        yield _Move(here, end, position, speed, slanted)
+        # A move in place (a sideways one to where the drone is too) leaves the climb under
+        # way, towards its new height; a sideways leg flies it out.
+        if slanted is not None or across > 0:
+            rise = None
+        elif rise is not None:
+            rise.sent_to(height)
+        elif height != here.height:
+            rise = _Rise(here.height, [height], here.seconds)
         here = end
+
+
+def slant_pieces(move: _Move, pace: Pace) -> list[tuple[float, float, float]]:
+    """A sideways leg flown while a climb is under way, as (from, to, least) pieces: the
+    shares of the leg each piece covers and the metres from the climb's start the drone
+    has surely come by the piece's start. The drone comes at least as far as its slowest
+    climb over the time its fastest flight takes to get there; pieces end where that
+    passes a multiple of `pace.step_m` and where it reaches the target's height."""
+    rise, a, b = move.rise, move.a, move.b
+    assert rise is not None
+    need = rise.direction * (b.height - rise.start)
+    across = ground_distance(a.lat, a.lon, b.lat, b.lon)
+    # Metres of climb per metre flown, at the slowest climb and the fastest flight.
+    slope = _slowest_climb(pace) / _fastest_speed(move.speed or pace.speed_m_s, pace)
+    cuts = {0.0, 1.0}
+    if slope > 0 and pace.step_m > 0:
+        k = math.floor(rise.least / pace.step_m) + 1
+        heights = [j * pace.step_m for j in range(k, math.ceil(need / pace.step_m))]
+        for height in [*heights, need]:
+            share = (height - rise.least) / slope / across
+            if 0.0 < share < 1.0:
+                cuts.add(share)
+    shares = sorted(cuts)
+
+    def least_at(share: float) -> float:
+        return min(need, rise.least + slope * share * across)
+
+    return [(s0, s1, least_at(s0)) for s0, s1 in zip(shares, shares[1:], strict=False)]
+
+
+def _slanted_legs(move: _Move, pace: Pace, began: float) -> list[Leg]:
+    """The legs of a sideways move flown while a climb is under way (see the module's
+    docstring): one per piece, or one over every height it was sent to when its heights
+    do not all lie on one side of where the climb began."""
+    rise, a, b = move.rise, move.a, move.b
+    assert rise is not None
+    heights = [*rise.heights, b.height]
+    d = rise.direction
+    if min(d * (h - rise.start) for h in heights) < 0 or b.height == rise.start:
+        every = [rise.start, *heights]
+        t0, t1 = _window(rise.sent, b.seconds, a.waited, pace, began)
+        low = max(0.0, min(every) - pace.vertical_m)
+        high = max(every) + pace.vertical_m
+        return [Leg(a.lat, a.lon, b.lat, b.lon, low, high, t0, t1, move.step)]
+    far = max(d * (h - rise.start) for h in heights)
+    speed = move.speed or pace.speed_m_s
+    across = ground_distance(a.lat, a.lon, b.lat, b.lon)
+    legs = []
+    for s0, s1, least in slant_pieces(move, pace):
+        lat0, lon0 = a.lat + s0 * (b.lat - a.lat), a.lon + s0 * (b.lon - a.lon)
+        lat1, lon1 = a.lat + s1 * (b.lat - a.lat), a.lon + s1 * (b.lon - a.lon)
+        # Flown on the slant it is there from the time it was sent; climbing first, no
+        # later than the level leg would be.
+        t0, t1 = _window(
+            rise.sent + s0 * across / speed,
+            a.seconds + s1 * (b.seconds - a.seconds),
+            a.waited,
+            pace,
+            began,
+        )
+        ends = sorted((rise.start + d * least, rise.start + d * far))
+        low, high = max(0.0, ends[0] - pace.vertical_m), ends[1] + pace.vertical_m
+        legs.append(Leg(lat0, lon0, lat1, lon1, low, high, t0, t1, move.step))
+    return legs
 
 
 def flight_legs(
@@ -147,22 +305,27 @@ def flight_legs(
     corridor's nominal start, widened like a window's end; `began` when it flies already).
 
     Legs on the ground take no airspace; after its last step a drone still in the air
-    hovers where it is for `pace.hold_s`.
+    hovers where it is for `pace.hold_s`. A sideways move sent while a climb is under way
+    is reserved on its slant, in pieces (`slant_pieces`).
     """
     start = _Where(position[0], position[1], max(0.0, position[2]), 0.0)
     legs: list[Leg] = []
     airborne_by: float | None = began if start.height >= GROUND_M else None
     last = start
-    for a, b in _moves(steps, start, pace):
+    for move in _moves(steps, start, pace):
+        a, b = move.a, move.b
         last = b
         if max(a.height, b.height) < GROUND_M:
             continue
         if airborne_by is None:
             airborne_by = began + a.seconds * (1.0 + pace.slack) + pace.buffer_s
-        legs.append(_leg(a, b, pace, began))
+        if move.rise is not None:
+            legs.extend(_slanted_legs(move, pace, began))
+        else:
+            legs.append(_leg(a, b, pace, began, move.step))
     if last.height >= GROUND_M:
         hover = _Where(last.lat, last.lon, last.height, last.seconds + pace.hold_s)
-        legs.append(_leg(last, hover, pace, began))
+        legs.append(_leg(last, hover, pace, began, None))
     return legs, began if airborne_by is None else airborne_by
 
 

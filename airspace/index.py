@@ -23,10 +23,11 @@ is the plain definition, every pair in pure Python: the index must answer as it 
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -71,6 +72,9 @@ class Clash:
     at: float  # seconds since the epoch
     distance_m: float  # between the corridors' edges
     band_gap_m: float
+    # When the reserved leg's window closes: a flight that leaves later by a wait on the
+    # ground is clear of this leg once its own leg's window opens after it.
+    until: float = field(default=math.inf, compare=False)
 
 
 class _Frame:
@@ -267,6 +271,34 @@ class Airspace:
         i, j = _pairs(a, b, reach, size)
         return self._clash(a.take(i), b.take(j), i, frame)
 
+    def around(self, flight: Flight) -> Airspace:
+        """The reserved legs that may come within the minima of the flight's ground track at
+        any time and height: a smaller airspace to check many variants of one flight
+        against, its layers and its waits on the ground (airspace/separation.py)."""
+        if not flight.legs or not len(self._rows):
+            return self
+        mine = _rows(flight.legs)
+        frame = _Frame(mine[0, 0], mine[0, 1])
+        ones = np.ones((len(mine), 1))
+        own = np.hstack([ones * flight.radius_m, ones * flight.horizontal_min_m, ones * 0.0])
+        a = _Legs.build(mine, frame, own, np.zeros(len(mine), dtype=int))
+        b = _Legs.build(self._rows, frame, self._per_leg, np.arange(len(self._rows)))
+        reach = (
+            flight.radius_m
+            + float(b.radius.max())
+            + max(flight.horizontal_min_m, float(b.hmin.max()))
+        )
+        keep = np.minimum(b.x0, b.x1) < max(a.x0.max(), a.x1.max()) + reach
+        keep &= np.maximum(b.x0, b.x1) > min(a.x0.min(), a.x1.min()) - reach
+        keep &= np.minimum(b.y0, b.y1) < max(a.y0.max(), a.y1.max()) + reach
+        keep &= np.maximum(b.y0, b.y1) > min(a.y0.min(), a.y1.min()) - reach
+        near: dict[int, list] = {}
+        for row in np.flatnonzero(keep):
+            near.setdefault(int(self._owner[row]), []).append(self._rows[row].tolist())
+        return Airspace(
+            [dataclasses.replace(self.reserved[k], legs=legs) for k, legs in near.items()]
+        )
+
     @staticmethod
     def _near(a: _Legs, b: _Legs) -> _Legs:
         """The reserved legs that may conflict with any of the flight's at all."""
@@ -299,8 +331,9 @@ class Airspace:
         lat, lon = frame.latlon(float(mid_x[k]), float(mid_y[k]))
         reserved = self.reserved[int(b.owner[k])]
         return Clash(
-            int(legs[k]), reserved, lat, lon, float(starts[k]), float(edge[k]), float(gap[k])
-        )
+            int(legs[k]), reserved, lat, lon, float(starts[k]), float(edge[k]), float(gap[k]),
+            float(b.t1[k]),
+        )  # fmt: skip
 
 
 def first_conflict_pairwise(reserved: Sequence[Reserved], flight: Flight) -> Clash | None:
@@ -334,7 +367,7 @@ def _pair(
     if edge >= max(flight.horizontal_min_m, other.horizontal_min_m):
         return None
     lat, lon = frame.latlon(mx, my)
-    return Clash(i, other, lat, lon, max(mine.t0, leg.t0), edge, gap)
+    return Clash(i, other, lat, lon, max(mine.t0, leg.t0), edge, gap, leg.t1)
 
 
 def _closest(p: tuple, a: tuple, b: tuple) -> tuple[float, tuple[float, float]]:

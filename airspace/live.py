@@ -33,7 +33,7 @@ from fleet.models import Drone
 from onboard import protocol
 from workers import outbox
 
-from . import reservations
+from . import reservations, traffic
 from .corridors import EARTH_RADIUS
 from .models import Reservation
 from .signals import separation_lost
@@ -180,13 +180,17 @@ def _once(loser: str, winner: str) -> bool:
 
 
 def watch() -> list[str]:
-    """One look at every airspace: hold the lower-priority drone of each pair predicted
-    to lose separation. The ids of the drones held."""
+    """One look at every airspace: relay each airborne drone its traffic, and hold the
+    lower-priority drone of each pair predicted to lose separation (unless
+    AIRSPACE_LIVE_HOLD is off). The ids of the drones held."""
     now = time.time()
     reservations.sweep()
     held_ids = []
     for drones in _airspaces():
         tracks = tracks_of(drones, now)
+        traffic.relay(drones, tracks, now)
+        if not settings.AIRSPACE_LIVE_HOLD:
+            continue
         losses = predicted_losses(
             tracks, settings.AIRSPACE_LIVE_HORIZON_S, settings.AIRSPACE_LIVE_STEP_S
         )

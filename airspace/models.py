@@ -83,3 +83,48 @@ class Reservation(models.Model):
 
     def __str__(self) -> str:
         return f"{self.drone} {self.kind} {self.starts_at:%Y-%m-%d %H:%M:%S}"
+
+
+class LandingSlot(models.Model):
+    """A drone's place in the landing queue over its home (airspace/landing.py): it holds
+    over home at `layer_m` until its turn, then lands. Active while `ended_at` is empty."""
+
+    class State(models.TextChoices):
+        HOLDING = "holding", "Holding"
+        LANDING = "landing", "Landing"
+
+    organisation = models.ForeignKey(
+        Organisation, on_delete=models.CASCADE, related_name="landing_slots"
+    )
+    drone = models.ForeignKey(Drone, on_delete=models.CASCADE, related_name="landing_slots")
+    # The drone's home: drones whose homes are within the horizontal minimum share a site.
+    site_lat = models.FloatField()
+    site_lon = models.FloatField()
+    layer_m = models.FloatField(help_text="Holding height above home.")
+    state = models.CharField(max_length=10, choices=State.choices)
+    joined_at = models.DateTimeField(auto_now_add=True)
+    landing_at = models.DateTimeField(null=True, blank=True)
+    ended_at = models.DateTimeField(null=True, blank=True)
+    end_reason = models.CharField(max_length=80, blank=True)
+    # Its hold (a `navigate` over home at the layer), kept to until its turn: when it was
+    # last sent, the request the queue sent it under (whose reply a later pass reads),
+    # when the drone accepted it, how often the queue sent it again, and the start of the
+    # current watch of the drone's way to it with its distance from it then.
+    hold_sent_at = models.DateTimeField(null=True, blank=True)
+    hold_request = models.CharField(max_length=64, blank=True, default="", db_default="")
+    hold_accepted_at = models.DateTimeField(null=True, blank=True)
+    hold_resends = models.PositiveSmallIntegerField(default=0, db_default=0)
+    watched_at = models.DateTimeField(null=True, blank=True)
+    watched_m = models.FloatField(null=True, blank=True)
+
+    class Meta:
+        indexes = [
+            models.Index(
+                fields=["organisation", "joined_at"],
+                name="airspace_landing_active",
+                condition=models.Q(ended_at__isnull=True),
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.drone} {self.state} at {self.layer_m:g} m"

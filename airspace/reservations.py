@@ -30,15 +30,19 @@ from fleet.models import Drone, Organisation
 
 from .corridors import Leg, Pace, flight_legs, hold_legs
 from .index import Reserved
-from .models import Reservation, SeparationMinima
+from .models import LandingSlot, Reservation, SeparationMinima
 
 # Commands whose accepted target moves the drone (onboard/protocol.py NAVIGATION_COMMANDS).
 MOVING_COMMANDS = ("takeoff", "land", "changeN", "changeE", "altitude", "navigate")
+# The command the landing queue's own reservations are made under (airspace/landing.py).
+LANDING_QUEUE = "landing queue"
 _LOCK_SITE = 0x41495253  # the advisory lock's key when the whole site is one airspace
 
 
 def pace_for(drone: Drone) -> Pace:
-    """The drone's cruise speed from its gear (`CRUISE_SPEED_M_S`), else the setting."""
+    """The drone's cruise speed from its gear (`CRUISE_SPEED_M_S`), else the setting; a
+    slanted leg's pieces step by its organisation's vertical minimum (at least twice the
+    vertical tolerance, so a zero minimum still cuts the slant)."""
     speed = (drone.specs or {}).get("CRUISE_SPEED_M_S")
     if not isinstance(speed, int | float) or isinstance(speed, bool) or speed <= 0:
         speed = settings.AIRSPACE_CRUISE_SPEED_M_S
@@ -51,6 +55,9 @@ def pace_for(drone: Drone) -> Pace:
         hold_s=settings.AIRSPACE_HOLD_S,
         radius_m=settings.AIRSPACE_CORRIDOR_RADIUS_M,
         vertical_m=settings.AIRSPACE_VERTICAL_TOLERANCE_M,
+        step_m=max(
+            minima_for(drone.organisation_id)[1], 2 * settings.AIRSPACE_VERTICAL_TOLERANCE_M
+        ),
     )
 
 
@@ -119,8 +126,13 @@ def reserve(
     assignment: Any = None,
     command: str = "",
 ) -> Reservation | None:
-    """Store the drone's corridors, ending its previous reservation."""
+    """Store the drone's corridors, ending its previous reservation; a plan other than
+    the landing queue's own takes the drone out of the queue."""
     end_for_drone(drone, "replaced by a new plan")
+    if command != LANDING_QUEUE:
+        LandingSlot.objects.filter(drone=drone, ended_at__isnull=True).update(
+            ended_at=timezone.now(), end_reason="commanded otherwise"
+        )
     if not legs:
         return None
     horizontal, vertical = minima_for(drone.organisation_id)
@@ -166,6 +178,12 @@ def reserve_when_assigned(sender: Any, instance: Any, created: bool = False, **k
     """post_save of a mission's assignment: a new one reserves its drone's corridors."""
     if not created or instance.status not in type(instance).ACTIVE:
         return
+    reserve_assignment(instance)
+
+
+def reserve_assignment(instance: Any) -> None:
+    """The assignment's steps flown from where its drone is now become its reservation
+    (also when its steps changed before it was sent: a queued part that must take off)."""
     drone = Drone.objects.get(pk=instance.drone_id)
     planned = planned_legs(drone, _assignment_steps(instance))
     if planned is None:

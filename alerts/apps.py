@@ -6,7 +6,8 @@ class AlertsConfig(AppConfig):
     default_auto_field = "django.db.models.BigAutoField"
 
     def ready(self) -> None:
-        from . import receivers, remote_id
+        from . import receivers, remote_id, wind
 
         receivers.connect()
         remote_id.connect()
+        wind.connect()

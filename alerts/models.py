@@ -17,6 +17,9 @@ class Alert(models.Model):
         MISSION_COMPLETED = "mission_completed", "Mission completed"
         MISSION_FAILED = "mission_failed", "Mission failed"
         REMOTE_ID = "remote_id", "Remote ID failing"
+        LOG_TREND = "log_trend", "Flight log figure drifting"
+        WIND = "wind", "Wind above a drone's limit"
+        MAINTENANCE = "maintenance", "Maintenance due"
 
     class Severity(models.TextChoices):
         CRITICAL = "critical", "Critical"

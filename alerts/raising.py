@@ -24,6 +24,9 @@ SEVERITY = {
     Alert.Kind.MISSION_COMPLETED: Alert.Severity.INFO,
     Alert.Kind.MISSION_FAILED: Alert.Severity.CRITICAL,
     Alert.Kind.REMOTE_ID: Alert.Severity.WARNING,
+    Alert.Kind.LOG_TREND: Alert.Severity.WARNING,
+    Alert.Kind.WIND: Alert.Severity.WARNING,
+    Alert.Kind.MAINTENANCE: Alert.Severity.WARNING,
 }
 
 

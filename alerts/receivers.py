@@ -10,6 +10,7 @@ from django.db.models.signals import post_save
 from airspace.signals import separation_lost
 from fleet.models import Drone
 from fleet.signals import drones_went_offline
+from logs.events import figure_drifted
 from missions.models import Event, Mission, MissionStatus
 from missions.signals import critical_alarm_outside_mission
 
@@ -22,6 +23,7 @@ def connect() -> None:
     drones_went_offline.connect(on_drones_offline, dispatch_uid="alerts-drones-offline")
     critical_alarm_outside_mission.connect(on_lone_alarm, dispatch_uid="alerts-lone-alarm")
     separation_lost.connect(on_separation_lost, dispatch_uid="alerts-separation-lost")
+    figure_drifted.connect(on_figure_drifted, dispatch_uid="alerts-figure-drifted")
 
 
 def on_mission_event(sender, instance: Event, created: bool, **kwargs) -> None:  # type: ignore[no-untyped-def]
@@ -119,5 +121,18 @@ def on_separation_lost(
         f"Separation: {drone.drone_id} held, {other.drone_id} within the minima in {in_s:g} s",
         source=f"separation:{drone.drone_id}:{other.drone_id}:{int(time.time())}",
         detail=f"{drone.drone_id} was sent a {action}.",
+        drone_id=drone.drone_id,
+    )
+
+
+def on_figure_drifted(sender, log, drone: Drone, title: str, detail: str, source: str, **kwargs):  # type: ignore[no-untyped-def]
+    """A log's figure drifting from its drone's history or the fleet: a warning, once per
+    log, check and basis; answers whether it was new."""
+    return raise_alert(
+        log.organisation,
+        Alert.Kind.LOG_TREND,
+        title,
+        source=source,
+        detail=detail,
         drone_id=drone.drone_id,
     )

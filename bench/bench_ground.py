@@ -63,7 +63,8 @@ def setup_django() -> None:
     os.environ["DJANGO_SETTINGS_MODULE"] = os.environ.get(
         "BENCH_GROUND_SETTINGS", "config.settings.test"
     )
-    os.environ["TEST_DB_NAME"] = f"test_{DB_NAME}"
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    os.environ["TEST_DB_NAME"] = f"test_{DB_NAME}{'_' + worker if worker else ''}"
     # One token sends commands back to back as fast as the drones answer, far past what
     # an operator sends: the web process's rate limit (COMMAND_RATE) is raised, not
     # removed, so its cost (one cache read and write per command) stays in the figure.

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import fcntl
 import json
+import os
 import statistics
 import time
 from collections.abc import Callable
@@ -15,7 +16,15 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "results.json"
-TEST_PROFILE_ENV = Path(__file__).resolve().parents[1] / ".data" / "test" / "env"
+# The test profile's services, or a test worker's own when PYTEST_XDIST_WORKER names one
+# (as config/settings/test.py reads them), so a benchmark can run beside a test run.
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+TEST_PROFILE_ENV = (
+    Path(__file__).resolve().parents[1]
+    / ".data"
+    / (f"test-{_WORKER}" if _WORKER else "test")
+    / "env"
+)
 
 
 def test_profile_env() -> dict[str, str]:

@@ -1,6 +1,7 @@
 """One JSON error shape for the whole API, and strict request bodies.
 
-Every error answers `{"error": "<sentence>", "code": "<code>", "fields": {name: [messages]}}`.
+Every error answers `{"error": "<sentence>", "code": "<code>", "fields": {name: [messages]}}`;
+a refusal may add its own members (409 `not_airworthy`: `reasons`, a list of sentences).
 """
 
 from __future__ import annotations
@@ -52,7 +53,27 @@ def exception_handler(exc: Exception, context: dict) -> Response | None:
     if isinstance(detail, exceptions.ErrorDetail):
         code = detail.code or code
     response.data = {"error": message, "code": code, "fields": fields}
+    # A refusal may carry more than its sentence (a `not_airworthy` answer's `reasons`).
+    extra = getattr(exc, "extra_body", None)
+    if isinstance(extra, dict):
+        response.data.update({k: v for k, v in extra.items() if k not in response.data})
     return response
+
+
+class RefusalSerializer(serializers.Serializer):
+    """The body of a refusal, as the API schema documents it."""
+
+    error = serializers.CharField(help_text="the refusal in one sentence")
+    code = serializers.CharField(help_text="why, e.g. `not_airworthy`")
+    fields = serializers.DictField(child=serializers.ListField(child=serializers.CharField()))
+    reasons = serializers.ListField(
+        child=serializers.CharField(),
+        required=False,
+        help_text=(
+            "with `code: not_airworthy` only: every reason the drone may not fly, as "
+            "GET /api/v1/drones/{id}/airworthiness/ lists them"
+        ),
+    )
 
 
 class StrictSerializer(serializers.Serializer):

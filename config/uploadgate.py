@@ -6,7 +6,7 @@ the upload addresses (`GATES`) the request is authenticated here first, from its
 alone, by the project's own rules: the API's authentication classes (REST_FRAMEWORK's
 DEFAULT_AUTHENTICATION_CLASSES with their CSRF, read-only-token and second-factor
 refusals) and the operator role for the log upload; the session and the admin site's own
-permission for the map-tile and terrain uploads. A refusal is answered 401/403 with
+permission for the map-tile, terrain and zone file uploads. A refusal is answered 401/403 with
 `Connection: close` and the body is never received; a user who already has
 UPLOAD_MAX_CONCURRENT uploads under way at that address gets 429. The other addresses
 that take more than REQUEST_BODY_MAX_BYTES (missions, plans, envelopes) need a signed-in
@@ -41,6 +41,7 @@ from rest_framework.settings import api_settings
 from logs.asgi import UPLOAD_PATH as LOG_UPLOAD_PATH
 from terrain.admin import TERRAIN_UPLOAD_PATH
 from tiles.admin import TILE_UPLOAD_PATH
+from zones.admin import ZONES_UPLOAD_PATH
 
 Receive = Callable[[], Awaitable[dict]]
 Send = Callable[[dict], Awaitable[None]]
@@ -85,34 +86,38 @@ def log_uploader(request: HttpRequest) -> Refusal | Any:
     return user
 
 
-def tile_uploader(request: HttpRequest) -> Refusal | Any:
-    """The user who may import a tile set: signed in to the admin site, with its add right."""
+def _admin_uploader(request: HttpRequest, permission: str, message: str) -> Refusal | Any:
+    """The user, signed in to the admin site with `permission`; else why not."""
     from django.contrib import admin
 
     user = request.user
     if not user.is_authenticated:
         return _signed_out()
-    if not (admin.site.has_permission(request) and user.has_perm("tiles.add_tileset")):
-        return Refusal(403, "permission_denied", "Importing map tiles needs the admin's right to add tile sets.")  # fmt: skip
+    if not (admin.site.has_permission(request) and user.has_perm(permission)):
+        return Refusal(403, "permission_denied", message)
     return user
+
+
+def tile_uploader(request: HttpRequest) -> Refusal | Any:
+    """The user who may import a tile set: signed in to the admin site, with its add right."""
+    return _admin_uploader(request, "tiles.add_tileset", "Importing map tiles needs the admin's right to add tile sets.")  # fmt: skip
 
 
 def terrain_uploader(request: HttpRequest) -> Refusal | Any:
     """The user who may import terrain: signed in to the admin site, with its add right."""
-    from django.contrib import admin
+    return _admin_uploader(request, "terrain.add_terraintile", "Importing terrain needs the admin's right to add terrain tiles.")  # fmt: skip
 
-    user = request.user
-    if not user.is_authenticated:
-        return _signed_out()
-    if not (admin.site.has_permission(request) and user.has_perm("terrain.add_terraintile")):
-        return Refusal(403, "permission_denied", "Importing terrain needs the admin's right to add terrain tiles.")  # fmt: skip
-    return user
+
+def zones_uploader(request: HttpRequest) -> Refusal | Any:
+    """The user who may import a zone file: signed in to the admin site, with its add right."""
+    return _admin_uploader(request, "zones.add_zone", "Importing zones needs the admin's right to add zones.")  # fmt: skip
 
 
 GATES: dict[str, Callable[[HttpRequest], Refusal | Any]] = {
     LOG_UPLOAD_PATH: log_uploader,
     TILE_UPLOAD_PATH: tile_uploader,
     TERRAIN_UPLOAD_PATH: terrain_uploader,
+    ZONES_UPLOAD_PATH: zones_uploader,
 }
 
 

@@ -14,6 +14,7 @@ from accounts import api as accounts_api
 from accounts.signin import LoginView
 from airspace import api as airspace_api
 from alerts import api as alerts_api
+from checklists import api as checklists_api
 from fleet import api as fleet_api
 from fleet import remote_id_api
 from fleet.control import ControlView
@@ -65,6 +66,26 @@ api_v1 = [
         remote_id_api.OrganisationRemoteIdView.as_view(),
         name="organisation-remote-id",
     ),
+    re_path(
+        r"^drones/(?P<drone_id>[A-Za-z0-9_-]{1,64})/checklists/$",
+        checklists_api.DroneChecklistsView.as_view(),
+        name="drone-checklists",
+    ),
+    path(
+        "organisations/<slug:slug>/checklists/",
+        checklists_api.TemplatesView.as_view(),
+        name="organisation-checklists",
+    ),
+    path(
+        "organisations/<slug:slug>/checklists/<int:pk>/",
+        checklists_api.TemplateView.as_view(),
+        name="organisation-checklist",
+    ),
+    path(
+        "organisations/<slug:slug>/checklist-rule/",
+        checklists_api.RuleView.as_view(),
+        name="organisation-checklist-rule",
+    ),
     path(
         "organisations/<slug:slug>/envelope/plan/",
         fleet_api.envelope_plan,
@@ -82,6 +103,9 @@ api_v1 = [
     path("missions/survey/cameras/", survey_api.cameras, name="mission-survey-cameras"),
     path("alerts/", alerts_api.recent, name="alerts"),
     path("zones/", include("zones.urls")),
+    path("", include("maintenance.api_urls")),
+    path("", include("livevideo.api_urls")),
+    path("", include("batteries.api_urls")),
     path("", include(router.urls)),
 ]
 
@@ -117,8 +141,12 @@ urlpatterns = [
     path("missions/", include("missions.urls")),
     path("telemetry/", include("telemetry.urls")),
     path("pastview/", include("pastview.urls")),
+    path("video/", include("livevideo.urls")),
     path("logs/", include("logs.urls")),
     path("records/", include("records.urls")),
+    path("maintenance/", include("maintenance.urls")),
+    path("batteries/", include("batteries.urls")),
+    path("checklists/", include("checklists.urls")),
     path("operations/", operations_views.operations_page, name="operations"),
     path("", include("fleet.urls")),
 ]

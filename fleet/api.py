@@ -17,8 +17,8 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
-from config.api import StrictSerializer
-from config.throttling import COMMAND_THROTTLES
+from config.api import RefusalSerializer, StrictSerializer
+from config.throttling import COMMAND_THROTTLES, TogetherThrottles
 from onboard.envelope import EnvelopeError
 
 from . import commands, credentials, envelopes
@@ -158,7 +158,10 @@ def _api_error(refusal: CommandRefused) -> exceptions.APIException:
         return exceptions.PermissionDenied(refusal.message)
     if refusal.status == 404:
         return exceptions.NotFound(refusal.message)
-    return Conflict(refusal.message, code=refusal.code)
+    conflict = Conflict(refusal.message, code=refusal.code)
+    if refusal.reasons is not None:
+        conflict.extra_body = {"reasons": refusal.reasons}  # type: ignore[attr-defined]
+    return conflict
 
 
 def command_reply(
@@ -181,7 +184,7 @@ def command_reply(
     )
 
 
-class DroneCommandView(AsyncAPIView):
+class DroneCommandView(TogetherThrottles, AsyncAPIView):
     """`POST /api/v1/drones/{drone_id}/commands/`: the drone's own reply, or an error."""
 
     permission_classes = [OrganisationRole]
@@ -220,13 +223,25 @@ class DroneCommandView(AsyncAPIView):
             403: OpenApiResponse(description="viewers may not command"),
             404: OpenApiResponse(description="unknown drone"),
             409: OpenApiResponse(
+                response=RefusalSerializer,
                 description=(
                     "drone offline or unsafe; `code: outside_envelope` when the move leaves "
                     "the flight envelope, `code: terrain_clearance` when its leg comes below "
                     "the organisation's minimum terrain clearance, `code: "
                     "confirmation_required` when it goes beyond the envelope's defaults "
-                    "without `confirm_beyond_defaults`"
-                )
+                    "without `confirm_beyond_defaults`, `code: not_airworthy` when an arm "
+                    "finds the drone not airworthy (the reasons in `error` and, one by one, in "
+                    "`reasons`), `code: "
+                    "checklist_required` when an arm, or a take-off that arms, finds no "
+                    "passed pre-flight checklist for the drone within its validity "
+                    "(docs/checklists.md), `code: wind` when an arm or a take-off meets "
+                    "a wind above the drone's limit (the figure in `error`, "
+                    "docs/airspace.md), `code: zone` when the move enters a published "
+                    "zone within its band (the zone's name and band in `error`), `code: "
+                    "conflict` when it comes within the separation minima of another "
+                    "drone's reservation (the other drone, the place and the time in "
+                    "`error`, docs/airspace.md)"
+                ),
             ),
             504: OpenApiResponse(description="no reply in time"),
         },

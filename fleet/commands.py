@@ -13,20 +13,22 @@ import contextvars
 import logging
 from collections.abc import Callable, Coroutine
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from functools import partial
 from typing import Any
 
 from asgiref.sync import sync_to_async
 from django.conf import settings
+from django.contrib.auth import get_user_model
 from django.db import DatabaseError
-from django.db.models import F
+from django.db.models import F, QuerySet
 from django.utils import timezone
 from django.utils.module_loading import import_string
 
 from onboard import protocol
 from workers import direct, outbox
 
-from . import airworthiness, envelopes
+from . import airworthiness, compiled, envelopes, tenancy, wind
 from .models import ROLE_RANK, CommandLog, Drone, Role
 
 log = logging.getLogger(__name__)
@@ -44,19 +46,29 @@ POST_COMMANDS = tuple(c for c in ALL_COMMANDS if c not in GET_COMMANDS)
 API_COMMANDS = (*protocol.CONTROL_COMMANDS, *CHAIN_COMMANDS)
 # Refused while airborne unless forced: they would drop the drone (docs/protocol.md "Control").
 UNSAFE_IN_FLIGHT = ("disarm", "resetfc")
+# Whose answers the landing queue hears (settings.AIRSPACE_RETURN_ANSWERED): a `return`
+# (or the hold sent for it) and an operator's `hold`, which takes a drone out of the queue.
+HOME_COMMANDS = ("return", "hold")
 
 
 class CommandRefused(Exception):
     """A command refused before sending; `status` is the HTTP status that says why."""
 
     def __init__(
-        self, status: int, message: str, field: str | None = None, code: str | None = None
+        self,
+        status: int,
+        message: str,
+        field: str | None = None,
+        code: str | None = None,
+        reasons: list[str] | None = None,
     ) -> None:
         super().__init__(message)
         self.status = status
         self.message = message
         self.field = field
         self.code = code
+        # Each reason a `not_airworthy` refusal names, answered as the body's `reasons`.
+        self.reasons = reasons
 
 
 @dataclass
@@ -67,6 +79,10 @@ class Prepared:
     entry: CommandLog
     # Where the move's terrain clearance could not be checked (fleet.envelopes.check_command).
     terrain_warnings: list[dict] = field(default_factory=list)
+    # What the operator asked for, when the ground sends something else in its place
+    # (a `return` into a landing queue: its hold), and what the reply adds to its result.
+    asked: str = ""
+    result_extra: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -91,21 +107,80 @@ def handle_control_reply(drone_id: str, response: protocol.ControlResponse) -> s
     return outbox.deliver_reply(drone_id, response.request_id, response.to_dict())
 
 
-def find_drone(user: Any, drone_id: str) -> Drone:
+def rule_reads(command: str, at: datetime | None = None) -> dict:
+    """What the rules `checked` asks for `command` read from the database, as annotations
+    of the drone's lookup: airworthiness for an arm, the checklist gate (as at `at`, now)
+    for an arm or a take-off. Each rule answers from them when they settle it and reads
+    for itself when they leave it in doubt, so a command that may go is checked in one
+    statement."""
+    reads: dict = {}
+    if command == "arm":
+        reads |= airworthiness.lookup_reads()
+    if command in CHECKLIST_COMMANDS:
+        reads |= import_string(settings.FLIGHT_CHECKLIST_LOOKUP)(at)
+    return reads
+
+
+# Commands the checklist gate may stop (a take-off only when it arms: `checked`).
+CHECKLIST_COMMANDS = ("arm", "takeoff")
+# What a drone lookup is compiled with in place of the caller's values (fleet.compiled):
+# values no caller has.
+_STAND_INS = {
+    "user": -(2**31) + 7,
+    "bound": -(2**31) + 11,
+    "drone_id": "\x00stand-in drone id",
+    "at": datetime(1901, 2, 3, 4, 5, 6, 789012, tzinfo=UTC),
+}
+
+
+def _lookup(user: Any, drone_id: str, reads: dict) -> QuerySet:
+    return (
+        Drone.objects.for_user(user)
+        .select_related("organisation")
+        .annotate(member_role=F("organisation__memberships__role"), **reads)
+        .filter(drone_id=drone_id)
+    )
+
+
+def _compile_lookup(shape: tuple[str, bool]) -> compiled.Compiled:
+    """The lookup of `find_drone` for a command of the shape's reads, by a user bound to one
+    organisation (a token made for it) or not."""
+    reads_of, bound = shape
+    stand_in_user = get_user_model()(pk=_STAND_INS["user"])
+    stand_ins = {name: _STAND_INS[name] for name in ("user", "drone_id")}
+    if bound:
+        tenancy.bind(stand_in_user, _STAND_INS["bound"])
+        stand_ins["bound"] = _STAND_INS["bound"]
+    # The time the rules' reads are as at, when they read one (the checklist gate's).
+    stand_ins["at"] = _STAND_INS["at"]
+    reads = rule_reads(reads_of, _STAND_INS["at"])
+    queryset = _lookup(stand_in_user, _STAND_INS["drone_id"], reads)[:1]
+    return compiled.Compiled(queryset, stand_ins, optional=("at",))
+
+
+_LOOKUPS = compiled.Shapes(_compile_lookup)
+
+
+def _reads_of(command: str) -> str:
+    """The command whose reads a lookup for `command` carries ("": none)."""
+    return command if command in CHECKLIST_COMMANDS else ""
+
+
+def find_drone(user: Any, drone_id: str, command: str = "") -> Drone:
     """The user's drone, or 404 (another organisation's drone is as unknown as none).
 
     The user's role in the drone's organisation comes with it (`drone.member_role`), in
-    the same query: this is on every command's path.
+    the same query, and so do the reads of the rules `command` is checked against
+    (`rule_reads`): this is on every command's path, its SQL built once (fleet.compiled).
     """
     if not isinstance(drone_id, str) or not protocol.is_drone_id(drone_id):
         raise CommandRefused(404, f"Unknown drone {drone_id!r}.", "droneID")
-    drone = (
-        Drone.objects.for_user(user)
-        .select_related("organisation")
-        .annotate(member_role=F("organisation__memberships__role"))
-        .filter(drone_id=drone_id)
-        .first()
-    )
+    drone = None
+    if user.is_authenticated:
+        bound = getattr(user, tenancy.BOUND_ATTR, None)
+        lookup = _LOOKUPS[(_reads_of(command), bound is not None)]
+        values = {"user": user.pk, "drone_id": drone_id, "bound": bound, "at": timezone.now()}
+        drone = lookup.first(**{name: values[name] for name in lookup.slots})
     if drone is None:
         raise CommandRefused(404, f"Unknown drone {drone_id!r}.", "droneID")
     return drone
@@ -135,7 +210,7 @@ def prepare(
     Returns the pending log entry (not saved yet) with a fresh request id; refusals are
     logged here.
     """
-    drone = find_drone(user, drone_id)
+    drone = find_drone(user, drone_id, command)
     try:
         return checked(user, drone, command, params, confirmed)
     except CommandRefused as refusal:
@@ -157,15 +232,30 @@ def checked(
         raise CommandRefused(400, f"{field}: {exc.message}", field) from None
     if not drone.online:
         raise CommandRefused(409, f"Drone {drone.drone_id} is offline.")
+    too_windy = wind.refusal(drone) if command in wind.TAKE_OFF_COMMANDS else None
+    if too_windy is not None:
+        raise CommandRefused(409, too_windy, code=wind.CODE)
     if command == "arm":
-        unfit = airworthiness.refusal(drone)
+        unfit = airworthiness.refused(drone)
         if unfit is not None:
-            raise CommandRefused(409, unfit, code="not_airworthy")
+            raise CommandRefused(409, unfit[0], code="not_airworthy", reasons=unfit[1])
+    if command == "arm" or (command == "takeoff" and not drone.armed):
+        not_checked = import_string(settings.FLIGHT_CHECKLIST_GATE)(drone)
+        if not_checked is not None:
+            raise CommandRefused(409, not_checked, code="checklist_required")
     if command in UNSAFE_IN_FLIGHT and drone.airborne and not clean.get("force"):
         raise CommandRefused(
             409, f"Refusing {command} while {drone.drone_id} is airborne; send force=true."
         )
+    asked, extra = command, {}
     try:
+        if command == "return":
+            # Home through the landing queue of the airspace app (named in settings): a
+            # drone whose landing site is busy is sent to hold over home instead.
+            routed = import_string(settings.AIRSPACE_RETURN_ROUTE)(drone)
+            if routed is not None:
+                command, clean, queue = routed
+                extra, confirmed = {"queue": queue}, True
         unchecked = envelopes.check_command(drone, command, clean, confirmed)
     except envelopes.EnvelopeRefusal as exc:
         raise CommandRefused(409, exc.message, code=exc.code) from None
@@ -173,7 +263,9 @@ def checked(
     entry = CommandLog(
         drone=drone, user=user, request_id=protocol.new_request_id(), command=command, params=clean
     )
-    return Prepared(drone, command, clean, entry, terrain_warnings=unchecked)
+    return Prepared(
+        drone, command, clean, entry, terrain_warnings=unchecked, asked=asked, result_extra=extra
+    )
 
 
 def record(entry: CommandLog, reply: dict | None) -> None:
@@ -214,6 +306,11 @@ async def execute(
     )
     if envelopes.moves_target(prepared.command, reply):
         await sync_to_async(envelopes.remember_target)(prepared.drone, prepared.command, reply)
+    if prepared.asked in HOME_COMMANDS:
+        answered_hook = import_string(settings.AIRSPACE_RETURN_ANSWERED)
+        await sync_to_async(answered_hook)(prepared.drone, prepared.asked, reply)
+    if reply is not None and reply.get("ok") and prepared.result_extra:
+        reply = {**reply, "result": {**(reply.get("result") or {}), **prepared.result_extra}}
     # Later, it still knows the request it answers (the audit trail names its address).
     answered = partial(contextvars.copy_context().run, record, entry, reply)
     if after_answer is None:

@@ -4,7 +4,8 @@
 Same parameter names and GET/POST split as that table, as query string or form fields.
 It answers when the drone answers: `{"ok": true, "request_id", "result"}`; otherwise
 `{"ok": false, "error"}` with 400, 401/403, 404, 405 (wrong method for the command),
-409 (offline, unsafe, or refused by the drone), 504 (no reply in time).
+409 (offline, unsafe, or refused by the drone; a refusal's `code` too, and for
+`not_airworthy` each reason in `reasons`), 504 (no reply in time).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from rest_framework import serializers
 from rest_framework.request import Request
 from rest_framework.response import Response
 
-from config.throttling import COMMAND_THROTTLES
+from config.throttling import COMMAND_THROTTLES, TogetherThrottles
 
 from . import commands
 from .async_views import AsyncAPIView
@@ -58,7 +59,13 @@ CONTROL_ERROR = inline_serializer(
     {
         "ok": serializers.BooleanField(),
         "error": serializers.CharField(),
+        "code": serializers.CharField(required=False),
         "request_id": serializers.CharField(required=False),
+        "reasons": serializers.ListField(
+            child=serializers.CharField(),
+            required=False,
+            help_text="with `code: not_airworthy` only: every reason the drone may not fly",
+        ),
     },
 )
 ERRORS = {
@@ -72,7 +79,8 @@ ERRORS = {
         (
             409,
             "drone offline, unsafe, or the drone refused; `code` outside_envelope or "
-            "confirmation_required (resend with confirm_beyond_defaults=true)",
+            "confirmation_required (resend with confirm_beyond_defaults=true), or "
+            "not_airworthy (each reason in `reasons`)",
         ),
         (504, "no reply in time"),
     ]
@@ -80,11 +88,17 @@ ERRORS = {
 
 
 def _error(
-    status: int, message: str, request_id: str | None = None, code: str | None = None
+    status: int,
+    message: str,
+    request_id: str | None = None,
+    code: str | None = None,
+    reasons: list[str] | None = None,
 ) -> Response:
     body: dict[str, Any] = {"ok": False, "error": message}
     if code:
         body["code"] = code
+    if reasons is not None:
+        body["reasons"] = reasons
     if request_id:
         body["request_id"] = request_id
     return Response(body, status=status)
@@ -111,7 +125,7 @@ def _cookie_command(request: Request) -> Response | None:
     return None
 
 
-class ControlView(AsyncAPIView):
+class ControlView(TogetherThrottles, AsyncAPIView):
     """The `/control` command set: every command, answered with the drone's own reply."""
 
     throttle_classes = COMMAND_THROTTLES
@@ -180,7 +194,9 @@ class ControlView(AsyncAPIView):
             confirmed = _flag(data.get("confirm_beyond_defaults"))
             outcome = await commands.send(user, drone_id, command, params, confirmed)
         except CommandRefused as refusal:
-            return _error(refusal.status, refusal.message, code=refusal.code)
+            return _error(
+                refusal.status, refusal.message, code=refusal.code, reasons=refusal.reasons
+            )
         if outcome.timed_out:
             return _error(
                 504,

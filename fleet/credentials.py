@@ -44,6 +44,7 @@ __all__ = [
     "revoke",
     "revoke_many",
     "sync_broker",
+    "upgrade_broker",
 ]
 
 
@@ -222,6 +223,27 @@ def sync_broker() -> SyncReport:
     """Rebuild the broker's drone users and permissions from the database (after a broker
     node or cluster is replaced, or to finish a revocation the broker missed)."""
     return _backend().sync(_live_drones())
+
+
+def upgrade_broker() -> list[str]:
+    """Bring drone users the broker keeps in an earlier form to the current one, and
+    return their ids; nothing when none is left, so it is run at every start of the
+    ground. The drones' rows are locked meanwhile: a password issued at the same time
+    waits, and is not overwritten by the hash read here."""
+    backend = _backend()
+    outdated = backend.outdated_users()
+    if not outdated:
+        return []
+    with transaction.atomic():
+        live = list(
+            Drone.objects.select_for_update(of=("self",))
+            .filter(drone_id__in=outdated, credentials_revoked=False)
+            .exclude(mqtt_password_hash="")
+            .order_by("drone_id")
+            .values_list("drone_id", "mqtt_password_hash")
+        )
+        backend.upgrade(outdated, live)
+    return outdated
 
 
 def _backend() -> broker.BrokerBackend:

@@ -139,10 +139,13 @@ def set_envelope(organisation: Organisation, body: Any) -> env.Envelope:
 
 
 def send_to_drones(drones: Iterable[Drone]) -> None:
-    """Queue each drone's own envelope on `<id>/envelope/in`."""
+    """Queue each drone's own envelope on `<id>/envelope/in`, with its Remote ID identity
+    and its log collection mode."""
     for drone in drones:
         message = protocol.EnvelopeUpdate(
-            drone_envelope(drone).to_dict(), remote_id=identity_for(drone)
+            drone_envelope(drone).to_dict(),
+            remote_id=identity_for(drone),
+            log_collection=drone.log_collection,
         )
         outbox.send_to_drone(drone.drone_id, "envelope", message.to_dict(), ttl=ENVELOPE_TTL_S)
 
@@ -204,13 +207,14 @@ def check_command(
         return []
     horizontal = command in env.HORIZONTAL_COMMANDS
     move = env.Move(move.kind, move.ned, horizontal)
-    violation = env.check(
-        drone_envelope(drone), home, move, drone.airborne, _battery_percent(drone), base
-    )
+    envelope = drone_envelope(drone)
+    violation = env.check(envelope, home, move, drone.airborne, _battery_percent(drone), base)
     violation = violation or published_zones("move")(
         drone.organisation, home, move, base, drone.airborne
     )
-    assessed = terrain.move_assessment(drone.organisation_id, home, base, move)
+    assessed = terrain.move_assessment(
+        drone.organisation_id, home, base, move, ceiling=envelope.max_height
+    )
     violation = violation or assessed.violation
     if violation is not None:
         raise OutsideEnvelope(violation)
@@ -234,22 +238,18 @@ def step_violations(
     QGroundControl geoFence, e.g. an imported plan's own) applies on top."""
     if drone is not None:
         home = home_of(drone)
+        envelope = with_fence(drone_envelope(drone), fence)
         start, airborne = current_target(drone, home), drone.airborne
-        found = env.step_violations(
-            with_fence(drone_envelope(drone), fence),
-            home,
-            steps,
-            start,
-            airborne,
-            _battery_percent(drone),
-        )
+        found = env.step_violations(envelope, home, steps, start, airborne, _battery_percent(drone))
     else:
         home = home if home is not None else plan_home(organisation, steps)
         envelope = with_fence(organisation_envelope(organisation), fence)
         start, airborne = (0.0, 0.0, 0.0), False
         found = env.step_violations(envelope, home, steps, start, airborne, None)
     found += published_zones("steps")(organisation, home, steps, start, airborne)
-    found += terrain.step_violations(organisation.pk, home, steps, start)
+    found += terrain.step_violations(
+        organisation.pk, home, steps, start, ceiling=envelope.max_height
+    )
     return sorted(found, key=lambda v: v.index)
 
 

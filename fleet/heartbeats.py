@@ -28,6 +28,7 @@ from .signals import (
     drones_came_online,
     drones_went_offline,
     remote_id_failing,
+    wind_return,
 )
 
 log = logging.getLogger(__name__)
@@ -40,7 +41,9 @@ CLOCK_TOLERANCE_S = 5.0
 # are noticed without another round trip on the hot path. The rows travel as one JSON
 # parameter: the statement's text never changes (psycopg parses it once) and the
 # parameter is one C-encoded string, whatever the batch's size. Revoked drones are not
-# updated: they are unknown here.
+# updated: they are unknown here. A drone at rest with a position is at its home: the
+# place it last stood on the ground is where it took off from once it flies (a mission's
+# take-off tells the ground nothing else), and where a return brings it back.
 _HEARTBEATS_SQL = """
 WITH v AS (
     SELECT * FROM jsonb_to_recordset(%s::jsonb) AS v(
@@ -55,7 +58,9 @@ WITH v AS (
 UPDATE fleet_drone AS d SET
     online = TRUE, last_seen = %s, lat = v.lat, lon = v.lon, alt = v.alt,
     battery_voltage = v.voltage, battery_remaining = v.remaining, armed = v.armed,
-    airborne = v.airborne, flight_mode = v.mode, mission = v.mission, fc = v.fc
+    airborne = v.airborne, flight_mode = v.mode, mission = v.mission, fc = v.fc,
+    home = CASE WHEN NOT v.airborne AND v.lat IS NOT NULL AND v.lon IS NOT NULL
+        THEN jsonb_build_array(v.lat, v.lon) ELSE d.home END
 FROM v, old
 WHERE d.drone_id = v.drone_id AND d.id = old.id
 RETURNING d.drone_id, d.id, d.organisation_id, old.online, old.armed, d.armed
@@ -95,6 +100,12 @@ def fc_state(heartbeat: Heartbeat, seen: datetime) -> dict:
         "setup": list(heartbeat.fc_setup),
         # Its Remote ID broadcast's health (fleet/airworthiness.py reads it), when known.
         **({} if heartbeat.remote_id is None else {"remote_id": heartbeat.remote_id.to_dict()}),
+        # The flight controller's wind estimate and the drone's limit (fleet/wind.py).
+        **({} if heartbeat.wind is None else {"wind": heartbeat.wind.to_dict()}),
+        # The pack's serial as the flight controller reports it (batteries.fitting).
+        **(
+            {} if heartbeat.battery_serial is None else {"battery_serial": heartbeat.battery_serial}
+        ),
     }
 
 
@@ -217,6 +228,7 @@ def _announce(rows: list, latest: dict[str, Heartbeat], seen: datetime) -> None:
         )
     _announce_arming(rows, latest, seen)
     _announce_remote_id_failing(rows, latest, seen)
+    _announce_wind_returns(rows, latest)
     for drone_id, _pk, organisation_id, was_online, *_armed in rows:
         if _throttle.allow(drone_id, force=not was_online):
             events.publish_nowait(
@@ -236,6 +248,20 @@ def _announce_arming(rows: list, latest: dict[str, Heartbeat], seen: datetime) -
     for receiver, outcome in drones_arming_changed.send_robust(sender=Drone, changes=changes):
         if isinstance(outcome, Exception):
             log.error("arming change not taken by %s: %s", receiver, outcome)
+
+
+def _announce_wind_returns(rows: list, latest: dict[str, Heartbeat]) -> None:
+    """Tell who listens (alerts) which drones the wind made return, with since when."""
+    returning = [
+        (drone_id, org, beat.wind.speed, beat.wind.limit, beat.wind.since)
+        for drone_id, _pk, org, *_rest in rows
+        if (beat := latest[drone_id]).wind is not None and beat.wind.action == "return"
+    ]
+    if not returning:
+        return
+    for receiver, outcome in wind_return.send_robust(sender=Drone, returning=returning):
+        if isinstance(outcome, Exception):
+            log.error("wind return not taken by %s: %s", receiver, outcome)
 
 
 def _announce_remote_id_failing(rows: list, latest: dict[str, Heartbeat], seen: datetime) -> None:

@@ -6,8 +6,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from django.conf import settings
 from django.db.models import Q, QuerySet
+from django.utils.module_loading import import_string
 
+from . import airworthiness
 from .models import Drone
 from .state import LOW_BATTERY_FRACTION, STATES, describe, drone_state
 
@@ -111,13 +114,29 @@ def table_page(organisation_id: int, query: TableQuery) -> dict:
     count = drones.count()
     start = (query.page - 1) * query.page_size
     rows = drones.order_by("drone_id").values(*_FIELDS)[start : start + query.page_size]
+    results = [row(values) for values in rows]
+    ready = readiness(organisation_id, [r["drone_id"] for r in results])
     return {
         "count": count,
         "page": query.page,
         "page_size": query.page_size,
         "pages": max(1, -(-count // query.page_size)),
-        "results": [row(values) for values in rows],
+        "results": [{**r, "readiness": ready[r["drone_id"]]} for r in results],
     }
+
+
+def readiness(organisation_id: int, drone_ids: list[str]) -> dict[str, dict]:
+    """Per drone of one table page: whether it is airworthy and why not
+    (fleet/airworthiness.py), and its pre-flight checklist state (the checklists app,
+    named in settings as it builds on this one)."""
+    drones = list(
+        Drone.objects.filter(
+            organisation_id=organisation_id, drone_id__in=drone_ids
+        ).select_related("organisation")
+    )
+    checklists = import_string(settings.FLEET_CHECKLIST_STATES)(drones)
+    verdicts = airworthiness.verdicts(drones)
+    return {d.drone_id: {**verdicts[d.pk].to_dict(), "checklist": checklists[d.pk]} for d in drones}
 
 
 # The map's columns: what it needs of every drone.

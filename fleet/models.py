@@ -109,6 +109,15 @@ class DroneQuerySet(models.QuerySet):
         return self.filter(reach(user))
 
 
+class LogCollection(models.TextChoices):
+    """When a drone uploads its logs after landing (onboard/collect.py): on every link, only
+    on Wi-Fi or wired ground links, or never. Sent to the drone with its envelope."""
+
+    ALWAYS = "always", "Always"
+    GROUND_LINKS = "ground_links", "Only on Wi-Fi or ground links"
+    OFF = "off", "Off"
+
+
 class Drone(models.Model):
     organisation = models.ForeignKey(Organisation, on_delete=models.CASCADE, related_name="drones")
     # Topic trees are global on the broker, so the id is unique across organisations.
@@ -138,6 +147,13 @@ class Drone(models.Model):
     # controller speaks no Open Drone ID); who declared it and when is in the audit trail.
     serial_number = models.CharField(max_length=20, blank=True, default="", db_default="")
     remote_id_external = models.BooleanField(default=False, db_default=False)
+    # Whether the drone uploads its logs after landing, set by operators (logs/policy.py).
+    log_collection = models.CharField(
+        max_length=16,
+        choices=LogCollection.choices,
+        default=LogCollection.ALWAYS,
+        db_default=LogCollection.ALWAYS,
+    )
 
     # The drone's own envelope limits; they can only lower the organisation's.
     max_height = models.FloatField(null=True, blank=True)

@@ -13,35 +13,25 @@ naming the field, and nothing changes.
 from __future__ import annotations
 
 from drf_spectacular.types import OpenApiTypes
-from drf_spectacular.utils import extend_schema
-from rest_framework import exceptions
+from drf_spectacular.utils import extend_schema, inline_serializer
+from rest_framework import exceptions, serializers
 from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
 from . import airworthiness, remote_id
 from .identity import IdentityError
-from .models import Drone, Membership, Organisation, Role
+from .lookups import drone_or_404, organisation_or_404
+from .models import Drone, Organisation, Role
 from .permissions import require_role
 
 
 def _drone(request: Request, drone_id: str) -> Drone:
-    drone = (
-        Drone.objects.for_user(request.user)
-        .select_related("organisation")
-        .filter(drone_id=drone_id)
-        .first()
-    )
-    if drone is None:
-        raise exceptions.NotFound(f"Unknown drone {drone_id!r}.")
-    return drone
+    return drone_or_404(request.user, drone_id)
 
 
 def _organisation(request: Request, slug: str) -> Organisation:
-    membership = Membership.objects.for_user(request.user).filter(organisation__slug=slug).first()
-    if membership is None:
-        raise exceptions.NotFound(f"Unknown organisation {slug!r}.")
-    return membership.organisation
+    return organisation_or_404(request.user, slug)
 
 
 def _admin_only(request: Request, organisation: Organisation) -> None:
@@ -91,9 +81,20 @@ class OrganisationRemoteIdView(APIView):
             raise _bad(exc) from None
 
 
+AIRWORTHINESS = inline_serializer(
+    "Airworthiness",
+    {
+        "airworthy": serializers.BooleanField(),
+        "reasons": serializers.ListField(
+            child=serializers.CharField(), help_text="each reason it may not arm, in order"
+        ),
+    },
+)
+
+
 class AirworthinessView(APIView):
     """Whether the drone may be armed, and every reason it may not."""
 
-    @extend_schema(responses={200: OpenApiTypes.OBJECT})
+    @extend_schema(responses={200: AIRWORTHINESS})
     def get(self, request: Request, drone_id: str) -> Response:
         return Response(airworthiness.verdict(_drone(request, drone_id)).to_dict())

@@ -37,7 +37,8 @@ class DroneSerializer(serializers.ModelSerializer):
 
 class DroneDetailSerializer(DroneSerializer):
     class Meta(DroneSerializer.Meta):
-        fields = [*DroneSerializer.Meta.fields, "specs", "sensors", "created_at"]
+        # log_collection is set at /api/v1/logs/collection/{drone_id}/ (logs/policy_api.py).
+        fields = [*DroneSerializer.Meta.fields, "specs", "sensors", "log_collection", "created_at"]
         read_only_fields = fields
 
 

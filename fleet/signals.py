@@ -24,9 +24,19 @@ envelope_changed = Signal()
 # changed (dict of the new values).
 identity_changed = Signal()
 
+# Sent after an operator changed one of a drone's settings (like its log collection
+# mode), for the audit trail. Arguments: organisation_id (int), user, action (like
+# "drone.log_collection"), target (the drone id), changed (dict of the new values).
+drone_setting_changed = Signal()
+
 # Sent by the Drone Identifier when heartbeats show airborne drones whose Remote ID
 # reports a failure. Arguments: failing (list of (drone_id, organisation_id, error, seen)).
 remote_id_failing = Signal()
+
+# Sent by the Drone Identifier when heartbeats show drones the wind made return home
+# (fleet/wind.py). Arguments: returning (list of (drone_id, organisation_id, speed m/s,
+# limit m/s, since: epoch seconds or None)).
+wind_return = Signal()
 
 # Sent when a user's change was refused, for the audit trail. Arguments: organisation_id
 # (int), user, action (like "mission.start"), target (str), reason (str).

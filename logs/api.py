@@ -19,7 +19,8 @@ from fleet.permissions import OrganisationRole
 from fleet.tenancy import acting_organisation
 from logs import reports, services, uploads
 from logs import spectrum as spectra
-from logs.checks import STATUSES
+from logs.checks import CHECKS, STATUSES
+from logs.compare_api import CompareActions
 from logs.importers import HEAD_BYTES, pick_importer
 from logs.importers.base import LogFormatError
 from logs.models import FlightLog, LogStatus
@@ -59,7 +60,10 @@ SERIES_INFO = inline_serializer(
 CHECK_RESULT = inline_serializer(
     "FlightLogCheck",
     {
-        "name": serializers.CharField(),
+        "check": serializers.ChoiceField(
+            list(CHECKS), help_text="The check's stable name (docs/log-checks.md)."
+        ),
+        "name": serializers.CharField(help_text="The same as `check`."),
         "status": serializers.ChoiceField(list(STATUSES)),
         "value": serializers.FloatField(allow_null=True),
         "unit": serializers.CharField(),
@@ -152,8 +156,16 @@ def _seconds(request: Request, name: str) -> float | None:
 def _upload_organisation(request: Request) -> Organisation:
     """The organisation an upload goes to: the `organisation` field (slug) if given, else
     the one the portal acts for, else the user's only membership; operators and up."""
+    membership = chosen_membership(request, request.data.get("organisation") or "")
+    if not membership.allows(Role.OPERATOR):
+        raise exceptions.PermissionDenied("Uploading logs needs the operator role.")
+    return membership.organisation
+
+
+def chosen_membership(request: Request, slug: str) -> Membership:
+    """The membership of the organisation named by `slug`, else of the one the portal acts
+    for, else the user's only one."""
     memberships = Membership.objects.for_user(request.user)
-    slug = request.data.get("organisation") or ""
     # Only a portal (session) request acts for one organisation; a token acts for none.
     current = acting_organisation(request._request) if request.auth is None else None
     if slug:
@@ -167,12 +179,12 @@ def _upload_organisation(request: Request) -> Organisation:
     membership = memberships.first()
     if membership is None:
         raise exceptions.NotFound("You are not a member of that organisation.")
-    if not membership.allows(Role.OPERATOR):
-        raise exceptions.PermissionDenied("Uploading logs needs the operator role.")
-    return membership.organisation
+    return membership
 
 
-class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets.GenericViewSet):
+class FlightLogViewSet(
+    CompareActions, mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets.GenericViewSet
+):
     """Flight logs of the user's organisations. `?q=` searches names, formats and owners;
     `?status=` filters. Viewers read; operators upload and delete."""
 
@@ -452,7 +464,9 @@ class FlightLogViewSet(mixins.ListModelMixin, mixins.DestroyModelMixin, viewsets
         log = self.get_object()
         store = self._store(log)
         report = reports.report_of(log, store)
-        checks = [{**c, "link": reports.viewer_link(log, c)} for c in report["checks"]]
+        checks = [
+            {"check": c["name"], **c, "link": reports.viewer_link(log, c)} for c in report["checks"]
+        ]
         return Response(
             {"checked_at": report["checked_at"], "airframe": report["airframe"], "checks": checks}
         )

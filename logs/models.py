@@ -77,6 +77,16 @@ class FlightLog(models.Model):
     import_task = models.CharField(max_length=64, blank=True)
     heartbeat_at = models.DateTimeField(null=True, blank=True)
     queued_at = models.DateTimeField(default=timezone.now)
+    # The drone that flew it (its trends: logs/trends.py), and when it flew; a log with
+    # no flight time is placed in a drone's history by when it was uploaded.
+    drone = models.ForeignKey(
+        "fleet.Drone",
+        null=True,
+        blank=True,
+        on_delete=models.SET_NULL,
+        related_name="flight_logs",
+    )
+    flown_at = models.DateTimeField(null=True, blank=True)
 
     objects = FlightLogQuerySet.as_manager()
 
@@ -118,3 +128,101 @@ class FlightLog(models.Model):
         if self.start_s is None or self.end_s is None:
             return None
         return self.end_s - self.start_s
+
+
+class LogFigure(models.Model):
+    """One check's figure of one log, copied from its health report so a drone's or the
+    fleet's trend is one indexed query rather than a file per log (logs/trends.py)."""
+
+    log = models.ForeignKey(FlightLog, on_delete=models.CASCADE, related_name="figures")
+    name = models.CharField(max_length=32)
+    status = models.CharField(max_length=12)
+    value = models.FloatField(null=True, blank=True)
+    unit = models.CharField(max_length=16, blank=True)
+
+    class Meta:
+        constraints = [
+            models.UniqueConstraint(fields=["log", "name"], name="log_figure_one_per_check")
+        ]
+        indexes = [models.Index(fields=["name", "log"], name="log_figure_name")]
+
+    def __str__(self) -> str:
+        return f"{self.name} of {self.log_id}: {self.value}"
+
+
+class ParameterReference(models.Model):
+    """An organisation's reference parameter set for one drone model: the autopilot and
+    the airframe id its logs record (PX4 SYS_AUTOSTART, ArduPilot FRAME_CLASS; "" for
+    a flight controller that records none), kept from a log chosen by an operator."""
+
+    organisation = models.ForeignKey(
+        Organisation, on_delete=models.CASCADE, related_name="parameter_references"
+    )
+    autopilot = models.CharField(max_length=16)
+    airframe = models.CharField(max_length=32, blank=True)
+    parameters = models.JSONField(default=dict)
+    source_log = models.ForeignKey(
+        FlightLog, null=True, blank=True, on_delete=models.SET_NULL, related_name="+"
+    )
+    source_name = models.CharField(max_length=255, blank=True)
+    saved_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL, related_name="+"
+    )
+    saved_at = models.DateTimeField(default=timezone.now)
+
+    class Meta:
+        constraints = [
+            models.UniqueConstraint(
+                fields=["organisation", "autopilot", "airframe"],
+                name="parameter_reference_one_per_model",
+            )
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.autopilot} airframe {self.airframe or '-'} of {self.organisation}"
+
+
+class CollectedLogKind(models.TextChoices):
+    ONBOARD = "onboard", "Onboard recording"
+    FLIGHT_CONTROLLER = "fc", "Flight controller's log"
+
+
+class CollectedLog(models.Model):
+    """A log a drone uploads by itself after landing (logs/collection.py): received in
+    chunks at increasing offsets, stored once per drone, kind and content (its SHA-256),
+    and a FlightLog once every byte is in and the hash matches."""
+
+    id = models.UUIDField(primary_key=True, default=uuid.uuid4, editable=False)
+    organisation = models.ForeignKey(Organisation, on_delete=models.CASCADE, related_name="+")
+    drone = models.ForeignKey(
+        "fleet.Drone", on_delete=models.CASCADE, related_name="collected_logs"
+    )
+    kind = models.CharField(max_length=8, choices=CollectedLogKind.choices)
+    name = models.CharField(max_length=255)
+    size = models.BigIntegerField()
+    sha256 = models.CharField(max_length=64)
+    received = models.BigIntegerField(default=0)
+    # The flight on the drone's clock: armed and disarmed, as the agent saw them.
+    flight_started_at = models.DateTimeField()
+    flight_ended_at = models.DateTimeField()
+    log = models.OneToOneField(
+        FlightLog, null=True, blank=True, on_delete=models.SET_NULL, related_name="collected"
+    )
+    created_at = models.DateTimeField(auto_now_add=True)
+    completed_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["flight_started_at", "kind"]
+        constraints = [
+            # The idempotency key: one drone's log of one kind with these bytes, once.
+            models.UniqueConstraint(fields=["drone", "kind", "sha256"], name="logs_collected_once")
+        ]
+        indexes = [models.Index(fields=["drone", "flight_started_at"], name="log_collected_flight")]
+
+    def __str__(self) -> str:
+        return f"{self.name} ({self.kind})"
+
+    @property
+    def part_path(self) -> Path:
+        """The bytes received so far, until the log is complete."""
+        return Path(settings.LOGS_DIR) / "collecting" / f"{self.pk}.part"

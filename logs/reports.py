@@ -19,6 +19,7 @@ from urllib.parse import quote
 
 from django.conf import settings
 
+from logs import trends
 from logs.checks import ThresholdError, merged, run_checks
 from logs.checks.base import LogView
 from logs.models import FlightLog
@@ -67,6 +68,7 @@ def check(log: FlightLog, store: LogStore) -> dict:
     tmp = path.with_name(f".checks-{uuid.uuid4().hex}.json")
     tmp.write_text(json.dumps(report, allow_nan=False))
     os.replace(tmp, path)
+    trends.record(log, report["checks"])
     return report
 
 

@@ -25,7 +25,7 @@ from django.db import transaction
 from django.utils import timezone
 from django.utils.module_loading import import_string
 
-from logs import attempts, reports, units
+from logs import attempts, reports, trends, units
 from logs.analysis import trajectory_of, values_at, values_tree
 from logs.importers.base import Limits, LogFormatError
 from logs.models import FlightLog, LogStatus
@@ -173,6 +173,7 @@ def _import(log: FlightLog) -> str:
         shutil.rmtree(log.directory, ignore_errors=True)
         return "deleted"
     publish(log, {"type": "status", "status": LogStatus.READY, "progress": 1.0})
+    _judge_trends(log)
     return LogStatus.READY
 
 
@@ -183,6 +184,16 @@ def _check(log: FlightLog, store: LogStore) -> None:
         reports.check(log, store)
     except Exception:
         logger.exception("checking log %s (%s) failed", log.pk, log.name)
+
+
+def _judge_trends(log: FlightLog) -> None:
+    """A log of a drone is judged against the drone's history and the fleet (logs.trends);
+    a failure there never fails the import."""
+    try:
+        log.refresh_from_db()
+        trends.evaluate(log)
+    except Exception:
+        logger.exception("judging the trends of log %s (%s) failed", log.pk, log.name)
 
 
 def sweep_stuck() -> dict[str, list[str]]:

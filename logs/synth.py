@@ -60,15 +60,25 @@ def write_ulog(
     messages: list[tuple[int, int, str]] = (),  # type: ignore[assignment]
     info: dict[str, str] | None = None,
     block_us: int = 1_000_000,
+    parameters: dict[str, int | float] | None = None,
 ) -> None:
     """Write a ULog (version 1). Each topic is a structured array whose first field is
-    `timestamp` (uint64 µs); messages are (timestamp µs, level 0-7, text)."""
+    `timestamp` (uint64 µs); messages are (timestamp µs, level 0-7, text); parameters
+    are `P` messages, int32_t for a Python int, else float."""
     out = bytearray(b"ULog\x01\x12\x35\x01" + struct.pack("<Q", 0))
     # Flag bits message: no incompatible flags, no appended data.
     out += _msg(b"B", bytes(8) + bytes(8) + bytes(24))
     for key, value in (info or {"sys_name": "Skyhive synthetic"}).items():
         k = f"char[{len(value)}] {key}".encode()
         out += _msg(b"I", bytes([len(k)]) + k + value.encode())
+    for key, value in (parameters or {}).items():
+        kind, packed_value = (
+            ("int32_t", struct.pack("<i", value))
+            if isinstance(value, int)
+            else ("float", struct.pack("<f", value))
+        )
+        k = f"{kind} {key}".encode()
+        out += _msg(b"P", bytes([len(k)]) + k + packed_value)
     for name, arr in topics.items():
         fields = ";".join(_ulog_field(n, arr.dtype.fields[n][0]) for n in arr.dtype.names)
         out += _msg(b"F", f"{name}:{fields};".encode())

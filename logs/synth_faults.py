@@ -123,8 +123,11 @@ def _px4_sensor_combined(rng: np.random.Generator, seconds: float) -> np.ndarray
     return a
 
 
-def _px4_imu_status(faults: set[str], rng: np.random.Generator, seconds: float) -> np.ndarray:
-    """The z accelerometer's running clip count and the vibration metrics."""
+def _px4_imu_status(
+    faults: set[str], rng: np.random.Generator, seconds: float, vibration: float = 2.0
+) -> np.ndarray:
+    """The z accelerometer's running clip count and the vibration metrics (`vibration`
+    m/s² while armed)."""
     t, a = _ulog_topic(
         10,
         [
@@ -135,7 +138,7 @@ def _px4_imu_status(faults: set[str], rng: np.random.Generator, seconds: float) 
         seconds,
     )
     a["accel_clipping"][:, 2] = _clips(t, faults)
-    a["accel_vibration_metric"] = np.where(_armed(t), 2.0, 0.3) + rng.normal(0, 0.1, len(t))
+    a["accel_vibration_metric"] = np.where(_armed(t), vibration, 0.3) + rng.normal(0, 0.1, len(t))
     a["gyro_vibration_metric"] = 0.01
     return a
 
@@ -218,15 +221,18 @@ def px4_ulog(
     *,
     topics: set[str] | None = None,
     seconds: float = SECONDS,
+    vibration: float = 2.0,
+    parameters: dict[str, int | float] | None = None,
 ) -> Path:
     """A PX4 (v1.13-style topics) hover with the given faults; `topics` keeps only those.
     Every topic is drawn, in this order, from one generator, so keeping fewer topics
-    changes none of the kept ones."""
+    changes none of the kept ones. `vibration` is the accelerometer vibration metric while
+    armed (m/s²); `parameters` are written as the ULog's parameters."""
     rng = np.random.default_rng(5)
     out = {
         "vehicle_status": _px4_vehicle_status(faults, seconds),
         "sensor_combined": _px4_sensor_combined(rng, seconds),
-        "vehicle_imu_status": _px4_imu_status(faults, rng, seconds),
+        "vehicle_imu_status": _px4_imu_status(faults, rng, seconds, vibration),
         "vehicle_gps_position": _px4_gps_position(faults, seconds),
         "battery_status": _px4_battery_status(faults, seconds),
         "input_rc": _px4_input_rc(faults, seconds),
@@ -236,7 +242,7 @@ def px4_ulog(
     }
     if topics is not None:
         out = {k: v for k, v in out.items() if k in topics}
-    write_ulog(path, out, info={"sys_name": "PX4", "ver_hw": "SKYHIVE_TEST"})
+    write_ulog(path, out, info={"sys_name": "PX4", "ver_hw": "SKYHIVE_TEST"}, parameters=parameters)
     return path
 
 

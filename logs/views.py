@@ -9,7 +9,7 @@ from django.contrib.auth.decorators import login_required
 from django.http import FileResponse, Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, render
 
-from fleet.models import Role
+from fleet.models import Drone, Role
 from fleet.tenancy import acting_membership, acting_organisation
 from logs import reports
 from logs.models import FlightLog, LogStatus
@@ -53,7 +53,8 @@ def log_list(request: HttpRequest) -> HttpResponse:
 def log_detail(request: HttpRequest, pk: uuid.UUID) -> HttpResponse:
     # Any member of the log's organisation may open the link; outsiders get 404.
     log = get_object_or_404(
-        FlightLog.objects.for_user(request.user).select_related("organisation", "owner"), pk=pk
+        FlightLog.objects.for_user(request.user).select_related("organisation", "owner", "drone"),
+        pk=pk,
     )
     membership = log.organisation.memberships.filter(user=request.user).first()
     return render(
@@ -67,6 +68,10 @@ def log_detail(request: HttpRequest, pk: uuid.UUID) -> HttpResponse:
             "others": FlightLog.objects.filter(
                 organisation=log.organisation, status=LogStatus.READY
             ).exclude(pk=log.pk)[:50],
+            # An operator names the drone that flew the log (its trends: logs/trends.py).
+            "drones": Drone.objects.filter(organisation=log.organisation)
+            if membership and membership.allows(Role.OPERATOR)
+            else [],
         },
     )
 

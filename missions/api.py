@@ -12,14 +12,21 @@ from typing import Any
 from django.conf import settings
 from django.http import HttpResponse
 from drf_spectacular.types import OpenApiTypes
-from drf_spectacular.utils import OpenApiParameter, extend_schema, inline_serializer
+from drf_spectacular.utils import (
+    OpenApiParameter,
+    OpenApiResponse,
+    extend_schema,
+    inline_serializer,
+)
 from rest_framework import exceptions, serializers, status, viewsets
 from rest_framework.decorators import action
 from rest_framework.parsers import FormParser, JSONParser, MultiPartParser
 from rest_framework.request import Request
 from rest_framework.response import Response
 
-from config.throttling import MISSION_START_THROTTLES
+from airspace import separation
+from config.api import RefusalSerializer
+from config.throttling import COMMAND_THROTTLES, MISSION_START_THROTTLES
 from fleet import envelopes
 from fleet.models import Drone, Membership, Organisation, Role
 from fleet.permissions import OrganisationRole, require_role
@@ -29,8 +36,9 @@ from missions.creation import create_mission, validate_steps
 from missions.errors import MissionError
 from missions.startstop import start_mission, stop_mission
 from terrain.guard import has_terrain
+from terrain.profile import profile as height_profile
 
-from . import hold, logs, panic, pictures, plan_files, planning, qgc_plan
+from . import following, hold, logs, panic, pictures, plan_files, planning, qgc_plan
 from .models import Mission, Picture
 from .serializers import (
     MissionDetailSerializer,
@@ -62,7 +70,10 @@ class Refused(exceptions.APIException):
 
 def refuse(exc: MissionError | planning.PlanningError) -> Refused:
     if isinstance(exc, MissionError):
-        return Refused(exc.field, exc.message, exc.status, exc.code)
+        refused = Refused(exc.field, exc.message, exc.status, exc.code)
+        if exc.reasons is not None:
+            refused.extra_body = {"reasons": exc.reasons}  # type: ignore[attr-defined]
+        return refused
     return Refused(exc.field, exc.message, 400)
 
 
@@ -116,7 +127,15 @@ CoverageRequest = inline_serializer(
             child=serializers.ListField(child=serializers.FloatField())
         ),
         "step_distance": serializers.FloatField(),
+        "line_spacing": serializers.FloatField(
+            required=False, help_text="metres between lines (default: step_distance)"
+        ),
         "altitude": serializers.FloatField(required=False),
+        "terrain_following": serializers.JSONField(
+            required=False,
+            help_text='{"home": [lat, lon], "tolerance_m": 10}: also answer `followed`, the '
+            "path at `altitude` above the terrain (docs/airspace.md)",
+        ),
     },
 )
 CoverageResponse = inline_serializer(
@@ -127,6 +146,12 @@ CoverageResponse = inline_serializer(
         "vectors": serializers.DictField(),
         "step_distance": serializers.FloatField(),
         "shape": serializers.ListField(child=serializers.IntegerField()),
+        "followed": serializers.ListField(
+            child=serializers.DictField(),
+            required=False,
+            help_text="with terrain_following: lat, lon, height_m (above home), waypoint, "
+            "speed_m_s of every point of the path",
+        ),
     },
 )
 ExtendRequest = inline_serializer(
@@ -162,7 +187,14 @@ CreateRequest = inline_serializer(
             {
                 "vertices": serializers.ListField(child=serializers.ListField()),
                 "step_distance": serializers.FloatField(),
+                "line_spacing": serializers.FloatField(required=False),
                 "intermediate_action": serializers.JSONField(required=False),
+                "terrain_following": serializers.JSONField(
+                    required=False,
+                    help_text='{"home": [lat, lon], "tolerance_m": 10}: fly `altitude` above '
+                    "the imported terrain instead of above home (points are added where the "
+                    "ground departs from a leg by more than the tolerance)",
+                ),
             },
         ),
         "extensibility": serializers.DictField(required=False),
@@ -203,27 +235,55 @@ def _altitude(body: dict) -> float:
     return float(altitude)
 
 
-def _steps_from_coverage(spec: object, altitude: float, max_waypoints: int) -> tuple[list, dict]:
-    """A coverage spec → mission steps and the extensibility parameters to keep."""
+def _checked_home(organisation: Organisation, steps: list, drone: Drone | None) -> list | None:
+    """The home a checked plan is flown from: the drone's, else the plan's."""
+    if drone is not None:
+        return envelopes.home_of(drone)
+    return envelopes.plan_home(organisation, steps)
+
+
+def _steps_from_coverage(
+    spec: object, altitude: float, max_waypoints: int
+) -> tuple[list, dict, list | None]:
+    """A coverage spec → mission steps, the extensibility parameters to keep and the plan
+    home (a terrain-following coverage is placed from its own home)."""
     if not isinstance(spec, dict):
         raise Refused("coverage", "must be an object with vertices and step_distance")
+    home = None
     try:
         area = planning.coverage(
-            spec.get("vertices"), spec.get("step_distance"), max_waypoints=max_waypoints
+            spec.get("vertices"),
+            spec.get("step_distance"),
+            line_spacing=spec.get("line_spacing"),
+            max_waypoints=max_waypoints,
         )
         action = spec.get("intermediate_action")
-        steps = planning.mission_steps(
-            area.waypoints, altitude=altitude, intermediate_action=action
-        )
+        if spec.get(following.FIELD) is not None:
+            steps, home, kept = following.coverage_steps(
+                spec[following.FIELD],
+                area.waypoints,
+                altitude,
+                action,
+                max_waypoints,
+                settings.MISSIONS_SURVEY_SPEED_M_S,
+            )
+        else:
+            steps = planning.mission_steps(
+                area.waypoints, altitude=altitude, intermediate_action=action
+            )
+            kept = None
     except planning.PlanningError as exc:
         raise Refused(f"coverage.{exc.field}", exc.message) from None
-    return steps, {
+    extensibility = {
         "vertices": spec.get("vertices"),
         "vectors": area.vectors.to_dict(),
         "step_distance": area.step_distance,
         "intermediate_action": action,
         "area_m2": area.area_m2,
     }
+    if kept:
+        extensibility[following.FIELD] = kept
+    return steps, extensibility, home
 
 
 class MissionViewSet(viewsets.ReadOnlyModelViewSet):
@@ -263,11 +323,21 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
             area = planning.coverage(
                 body.get("vertices"),
                 body.get("step_distance"),
+                line_spacing=body.get("line_spacing"),
                 max_waypoints=settings.MISSIONS_MAX_WAYPOINTS,
             )
+            answer = area.to_dict()
+            if body.get(following.FIELD) is not None:
+                answer["followed"] = following.followed_body(
+                    body[following.FIELD],
+                    area.waypoints,
+                    _altitude(body),
+                    settings.MISSIONS_MAX_WAYPOINTS,
+                    settings.MISSIONS_SURVEY_SPEED_M_S,
+                )
         except planning.PlanningError as exc:
             raise refuse(exc) from None
-        return Response(area.to_dict())
+        return Response(answer)
 
     @extend_schema(request=ExtendRequest, responses=ExtendResponse)
     @action(detail=False, methods=["post"], url_path="coverage/extend")
@@ -293,15 +363,18 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     @extend_schema(request=CreateRequest, responses={201: MissionDetailSerializer})
     def create(self, request: Request) -> Response:
         """A draft mission from `steps`, or from a `coverage` (which also keeps the
-        extensibility parameters a collaboration needs)."""
+        extensibility parameters a collaboration needs). 409 `outside_envelope`,
+        `terrain_clearance` (the leg, the clearance found, the minimum) and `zone` (the
+        zone's name and band) name the first step refused (docs/airspace.md)."""
         body = _body(request)
         organisation = _organisation_for_write(request, body.get("organisation"))
         altitude = _altitude(body)
         extensibility = body.get("extensibility")
         if extensibility is not None and not isinstance(extensibility, dict):
             raise Refused("extensibility", "must be an object")
+        home = None
         if "coverage" in body:
-            steps, extensibility = _steps_from_coverage(
+            steps, extensibility, home = _steps_from_coverage(
                 body["coverage"], altitude, settings.MISSIONS_MAX_WAYPOINTS
             )
         else:
@@ -320,17 +393,38 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 altitude=altitude,
                 extensibility=extensibility,
                 user=request.user,
+                home=home,
                 confirmed=_confirmed(body),
             )
         except MissionError as exc:
             raise refuse(exc) from None
         return Response(_created(mission), status=status.HTTP_201_CREATED)
 
-    @extend_schema(request=StartRequest, responses=MissionDetailSerializer)
+    @extend_schema(
+        request=StartRequest,
+        responses={
+            200: MissionDetailSerializer,
+            404: OpenApiResponse(description="no such mission, or `drone` not in its organisation"),
+            409: OpenApiResponse(
+                response=RefusalSerializer,
+                description=(
+                    "refused, nothing sent; `code` says why: `not_airworthy` (the reasons in "
+                    "`error` and, one by one, in `reasons`), `checklist_required`, `wind`, `conflict`, `outside_envelope`, "
+                    "`terrain_clearance`, `zone`, `confirmation_required`"
+                ),
+            ),
+        },
+    )
     @action(detail=True, methods=["post"], throttle_classes=MISSION_START_THROTTLES)
     def start(self, request: Request, pk: str | None = None) -> Response:
         """Send the mission to `drone` (an id of the same organisation) or, without one,
-        to the nearest available drone."""
+        to the nearest available drone. 409 `not_airworthy` names the reasons a drone may
+        not fly (each in `reasons`); 409 `checklist_required` names a drone without a passed pre-flight
+        checklist within its validity (docs/checklists.md); 409 `wind` gives the wind
+        above the chosen drone's limit; 409 `conflict` names the other drone whose
+        reservation the flight would come within the separation minima of, the place
+        and the time; 409 `outside_envelope`, `terrain_clearance` and `zone` name the
+        first step refused from the chosen drone (docs/airspace.md)."""
         mission = self._writable(pk)
         body = _body(request)
         drone = None
@@ -358,7 +452,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         return self._operate(pk, request, stop_mission)
 
     @extend_schema(request=None, responses=MissionDetailSerializer)
-    @action(detail=True, methods=["post"])
+    @action(detail=True, methods=["post"], throttle_classes=COMMAND_THROTTLES)
     def release(self, request: Request, pk: str | None = None) -> Response:
         """Release a panic call: its drone returns home and lands; the call is completed."""
         return self._operate(pk, request, panic.release)
@@ -371,7 +465,7 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
         return self._operate(pk, request, _for_drone(request, hold.pause))
 
     @extend_schema(request=HoldRequest, responses=MissionDetailSerializer)
-    @action(detail=True, methods=["post"])
+    @action(detail=True, methods=["post"], throttle_classes=MISSION_START_THROTTLES)
     def resume(self, request: Request, pk: str | None = None) -> Response:
         """Resume a paused mission: each held drone carries on from its step (409 unless
         one holds); with `drone`, only that drone."""
@@ -424,13 +518,17 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 "terrain_warnings": envelopes.terrain_warnings(organisation, steps, drone),
                 "terrain_imported": has_terrain(),
                 "envelope": envelopes.envelope_body(organisation),
+                "profile": height_profile(_checked_home(organisation, steps, drone), steps),
+                "conflicts": separation.plan_conflicts(drone, steps) if drone else [],
             }
         )
 
     @extend_schema(request=PanicRequest, responses={201: MissionDetailSerializer})
-    @action(detail=False, methods=["post"])
+    @action(detail=False, methods=["post"], throttle_classes=MISSION_START_THROTTLES)
     def panic(self, request: Request) -> Response:
-        """The panic button: the nearest available drone flies to (lat, lon) at 10 m."""
+        """The panic button: the nearest available drone flies to (lat, lon) at 10 m.
+        409 `conflict` names the other drone, the place and the time when the flight would
+        come within the separation minima of its reservation (docs/airspace.md)."""
         body = _body(request)
         organisation = _organisation_for_write(request, body.get("organisation"))
         try:

@@ -5,6 +5,9 @@ The area is rebuilt around the alarm position from the mission's extensibility p
 new waypoints are split among the alarming drone and up to N nearest available drones.
 The alarming drone is flying another assignment: it is told to stop first, and its new
 part is queued until it reports the old one stopped (a drone runs one mission at a time).
+A part is never sent to a drone on the ground without the steps to take off: an alarming
+drone that has landed gets arm and takeoff in its part, and so does a queued part whose
+drone landed before it was released (`ready_to_fly`).
 """
 
 from __future__ import annotations
@@ -16,14 +19,23 @@ from django.conf import settings
 from django.db import transaction
 
 from airspace import separation
+from airspace.reservations import reserve_assignment
 from fleet import envelopes
 from fleet.models import Drone
+from missions.handover import Assignment as PlannedPart
 from missions.handover import Handover, plan_collaboration
 from missions.journal import record
 from missions.models import STEP_DONE, Assignment, Event, Mission, MissionStatus, Step, StepStatus
-from missions.planning import Extension, PlanningError, Vectors, extend_from_vectors
+from missions.planning import (
+    Extension,
+    PlanningError,
+    Vectors,
+    extend_from_vectors,
+    mission_steps,
+)
 from missions.selection import nearest_available
 from missions.sending import send_assignment, send_stop
+from onboard.protocol import DEFAULT_TOLERANCE
 
 
 def _center(alarm: Event | None, alarming: Assignment) -> tuple[float, float] | None:
@@ -155,8 +167,16 @@ def _plan(
         alarming_drone=alarming.drone.drone_id,
         altitude=mission.altitude,
         intermediate_action=params.get("intermediate_action"),
+        grounded=[alarming.drone.drone_id] if _landed(alarming) else [],
     )
     return extension, handover
+
+
+def _landed(alarming: Assignment) -> bool:
+    """The alarming drone has ended its steps and is on the ground: its part is sent at
+    once, so it must take off. (A drone still flying its steps is told to stop and its
+    part waits for its report; `ready_to_fly` looks again then.)"""
+    return alarming.status not in Assignment.ACTIVE and not alarming.drone.airborne
 
 
 def _supersede(mission: Mission, handover: Handover) -> None:
@@ -260,3 +280,49 @@ def _record_handovers(
                 "reason": "collaboration",
             },
         )
+
+
+def ready_to_fly(assignment: Assignment) -> str | None:
+    """Make a queued part flyable from where its drone is, just before it is sent; None
+    when it is, else why not (nothing is changed then). A drone that landed before its
+    part was released (its own plan ended on the ground) is given arm and takeoff to the
+    mission's altitude first, laid on a layer or staggered as the split was
+    (airspace/separation.py), within its envelope and the mission's fence."""
+    drone = Drone.objects.get(pk=assignment.drone_id)
+    mission = assignment.mission
+    indexes = [*assignment.preparation, *assignment.step_indexes]
+    by_index = {s.index: s for s in mission.steps.filter(index__in=indexes)}
+    steps = [
+        {"index": i, "command": by_index[i].command, "params": by_index[i].params}
+        for i in indexes
+        if i in by_index
+    ]
+    if drone.airborne or any(s["command"] == "takeoff" for s in steps):
+        return None
+    first = (mission.steps.order_by("-index").values_list("index", flat=True).first() or 0) + 1
+    lift = mission_steps([], altitude=mission.altitude, append_land=False, start_index=first)
+    # Climb, then go (as a joining drone: missions/handover.py plan_collaboration).
+    tolerance = {"horizontal_tolerance": DEFAULT_TOLERANCE, "vertical_tolerance": DEFAULT_TOLERANCE}
+    wait = next((s["params"] for s in steps if s["command"] == "wait_for_flight"), tolerance)
+    lift.append({"index": first + 2, "command": "wait_for_flight", "params": dict(wait)})
+    part = PlannedPart(drone.drone_id, "collaboration", [*lift, *steps], [s["index"] for s in lift])
+    try:
+        plan = separation.layered_handover(Handover([part], lift, []), [drone])
+        envelopes.check_steps(drone, plan.assignments[0].steps, fence=mission.fence)
+    except (envelopes.OutsideEnvelope, PlanningError) as exc:
+        return f"{drone.drone_id} is on the ground and may not take off again: {exc.message}"
+    Step.objects.bulk_create(
+        Step(mission=mission, index=s["index"], command=s["command"], params=s["params"])
+        for s in plan.new_steps
+    )
+    assignment.preparation = plan.assignments[0].preparation_indexes
+    assignment.save(update_fields=["preparation"])
+    reserve_assignment(assignment)
+    record(
+        mission,
+        Event.Kind.DECISION,
+        f"{drone.drone_id} landed before its part was sent: it takes off again first",
+        drone=drone,
+        data={"decision": "takes_off_again", "assignment": str(assignment.pk)},
+    )
+    return None

@@ -9,13 +9,20 @@ class MissionError(ValueError):
     """A request the domain refuses; `field` names the input, `status` the HTTP answer."""
 
     def __init__(
-        self, field: str, message: str, status: int = 400, code: str | None = None
+        self,
+        field: str,
+        message: str,
+        status: int = 400,
+        code: str | None = None,
+        reasons: list[str] | None = None,
     ) -> None:
         super().__init__(f"{field}: {message}")
         self.field = field
         self.message = message
         self.status = status
         self.code = code
+        # Each reason a `not_airworthy` refusal names, answered as the body's `reasons`.
+        self.reasons = reasons
 
 
 def outside_envelope(exc: envelopes.EnvelopeRefusal) -> MissionError:

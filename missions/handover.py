@@ -5,9 +5,9 @@ steps (arm, take off to the mission altitude, fly to where the failing drone sto
 and then every step not yet completed, with its ORIGINAL index, in index order.
 
 Collaboration (on an OUT_MEASURE alarm): the rebuilt area's parts go to
-the drones; the alarming drone is already flying and keeps its part without preparation,
-each joining drone arms and takes off first. The original mission's steps not yet
-completed are superseded by the new plan.
+the drones; the alarming drone, flying, keeps its part without preparation (one that
+has landed arms and takes off again), each joining drone arms and takes off first. The
+original mission's steps not yet completed are superseded by the new plan.
 
 Index rule, for both: step indexes are the mission's index space (docs/protocol.md: an index
 is kept when a step changes hands, and it must be ≥ 0), so every NEW step — preparation
@@ -130,6 +130,10 @@ def _preparation(
             wait_tolerance=(wait["horizontal_tolerance"], wait["vertical_tolerance"]),
         )
     ]
+    # Climb, then go: a takeoff does not wait for its height, so without a wait the drone
+    # would cross other drones' layers on a slant on its way out (reserved as flown, the
+    # slant's low pieces would meet the layers under it: airspace/corridors.py).
+    body.insert(2, ("wait_for_flight", dict(wait)))
     waypoint = _last_navigation_target(done)
     first = remaining[0]["command"]
     needs_waypoint = first not in ("navigate", "land", "takeoff", "arm")
@@ -192,12 +196,14 @@ def plan_collaboration(
     altitude: float,
     intermediate_action: Any = None,
     wait_tolerance: tuple[float, float] = (DEFAULT_TOLERANCE, DEFAULT_TOLERANCE),
+    grounded: Sequence[str] = (),
 ) -> Handover:
     """One assignment per part of `extension` (made with drone positions, see `split`).
 
     `drone_ids[i]` is the drone whose position was `drone_positions[i]`. The alarming
     drone's assignment is its part and a final land; each joining drone's starts with
-    arm and takeoff to `altitude`. New indexes follow the mission's highest, part by part
+    arm, takeoff to `altitude` and a wait for that height, and so does the alarming drone's when it is among the
+    `grounded` (it landed before the split: it must take off again). New indexes follow the mission's highest, part by part
     in path order. The original mission's steps not yet completed are superseded.
     """
     ordered = _indexed(steps)
@@ -214,29 +220,55 @@ def plan_collaboration(
     new_steps: list[dict] = []
     for part in extension.parts:
         drone_id = drone_ids[part.drone]  # type: ignore[index]
-        joining = drone_id != alarming_drone
+        takes_off = drone_id != alarming_drone or drone_id in grounded
         waypoints = [extension.waypoints[i] for i in part.waypoint_indexes]
-        built = mission_steps(
-            waypoints,
-            altitude=altitude,
-            intermediate_action=intermediate_action,
-            prepend_takeoff=joining,
-            append_land=True,
-            wait_tolerance=wait_tolerance,
-            start_index=next_index,
+        built = _part_steps(
+            waypoints, altitude, intermediate_action, wait_tolerance, takes_off, next_index
         )
         next_index += len(built)
-        # mission_steps puts arm and takeoff first when asked to.
-        preparation = [s["index"] for s in built[:2]] if joining else []
         assignments.append(
             Assignment(
                 drone_id=drone_id,
                 reason=COLLABORATION,
                 steps=built,
-                preparation_indexes=preparation,
+                preparation_indexes=[s["index"] for s in built[:3]] if takes_off else [],
                 waypoint_indexes=list(part.waypoint_indexes),
             )
         )
         new_steps += built
     superseded = [s["index"] for s in ordered if s.get("status") != COMPLETED]
     return Handover(assignments=assignments, new_steps=new_steps, superseded_indexes=superseded)
+
+
+def _part_steps(
+    waypoints: list[Any],
+    altitude: float,
+    intermediate_action: Any,
+    wait_tolerance: tuple[float, float],
+    takes_off: bool,
+    start_index: int,
+) -> list[dict]:
+    """A split part's steps from `start_index`: [arm, takeoff, wait for its height,] the
+    waypoints, land."""
+    built = mission_steps(
+        waypoints,
+        altitude=altitude,
+        intermediate_action=intermediate_action,
+        prepend_takeoff=takes_off,
+        append_land=True,
+        wait_tolerance=wait_tolerance,
+        start_index=start_index,
+    )
+    if not takes_off:
+        return built
+    # mission_steps puts arm and takeoff first. Climb, then go: a takeoff does not wait
+    # for its height, and a drone laid on a layer would otherwise cross the lower layers
+    # on a slant on its way out (its layer is reserved above its column, then along its
+    # legs: airspace/corridors.py).
+    horizontal, vertical = (float(t) for t in wait_tolerance)
+    climb = {
+        "command": "wait_for_flight",
+        "params": {"horizontal_tolerance": horizontal, "vertical_tolerance": vertical},
+    }
+    built = [*built[:2], climb, *built[2:]]
+    return [{**step, "index": start_index + i} for i, step in enumerate(built)]

@@ -20,7 +20,7 @@ from missions.errors import MissionError
 from missions.journal import move_mission, record
 from missions.models import Assignment, Event, Mission, MissionStatus
 from missions.progress import lock_mission
-from missions.sending import send_stop
+from missions.sending import stop_and_send_home
 from missions.startstop import Started, start_mission
 from onboard import protocol
 
@@ -63,7 +63,8 @@ def call_drone(
         confirmed=confirmed,
     )
     try:
-        return start_mission(mission, user=user, confirmed=confirmed)
+        # The platform picks the drone: its automatic checklist items, not a person's.
+        return start_mission(mission, user=user, confirmed=confirmed, automatic=True)
     except MissionError:
         mission.delete()
         raise
@@ -85,15 +86,17 @@ def release(mission: Mission, *, user: Any = None) -> Mission:
             status=Assignment.Status.COMPLETED
         )
         move_mission(mission, MissionStatus.COMPLETED)
-        drones = [a.drone.drone_id for a in active if a.status != Assignment.Status.QUEUED]
+        flying = [a.drone for a in active if a.status != Assignment.Status.QUEUED]
+        drones = [d.drone_id for d in flying]
         record(
             mission,
             Event.Kind.OPERATOR,
             "panic call released: the drone returns home and lands",
             data={"user": getattr(user, "username", None), "drones": drones},
         )
-        for drone_id in drones:
-            transaction.on_commit(lambda d=drone_id: send_stop(d, str(mission.pk), then="return"))
+        for drone in flying:
+            # Home through its landing site's queue (airspace/landing.py).
+            stop_and_send_home(drone, str(mission.pk))
     return mission
 
 

@@ -529,3 +529,37 @@ def mission_steps(
         {"index": start_index + i, "command": command, "params": params}
         for i, (command, params) in enumerate(body)
     ]
+
+
+def followed_steps(
+    points: Sequence[tuple[float, float, float, bool, float]],
+    *,
+    altitude: float,
+    intermediate_action: Any = None,
+) -> list[dict]:
+    """Mission steps flying (lat, lon, height above home, is a waypoint, speed m/s)
+    points, each leg climbing or descending to its point's height at its speed: arm, take
+    off to `altitude` and wait to reach it, then navigate and wait at every point, with the
+    intermediate actions at waypoints only (points added between waypoints to follow the
+    terrain take no photo); land."""
+    alt = _finite(altitude, "altitude")
+    if not 0.5 <= alt <= MAX_ALTITUDE:
+        raise PlanningError("altitude", f"must be between 0.5 and {MAX_ALTITUDE:g} m")
+    actions = normalise_actions(intermediate_action)
+    wait = {"horizontal_tolerance": DEFAULT_TOLERANCE, "vertical_tolerance": DEFAULT_TOLERANCE}
+    # The take-off's height is reached over home before the first leg: a takeoff does not
+    # wait for its height, and a leg begun on the way up would meet rising ground below
+    # the height it is to follow.
+    body: list[tuple[str, dict]] = [("arm", {}), ("takeoff", {"altitude": alt})]
+    body.append(("wait_for_flight", dict(wait)))
+    height = alt
+    for lat, lon, target, waypoint, speed in points:
+        delta = round(target - height, 3)
+        leg = {"lat": lat, "lon": lon, "altitude_delta": delta, "speed": round(speed, 2)}
+        body.append(("navigate", leg))
+        body.append(("wait_for_flight", dict(wait)))
+        if waypoint:
+            body += [(a["command"], dict(a["params"])) for a in actions]
+        height += delta
+    body.append(("land", {}))
+    return [{"index": i, "command": c, "params": p} for i, (c, p) in enumerate(body)]

@@ -12,6 +12,7 @@ from django.utils import timezone
 
 from fleet.models import Drone
 from missions import live
+from missions.collaboration import ready_to_fly
 from missions.journal import already_recorded, event_payload, message_key, move_mission, record
 from missions.models import (
     STEP_DONE,
@@ -208,9 +209,12 @@ def _apply_mission_status(
         _lock(mission)
         if already_recorded(mission, key):
             return None
+        ended_itself = False
         if assignment is not None:
             assignment = Assignment.objects.select_for_update().get(pk=assignment.pk)
-            _move_assignment(assignment, message)
+            # A stop the ground asked for has already moved the assignment; only the
+            # drone's own stop moves it here.
+            ended_itself = _move_assignment(assignment, message) and message.status == "stopped"
         record(
             mission,
             Event.Kind.MISSION,
@@ -231,10 +235,13 @@ def _apply_mission_status(
             # a step report lost on the way (gateway restart) is recovered here.
             _complete_steps(mission, drone, assignment)
             complete_if_done(mission)
+        if ended_itself and protocol.failed_step(message.error) is not None:
+            _part_failed(mission, drone, assignment, message.error)  # type: ignore[arg-type]
         if message.status in ("completed", "stopped"):
             # Also without an assignment: a drone told to stop a mission it had already
             # finished answers "stopped" with no assignment id.
             dispatch_queued(mission, drone)
+            end_if_stranded(mission)
         if assignment is not None and message.status == "rejected":
             _rejected(mission, drone, assignment, message.error)
         if message.status in ("paused", "resumed"):
@@ -252,15 +259,86 @@ def _held_reported(mission: Mission, drone: Drone, held: bool) -> None:
         Mission.objects.filter(pk=mission.pk, held=True).update(held=False)
 
 
-def _move_assignment(assignment: Assignment, message: protocol.MissionProgress) -> None:
-    """Follow the drone's report; a late or repeated one (stopped, then accepted) is noise."""
+def _move_assignment(assignment: Assignment, message: protocol.MissionProgress) -> bool:
+    """Follow the drone's report (True when it moved the assignment); a late or repeated
+    one (stopped, then accepted) is noise."""
     try:
         assignment.transition(message.status)
     except IllegalTransition:
-        return
+        return False
     if message.decode_ms is not None:
         assignment.decode_ms = message.decode_ms
     assignment.save(update_fields=["status", "decode_ms"])
+    return True
+
+
+def _part_failed(mission: Mission, drone: Drone, assignment: Assignment, error: str) -> None:
+    """The drone stopped its steps itself because one failed (it refused it: not armed,
+    outside its envelope): no drone flies the rest of them. Recorded, so that the mission
+    ends once nothing else flies (`end_if_stranded`)."""
+    index, command, why = protocol.failed_step(error)  # type: ignore[misc]
+    record(
+        mission,
+        Event.Kind.DECISION,
+        f"{drone.drone_id} stopped its steps: step {index} ({command}) failed: {why}",
+        drone=drone,
+        data={"decision": "part_failed", "assignment": str(assignment.pk), "index": index},
+    )
+
+
+def part_not_sent(mission: Mission, assignment: Assignment, why: str) -> None:
+    """A queued part that cannot be flown is not sent: stopped, recorded as failed."""
+    assignment.transition(Assignment.Status.STOPPED)
+    assignment.save(update_fields=["status"])
+    record(
+        mission,
+        Event.Kind.DECISION,
+        f"part not sent: {why}",
+        drone=assignment.drone,
+        data={"decision": "part_failed", "assignment": str(assignment.pk)},
+    )
+
+
+def end_if_stranded(mission: Mission) -> bool:
+    """A running mission whose steps are not all done, with no drone left flying any of
+    them, after a drone's part failed: it fails, naming why (it never stays running);
+    after the operator sent one of its drones home (missions/returning.py): it is
+    stopped, naming that."""
+    mission.refresh_from_db(fields=["status", "started_at", "ended_at"])
+    if mission.status != MissionStatus.RUNNING:
+        return False
+    if mission.assignments.filter(status__in=Assignment.ACTIVE).exists():
+        return False
+    if not mission.steps.exclude(status__in=STEP_DONE).exists():
+        return False
+    cause, status = _stranding_cause(mission)
+    if cause is None or not move_mission(mission, status):
+        return False
+    left = mission.steps.exclude(status__in=STEP_DONE).count()
+    record(
+        mission,
+        Event.Kind.DECISION,
+        f"mission {status}: {left} steps left and no drone flies them ({cause.message})",
+        data={"decision": status, "steps_left": left, "cause": cause.pk},
+    )
+    return True
+
+
+# What ends a stranded mission, in order: a part that failed fails it, a part the operator
+# sent home stops it.
+_STRANDED_BY = (
+    ("part_failed", MissionStatus.FAILED.value),
+    ("returned", MissionStatus.STOPPED.value),
+)
+
+
+def _stranding_cause(mission: Mission) -> tuple[Event | None, str]:
+    """The latest event of the first kind in _STRANDED_BY, and the status it ends in."""
+    for decision, status in _STRANDED_BY:
+        cause = mission.events.filter(data__decision=decision).order_by("-pk").first()
+        if cause is not None:
+            return cause, status
+    return None, MissionStatus.FAILED.value
 
 
 def _complete_steps(mission: Mission, drone: Drone, assignment: Assignment) -> None:
@@ -270,8 +348,17 @@ def _complete_steps(mission: Mission, drone: Drone, assignment: Assignment) -> N
 
 
 def _rejected(mission: Mission, drone: Drone, assignment: Assignment, error: str | None) -> None:
-    """A drone refused its steps: the mission cannot go on without an operator."""
+    """A drone refused its steps: the mission cannot go on without an operator. While
+    other drones still fly it, the refusal is recorded as a failed part: the mission fails
+    once they are done (`end_if_stranded`)."""
     if mission.assignments.filter(status__in=Assignment.ACTIVE).exists():
+        record(
+            mission,
+            Event.Kind.DECISION,
+            f"{drone.drone_id} rejected its steps ({error or 'no reason'})",
+            drone=drone,
+            data={"decision": "part_failed", "assignment": str(assignment.pk)},
+        )
         return
     if move_mission(mission, MissionStatus.FAILED):
         record(
@@ -307,6 +394,10 @@ def dispatch_queued(mission: Mission, drone: Drone) -> None:
         .first()
     )
     if queued is None or mission.status not in (MissionStatus.RUNNING, MissionStatus.PAUSED):
+        return
+    why_not = ready_to_fly(queued)
+    if why_not is not None:
+        part_not_sent(mission, queued, why_not)
         return
     queued.transition(Assignment.Status.SENT)
     queued.save(update_fields=["status"])

@@ -31,7 +31,7 @@ from missions.models import (
 )
 from missions.planning import PlanningError
 from missions.selection import nearest_available
-from missions.sending import send_assignment, send_control, send_stop
+from missions.sending import send_assignment, send_control, send_stop, stop_and_send_home
 
 log = logging.getLogger(__name__)
 
@@ -168,11 +168,12 @@ def _stop_failing(mission: Mission, failing: Assignment, then: str = "land") -> 
         drone=failing.drone,
         data={"decision": "stop_failing", "assignment": str(failing.pk), "then": then},
     )
-    separation.reserve_way_down(failing.drone, then)
     if then == "return":
-        # The stop itself sends it home: return, land, disarm (docs/failsafe.md).
-        transaction.on_commit(lambda: send_stop(failing_id, str(mission.pk), then="return"))
+        # Home through its landing site's queue: the stop itself sends it home (return,
+        # land, disarm: docs/failsafe.md), or it holds over home for its turn.
+        stop_and_send_home(failing.drone, str(mission.pk))
         return
+    separation.reserve_way_down(failing.drone, then)
     transaction.on_commit(lambda: send_stop(failing_id, str(mission.pk)))
     transaction.on_commit(lambda: send_control(failing_id, "land"))
 

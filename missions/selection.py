@@ -2,7 +2,9 @@
 and the one read of an organisation's drones it is applied to (`nearest_available`).
 
 A drone is available when it is online, not flying another mission, airworthy
-(fleet/airworthiness.py: Remote ID, ...) and its battery is above the reserve. Available drones are taken nearest first to where they are needed,
+(fleet/airworthiness.py: Remote ID, ...), passes its organisation's automatic checklist
+items where checklists are required (checklists/gate.py) and its battery is above the
+reserve. Available drones are taken nearest first to where they are needed,
 and between equally distant ones the fuller battery first.
 """
 
@@ -14,7 +16,8 @@ from dataclasses import dataclass
 
 from django.conf import settings
 
-from fleet import airworthiness
+from checklists import gate as checklists
+from fleet import airworthiness, wind
 from fleet.models import Drone
 from missions.errors import MissionError
 from missions.geo import distance_m
@@ -34,6 +37,8 @@ class Candidate:
     position: tuple[float, float] | None  # (lat, lon); None before the first GPS fix
     # fleet/airworthiness.py: no reason keeps it on the ground (Remote ID, ...).
     airworthy: bool = True
+    # checklists/gate.py: it passes the organisation's automatic checklist items.
+    checks_pass: bool = True
 
 
 def is_available(candidate: Candidate, *, reserve: float = DEFAULT_BATTERY_RESERVE) -> bool:
@@ -42,6 +47,7 @@ def is_available(candidate: Candidate, *, reserve: float = DEFAULT_BATTERY_RESER
     return (
         candidate.online
         and candidate.airworthy
+        and candidate.checks_pass
         and not candidate.in_mission
         and candidate.battery is not None
         and math.isfinite(candidate.battery)
@@ -99,9 +105,16 @@ def busy_drone_ids(organisation_id: int) -> set[str]:
 def candidates(organisation_id: int) -> list[Candidate]:
     busy = busy_drone_ids(organisation_id)
     out = []
-    drones = Drone.objects.filter(
-        organisation_id=organisation_id, credentials_revoked=False
-    ).select_related("organisation")
+    drones = list(
+        Drone.objects.filter(
+            organisation_id=organisation_id, credentials_revoked=False
+        ).select_related("organisation")
+    )
+    automatic = checklists.automatic_items_for(organisation_id) if drones else []
+    # Every candidate judged at once (a fixed number of queries however many drones).
+    verdicts = airworthiness.verdicts(drones)
+    # What the drones' automatic items share: their envelope, and the verdicts.
+    shared: dict = {"verdicts": verdicts}
     for drone in drones:
         position = None if drone.lat is None or drone.lon is None else (drone.lat, drone.lon)
         out.append(
@@ -111,7 +124,8 @@ def candidates(organisation_id: int) -> list[Candidate]:
                 in_mission=drone.drone_id in busy,
                 battery=drone.battery_remaining,
                 position=position,
-                airworthy=airworthiness.verdict(drone).airworthy,
+                airworthy=verdicts[drone.pk].airworthy,
+                checks_pass=not checklists.failing(drone, automatic, shared),
             )
         )
     return out
@@ -159,9 +173,12 @@ def check_chosen(mission: Mission, drone: Drone) -> None:
         raise MissionError("drone", f"drone {drone.drone_id} is offline", 409)
     if candidate.in_mission:
         raise MissionError("drone", f"drone {drone.drone_id} is flying another mission", 409)
-    unfit = airworthiness.refusal(drone)
+    too_windy = wind.refusal(drone)
+    if too_windy is not None:
+        raise MissionError("drone", too_windy, 409, wind.CODE)
+    unfit = airworthiness.refused(drone)
     if unfit is not None:
-        raise MissionError("drone", unfit, 409, "not_airworthy")
+        raise MissionError("drone", unfit[0], 409, "not_airworthy", reasons=unfit[1])
     reserve = settings.MISSIONS_BATTERY_RESERVE
     if candidate.battery is None or candidate.battery <= reserve:
         raise MissionError(

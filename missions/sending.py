@@ -7,7 +7,11 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 from django.conf import settings
+from django.db import transaction
 
+from airspace import landing
+from fleet import envelopes
+from fleet.models import Drone
 from missions.models import (
     Assignment,
     Mission,
@@ -49,6 +53,28 @@ def send_stop(drone_id: str, mission_id: str, then: str | None = None) -> None:
     if then is not None:
         message["then"] = then
     outbox.send_to_drone(drone_id, "mission", message)
+
+
+def stop_and_send_home(drone: Drone, mission_id: str) -> None:
+    """Stop the drone's mission and send it home through its landing site's queue
+    (airspace/landing.py), after the commit: as before (`then` return) when the site is
+    free, else stopped where it is, and its hold over home at its layer sent by the
+    queue once the stop is behind it (a hold sent with the stop is overridden by the
+    stop's own hold). A hold the envelope refuses leaves the queue, and the drone is sent
+    home as before."""
+    drone_id = drone.drone_id
+    queued = landing.send_home(drone)
+    if queued is not None:
+        command, params = landing.hold_command(drone, queued)
+        try:
+            envelopes.check_command(drone, command, params, confirmed=True)
+        except envelopes.EnvelopeRefusal as exc:
+            landing.leave(drone, f"its hold was refused: {exc.message}")
+        else:
+            landing.hold_after_stop(drone)
+            transaction.on_commit(lambda: send_stop(drone_id, mission_id))
+            return
+    transaction.on_commit(lambda: send_stop(drone_id, mission_id, then="return"))
 
 
 def send_alarm_ack(drone_id: str, level: str) -> None:

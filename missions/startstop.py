@@ -15,9 +15,11 @@ from typing import Any
 from django.db import transaction
 
 from airspace import separation
+from checklists import gate as checklists
 from fleet import envelopes
 from fleet.commands import CommandRefused
 from fleet.models import Drone
+from missions import following
 from missions.creation import create_mission
 from missions.errors import MissionError, outside_envelope
 from missions.journal import move_mission, record
@@ -34,11 +36,18 @@ class Started:
 
 
 def start_mission(
-    mission: Mission, *, drone: Drone | None = None, user: Any = None, confirmed: bool = False
+    mission: Mission,
+    *,
+    drone: Drone | None = None,
+    user: Any = None,
+    confirmed: bool = False,
+    automatic: bool = False,
 ) -> Started:
     """Give every step to one drone (the chosen one, or the nearest available) and send.
 
-    Steps beyond the envelope's defaults, flown from that drone, need `confirmed`.
+    Steps beyond the envelope's defaults, flown from that drone, need `confirmed`. A person's
+    start needs the drone's passed checklist (checklists/gate.py); `automatic` work (a panic
+    call) meets the checklists' automatic items in the drone's selection instead.
     """
     began = time.perf_counter()
     with transaction.atomic():
@@ -49,17 +58,10 @@ def start_mission(
         if not steps:
             raise MissionError("steps", "the mission has no steps")
         plain = step_dicts(steps)
-        if drone is not None:
-            check_chosen(mission, drone)
-            how = "chosen by the operator"
-        else:
-            found = nearest_available(mission.organisation_id, target=first_target(plain))
-            if not found:
-                raise MissionError(
-                    "drone", "no drone is available (online, free, charged, airworthy)", 409
-                )
-            drone = found[0]
-            how = "nearest available"
+        drone, how = _starting_drone(
+            mission, drone, plain, by_person=user is not None and not automatic
+        )
+        following.check_start_home(mission.extensibility, drone.drone_id, envelopes.home_of(drone))
         try:
             envelopes.check_steps(drone, plain, fence=mission.fence)
             if not confirmed:
@@ -93,6 +95,27 @@ def start_mission(
         )
         transaction.on_commit(lambda: send_assignment(assignment))
     return Started(mission, assignment, select_ms)
+
+
+def _starting_drone(
+    mission: Mission, drone: Drone | None, plain: list, *, by_person: bool
+) -> tuple[Drone, str]:
+    """The drone the mission starts on, checked, and how it was chosen; a start by a person
+    needs its passed pre-flight checklist."""
+    how = "chosen by the operator"
+    if drone is not None:
+        check_chosen(mission, drone)
+    else:
+        found = nearest_available(mission.organisation_id, target=first_target(plain))
+        if not found:
+            raise MissionError(
+                "drone", "no drone is available (online, free, charged, airworthy)", 409
+            )
+        drone, how = found[0], "nearest available"
+    not_checked = checklists.refusal(drone) if by_person else None
+    if not_checked is not None:
+        raise MissionError("drone", not_checked, 409, "checklist_required")
+    return drone, how
 
 
 def stop_mission(
@@ -158,7 +181,7 @@ def start_from_control(*, drone: Drone, user: Any, mission: str, confirmed: bool
         started = start_mission(created, drone=drone, user=user, confirmed=confirmed)
     except MissionError as exc:
         created.delete()
-        raise CommandRefused(exc.status, exc.message, exc.field, exc.code) from None
+        raise CommandRefused(exc.status, exc.message, exc.field, exc.code, exc.reasons) from None
     return {
         "mission_id": str(started.mission.pk),
         "assignment_id": str(started.assignment.pk),

@@ -21,6 +21,7 @@ from .failsafe import LINK_LOSS_ACTIONS, Limits, parse_bounds
 from .heartbeat import DEFAULT_PREFIX, derive_drone_id
 from .protocol import is_drone_id
 from .sensors import SensorConfigError, SensorField, load_field, parse_plume_option
+from .wind import DEFAULT_HOLD_S
 
 log = logging.getLogger("onboard")
 MAVLINK_EXTRA = "--fc mavlink needs pymavlink: pip install 'skyhive-onboard[mavlink]'"
@@ -190,6 +191,12 @@ def _add_failsafe(p: argparse.ArgumentParser) -> None:
         default=Limits.auto_disarm_delay,
         help="after landing, s",
     )
+    p.add_argument(
+        "--wind-hold",
+        type=_positive,
+        default=DEFAULT_HOLD_S,
+        help="flight s the wind stays above the gear's MAX_WIND_M_S before the drone returns",
+    )
     p.add_argument("--max-control-age", type=_positive, default=10.0, help="wall s; older refused")
     p.add_argument("--max-mission-age", type=_positive, default=60.0, help="wall s; older refused")
 
@@ -235,8 +242,31 @@ def _add_behaviour(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gear-reread-interval", type=_positive, default=5.0, help="seconds")
     p.add_argument("--video-rate", type=float, default=0.0, help="camera/out frames per second")
     p.add_argument("--pose-rate", type=float, default=0.0, help="Pose samples per second")
+    p.add_argument("--media-url", help="the ground's media server (http://host:port): live video")
+    p.add_argument("--live-fps", type=float, default=15.0, help="live video frames per second")
     p.add_argument("--arm-timeout", type=_positive, default=20.0, help="seconds")
+    _add_collection(p)
     p.add_argument("--log-level", default="INFO")
+
+
+def _add_collection(p: argparse.ArgumentParser) -> None:
+    """Logs collected by themselves after each landing (onboard.collect)."""
+    p.add_argument(
+        "--ground-url",
+        help="the ground's web address: after each landing the flight's logs are uploaded "
+        "there (docs/protocol.md); without it they stay on the drone",
+    )
+    p.add_argument(
+        "--uplink",
+        default="unknown",
+        help="the link to the ground: wifi, ground, cellular, radio (gear uplink.json overrides)",
+    )
+    p.add_argument(
+        "--log-upload-rate", type=_positive, default=512 * 1024, help="bytes/s, log uploads"
+    )
+    p.add_argument(
+        "--fc-log-rate", type=_positive, default=32 * 1024, help="bytes/s, the FC's log download"
+    )
 
 
 def build_arming(spec: str) -> Any:
@@ -281,6 +311,13 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
             from . import video  # noqa: F401 - the `camera` extra, checked before flight
         except ImportError as exc:
             raise ValueError(str(exc)) from None
+    if args.media_url:
+        try:
+            import aiortc  # noqa: F401 - the `camera` extra, checked before flight
+        except ImportError:
+            raise ValueError(
+                "Live video needs aiortc: pip install 'skyhive-onboard[camera]'"
+            ) from None
     sensor_field = None
     if args.sensor_field is not None:
         sensor_field = load_field(args.sensor_field)
@@ -306,6 +343,7 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
         link_loss_action=args.link_loss_action,
         return_speed=args.return_speed,
         auto_disarm_delay=args.auto_disarm_delay,
+        wind_hold=args.wind_hold,
         max_control_age=args.max_control_age,
         max_mission_age=args.max_mission_age,
         ground_link_topic=args.ground_link_topic,
@@ -314,6 +352,12 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
         arm_timeout=args.arm_timeout,
         video_rate=args.video_rate,
         pose_rate=args.pose_rate,
+        media_url=args.media_url,
+        live_fps=args.live_fps,
+        ground_url=args.ground_url,
+        uplink=args.uplink,
+        log_upload_rate=args.log_upload_rate,
+        fc_log_rate=args.fc_log_rate,
         envelope_file=args.envelope_file
         or (args.log_dir / "envelope.json" if args.log_dir else None),
     )

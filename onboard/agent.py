@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from . import protocol
+from .collect import Collector, GroundClient
 from .controller import CommandError, Controller
 from .envelope import EnvelopeGuard
 from .failsafe import FailSafe, GroundClock, Limits
@@ -26,10 +27,12 @@ from .gear import GearManager
 from .heartbeat import Heartbeater, build_heartbeat
 from .logger import FlightLogger
 from .mission import MissionWorker, position_of
-from .mqtt import MqttLink
+from .mqtt import MqttLink, parse_broker_urls
 from .navigation import NavigationProcessor, current_ned
 from .remote_id import RemoteId
 from .sensors import SensorField
+from .traffic import TrafficError, TrafficWatch, parse_traffic
+from .wind import DEFAULT_HOLD_S, WindLimitError, WindWatch, guards, limit_from_specs
 
 log = logging.getLogger(__name__)
 
@@ -78,12 +81,25 @@ class AgentConfig:
     # samples on <id>/telemetry/out, per second; 0 turns each off.
     video_rate: float = 0.0
     pose_rate: float = 0.0
+    # Live video to the ground's media server (onboard/live_video.py): its address (None:
+    # no live video) and frames per second.
+    media_url: str | None = None
+    live_fps: float = 15.0
     mqtt_keepalive: int = 10
     # Behind an internal broker, the broker connection says nothing about the ground: the
     # bridge's state topic (onboard.bridge.state_topic) does.
     ground_link_topic: str | None = None
     # Where the last flight envelope received on <id>/envelope/in is kept across restarts.
     envelope_file: Path | None = None
+    # Logs collected by themselves (onboard.collect): the ground's web address (None: not
+    # collected), the uplink's type when the gear folder does not say, and the rates in
+    # bytes per second of the upload and of the flight controller's log coming down.
+    ground_url: str | None = None
+    uplink: str = "unknown"
+    log_upload_rate: float = 512 * 1024
+    fc_log_rate: float = 32 * 1024
+    # Flight seconds the wind stays above the gear's limit before the drone returns.
+    wind_hold: float = DEFAULT_HOLD_S
 
 
 class Agent:
@@ -97,17 +113,28 @@ class Agent:
         self._recent = RecentIds(RECENT_REQUESTS)
         self.sent: Counter[str] = Counter()
         self.logger = FlightLogger(config.log_dir, self.drone_id) if config.log_dir else None
+        self.collector = self._collector(config, fc)
+        self._armed_at: float | None = None
         self.gear = self._gear_manager(config)
         self.navigation = NavigationProcessor(fc)
         self.envelope = EnvelopeGuard(config.envelope_file)
         self.remote_id = RemoteId(fc)
+        self.traffic = TrafficWatch(
+            self.drone_id, lambda: self.fc.state, time_scale=config.time_scale
+        )
+        self.wind = WindWatch(
+            self._wind_limit,
+            lambda reason: self.failsafe.return_home(reason),
+            hold_s=config.wind_hold,
+            time_scale=config.time_scale,
+        )
         self.controller = Controller(
             fc,
             self.navigation,
             gear=self.gear,
             arm_timeout=config.arm_timeout,
             events=self._event,
-            guard=self.envelope.refusal,
+            guard=guards(self.envelope.refusal, self.wind.guard),
         )
         self.worker = MissionWorker(
             fc,
@@ -128,6 +155,7 @@ class Agent:
         self.mqtt = self._mqtt_link(config)
         self.heartbeater = Heartbeater(config.heartbeat_interval, self._beat)
         self.video: Any = None
+        self.live_video: Any = None
         self._control_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="control")
         self._telemetry: list[protocol.TelemetryObject] = []
         self._telemetry_lock = threading.Lock()
@@ -143,6 +171,23 @@ class Agent:
             sensor_field=config.sensor_field,
             pictures_dir=config.pictures_dir,
             camera=config.camera,
+        )
+
+    def _collector(self, config: AgentConfig, fc: FlightController) -> Collector | None:
+        """Uploads each flight's logs after landing, signed in with the broker password;
+        None without the ground's address or a log folder."""
+        if config.ground_url is None or config.log_dir is None:
+            return None
+        password = parse_broker_urls(config.broker_url)[0].password or ""
+        return Collector(
+            config.log_dir / "collect",
+            GroundClient(config.ground_url, self.drone_id, password),
+            gear_dir=config.gear_dir,
+            uplink=config.uplink,
+            rate=config.log_upload_rate,
+            may_send=lambda: not fc.state.armed,
+            fetch=fc_log_fetch(fc, config.log_dir / "fc", config.fc_log_rate),
+            policy_file=config.log_dir / "collect-policy.json",
         )
 
     def _failsafe(self, config: AgentConfig) -> FailSafe:
@@ -174,15 +219,21 @@ class Agent:
 
     def start(self) -> None:
         self.fc.add_listener(self._on_object)
+        self.fc.add_listener(self.wind.on_object)
         self.fc.start()
         self.remote_id.start()
         self.worker.start()
         self.gear.start()
         self.mqtt.start()
         self.heartbeater.start()
+        if self.collector is not None:
+            self.collector.start()
         if self.config.video_rate > 0 or self.config.pose_rate > 0:
             self.video = self._video_streamer()
             self.video.start()
+        if self.config.media_url:
+            self.live_video = self._live_video()
+            self.live_video.start()
         for target, name in ((self._telemetry_loop, "telemetry"), (self._supervise, "supervisor")):
             thread = threading.Thread(target=target, name=name, daemon=True)
             thread.start()
@@ -195,11 +246,15 @@ class Agent:
         self.heartbeater.stop()
         if self.video is not None:
             self.video.stop()
+        if self.live_video is not None:
+            self.live_video.stop()
         self.gear.stop()
         self._control_pool.shutdown(wait=False, cancel_futures=True)
         for thread in self._threads:
             thread.join(2)
         self._flush_telemetry()
+        if self.collector is not None:
+            self.collector.stop()
         self.mqtt.stop(flush_timeout=3.0)
         if self.logger is not None:
             self.logger.close()
@@ -249,7 +304,14 @@ class Agent:
         beat = build_heartbeat(
             self.drone_id, self.fc.state, self.worker.current, self.remote_id.health()
         )
-        self.send("heartbeats", beat)
+        self.send("heartbeats", self.wind.with_report(beat))
+
+    def _wind_limit(self) -> float:
+        """The gear's wind limit (specs.json MAX_WIND_M_S), else the default."""
+        try:
+            return limit_from_specs(self.gear.announcement().specs)
+        except WindLimitError:  # the gear manager refuses such specs; never fly unlimited
+            return limit_from_specs(None)
 
     def _event(self, kind: str, details: dict) -> None:
         if self.logger is not None:
@@ -287,15 +349,41 @@ class Agent:
         )
         return VideoStreamer(lambda: self.fc.state, self.send, config, enabled=self.gear.has_camera)
 
+    def _live_video(self) -> Any:
+        """The live video publisher: a process of its own, fed the pose without blocking."""
+        from urllib.parse import unquote, urlsplit
+
+        from .live_video import LiveVideo, LiveVideoConfig  # the `camera` extra
+        from .video import PoseSource, VideoConfig
+
+        password = unquote(urlsplit(self.config.broker_url.split(",")[0]).password or "")
+        config = LiveVideoConfig(
+            str(self.config.media_url), self.drone_id, password, fps=self.config.live_fps
+        )
+        poses = PoseSource(lambda: self.fc.state, VideoConfig(time_scale=self.config.time_scale))
+        return LiveVideo(config, poses.sample, enabled=self.gear.has_camera)
+
     def _supervise(self) -> None:
         while not self._stop.wait(0.2):
             try:
                 self.failsafe.tick()
+                self.wind.tick(self.fc.state)
                 self._keep_inside()
-                if self.logger is not None:
-                    self.logger.on_state(self.fc.state.armed)
+                self._keep_apart()
+                self._watch_flight(self.fc.state.armed)
             except Exception:
                 log.exception("supervisor tick failed")
+
+    def _watch_flight(self, armed: bool) -> None:
+        """At a disarm the flight's recording closes and, when collecting, its logs are
+        queued for the ground."""
+        archive = self.logger.on_state(armed) if self.logger is not None else None
+        if armed and self._armed_at is None:
+            self._armed_at = time.time()
+        elif not armed and self._armed_at is not None:
+            started, self._armed_at = self._armed_at, None
+            if self.collector is not None:
+                self.collector.flight_ended(archive, started, time.time())
 
     def _keep_inside(self) -> None:
         """Found outside the envelope (wind, bad GPS): stop the mission, raise one CRITICAL
@@ -359,6 +447,7 @@ class Agent:
             "gear": self._gear_query,
             "alarms": self._alarm_ack,
             "envelope": self._envelope_update,
+            "traffic": self._traffic,
         }
         handler[channel](topic, obj)
 
@@ -502,12 +591,55 @@ class Agent:
             return
         envelope = self.envelope.update(update.envelope)
         self.remote_id.set_identity(update.remote_id)
+        if update.log_collection is not None and self.collector is not None:
+            self.collector.set_mode(update.log_collection)
         log.info(
             "flight envelope: %g m high, %g m from home, %d fence(s)",
             envelope.max_height,
             envelope.max_distance,
             len(envelope.polygons) + len(envelope.circles),
         )
+
+    def _traffic(self, topic: str, obj: Any) -> None:
+        """Other drones nearby and this drone's band, relayed by the ground; a malformed
+        or stale message is counted by reason and changes nothing."""
+        try:
+            update = parse_traffic(obj)
+        except TrafficError as exc:
+            self._drop(f"traffic_{exc.reason}", topic, exc)
+            return
+        self.failsafe.band = update.band
+        if not self.traffic.receive(update, self.ground_clock.age(update.ts)):
+            self._drop("traffic_stale", topic, update.ts)
+
+    def _keep_apart(self) -> None:
+        """Predicted within the separation minima of a relayed drone: hold here as the
+        operator's Hold does (a running mission paused, else the fail-safe's hold) and
+        raise one CRITICAL alarm per encounter; only the operator moves the drone on."""
+        for met in self.traffic.check():
+            reason = (
+                f"Separation: {met.other} predicted within the minima in {met.in_s:.1f} s "
+                f"({met.horizontal_m:.0f} m apart, {met.vertical_m:.0f} m vertically); "
+                "holding here"
+            )
+            if self.worker.pause_current() is None:
+                self.failsafe.hold_here(reason)
+            self.raise_alarm("CRITICAL", reason)
+
+
+def fc_log_fetch(fc: FlightController, folder: Path, rate: float) -> Any:
+    """The flight controller's log fetch (MAVLink's log protocol), or None when it has
+    no log to fetch (UAVTalk boards keep none)."""
+    if getattr(fc, "protocol", None) != "mavlink":
+        return None
+    from .fc.mavlink_logs import LogFetcher
+
+    fetcher = LogFetcher(fc, folder, rate=rate)
+
+    def fetch(stem: str) -> Path | None:
+        return fetcher.fetch_newest("ulg" if fc.is_px4 else "bin", stem)  # type: ignore[attr-defined]
+
+    return fetch
 
 
 def failsafe_limits(config: AgentConfig) -> Limits:

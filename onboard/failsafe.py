@@ -10,6 +10,8 @@ drone does on its own once a mission ends or the ground is gone.
 - Ground link lost for N seconds while airborne → the configured action: `return` (the
   default: home at the same altitude, land, disarm), `hold` (hover; return once the
   battery reaches the reserve), `land` (here) or `continue` (the mission goes on).
+- Every return flies home inside the altitude band of the drone's reservation when the
+  ground relayed one (onboard/traffic.py): the band is kept while the ground is not heard.
 - Every return lands where the drone is instead when the energy left would not get it
   home: distance ÷ return speed × the drain measured in flight.
 - A completed mission leaves the drone on the ground and disarmed (home, land); a stopped
@@ -34,6 +36,7 @@ from dataclasses import dataclass
 
 from .fc.base import FlightController, VehicleState
 from .navigation import NavigationProcessor, current_ned
+from .traffic import inside_band
 
 log = logging.getLogger(__name__)
 
@@ -41,6 +44,9 @@ LINK_LOSS_ACTIONS = ("continue", "hold", "return", "land")
 BATTERY_REARM_MARGIN = 0.10
 # Over home within this many metres (horizontally) → land.
 HOME_RADIUS_M = 2.0
+# A return that first moves into the reservation's band goes on home once this close
+# (vertically, metres) to the band's edge.
+BAND_REACHED_M = 1.0
 # The drain is measured over this many flight seconds of battery readings.
 DRAIN_WINDOW_S = 30.0
 # Descent speed assumed for the landing part of the energy estimate, m/s.
@@ -150,12 +156,22 @@ class FailSafe:
         # What a mission stopped by the ground leaves the drone doing (the stop's `then`).
         self.after_stop = "hold"
         self._lock = threading.Lock()
+        # Held while the fail-safe decides and sends a take-over's commands (the mission
+        # thread at a mission's end, the supervisor's tick): a decision made on another
+        # thread in between (over home: land) would reach the drone before the command
+        # it follows (the return's goto) and be overwritten by it.
+        self._commanding = threading.RLock()
         self._critical: CriticalAlarm | None = None
         self._out_of_bounds: set[str] = set()
         self._link_lost_at: float | None = None
         self._link_acted = False
         self._was_airborne = False
         self._landed_at: float | None = None
+        # The altitude band (metres above home) of the drone's reservation, as the ground
+        # last relayed it (onboard/traffic.py); kept while the ground is not heard, so a
+        # return never leaves it before it is over home. None: no band known.
+        self.band: tuple[float, float] | None = None
+        self._band_first: tuple[float, float, float] | None = None
 
     # -- battery --------------------------------------------------------------------------
 
@@ -288,7 +304,13 @@ class FailSafe:
         if short is not None:
             return self.land_here(f"{reason}; not enough energy left to get home ({short})")
         here = current_ned(state) or (0.0, 0.0, 0.0)
-        self._take_over("return", reason, lambda: self._goto((0.0, 0.0, here[2])))
+        # Home at this height; outside the reservation's band (when one is known: the
+        # airspace the ground keeps other drones out of), first straight up or down into
+        # it where the drone is, then home inside it.
+        height = inside_band(-here[2], self.band)
+        first = (here[0], here[1], -height) if abs(height + here[2]) > BAND_REACHED_M else None
+        self._band_first = first
+        self._take_over("return", reason, lambda: self._goto(first or (0.0, 0.0, -height)))
         return "return"
 
     def land_here(self, reason: str) -> str:
@@ -312,16 +334,17 @@ class FailSafe:
         return f"needs {need * 100:.0f} %, has {remaining * 100:.0f} %"
 
     def _take_over(self, mode: str, reason: str, fly: Callable[[], None]) -> None:
-        # Set before stopping the mission: the stopped mission must not re-plan the drone.
-        with self._lock:
-            self.recovery = mode
-        log.warning("fail-safe %s: %s", mode, reason)
-        self.stop_mission(reason)
-        try:
-            fly()
-        except Exception:
-            log.exception("fail-safe %s failed", mode)
-        self.actions_taken.append(mode)
+        with self._commanding:
+            # Set before stopping the mission: the stopped mission must not re-plan the drone.
+            with self._lock:
+                self.recovery = mode
+            log.warning("fail-safe %s: %s", mode, reason)
+            self.stop_mission(reason)
+            try:
+                fly()
+            except Exception:
+                log.exception("fail-safe %s failed", mode)
+            self.actions_taken.append(mode)
 
     def _goto(self, point: tuple[float, float, float]) -> None:
         if self.navigation is not None:
@@ -336,11 +359,25 @@ class FailSafe:
             self.fc.land()
 
     def check_recovery(self) -> None:
-        """Land once a returning drone is over home; a holding one returns at the reserve."""
+        """Land once a returning drone is over home; a holding one returns at the reserve.
+        While a take-over is still sending its commands, the next tick judges."""
+        if not self._commanding.acquire(blocking=False):
+            return
+        try:
+            self._advance_recovery()
+        finally:
+            self._commanding.release()
+
+    def _advance_recovery(self) -> None:
         state = self.fc.state
         mode = self.recovery
         if mode is not None and not state.armed:
             self.recovery = None
+        elif mode == "return" and self._band_first is not None:
+            here = current_ned(state)
+            if here is not None and abs(here[2] - self._band_first[2]) <= BAND_REACHED_M:
+                self._goto((0.0, 0.0, self._band_first[2]))
+                self._band_first = None
         elif mode == "return":
             here = current_ned(state)
             if here is not None and math.hypot(here[0], here[1]) <= HOME_RADIUS_M:
@@ -409,6 +446,8 @@ class FailSafe:
         return True
 
     def tick(self) -> None:
+        if not self.fc.state.armed:
+            self.band = None  # a band is one flight's
         self.check_battery()
         self.check_link()
         self.check_recovery()

@@ -19,6 +19,7 @@ from typing import Any
 from . import protocol
 from .fc.base import VehicleState
 from .sensors import SensorConfigError, SensorField, load_field
+from .wind import WindLimitError, limit_from_specs
 
 log = logging.getLogger(__name__)
 
@@ -92,6 +93,19 @@ class GearManager:
             return None
         return data
 
+    def _checked_specs(self, specs: dict | None) -> dict | None:
+        """The specs, or None (the last good ones stay) when a limit in them is malformed:
+        a negative wind limit must not become the drone's rule."""
+        if specs is None:
+            return None
+        try:
+            limit_from_specs(specs)
+        except WindLimitError as exc:
+            self.errors += 1
+            log.warning("ignoring %s: %s", SPECS_FILE, exc)
+            return None
+        return specs
+
     def _stamp(self) -> dict[str, float | None]:
         stamps: dict[str, float | None] = {}
         for name in (SPECS_FILE, SENSORS_FILE, FIELD_FILE):
@@ -110,7 +124,7 @@ class GearManager:
         if stamps == self._mtimes:
             return False
         self._mtimes = stamps
-        specs = self._read_json(SPECS_FILE)
+        specs = self._checked_specs(self._read_json(SPECS_FILE))
         sensors = self._read_json(SENSORS_FILE)
         if self._cli_field is None and stamps[FIELD_FILE] is not None:
             try:

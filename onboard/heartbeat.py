@@ -77,6 +77,7 @@ def build_heartbeat(
         fc_connected=state.connected,
         fc_setup=state.setup,
         remote_id=remote_id,
+        battery_serial=state.battery_serial,
     )
 
 

@@ -29,6 +29,9 @@ Publish = Callable[[Any], None]
 # Flight seconds between two targets of a paced leg (each is one write to the flight
 # controller).
 PACE_INTERVAL_S = 0.2
+# How far a paced leg's target may be above the drone (PacedLeg): the vertical tolerance a
+# waypoint is reached within.
+CLIMB_LEASH_M = protocol.DEFAULT_TOLERANCE
 # (level, message, sensor, value) → raise an alarm with the current mission context.
 RaiseAlarm = Callable[..., None]
 EventSink = Callable[[str, dict], None]
@@ -76,25 +79,42 @@ class RunningMission:
 class PacedLeg:
     """A leg flown at a set speed: the agent moves the target along the straight line
     from `start` to `end` at `speed` (m/s, flight time), so any flight controller flies
-    it at that pace. The envelope checked the leg's end; every point fed lies on the leg."""
+    it at that pace. The envelope checked the leg's end; every point fed lies on the leg.
+
+    The target never runs more than CLIMB_LEASH_M above the drone: while the drone is
+    lower than that (its climb slower than the leg's, a late link, a stalled agent whose
+    next target would jump ahead), the target waits for it, so the drone climbs before it
+    goes on and never meets a rising slope under its path; the time waited is not made
+    up by a jump afterwards."""
 
     start: NED
     end: NED
     speed: float
-    flown_s: float = 0.0  # flight seconds since the leg began
+    flown_s: float = 0.0  # flight seconds of progress along the leg
 
     @property
     def length(self) -> float:
         return math.dist(self.start, self.end)
 
-    def advance(self, flight_seconds: float) -> NED:
-        """Where the target is after another `flight_seconds` of the leg."""
-        self.flown_s += flight_seconds
-        length = self.length
-        if length <= 0 or self.flown_s * self.speed >= length:
-            return self.end
-        share = self.flown_s * self.speed / length
+    def _at(self, share: float) -> NED:
         return tuple(a + (b - a) * share for a, b in zip(self.start, self.end, strict=True))  # type: ignore[return-value]
+
+    def _share(self) -> float:
+        length = self.length
+        return 1.0 if length <= 0 else min(1.0, self.flown_s * self.speed / length)
+
+    def advance(self, flight_seconds: float, here: NED | None = None) -> NED:
+        """Where the target is after another `flight_seconds` of the leg, held back to
+        CLIMB_LEASH_M above the drone at `here` when given."""
+        before = self._share()
+        self.flown_s += flight_seconds
+        share = self._share()
+        if here is not None and here[2] - self._at(share)[2] > CLIMB_LEASH_M:
+            rise = self.end[2] - self.start[2]
+            reach = (here[2] - CLIMB_LEASH_M - self.start[2]) / rise if rise < 0 else before
+            share = max(before, min(share, reach))
+            self.flown_s = share * self.length / self.speed
+        return self.end if share >= 1.0 else self._at(share)
 
     @property
     def done(self) -> bool:
@@ -373,7 +393,7 @@ class MissionWorker:
         if mission.stop.is_set():
             self._finish(mission, "stopped", mission.stop_reason)
         else:
-            self._finish(mission, "stopped", f"Step {step.index} ({step.command}) failed: {error}")
+            self._finish(mission, "stopped", protocol.step_failure(step.index, step.command, error))
 
     def _close_retry(self, mission: RunningMission) -> None:
         """A step a pause interrupted, then a stop ended, is reported failed like any
@@ -589,7 +609,7 @@ class MissionWorker:
             actual = current_ned(state)
             now = time.monotonic()
             if leg is not None and not leg.done and now - last >= pace:
-                self.navigation.hold_at(leg.advance((now - last) * self.time_scale))
+                self.navigation.hold_at(leg.advance((now - last) * self.time_scale, actual))
                 last = now
             if camera.due(actual):
                 self.controller.execute("takepic", {}, context=context)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import base64
 import binascii
 import json
+import logging
 import math
 import re
 import secrets
@@ -54,6 +55,9 @@ ALARM_LEVELS = ("CRITICAL", "OUT_MEASURE")
 MISSION_STATUSES = ("accepted", "rejected", "completed", "stopped")
 STEP_STATUSES = ("started", "completed", "failed")
 GEAR_QUERIES = ("specs", "sensors", "reading")
+# The `error` of a mission the drone stopped itself because a step failed (it was not told
+# to stop): "Step 7 (navigate) failed: not armed".
+_STEP_FAILURE = re.compile(r"Step (\d+) \((\w+)\) failed: (.*)", re.DOTALL)
 MISSION_ACTIONS = ("start", "stop")
 
 DEFAULT_TAKEOFF_ALTITUDE = 10.0
@@ -95,6 +99,18 @@ class ProtocolError(ValueError):
         self.field = field
         self.message = message
         self.reason = reason
+
+
+def step_failure(index: int, command: str, error: str | None) -> str:
+    """The `error` a drone reports with `stopped` when one of its steps failed."""
+    return f"Step {index} ({command}) failed: {error}"
+
+
+def failed_step(error: str | None) -> tuple[int, str, str] | None:
+    """(index, command, why) of the step whose failure stopped a mission, or None when
+    the mission was stopped (by the ground, the operator or the fail-safe)."""
+    found = _STEP_FAILURE.fullmatch(error or "")
+    return None if found is None else (int(found[1]), found[2], found[3])
 
 
 def new_request_id() -> str:
@@ -858,8 +874,12 @@ class Heartbeat:
     type: str = "heartbeat"
     # (optional) what to change on the flight controller before it can fly (sentences).
     fc_setup: tuple[str, ...] = ()
+    # (optional) the flight controller's wind estimate and the drone's limit (onboard/wind.py).
+    wind: WindReport | None = None
     # (optional) the Remote ID broadcast's health, None when the drone knows nothing of it.
     remote_id: RemoteIdHealth | None = None
+    # (optional) the battery's serial number as its flight controller reports it.
+    battery_serial: str | None = None
 
     def to_dict(self) -> dict:
         return {
@@ -867,7 +887,11 @@ class Heartbeat:
             "drone_id": self.drone_id,
             "ts": self.ts,
             "position": _position_dict(self.position),
-            "battery": {"voltage": self.battery_voltage, "remaining": self.battery_remaining},
+            "battery": {
+                "voltage": self.battery_voltage,
+                "remaining": self.battery_remaining,
+                **({} if self.battery_serial is None else {"serial": self.battery_serial}),
+            },
             "armed": self.armed,
             "airborne": self.airborne,
             "flight_mode": self.flight_mode,
@@ -878,6 +902,7 @@ class Heartbeat:
                 **({"setup": list(self.fc_setup)} if self.fc_setup else {}),
             },
             **({} if self.remote_id is None else {"remote_id": self.remote_id.to_dict()}),
+            **({} if self.wind is None else {"wind": self.wind.to_dict()}),
         }
 
 
@@ -894,6 +919,53 @@ class RemoteIdHealth:
         return {"ok": self.ok, "error": self.error, "source": self.source}
 
 
+# The most a wind figure may say (m/s): beyond any wind a drone reports and flies in.
+MAX_WIND_FIGURE = 100.0
+WIND_ACTIONS = ("return",)
+
+
+@dataclass(frozen=True)
+class WindReport:
+    """The heartbeat's `wind`: the flight controller's estimate (the air's velocity, m/s
+    North-East-Down, and its horizontal `speed`), the drone's `limit`, the message it came
+    from, and `action` ("return", with `since`) once the wind made the drone return."""
+
+    north: float
+    east: float
+    down: float
+    speed: float
+    limit: float
+    source: str = ""
+    action: str | None = None
+    since: float | None = None
+
+    def to_dict(self) -> dict:
+        return _drop_none(asdict(self))
+
+
+def _wind_report(obj: Any) -> WindReport | None:
+    if obj is None:
+        return None
+    obj = _object(obj, "wind")
+    bound = MAX_WIND_FIGURE
+
+    def figure(key: str, lo: float) -> float:
+        return number(_require(obj, key, "wind."), f"wind.{key}", lo=lo, hi=bound)
+
+    action = obj.get("action")
+    since = obj.get("since")
+    return WindReport(
+        north=figure("north", -bound),
+        east=figure("east", -bound),
+        down=figure("down", -bound),
+        speed=figure("speed", 0.0),
+        limit=figure("limit", 0.0),
+        source=_string(obj.get("source") or "", "wind.source", empty=True, max_length=32),
+        action=None if action is None else _choice(action, "wind.action", WIND_ACTIONS),
+        since=None if since is None else timestamp(since, "wind.since"),
+    )
+
+
 def _remote_id_health(obj: Any) -> RemoteIdHealth | None:
     if obj is None:
         return None
@@ -903,6 +975,16 @@ def _remote_id_health(obj: Any) -> RemoteIdHealth | None:
         error=_string(obj.get("error") or "", "remote_id.error", empty=True, max_length=200),
         source=_string(obj.get("source") or "odid", "remote_id.source", max_length=16),
     )
+
+
+# SMART_BATTERY_INFO's serial_number is 16 characters, BATTERY_INFO's 32 [MAVLink common].
+MAX_BATTERY_SERIAL = 32
+
+
+def _battery_serial(value: Any) -> str | None:
+    if value is None:
+        return None
+    return _string(value, "battery.serial", max_length=MAX_BATTERY_SERIAL).strip() or None
 
 
 def _mission_ref(obj: Any, name: str = "mission") -> MissionRef | None:
@@ -945,7 +1027,9 @@ def parse_heartbeat(obj: Any) -> Heartbeat:
         fc_protocol=_string(fc.get("protocol") or "unknown", "fc.protocol"),
         fc_connected=_boolean(fc.get("connected", False), "fc.connected"),
         fc_setup=_setup_list(fc.get("setup")),
+        wind=_wind_report(obj.get("wind")),
         remote_id=_remote_id_health(obj.get("remote_id")),
+        battery_serial=_battery_serial(battery.get("serial")),
         type="heartbeat",
     )
 
@@ -1382,6 +1466,8 @@ class EnvelopeUpdate:
     type: str = "envelope"
     # (optional) the Remote ID identity the drone broadcasts.
     remote_id: RemoteIdentity | None = None
+    # (optional) when the drone uploads its logs after landing (onboard/collect.py MODES).
+    log_collection: str | None = None
 
     def to_dict(self) -> dict:
         return {
@@ -1389,6 +1475,7 @@ class EnvelopeUpdate:
             "ts": self.ts,
             "envelope": self.envelope,
             **({} if self.remote_id is None else {"remote_id": self.remote_id.to_dict()}),
+            **({} if self.log_collection is None else {"log_collection": self.log_collection}),
         }
 
 
@@ -1407,7 +1494,21 @@ def parse_envelope_update(obj: Any) -> EnvelopeUpdate:
         parsed.to_dict(),
         _ts(obj),
         remote_id=None if identity is None else parse_remote_identity(identity),
+        log_collection=_log_collection(obj.get("log_collection")),
     )
+
+
+def _log_collection(value: Any) -> str | None:
+    """The envelope message's optional log collection mode; an unknown one is ignored (the
+    drone keeps the mode it had) so a newer ground's mode never costs the envelope itself."""
+    from .collect import MODES
+
+    if value is None:
+        return None
+    if value not in MODES:
+        logging.getLogger(__name__).warning("ignoring the log collection mode %r", value)
+        return None
+    return str(value)
 
 
 PARSERS[("envelope", "in")] = parse_envelope_update
@@ -1493,3 +1594,22 @@ _STEP_EXTRAS: dict[str, Callable[[dict, str], dict]] = {
     "navigate": _navigate_extras,
     "wait_for_flight": _wait_extras,
 }
+
+
+# The ground relays the other airborne drones nearby on `<id>/traffic/in` (optional:
+# onboard/traffic.py, docs/protocol.md "Traffic"). QoS 0: a fresh picture comes with every
+# live-separation pass, so a lost one is replaced rather than redelivered late.
+IN_CHANNELS = (*IN_CHANNELS, "traffic")
+QOS["traffic"] = 0
+
+
+def _parse_traffic(obj: Any) -> Any:
+    from .traffic import TrafficError, parse_traffic
+
+    try:
+        return parse_traffic(obj)
+    except TrafficError as exc:
+        raise ProtocolError("traffic", str(exc)) from exc
+
+
+PARSERS[("traffic", "in")] = _parse_traffic

@@ -172,6 +172,30 @@ def _render(
     pitch_down_deg: float,
     quality: int,
 ) -> bytes:
+    out = _pixels(
+        position_ned,
+        rotation,
+        width=width,
+        height=height,
+        fov_deg=fov_deg,
+        pitch_down_deg=pitch_down_deg,
+    )
+    image = Image.frombuffer("RGBX", (width, height), out, "raw", "RGBX", 0, 1)
+    buffer = io.BytesIO()
+    image.save(buffer, format="JPEG", quality=int(quality))
+    return buffer.getvalue()
+
+
+def _pixels(
+    position_ned: tuple[float, float, float],
+    rotation: np.ndarray,
+    *,
+    width: int,
+    height: int,
+    fov_deg: float,
+    pitch_down_deg: float,
+) -> np.ndarray:
+    """The view as packed RGBX pixels, row by row (one uint32 each)."""
     if width < 2 or height < 2:
         raise ValueError(f"image size must be at least 2x2, got {width}x{height}")
     if not 1.0 <= fov_deg <= 170.0:
@@ -205,11 +229,7 @@ def _render(
         near = _unpack(colour[hazy])
         colour[hazy] = _pack(near + (HAZE - near) * fog[:, None])
     out[hits] = colour
-
-    image = Image.frombuffer("RGBX", (width, height), out, "raw", "RGBX", 0, 1)
-    buffer = io.BytesIO()
-    image.save(buffer, format="JPEG", quality=int(quality))
-    return buffer.getvalue()
+    return out
 
 
 def render_view(
@@ -236,6 +256,28 @@ def render_view(
         pitch_down_deg=pitch_down_deg,
         quality=quality,
     )
+
+
+def render_view_rgb(
+    position_ned: tuple[float, float, float],
+    orientation: tuple[float, float, float, float],
+    *,
+    width: int = 320,
+    height: int = 240,
+    fov_deg: float = VIEW_FOV_DEG,
+    pitch_down_deg: float = VIEW_PITCH_DOWN_DEG,
+) -> np.ndarray:
+    """The same view as render_view, as an RGB array (height x width x 3, uint8) for a
+    video encoder rather than a JPEG."""
+    out = _pixels(
+        position_ned,
+        _rotation_matrix(orientation),
+        width=width,
+        height=height,
+        fov_deg=fov_deg,
+        pitch_down_deg=pitch_down_deg,
+    )
+    return out.view(np.uint8).reshape(height, width, 4)[:, :, :3]
 
 
 def ned_from_geodetic(

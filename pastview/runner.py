@@ -22,19 +22,17 @@ import time
 from collections import Counter
 from datetime import UTC, datetime
 from typing import Any
-from urllib.parse import urlsplit
 
-import paho.mqtt.client as mqtt
 import redis
 from channels.layers import get_channel_layer
 from django.conf import settings
 from django.db import close_old_connections
 
-from onboard.mqtt import secure
 from pastview.models import ViewSettings
 from pastview.selection import PastViewSettings
 from pastview.service import PastViewService, group_name
-from workers import outbox
+from workers import broker, outbox
+from workers.broker.client import Listener
 from workers.counters import Heartbeat, start_heartbeat
 
 log = logging.getLogger("pastview")
@@ -142,12 +140,13 @@ class GroupPublisher:
 
 
 class PastViewProcess:
-    """The service on a paho client; ``tick`` is called by the main loop."""
+    """The service on the broker package's listener; ``tick`` is called by the main loop.
+
+    `broker_url` is one node or several (as `broker.cluster_urls` reads it): the listener
+    moves to the next node when one goes, as the other ground processes do.
+    """
 
     def __init__(self, broker_url: str, *, client_id: str | None = None) -> None:
-        url = urlsplit(broker_url)
-        self.host = url.hostname or "127.0.0.1"
-        self.port = url.port or 1883
         self.redis = redis.Redis.from_url(settings.REDIS_URL, socket_timeout=2)
         self.publisher = GroupPublisher()
         self.service = PastViewService(
@@ -156,21 +155,15 @@ class PastViewProcess:
             settings_for=_settings_for,
             push_hz=settings.PASTVIEW_PUSH_HZ,
         )
-        self.connected = threading.Event()
-        self.subscribed = threading.Event()
-        self.client = mqtt.Client(
-            mqtt.CallbackAPIVersion.VERSION2,
-            client_id=client_id or f"pastview-{socket.gethostname()}-{os.getpid()}",
-            clean_session=True,
+        self.listener = Listener(
+            broker.cluster_urls(broker_url),
+            client_id or f"pastview-{socket.gethostname()}-{os.getpid()}",
+            TOPICS,
+            self._on_message,
+            name="pastview",
         )
-        if url.username:
-            self.client.username_pw_set(url.username, url.password)
-        secure(self.client, url.scheme == "mqtts")
-        self.client.reconnect_delay_set(min_delay=1, max_delay=30)
-        self.client.on_connect = self._on_connect
-        self.client.on_disconnect = self._on_disconnect
-        self.client.on_message = self._on_message
-        self.client.on_subscribe = lambda *args: self.subscribed.set()
+        self.connected = self.listener.connected
+        self.subscribed = self.listener.subscribed
         self._settings_seen = time.time()
         self._applied: dict[str, Any] = {}  # drone id -> updated_at of the settings applied
         self._next_status = 0.0
@@ -179,35 +172,27 @@ class PastViewProcess:
         self._reported: Counter[str] = Counter()
         self.heartbeat: Heartbeat
 
+    @property
+    def address(self) -> str:
+        """The broker node the listener is on (or trying), as `host:port`."""
+        node = self.listener.failover.current
+        return f"{node.host}:{node.port}"
+
     def start(self) -> None:
         self.refresh_watched()
-        self.client.connect_async(self.host, self.port, keepalive=30)
-        self.client.loop_start()
+        self.listener.start()
 
     def stop(self) -> None:
-        self.client.disconnect()
-        self.client.loop_stop()
+        self.listener.stop()
         self.publisher.close()
         close_old_connections()
 
-    def _on_connect(self, client, userdata, flags, reason_code, properties) -> None:  # type: ignore[no-untyped-def]
-        if reason_code.is_failure:
-            log.error("broker refused the connection: %s", reason_code)
-            return
-        client.subscribe([(topic, 0) for topic in TOPICS])
-        self.connected.set()
-        log.info("connected to %s:%s", self.host, self.port)
-
-    def _on_disconnect(self, client, userdata, flags, reason_code, properties) -> None:  # type: ignore[no-untyped-def]
-        self.connected.clear()
-        self.subscribed.clear()
-
-    def _on_message(self, client, userdata, message: mqtt.MQTTMessage) -> None:  # type: ignore[no-untyped-def]
+    def _on_message(self, topic: str, payload: bytes) -> None:
         try:
-            self.service.handle(message.topic, message.payload)
+            self.service.handle(topic, payload)
         except Exception:  # noqa: BLE001 - no message may stop the view
             self.service.counters["dropped.handler_error"] += 1
-            log.exception("handling %s failed", message.topic)
+            log.exception("handling %s failed", topic)
 
     def _remember(self, drone_id: str, snapshot: dict[str, Any]) -> None:
         self.redis.set(snapshot_key(drone_id), json.dumps(snapshot), ex=SNAPSHOT_TTL_S)

@@ -15,6 +15,7 @@ from rest_framework.response import Response
 from config.api import StrictSerializer
 from fleet.models import Role
 from fleet.permissions import require_role
+from logs.collection import logs_of_flight
 
 from . import corrections, logbook
 from .models import FlightRecord
@@ -49,8 +50,27 @@ class FlightSerializer(serializers.ModelSerializer):
 
 
 class FlightDetailSerializer(FlightSerializer):
+    logs = serializers.SerializerMethodField(
+        help_text="The logs the drone uploaded by itself for this flight (onboard recording, "
+        "flight controller's log), each with its FlightLog id and checks."
+    )
+
     class Meta(FlightSerializer.Meta):
-        fields = [*FlightSerializer.Meta.fields, "track", "home", "samples"]
+        fields = [*FlightSerializer.Meta.fields, "track", "home", "samples", "logs"]
+
+    def get_logs(self, record: FlightRecord) -> list[dict]:
+        return [
+            {
+                "id": str(row.log_id),
+                "kind": row.kind,
+                "name": row.name,
+                "format": row.log.format,
+                "status": row.log.status,
+                "url": row.log.get_absolute_url(),
+                "checks": f"/api/v1/logs/{row.log_id}/checks/",
+            }
+            for row in logs_of_flight(record.drone_id, record.started_at, record.ended_at)
+        ]
 
 
 class CorrectionSerializer(StrictSerializer):

@@ -20,6 +20,8 @@ from django.conf import settings
 from django.db import IntegrityError, connection, transaction
 from django.utils import timezone
 
+from batteries import fitting, usage
+from checklists import runs as checklist_runs
 from fleet.models import Drone
 
 from . import attribution, figures
@@ -56,10 +58,16 @@ def open_flight(drone: Drone, at: datetime, mission: dict | None = None) -> Open
                 organisation_id=drone.organisation_id,
                 armed_at=at,
                 mission=mission,
-                start=heartbeat_state(drone),
+                start={**heartbeat_state(drone), "battery": _battery_serial(drone)},
             )
     except IntegrityError:
         return None  # opened meanwhile by another gateway
+
+
+def _battery_serial(drone: Drone) -> str | None:
+    """The pack the drone carries as it arms (batteries.fitting), by its serial."""
+    battery = fitting.carried(drone)
+    return None if battery is None else battery.serial
 
 
 def mark_disarmed(drone: Drone, at: datetime, *, lost: bool = False) -> OpenFlight | None:
@@ -113,7 +121,9 @@ def close_flight(open_flight_pk: int) -> FlightRecord | None:
         flight = lock_disarmed(open_flight_pk)
         if flight is None:
             return None
-        record = _record(flight)
+        record, found = _record(flight)
+        if found is not None:
+            usage.take(record, found.resistance_ohm)
         flight.delete()
     log.info("recorded flight %s of %s", record.pk, record.drone_ident)
     return record
@@ -131,7 +141,8 @@ def lock_disarmed(open_flight_pk: int) -> OpenFlight | None:
     )
 
 
-def _record(flight: OpenFlight) -> FlightRecord:
+def _record(flight: OpenFlight) -> tuple[FlightRecord, figures.Figures | None]:
+    """The flight's record and the figures it was made from (None: recorded before)."""
     margin = timedelta(seconds=settings.RECORDS_WINDOW_MARGIN_S)
     found = _figures(flight, margin)
     started = _at(found.started_at) or flight.armed_at
@@ -142,8 +153,8 @@ def _record(flight: OpenFlight) -> FlightRecord:
         drone_ident=flight.drone.drone_id, started_at=started, corrects__isnull=True
     ).first()
     if existing is not None:
-        return existing
-    return FlightRecord.objects.create(
+        return existing, None
+    record = FlightRecord.objects.create(
         organisation=flight.organisation,
         drone=flight.drone,
         drone_ident=flight.drone.drone_id,
@@ -175,11 +186,17 @@ def _record(flight: OpenFlight) -> FlightRecord:
         events=_events(flight, started, ended),
         track=found.track,
         samples=found.samples,
+        battery=(flight.start or {}).get("battery"),
     )
+    return record, found
 
 
 def _events(flight: OpenFlight, started: datetime, ended: datetime) -> list[dict]:
     found = attribution.events(flight.drone, started, ended)
+    # The pre-flight checklist the drone armed on, with its answers and automatic values.
+    checked = checklist_runs.flight_event(flight.drone, flight.armed_at)
+    if checked is not None:
+        found.insert(0, checked)
     if (flight.end or {}).get("lost"):
         found.append(
             {

@@ -9,6 +9,7 @@ from django.contrib.auth import get_user_model
 from django.db import IntegrityError, transaction
 from django.utils import timezone
 
+from batteries import usage
 from fleet.models import Membership
 
 from .models import FlightRecord
@@ -69,13 +70,15 @@ def correct(record: FlightRecord, changes: dict, *, reason: str, user: Any) -> F
         values["pilot_name"] = changes["pilot"].get_username() if changes["pilot"] else ""
     try:
         with transaction.atomic():
-            return FlightRecord.objects.create(
+            new = FlightRecord.objects.create(
                 **values,
                 corrects=record,
                 correction_reason=reason.strip()[:500],
                 recorded_by=user if getattr(user, "pk", None) else None,
                 recorded_at=timezone.now(),
             )
+            usage.retake(record, new)  # the pack (or its figures) may be what was corrected
+            return new
     except IntegrityError:
         raise CorrectionRefused(
             409, "this record was corrected already: correct its newest version"

@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from batteries.health import SagEstimator
+
 # Above this height over home the drone is airborne: take-off is the first sample above
 # it, landing the last.
 AIRBORNE_HEIGHT_M = 0.5
@@ -47,6 +49,8 @@ class Figures:
     voltage_start: float | None = None
     voltage_end: float | None = None
     energy_wh: float | None = None
+    # The pack's internal resistance from voltage sag against current (batteries.health).
+    resistance_ohm: float | None = None
     track: list[list[float]] = field(default_factory=list)
     samples: int = 0
 
@@ -77,6 +81,7 @@ class Accumulator:
         self._last_gps: dict | None = None
         self._last_power: tuple[float, float] | None = None
         self._last_track: tuple[float, float, float] | None = None
+        self._sag = SagEstimator()
 
     def add(self, ts: float, name: str, fields: dict) -> None:
         if name == "FlightStatus":
@@ -178,6 +183,7 @@ class Accumulator:
         out.voltage_end = voltage
         if current is None:
             return
+        self._sag.add(ts, voltage, current)
         power = voltage * current
         last = self._last_power
         if last is not None and 0 < ts - last[0] <= MAX_POWER_GAP_S:
@@ -190,6 +196,7 @@ class Accumulator:
         out = self.out
         out.started_at = self._armed_seen if self._armed_seen is not None else self.opened
         out.ended_at = self._disarmed_seen if self._disarmed_seen is not None else self.closed
+        out.resistance_ohm = self._sag.result()
         if out.started_at is not None and out.track:
             out.track = [[round(p[0] - out.started_at, 1), *p[1:]] for p in out.track]
         return out

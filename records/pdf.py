@@ -103,11 +103,13 @@ def _track_path(track: Sequence, left: float, bottom: float) -> list[bytes]:
 
 
 def page_content(r: FlightRecord) -> bytes:
-    """One page's content stream."""
+    """One page's content stream; its times in the portal's time zone, named in the title
+    as the pages name it."""
     top = PAGE_H - MARGIN
+    zone = timezone.get_current_timezone_name()
     ops = [
         b"BT /F1 16 Tf %d %d Td %s Tj ET"
-        % (MARGIN, top, _text(f"Flight {r.pk}: {r.drone_ident}, {_when(r.started_at)}"))
+        % (MARGIN, top, _text(f"Flight {r.pk}: {r.drone_ident}, {_when(r.started_at)} {zone}"))
     ]
     y = top - 2 * LINE_H
     for label, value in figure_lines(r):

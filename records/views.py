@@ -16,6 +16,7 @@ from django.utils import timezone
 
 from fleet.models import Drone, Membership
 from fleet.tenancy import acting_organisation
+from logs.collection import logs_of_flight
 
 from . import logbook, pdf
 from .models import FlightRecord
@@ -115,7 +116,12 @@ def flight_detail(request: HttpRequest, pk: int) -> HttpResponse:
     return render(
         request,
         "records/flight.html",
-        {"record": record, "track_svg": track_svg(record.track), "events": _events(record)},
+        {
+            "record": record,
+            "track_svg": track_svg(record.track),
+            "events": _events(record),
+            "logs": logs_of_flight(record.drone_id, record.started_at, record.ended_at),
+        },
     )
 
 

@@ -4,7 +4,8 @@ as it starts, then only warnings, errors and the drones' important events, prefi
 the process's name; each process's whole output goes to .data/run/logs/<name>.log
 (scripts/runlog.py).
 
-Starts the project's services if they are not running, migrates, creates the demo account,
+Starts the project's services if they are not running, migrates, brings the broker's drone
+users to their current form, creates the demo account,
 then web (ASGI), the MQTT gateway, telemetry ingest, one Celery worker per queue
 (safety, logs, default) and beat, and optionally N simulated drones. Ctrl-C stops everything this script started, and nothing
 else.
@@ -147,6 +148,9 @@ def prepare(web_port: int, profile: str) -> tuple[bool, dict[str, str]]:
     env = dict(os.environ, DJANGO_SETTINGS_MODULE="config.settings.local", PYTHONUNBUFFERED="1")
     manage = [PY, MANAGE]
     subprocess.run([*manage, "migrate", "--noinput", "-v", "0"], check=True, env=env)
+    # Drone users a broker kept from an earlier form (on RabbitMQ: a password of their own,
+    # which logs in under any client id) are brought to the current one; none left, no change.
+    subprocess.run([*manage, "provision_drone", "--upgrade"], check=True, env=env)
     url = f"http://127.0.0.1:{web_port}/"
     subprocess.run([*manage, "bootstrap_demo", "--url", url], check=True, env=env)
     return started_services, env
@@ -160,6 +164,8 @@ def start_platform(run: Foreground, web_port: int, drones: int, data_dir: Path) 
     if command_exists("ingest_telemetry"):
         run.start("ingest", with_python(ingest_argv()))
     run.start("pastview", with_python(pastview_argv()))
+    if command_exists("mediaserver"):  # live video (docs/video.md)
+        run.start("media", [PY, MANAGE, "mediaserver"])
     for name, queue, concurrency in WORKERS:
         run.start(name, with_python(worker_argv(f"{name}@%h", queue=queue, loglevel="info",
                                                 pool="prefork", concurrency=concurrency)))  # fmt: skip

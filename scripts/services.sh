@@ -297,6 +297,7 @@ $(if [ "$BROKER" = rabbitmq ]; then DATA_DIR="$DATA" MQTT_PORT=$MQTT_PORT "$RABB
   echo "MQTT_DRONE_PORT=$MQTT_DRONE_PORT"; echo "MQTT_PUBLIC_PORT=${MQTT_PUBLIC_PORT:-$MQTT_DRONE_PORT}"; fi)
 MOSQUITTO_DIR=$DATA/mosquitto
 SECRET_KEY=$(secret django_secret_key)$(secret django_secret_key_2)
+LIVE_VIDEO_TICKET_KEY=$(secret live_video_ticket_key)
 PG_ADMIN_SOCKET=$DATA/postgres
 PG_PORT=$PG_PORT
 REDIS_PORT=$REDIS_PORT

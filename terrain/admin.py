@@ -115,4 +115,4 @@ class TerrainTileAdmin(admin.ModelAdmin):
 
 @admin.register(TerrainClearance)
 class TerrainClearanceAdmin(admin.ModelAdmin):
-    list_display = ("organisation", "min_clearance")
+    list_display = ("organisation", "min_clearance", "ceiling_above_terrain")

@@ -11,6 +11,16 @@ Heights are above home, and home is on the ground: the altitude above mean sea l
 point is the terrain's elevation at home plus its height above home. Where the terrain
 does not cover a leg (or home), or covers it with voids, that part is not checked (the
 envelope's other limits still apply) and the check says so in a warning.
+
+Ceiling above the terrain: an organisation that reads its envelope's maximum height above
+the terrain (TerrainClearance.ceiling_above_terrain, else TERRAIN_CEILING_ABOVE_TERRAIN)
+also holds every point of every leg, and the target of a climb in place, to at most the
+drone's maximum height above the terrain beneath it, wherever the terrain is known. A leg
+that starts higher above the terrain than that (the ground fell away under a hovering
+drone) may go on at up to the height above the terrain it starts at, so a drone can
+always fly on or down. The maximum height above home still holds as well: the drone
+applies that one itself and has no terrain. The minimum height above the terrain is the
+minimum terrain clearance above.
 """
 
 from __future__ import annotations
@@ -28,6 +38,10 @@ from terrain.lookup import LegClearance, Surface
 from terrain.models import TerrainClearance, TerrainTile
 
 TERRAIN_CLEARANCE = "terrain_clearance"
+MAX_HEIGHT_AGL = "max_height_agl"
+# Rounding of heights between the ground's walk and the samples: a leg flown exactly at
+# the ceiling is not refused for a centimetre.
+CEILING_TOLERANCE_M = 0.05
 Walked = tuple[int | None, env.Move, env.NED | None]  # step index, move, the leg's start
 
 
@@ -38,6 +52,15 @@ class TerrainViolation(env.Violation):
     code: ClassVar[str] = TERRAIN_CLEARANCE
     clearance: float = 0.0
     minimum: float = 0.0
+
+
+@dataclass(frozen=True)
+class CeilingViolation(env.Violation):
+    """A leg or climb higher above the terrain than the envelope's maximum height: the
+    envelope's own refusal (409 `outside_envelope`)."""
+
+    height: float = 0.0
+    ceiling: float = 0.0
 
 
 @dataclass
@@ -62,11 +85,19 @@ def has_terrain() -> bool:
 
 def min_clearance(organisation_id: int | None) -> float:
     """The organisation's minimum terrain clearance in metres."""
+    return terrain_rules(organisation_id)[0]
+
+
+def terrain_rules(organisation_id: int | None) -> tuple[float, bool]:
+    """The organisation's minimum terrain clearance (m) and whether its envelope's maximum
+    height is read above the terrain."""
     found = TerrainClearance.objects.filter(organisation_id=organisation_id).values_list(
-        "min_clearance", flat=True
+        "min_clearance", "ceiling_above_terrain"
     )
-    value = next(iter(found), None)
-    return float(settings.TERRAIN_MIN_CLEARANCE if value is None else value)
+    row = next(iter(found), None)
+    if row is None:
+        return float(settings.TERRAIN_MIN_CLEARANCE), bool(settings.TERRAIN_CEILING_ABOVE_TERRAIN)
+    return float(row[0]), bool(row[1])
 
 
 def _lla(ned: env.NED, home: Sequence[float], home_elevation: float) -> tuple[float, float, float]:
@@ -112,6 +143,27 @@ def _leg_violation(found: LegClearance, minimum: float, legs: tuple) -> TerrainV
     )
 
 
+def _ceiling_leg_violation(
+    found: LegClearance, ceiling: float, legs: tuple
+) -> CeilingViolation | None:
+    """Above the ceiling somewhere along the leg, and higher there than at its start."""
+    if found.highest is None or found.highest_at is None:
+        return None
+    allowed = max(ceiling, found.at_start if found.at_start is not None else -math.inf)
+    if found.highest <= allowed + CEILING_TOLERANCE_M:
+        return None
+    lat, lon, along = found.highest_at
+    return CeilingViolation(
+        MAX_HEIGHT_AGL,
+        f"The straight leg to the target rises to {found.highest:.1f} m above the terrain at "
+        f"({lat:.5f}, {lon:.5f}), {along:.0f} m along it, above the envelope's maximum "
+        f"height of {ceiling:g} m above the terrain.",
+        legs,
+        height=round(found.highest, 1),
+        ceiling=ceiling,
+    )
+
+
 def _gap_warning(found: LegClearance) -> str:
     parts = ", ".join(f"{g.start_m:.0f}–{g.end_m:.0f} m ({g.reason})" for g in found.gaps)
     return (
@@ -147,6 +199,7 @@ class _Ground:
     home: Sequence[float]
     home_elevation: float
     minimum: float
+    ceiling: float | None = None  # the maximum height above the terrain, when applied
 
     def lla(self, ned: np.ndarray) -> np.ndarray:
         """Rows of NED from home → rows of latitude, longitude, altitude above sea level."""
@@ -163,10 +216,35 @@ def _assess_leg(
         result.warn(index, _gap_warning(found), [g.to_dict() for g in found.gaps])
     if violation is not None:
         result.violations.append(env.StepViolation(index, violation))  # type: ignore[arg-type]
+    if ground.ceiling is not None:
+        above = _ceiling_leg_violation(found, ground.ceiling, ((a[0], a[1]), (b[0], b[1])))
+        if above is not None:
+            result.violations.append(env.StepViolation(index, above))  # type: ignore[arg-type]
+
+
+def _climb_violation(ground: _Ground, move: env.Move, start: env.NED | None) -> CeilingViolation | None:  # fmt: skip
+    """A climb in place ends at most the ceiling above the terrain below."""
+    if ground.ceiling is None or start is None or move.ned[2] >= start[2]:
+        return None
+    lat, lon, alt = _lla(move.ned, ground.home, ground.home_elevation)
+    below = ground.surface.elevation(lat, lon)
+    if below is None or alt - below <= ground.ceiling + CEILING_TOLERANCE_M:
+        return None
+    return CeilingViolation(
+        MAX_HEIGHT_AGL,
+        f"The target is {alt - below:.1f} m above the terrain, above the envelope's maximum "
+        f"height of {ground.ceiling:g} m above the terrain.",
+        None,
+        height=round(alt - below, 1),
+        ceiling=ground.ceiling,
+    )
 
 
 def _assess_descent(result: Assessment, ground: _Ground, walked: Walked) -> None:
     index, move, start = walked
+    climb = _climb_violation(ground, move, start)
+    if climb is not None:
+        result.violations.append(env.StepViolation(index, climb))  # type: ignore[arg-type]
     violation, warning = _descent_violation(
         ground.surface, move, start, ground.home, ground.home_elevation, ground.minimum
     )
@@ -181,7 +259,8 @@ def _assess_moves(result: Assessment, ground: _Ground, moves: Sequence[Walked]) 
     legs = [w for w in moves if _is_leg(w[1], w[2])]
     starts = ground.lla(np.array([w[2] for w in legs], float).reshape(-1, 3))
     ends = ground.lla(np.array([w[1].ned for w in legs], float).reshape(-1, 3))
-    found = iter(ground.surface.clearances(starts, ends) if legs else [])
+    highest = ground.ceiling is not None  # the ceiling above the terrain wants the tops
+    found = iter(ground.surface.clearances(starts, ends, highest=highest) if legs else [])
     pairs = iter(zip(starts.tolist(), ends.tolist(), strict=True))
     for walked in moves:
         if _is_leg(walked[1], walked[2]):
@@ -191,10 +270,14 @@ def _assess_moves(result: Assessment, ground: _Ground, moves: Sequence[Walked]) 
 
 
 def assess(
-    organisation_id: int | None, home: Sequence[float] | None, moves: Iterable[Walked]
+    organisation_id: int | None,
+    home: Sequence[float] | None,
+    moves: Iterable[Walked],
+    ceiling: float | None = None,
 ) -> Assessment:
     """Every move (step index, move, the leg's start in NED from home) held to the
-    organisation's minimum terrain clearance."""
+    organisation's minimum terrain clearance, and to `ceiling` (the drone's maximum
+    height) above the terrain where the organisation reads its ceiling there."""
     result = Assessment()
     # A take-off climbs from the ground and a landing is never refused: only moves count.
     moves = [m for m in moves if m[1].kind == "goto"]
@@ -212,7 +295,8 @@ def assess(
             "home cannot be compared with the terrain, so the terrain clearance is not checked.",
         )
         return result
-    ground = _Ground(surface, home, home_elevation, min_clearance(organisation_id))
+    minimum, above_terrain = terrain_rules(organisation_id)
+    ground = _Ground(surface, home, home_elevation, minimum, ceiling if above_terrain else None)
     _assess_moves(result, ground, moves)
     return result
 
@@ -237,9 +321,11 @@ def step_violations(
     home: Sequence[float] | None,
     steps: Sequence[Mapping[str, Any]],
     start: env.NED | None,
+    ceiling: float | None = None,
 ) -> list[env.StepViolation]:
-    """Every step of a mission flown from `start` that comes below the minimum clearance."""
-    return assess(organisation_id, home, mission_moves(home, steps, start)).violations
+    """Every step of a mission flown from `start` that comes below the minimum clearance
+    (or above `ceiling` over the terrain, where the organisation reads it so)."""
+    return assess(organisation_id, home, mission_moves(home, steps, start), ceiling).violations
 
 
 def plan_warnings(
@@ -253,8 +339,12 @@ def plan_warnings(
 
 
 def move_assessment(
-    organisation_id: int | None, home: Sequence[float] | None, start: env.NED | None, move: env.Move
+    organisation_id: int | None,
+    home: Sequence[float] | None,
+    start: env.NED | None,
+    move: env.Move,
+    ceiling: float | None = None,
 ) -> Assessment:
     """The terrain's refusal (`violation`) and warnings of one command's move from `start`
     (its current target)."""
-    return assess(organisation_id, home, [(None, move, start)])
+    return assess(organisation_id, home, [(None, move, start)], ceiling)

@@ -91,6 +91,11 @@ class LegClearance:
     at: tuple[float, float, float] | None = None
     terrain_at: float | None = None
     gaps: list[Gap] = field(default_factory=list)
+    # The highest clearance along the leg and where (latitude, longitude, metres along),
+    # and the clearance at its start (None over a gap): the ceiling above the terrain.
+    highest: float | None = None
+    highest_at: tuple[float, float, float] | None = None
+    at_start: float | None = None
 
     @property
     def fully_covered(self) -> bool:
@@ -158,7 +163,11 @@ class Surface:
         return self.clearances(np.array([start], float), np.array([end], float), spacing)[0]
 
     def clearances(
-        self, starts: np.ndarray, ends: np.ndarray, spacing: float | None = None
+        self,
+        starts: np.ndarray,
+        ends: np.ndarray,
+        spacing: float | None = None,
+        highest: bool = True,
     ) -> list[LegClearance]:
         """The clearance of each leg starts[i] → ends[i] (rows of latitude, longitude and
         altitude above mean sea level): every leg's samples, no farther apart than
@@ -175,7 +184,7 @@ class Surface:
         points = starts[leg] + (ends[leg] - starts[leg]) * fractions[:, None]
         heights, covered = self.sample(points[:, 0], points[:, 1])
         samples = _Samples(points, fractions * lengths[leg], heights, covered, offsets, counts)
-        return samples.legs(lengths, step)
+        return samples.legs(lengths, step, highest)
 
 
 def _lengths(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
@@ -208,6 +217,31 @@ class _Samples:
         _, first = np.unique(leg[candidates], return_index=True)
         return minima, candidates[first]
 
+    def highest(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each leg's highest clearance (-inf without terrain) and the sample it is at."""
+        missing = np.isnan(self.heights)
+        clearance = np.where(missing, -np.inf, self.points[:, 2] - np.nan_to_num(self.heights))
+        maxima = np.maximum.reduceat(clearance, self.offsets)
+        leg = np.repeat(np.arange(len(self.counts)), self.counts)
+        candidates = np.flatnonzero(clearance == maxima[leg])
+        _, first = np.unique(leg[candidates], return_index=True)
+        return maxima, candidates[first]
+
+    def at_start(self) -> list[float | None]:
+        """Each leg's clearance at its first sample, None over a gap."""
+        first = self.points[self.offsets, 2] - self.heights[self.offsets]
+        return [None if math.isnan(v) else v for v in first.tolist()]
+
+    def _tops(self, wanted: bool) -> tuple[list, list, list]:
+        """Per leg: the highest clearance, where (latitude, longitude, metres along) and the
+        clearance at its start; None each when not `wanted`."""
+        if not wanted:
+            nothing = [None] * len(self.counts)
+            return nothing, nothing, nothing
+        tops, at = self.highest()
+        places = np.column_stack((self.points[at, :2], self.along[at])).tolist()
+        return tops.tolist(), [tuple(p) for p in places], self.at_start()
+
     def gaps(self, i: int) -> list[Gap]:
         a, b = int(self.offsets[i]), int(self.offsets[i] + self.counts[i])
         missing = np.isnan(self.heights[a:b])
@@ -216,12 +250,14 @@ class _Samples:
         along = self.along[a:b]
         return [Gap(float(along[x]), float(along[y]), reasons[c]) for x, y, c in _runs(codes)]
 
-    def legs(self, lengths: np.ndarray, step: float) -> list[LegClearance]:
+    def legs(self, lengths: np.ndarray, step: float, highest: bool = True) -> list[LegClearance]:
+        """Each leg's clearance; its highest and its start too when `highest`."""
         lowest, at = self.lowest()
         missing = np.add.reduceat(np.isnan(self.heights).astype(int), self.offsets) > 0
         minima, incomplete, counts = lowest.tolist(), missing.tolist(), self.counts.tolist()
         along, heights = self.along[at].tolist(), self.heights[at].tolist()
         places = self.points[at, :2].tolist()
+        tops, top_places, starts = self._tops(highest)
         found = []
         for i, length in enumerate(lengths.tolist()):
             gaps = self.gaps(i) if incomplete[i] else []
@@ -231,6 +267,7 @@ class _Samples:
             lat, lon = places[i]
             found.append(LegClearance(
                 length, counts[i], step, minima[i], (lat, lon, along[i]), heights[i], gaps,
+                highest=tops[i], highest_at=top_places[i], at_start=starts[i],
             ))  # fmt: skip
         return found
 

@@ -45,6 +45,13 @@ class TerrainClearance(models.Model):
         validators=[MinValueValidator(0.0), MaxValueValidator(10_000.0)],
         help_text="Metres every leg keeps above the terrain.",
     )
+    ceiling_above_terrain = models.BooleanField(
+        default=False,
+        help_text=(
+            "Also read the envelope's maximum height above the terrain wherever it is "
+            "imported (the maximum above home still holds)."
+        ),
+    )
 
     def __str__(self) -> str:
         return f"{self.organisation}: {self.min_clearance:g} m"

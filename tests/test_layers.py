@@ -4,15 +4,21 @@ onboard (installed alone on drones, no Django) <- workers (broker, counters, out
 gateway, operations figures) <- fleet <- missions; telemetry, logs and pastview import
 fleet, workers and onboard; accounts imports fleet and workers, and nothing imports
 accounts but config (fleet reaches it through signals and settings); alerts listens to
-fleet and missions and reads accounts' recipients, and nothing imports alerts but config and
-records (which lists the alerts raised during a flight); records listens to fleet and reads
-missions, and nothing imports records but config; zones builds on fleet, which names the
-zones' checks in settings; airspace builds on fleet (which names its checks in settings)
-and missions builds on airspace; terrain imports only onboard, and fleet builds on it (the
+fleet and missions and reads accounts' recipients, and nothing imports alerts but config,
+records (which lists the alerts raised during a flight) and maintenance; records listens to
+fleet and reads missions, and nothing imports records but config and maintenance (whose
+schedules count the flights records keep, and which warns of tasks coming due; fleet asks
+it through settings); zones builds on fleet, which names the zones' checks in settings;
+airspace builds on fleet (which names its checks in settings) and missions builds on
+airspace; terrain imports only onboard, and fleet builds on it (the
 envelope's terrain clearance); runtime (processes, retry, MQTT packets for the ground's
-tools) imports only the standard library. Every import statement counts, including ones inside
-functions; a handler named by a dotted path string (workers/dispatch.py) is not an import.
-Migrations and tests are left out. No Django needed: the sources are parsed, not imported.
+tools) imports only the standard library; checklists builds on fleet and telemetry,
+missions and records read it, and fleet names its gate in settings. Every import statement
+counts, including ones inside functions; a handler named by a dotted path string
+(workers/dispatch.py) is not an import. Migrations and tests are left out. No Django
+needed: the sources are parsed, not imported. batteries builds on fleet (which reaches a
+pack's verdict through its relations) and records on batteries (a flight counts against
+its pack).
 
 SKYHIVE_LAYERS_ROOT=<checkout> checks another checkout than this one.
 """
@@ -27,6 +33,7 @@ from pathlib import Path
 ROOT = Path(os.environ.get("SKYHIVE_LAYERS_ROOT") or Path(__file__).resolve().parents[1])
 
 DJANGO_APPS = (
+    "batteries",
     "fleet",
     "missions",
     "telemetry",
@@ -36,14 +43,17 @@ DJANGO_APPS = (
     "accounts",
     "alerts",
     "records",
+    "checklists",
     "tiles",
     "zones",
     "airspace",
     "terrain",
+    "maintenance",
 )
 PLAIN_PACKAGES = ("onboard", "firmware", "runtime")
 PACKAGES = DJANGO_APPS + PLAIN_PACKAGES
 DOMAIN_APPS = (
+    "batteries",
     "fleet",
     "missions",
     "telemetry",
@@ -52,9 +62,11 @@ DOMAIN_APPS = (
     "accounts",
     "alerts",
     "records",
+    "checklists",
     "zones",
     "airspace",
     "terrain",
+    "maintenance",
 )
 # Our own top-level packages that onboard must not import: it runs on drones without them.
 NOT_FOR_ONBOARD = (*DOMAIN_APPS, "workers", "config", "firmware", "runtime", "tests")
@@ -75,10 +87,10 @@ def python_files(package: str) -> Iterator[Path]:
         yield path
 
 
-def imported_modules(path: Path) -> Iterator[tuple[str, int]]:
+def imported_modules(path: Path, root: Path = ROOT) -> Iterator[tuple[str, int]]:
     """(absolute module name, line) of every import statement in the file."""
     # The package a relative import starts from: a/b/c.py and a/b/__init__.py are in a.b.
-    package = list(path.relative_to(ROOT).with_suffix("").parts)[:-1]
+    package = list(path.relative_to(root).with_suffix("").parts)[:-1]
     tree = ast.parse(path.read_text(), filename=str(path))
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -186,8 +198,9 @@ def test_no_app_imports_accounts() -> None:
 
 def test_nothing_but_config_imports_alerts() -> None:
     graph = import_graph()
-    # records sits above alerts: a flight's record lists the alerts raised during it.
-    found = [p for p in PACKAGES if "alerts" in graph[p] and p != "records"]
+    # records sits above alerts: a flight's record lists the alerts raised during it;
+    # maintenance sits above records and warns of tasks coming due.
+    found = [p for p in PACKAGES if "alerts" in graph[p] and p not in ("records", "maintenance")]
     assert not found, "alerts is imported by:\n" + "\n".join(
         _shown(graph, package, "alerts") for package in found
     )
@@ -196,7 +209,8 @@ def test_nothing_but_config_imports_alerts() -> None:
 def test_nothing_but_config_imports_records() -> None:
     """Flight records sit on top: they hear the fleet's signals and read the other apps."""
     graph = import_graph()
-    found = [package for package in PACKAGES if "records" in graph[package]]
+    # maintenance sits above records: its schedules fall due by the flights recorded.
+    found = [p for p in PACKAGES if "records" in graph[p] and p != "maintenance"]
     assert not found, "records is imported by:\n" + "\n".join(
         _shown(graph, package, "records") for package in found
     )
@@ -214,3 +228,44 @@ def test_runtime_imports_none_of_our_packages() -> None:
     """The ground's process and connection tooling stands alone: no app, no drone code."""
     graph = import_graph()
     assert graph["runtime"] == {}, "\n".join(_shown(graph, "runtime", t) for t in graph["runtime"])
+
+
+# Who may import paho: the broker package (workers/broker, the ground's one place that
+# knows the broker) and the drone's agent (onboard, installed without the ground). Tests
+# and benchmarks stand in for drones and measure bare MQTT, so they are not ground code.
+PAHO_ALLOWED = ("workers/broker", "onboard", "tests", "bench", ".venv")
+
+
+def paho_importers(root: Path = ROOT) -> list[str]:
+    """`file:line` of every import of paho outside PAHO_ALLOWED."""
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        relative = path.relative_to(root)
+        if any(relative.as_posix().startswith(prefix + "/") for prefix in PAHO_ALLOWED):
+            continue
+        if any(part.startswith(".") for part in relative.parts):
+            continue
+        for module, line in imported_modules(path, root):
+            if module.split(".", 1)[0] == "paho":
+                found.append(f"  {relative}:{line} imports {module}")
+    return found
+
+
+def test_only_the_broker_package_and_the_agent_import_paho() -> None:
+    """The gateway, a web process's direct link and the past view get their MQTT client
+    from workers.broker.client; a ground module with a paho client of its own would set
+    its own credentials, TLS and failover."""
+    found = paho_importers()
+    assert not found, "paho imported outside workers/broker and onboard:\n" + "\n".join(found)
+
+
+def test_the_paho_rule_sees_an_import_in_a_ground_module(tmp_path: Path) -> None:
+    (tmp_path / "pastview").mkdir()
+    (tmp_path / "pastview" / "runner.py").write_text("def f():\n    import paho.mqtt.client\n")
+    (tmp_path / "workers" / "broker").mkdir(parents=True)
+    (tmp_path / "workers" / "broker" / "client.py").write_text("import paho.mqtt.client\n")
+    (tmp_path / "workers" / "gateway.py").write_text("from paho.mqtt import client\n")
+    assert paho_importers(tmp_path) == [
+        "  pastview/runner.py:2 imports paho.mqtt.client",
+        "  workers/gateway.py:1 imports paho.mqtt",
+    ]

@@ -35,13 +35,13 @@ import uuid
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import paho.mqtt.client as mqtt
 import redis
 from django.conf import settings
 
 from onboard import protocol
-from onboard.mqtt import attach_failover
 from workers import outbox
+from workers.broker import client as broker_client
+from workers.broker.client import Client, Message, Published
 
 log = logging.getLogger(__name__)
 
@@ -73,31 +73,26 @@ class DirectLink:
         self._waiters: dict[str, _Waiter] = {}
         self._acks: dict[int, tuple[asyncio.AbstractEventLoop, asyncio.Future]] = {}
         self._stopping = False
-        client = mqtt.Client(
-            mqtt.CallbackAPIVersion.VERSION2, client_id=self.client_id, clean_session=True
+        self.client, self.failover = broker_client.ground_client(
+            self.client_id, self.urls, configure=self._configure
         )
-        client.reconnect_delay_set(min_delay=0.2, max_delay=10)  # type: ignore[arg-type]
+
+    def _configure(self, client: Client) -> None:
         client.max_inflight_messages_set(MAX_INFLIGHT)
         client.on_connect = self._on_connect
         client.on_subscribe = self._on_subscribe
         client.on_disconnect = self._on_disconnect
         client.on_publish = self._on_publish
         client.on_message = self._on_message
-        self.client = client
-        self.failover = attach_failover(client, self.urls)
 
     def start(self) -> DirectLink:
-        current = self.failover.current
-        self.client.connect_async(current.host, current.port, keepalive=30)
-        self.client.loop_start()
+        broker_client.connect(self.client, self.failover)
         return self
 
     def stop(self) -> None:
         self._stopping = True
-        self.failover.stopping = True
         self.ready.clear()
-        self.client.disconnect()
-        self.client.loop_stop()
+        broker_client.disconnect(self.client, self.failover)
         self._lose_all()
 
     # -- paho callbacks (network thread) ----------------------------------------------------
@@ -132,9 +127,9 @@ class DirectLink:
         if entry is None:
             return  # the PUBACK beat its waiter's registration: `publish` sees it anyway
         loop, future = entry
-        loop.call_soon_threadsafe(_resolve, future, True)
+        _resolve_on(loop, future, True)
 
-    def _on_message(self, client, userdata, message: mqtt.MQTTMessage) -> None:  # type: ignore[no-untyped-def]
+    def _on_message(self, client, userdata, message: Message) -> None:  # type: ignore[no-untyped-def]
         try:
             drone_id, _channel, _direction = protocol.split_topic(message.topic)
             body = protocol.decode_json(message.payload)
@@ -148,7 +143,7 @@ class DirectLink:
             return  # malformed: the gateway drops and counts it
         with self._lock:
             self._waiters.pop(request_id, None)
-        waiter.loop.call_soon_threadsafe(_resolve, waiter.future, reply)
+        _resolve_on(waiter.loop, waiter.future, reply)
 
     def _lose_all(self) -> None:
         """The connection went: every waiter turns to Redis, every PUBACK wait ends."""
@@ -156,9 +151,9 @@ class DirectLink:
             waiters, self._waiters = self._waiters, {}
             acks, self._acks = self._acks, {}
         for waiter in waiters.values():
-            waiter.loop.call_soon_threadsafe(_resolve, waiter.future, LINK_LOST)
+            _resolve_on(waiter.loop, waiter.future, LINK_LOST)
         for loop, future in acks.values():
-            loop.call_soon_threadsafe(_resolve, future, False)
+            _resolve_on(loop, future, False)
 
     # -- the event loop's side --------------------------------------------------------------
 
@@ -182,15 +177,15 @@ class DirectLink:
         loop = asyncio.get_running_loop()
         future = loop.create_future()
         info = self.client.publish(topic, body, qos=qos)
-        if info.rc != mqtt.MQTT_ERR_SUCCESS:
+        if broker_client.publish_outcome(info) is not Published.OK:
             return False
         if qos == 0:
             return True
         with self._lock:
             self._acks[info.mid] = (loop, future)
-        if info.is_published():  # acknowledged before the registration above
-            return True
         try:
+            if info.is_published():  # acknowledged before the registration above
+                return True
             return await asyncio.wait_for(future, wait)
         except TimeoutError:
             return info.is_published()
@@ -202,6 +197,15 @@ class DirectLink:
 def _resolve(future: asyncio.Future, value: object) -> None:
     if not future.done():
         future.set_result(value)
+
+
+def _resolve_on(loop: asyncio.AbstractEventLoop, future: asyncio.Future, value: object) -> None:
+    """Resolve `future` on its own loop, from paho's thread. A loop closed meanwhile has
+    nobody left waiting; raising here would end paho's network thread."""
+    try:
+        loop.call_soon_threadsafe(_resolve, future, value)
+    except RuntimeError:
+        pass
 
 
 _link: DirectLink | None = None

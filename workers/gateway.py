@@ -30,7 +30,6 @@ from typing import Any
 from urllib.parse import urlsplit
 
 import kombu.exceptions
-import paho.mqtt.client as mqtt
 import redis
 from django.db import close_old_connections, connection
 from django.db.utils import DatabaseError, InterfaceError, OperationalError
@@ -40,6 +39,8 @@ from onboard import protocol
 from onboard.mqtt import parse_broker_url
 from runtime.retry import Backoff, retry_call
 from workers import broker, outbox
+from workers.broker import client as broker_client
+from workers.broker.client import Client, Message, Published
 from workers.broker.figures import RabbitMQPoller
 from workers.broker.mosquitto_sys import SYS_FILTER, SysView
 from workers.broker.mqtt_reader import Subscriber
@@ -174,9 +175,8 @@ class Gateway:
         if persistent and not stable_id:
             raise ValueError("a persistent gateway session needs a stable client_id")
         self.persistent = persistent
-        self.client = self._mqtt_client(client_id, persistent)
+        self.client, self.failover = self._mqtt_client(client_id, persistent)
         self.batch_readers = self._batch_readers(client_id)
-        self.failover = broker.attach_failover(self.client, self.urls)
         self.sys_view, self.rabbitmq_poller = self._broker_watch()
         self._outbox_thread = threading.Thread(
             target=self._publish_outbox, name="gateway-outbox", daemon=True
@@ -215,27 +215,27 @@ class Gateway:
             counters=self.counters,
         )
 
-    def _mqtt_client(self, client_id: str, persistent: bool) -> mqtt.Client:
+    def _mqtt_client(self, client_id: str, persistent: bool) -> tuple[Client, broker.Failover]:
         # A persistent session (with a stable client id) makes the broker queue the
         # drones' QoS 1 messages (mission progress, alarms, replies) while this gateway
         # restarts, instead of dropping them. Mosquitto expires abandoned sessions
         # (`persistent_client_expiration`), so a retired instance does not keep its share.
         # Manual acknowledgement: a QoS 1 message is acknowledged once stored (or refused
         # for good), so a gateway killed with it in hand gets it again on reconnect.
-        client = mqtt.Client(
-            mqtt.CallbackAPIVersion.VERSION2,
-            client_id=client_id,
+        return broker_client.ground_client(
+            client_id,
+            self.urls,
             clean_session=not persistent,
             manual_ack=True,
+            configure=self._configure_client,
         )
-        # Not the 1 s paho default: a lost node should cost a fraction of a second.
-        client.reconnect_delay_set(min_delay=0.2, max_delay=10)  # type: ignore[arg-type]
+
+    def _configure_client(self, client: Client) -> None:
         client.max_queued_messages_set(10_000)
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
         client.on_connect_fail = self._on_connect_fail
         client.on_message = self._on_message
-        return client
 
     def _batch_readers(self, client_id: str) -> dict[str, Subscriber]:
         """On Mosquitto over plain TCP, a fast reader (workers.broker.mqtt_reader) per
@@ -289,9 +289,7 @@ class Gateway:
     # -- lifecycle ------------------------------------------------------------------------
 
     def start(self) -> None:
-        # connect_async + loop_start: paho retries the first connection too, with backoff.
-        self.client.connect_async(self.host, self.port, keepalive=30)
-        self.client.loop_start()
+        broker_client.connect(self.client, self.failover)
         self.lanes.start()
         self.picture_lanes.start()
         if self.consumer is not None:
@@ -318,9 +316,7 @@ class Gateway:
             self.consumer.stop(timeout)  # sends the acknowledgements settled so far
         if self.rabbitmq_poller is not None:
             self.rabbitmq_poller.stop(timeout)
-        self.failover.stopping = True
-        self.client.disconnect()  # after the PUBACKs the lanes queued
-        self.client.loop_stop()
+        broker_client.disconnect(self.client, self.failover)  # after the PUBACKs the lanes queued
         if self.sys_view is not None:
             self.sys_view.reset()
             self.sys_view.flush()
@@ -386,7 +382,7 @@ class Gateway:
         if self.sys_view is not None:
             self.sys_view.link_down(self.address, error)
 
-    def _on_message(self, client, userdata, message: mqtt.MQTTMessage) -> None:  # type: ignore[no-untyped-def]
+    def _on_message(self, client, userdata, message: Message) -> None:  # type: ignore[no-untyped-def]
         if message.topic.startswith("$SYS/"):
             if self.sys_view is not None:
                 self.sys_view.remember(message.topic, message.payload)
@@ -677,12 +673,13 @@ class Gateway:
         payload = json.dumps(item["payload"], separators=(",", ":"))
         qos = int(item.get("qos", 1))
         info = self.client.publish(item["topic"], payload, qos=qos)
-        if info.rc in (mqtt.MQTT_ERR_NO_CONN, mqtt.MQTT_ERR_QUEUE_SIZE):
+        outcome = broker_client.publish_outcome(info)
+        if outcome is Published.NOT_NOW:
             self.counters.incr("outbox.not_sent")
             return False
-        if info.rc != mqtt.MQTT_ERR_SUCCESS:
+        if outcome is Published.FAILED:
             self.counters.incr("outbox.publish_failed")
-            log.warning("publish to %s failed: %s", item["topic"], mqtt.error_string(info.rc))
+            log.warning("publish to %s failed: %s", item["topic"], broker_client.error_text(info))
             return None
         if qos > 0:
             try:

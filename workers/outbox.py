@@ -113,6 +113,21 @@ async def arequest(
     return await await_reply(request_id, timeout)
 
 
+def request_to_drone(drone_id: str, channel: str, message: dict, *, ttl: float) -> None:
+    """Send a message carrying `request_id` without waiting: its reply is kept (for
+    REPLY_TTL_S) for `reply_to` to read later, as a periodic task does on its next pass."""
+    pipe = sync_redis().pipeline(transaction=False)
+    _expect(pipe, drone_id, message["request_id"], ttl)
+    pipe.rpush(outbox_key(), outbox_item(drone_id, channel, message, ttl=ttl))
+    pipe.execute()
+
+
+def reply_to(request_id: str) -> dict | None:
+    """The reply a gateway handed over for a `request_to_drone`, once; None while none came."""
+    value = sync_redis().lpop(REPLY_PREFIX + request_id)
+    return None if value is None else json.loads(value)
+
+
 def _expect(client: aredis.Redis, drone_id: str, request_id: str, timeout: float) -> Any:
     return client.set(PENDING_PREFIX + request_id, drone_id, px=int((timeout + 5) * 1000))
 

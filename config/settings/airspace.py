@@ -42,3 +42,28 @@ AIRSPACE_LIVE_HORIZON_S = env.float("AIRSPACE_LIVE_HORIZON_S", 10.0)
 AIRSPACE_LIVE_STEP_S = env.float("AIRSPACE_LIVE_STEP_S", 0.5)
 AIRSPACE_LIVE_FIX_S = env.float("AIRSPACE_LIVE_FIX_S", 5.0)
 AIRSPACE_LIVE_REPEAT_S = env.float("AIRSPACE_LIVE_REPEAT_S", 30.0)
+# The landing queue over home (airspace/landing.py): what fleet/commands.py calls for the
+# operator's `return` and its answer, how often the queue gives the next drone its turn,
+# how close over home a holding drone must be to be told to land (the waypoint tolerance,
+# [Paula 2018] algorithm 1, plus a metre for the position's noise: the platform's own), and
+# after how long a landing drone still in the air is told to land again.
+AIRSPACE_RETURN_ROUTE = "airspace.landing.route_return"
+AIRSPACE_RETURN_ANSWERED = "airspace.landing.return_answered"
+AIRSPACE_LANDING_INTERVAL_S = env.float("AIRSPACE_LANDING_INTERVAL_S", 1.0)
+AIRSPACE_LANDING_OVER_HOME_M = env.float("AIRSPACE_LANDING_OVER_HOME_M", 3.0)
+AIRSPACE_LANDING_RESEND_S = env.float("AIRSPACE_LANDING_RESEND_S", 10.0)
+# A holding drone that in this long neither was near its hold nor came the over-home
+# tolerance nearer to it is sent its hold again, at most this many times per queue place
+# (then it leaves the queue): a drone flying to its hold at the climb rate covers 20 m in
+# that time, a hovering one its position's noise (the platform's own numbers).
+AIRSPACE_LANDING_HOLD_RESEND_S = env.float("AIRSPACE_LANDING_HOLD_RESEND_S", 10.0)
+AIRSPACE_LANDING_HOLD_RESENDS = env.int("AIRSPACE_LANDING_HOLD_RESENDS", 5)
+# What the operator's `return` calls to stop the drone's mission parts first (named, not
+# imported: missions sits above airspace).
+AIRSPACE_RETURN_STOPS_MISSION = "missions.returning.stop_for_return"
+# Staggered departures of the platform's own plans (airspace/separation.py): when no
+# altitude layer is clear, a drone that takes off waits on the ground before it arms, the
+# shortest multiple of the step after which a layer is clear, up to the maximum (the
+# platform's own numbers: about the length of a small survey).
+AIRSPACE_STAGGER_STEP_S = env.float("AIRSPACE_STAGGER_STEP_S", 10.0)
+AIRSPACE_STAGGER_MAX_S = env.float("AIRSPACE_STAGGER_MAX_S", 600.0)

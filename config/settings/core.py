@@ -30,6 +30,7 @@ INSTALLED_APPS = [
     "logs",
     "workers",
     "pastview",
+    "livevideo",
     "django_otp",
     "django_otp.plugins.otp_totp",
     "accounts",
@@ -39,6 +40,9 @@ INSTALLED_APPS = [
     "zones",
     "terrain",
     "airspace",
+    "batteries",
+    "maintenance",
+    "checklists",
     # Swagger UI and Redoc from the installed package, never from a CDN.
     "drf_spectacular_sidecar",
 ]

@@ -5,10 +5,12 @@ from __future__ import annotations
 
 from config.env import env
 
-from .airspace import AIRSPACE_LIVE_INTERVAL_S
+from .airspace import AIRSPACE_LANDING_INTERVAL_S, AIRSPACE_LIVE_INTERVAL_S
 from .core import REDIS_URL
 from .fleet import OFFLINE_SWEEP_INTERVAL_S
+from .livevideo import LIVE_VIDEO_PRUNE_INTERVAL_S
 from .logs import LOGS_SWEEP_INTERVAL_S
+from .maintenance import MAINTENANCE_WARN_INTERVAL_S
 from .missions import MISSIONS_RESUME_INTERVAL_S
 from .records import RECORDS_SETTLE_INTERVAL_S
 
@@ -56,6 +58,7 @@ SAFETY_TASKS = [
     "missions.relieve_panic_stations",
     "fleet.sweep_offline",
     "airspace.watch_separation",
+    "airspace.advance_landings",
 ]
 CELERY_TASK_ROUTES = ["config.queues.route_task"]
 
@@ -75,5 +78,8 @@ CELERY_BEAT_SCHEDULE = {
     ),
     "logs.sweep_stuck": _every("logs.sweep_stuck", LOGS_SWEEP_INTERVAL_S),
     "records.settle": _every("records.settle", RECORDS_SETTLE_INTERVAL_S),
+    "livevideo.prune_recordings": _every("livevideo.prune_recordings", LIVE_VIDEO_PRUNE_INTERVAL_S),
+    "maintenance.warn": _every("maintenance.warn", MAINTENANCE_WARN_INTERVAL_S),
     "airspace.watch_separation": _every("airspace.watch_separation", AIRSPACE_LIVE_INTERVAL_S),
+    "airspace.advance_landings": _every("airspace.advance_landings", AIRSPACE_LANDING_INTERVAL_S),
 }

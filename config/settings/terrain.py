@@ -21,6 +21,9 @@ TERRAIN_MAX_SAMPLES = env.int("TERRAIN_MAX_SAMPLES", 64 * 1024**2)
 # The clearance every leg keeps above the terrain unless the organisation set its own
 # (terrain/guard.py states the rule).
 TERRAIN_MIN_CLEARANCE = env.float("TERRAIN_MIN_CLEARANCE", 30.0)
+# Whether an organisation without its own choice also reads its envelope's maximum height
+# above the terrain where terrain is imported (terrain/guard.py states the rule).
+TERRAIN_CEILING_ABOVE_TERRAIN = env.bool("TERRAIN_CEILING_ABOVE_TERRAIN", False)
 # The admin's terrain upload: its own limit plus a megabyte of multipart framing, refused
 # past it before Django reads the body (config/bodylimits.py).
 REQUEST_BODY_LIMITS.insert(

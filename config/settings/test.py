@@ -48,6 +48,8 @@ os.environ.setdefault("AIRSPACE_VERTICAL_MIN_M", "0")
 # The suite's organisations fly drones that have no Remote ID identity; the Remote ID
 # tests (tests/remoteid) require it themselves.
 os.environ.setdefault("REMOTE_ID_REQUIRED_DEFAULT", "false")
+# Nor do they run pre-flight checklists; the checklist tests (tests/checklists) require them.
+os.environ.setdefault("CHECKLIST_REQUIRED_DEFAULT", "false")
 
 from .base import *  # noqa: E402,F403
 from .base import DATABASES  # noqa: E402

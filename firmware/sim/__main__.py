@@ -19,6 +19,7 @@ from firmware.sim.remote_id import RemoteIdModule
 from firmware.sim.server import PtyTransport, TcpTransport, serve
 from firmware.sim.telemetry import BoardSession
 from firmware.sim.vehicle import Vehicle, VehicleConfig
+from firmware.sim.wind import WindError, WindFile, parse_wind, wind_ned
 from onboard.arming_frames import load_frames
 from onboard.uavtalk import ObjectRegistry, arming_vetoes, generations
 
@@ -56,13 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m firmware.sim", description=__doc__)
     p.add_argument("--home", type=_home, default=(38.736946, -9.142685, 100.0), help="LAT,LON,ALT")
     p.add_argument("--time-scale", type=float, default=1.0, help="simulated seconds per second")
-    p.add_argument("--battery-capacity-mah", type=float, default=5500.0)
-    p.add_argument(
-        "--drain", type=float, default=15_000 / 3600, help="mAh per simulated second hovering"
-    )
-    p.add_argument("--cells", type=int, default=4)
-    p.add_argument("--max-horizontal-speed", type=float, default=10.0, help="m/s")
-    p.add_argument("--max-climb-rate", type=float, default=2.0, help="m/s, climb and descent")
+    _add_vehicle_options(p)
     p.add_argument("--arming-line", type=Path, help="two-character file: request pin, mode pin")
     p.add_argument(
         "--arming-time", type=float, help="seconds (simulated); default arming_frames.json"
@@ -105,9 +100,61 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="REASON",
         help="mavlink: the Remote ID module (implies --remote-id) reports this pre-arm failure",
     )
+    p.add_argument(
+        "--battery-serial",
+        metavar="SERIAL",
+        help="mavlink: the battery's serial number, sent in SMART_BATTERY_INFO when asked",
+    )
     _add_uavtalk_board_options(p)
     p.add_argument("-v", "--verbose", action="store_true")
     return p
+
+
+def _add_vehicle_options(p: argparse.ArgumentParser) -> None:
+    """The vehicle model: its battery, its speeds and the wind it flies in."""
+    p.add_argument("--battery-capacity-mah", type=float, default=5500.0)
+    p.add_argument(
+        "--drain", type=float, default=15_000 / 3600, help="mAh per simulated second hovering"
+    )
+    p.add_argument("--cells", type=int, default=4)
+    p.add_argument("--max-horizontal-speed", type=float, default=10.0, help="m/s")
+    p.add_argument("--max-climb-rate", type=float, default=2.0, help="m/s, climb and descent")
+    _add_wind_options(p)
+
+
+def _wind(text: str) -> tuple[float, float]:
+    try:
+        return parse_wind(text)
+    except WindError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _add_wind_options(p: argparse.ArgumentParser) -> None:
+    """The wind the vehicle flies in (firmware/sim/wind.py)."""
+    p.add_argument(
+        "--wind",
+        type=_wind,
+        metavar="SPEED,FROM",
+        help="wind at boot: m/s and degrees it comes from; mavlink reports it (PX4 "
+        "WIND_COV, ArduPilot WIND), both protocols drift with it",
+    )
+    p.add_argument(
+        "--wind-file",
+        type=Path,
+        metavar="PATH",
+        help="mavlink: a file holding SPEED,FROM, read again whenever it changes",
+    )
+
+
+def apply_wind(session: BoardSession | MavlinkSession, args: argparse.Namespace) -> None:
+    """The launch wind into the session (MAVLink: its SIM_WIND_* parameters)."""
+    if isinstance(session, MavlinkSession):
+        if args.wind is not None:
+            session.params["SIM_WIND_SPD"], session.params["SIM_WIND_DIR"] = args.wind
+        if args.wind_file is not None:
+            session.wind_file = WindFile(args.wind_file)
+    elif args.wind is not None:
+        session.vehicle.wind = wind_ned(*args.wind)
 
 
 def _add_uavtalk_board_options(p: argparse.ArgumentParser) -> None:
@@ -153,6 +200,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         session = _session(args)
+        apply_wind(session, args)
     except (UnknownParameter, KeyError, ValueError) as exc:
         print(exc, file=sys.stderr)
         return 2
@@ -214,6 +262,7 @@ def _session(args: argparse.Namespace) -> BoardSession | MavlinkSession:
         remote_id=RemoteIdModule(fail_reason=args.remote_id_fail)
         if args.remote_id or args.remote_id_fail
         else None,
+        battery_serial=args.battery_serial,
     )
     for name, value in args.param:
         if name not in session.params:

@@ -45,10 +45,12 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from firmware.sim.mavlink_streams import STREAMED
+from firmware.sim.flight_log import LogServer
+from firmware.sim.mavlink_streams import AUTOPILOT_ONLY, STREAMED
 from firmware.sim.receiver import ARMED, DISARMED
 from firmware.sim.remote_id import RemoteIdModule
 from firmware.sim.vehicle import PathTarget, Vehicle, lla_to_ned
+from firmware.sim.wind import WindFile, wind_ned
 from onboard.fc.mavlink import COPTER_MODES, FORCE_MAGIC, MavlinkCodec
 
 log = logging.getLogger(__name__)
@@ -108,6 +110,7 @@ STREAM_GROUPS = {
     mavlink.MAV_DATA_STREAM_EXTENDED_STATUS: ("SYS_STATUS", "BATTERY_STATUS", "MISSION_CURRENT"),
     mavlink.MAV_DATA_STREAM_POSITION: ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"),
     mavlink.MAV_DATA_STREAM_EXTRA1: ("ATTITUDE",),
+    mavlink.MAV_DATA_STREAM_EXTRA3: ("WIND",),  # ArduPilot's SRx_EXTRA3 carries WIND
 }
 STREAMABLE = tuple(STREAMED)
 STREAM_IDS = {getattr(mavlink, f"MAVLINK_MSG_ID_{name}"): name for name in STREAMABLE}
@@ -119,6 +122,9 @@ DEFAULT_PARAMS = {
     "SIM_JUNK_RATE": 0.0,
     "SIM_MSGINT_OFF": 0.0,
     "SIM_LOSS_PCT": 0.0,
+    # The wind (firmware/sim/wind.py): m/s, and degrees it comes from, as in ArduPilot SITL.
+    "SIM_WIND_SPD": 0.0,
+    "SIM_WIND_DIR": 0.0,
 }
 # Each autopilot's own names for what the simulator models (their documented defaults).
 AUTOPILOT_PARAMS = {
@@ -202,6 +208,9 @@ class MavlinkSession:
     stats: SimStats = field(default_factory=SimStats)
     # A Remote ID module on the bus (`--remote-id`), answering OPEN_DRONE_ID_ARM_STATUS.
     remote_id: RemoteIdModule | None = None
+    # The battery's serial number SMART_BATTERY_INFO reports (`--battery-serial`); None:
+    # a battery without one, the message is not sent.
+    battery_serial: str | None = None
 
     def __post_init__(self) -> None:
         if self.autopilot not in AUTOPILOT_PARAMS:
@@ -245,6 +254,10 @@ class MavlinkSession:
         self.trigger_distance = 0.0
         self.trigger_at: tuple[float, float] | None = None
         self.camera_triggers = 0
+        # The autopilot's own log of each flight, served over the log protocol.
+        self.flight_logs = LogServer(self.autopilot)
+        # A wind file (`--wind-file`) that sets SIM_WIND_SPD/SIM_WIND_DIR when it changes.
+        self.wind_file: WindFile | None = None
 
     # --- helpers ------------------------------------------------------------------------
     @property
@@ -499,6 +512,8 @@ class MavlinkSession:
             self._param_message(kind, msg)
         elif kind.startswith("OPEN_DRONE_ID_") and self.remote_id is not None:
             self.remote_id.consume(msg, now)
+        elif kind.startswith("LOG_"):
+            self.flight_logs.handle(kind, msg, self._send)
 
     # --- commands ---------------------------------------------------------------------
     def _command(self, command: int, p: list[float], frame: int | None) -> None:
@@ -700,7 +715,7 @@ class MavlinkSession:
     def _cmd_interval(self, p: list[float], frame: int | None) -> int:
         if self.params["SIM_MSGINT_OFF"]:
             return mavlink.MAV_RESULT_UNSUPPORTED  # as firmware older than the command
-        name = STREAM_IDS.get(int(p[0]))
+        name = self._stream_name(int(p[0]))
         if name is None:
             return mavlink.MAV_RESULT_UNSUPPORTED if int(p[0]) else mavlink.MAV_RESULT_DENIED
         interval_us = p[1]
@@ -711,8 +726,14 @@ class MavlinkSession:
         self.next_due.pop(name, None)
         return mavlink.MAV_RESULT_ACCEPTED
 
+    def _stream_name(self, message_id: int) -> str | None:
+        """The streamable message of this id that this autopilot sends (None: not one)."""
+        name = STREAM_IDS.get(message_id)
+        only = AUTOPILOT_ONLY.get(name or "")
+        return None if only is not None and only != self.autopilot else name
+
     def _cmd_request_message(self, p: list[float], frame: int | None) -> int | None:
-        name = STREAM_IDS.get(int(p[0]))
+        name = self._stream_name(int(p[0]))
         if name is None:
             return mavlink.MAV_RESULT_UNSUPPORTED
         self._ack(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAV_RESULT_ACCEPTED)
@@ -1052,6 +1073,7 @@ class MavlinkSession:
         real_dt = max(0.0, now - self._last_real)
         self._last_real = now
         sim_dt = min(real_dt * self.time_scale, 1.0)
+        self._wind_watch(now)
         while sim_dt > 1e-9:
             dt = min(sim_dt, 0.05)
             self._run_mission()
@@ -1060,6 +1082,7 @@ class MavlinkSession:
             self.vehicle.step(dt)
             self._camera_trigger()
             self._auto_disarm()
+            self.flight_logs.record(self.vehicle, self.mode, self.armed, dt)
             sim_dt -= dt
         if self.booting:
             return
@@ -1072,10 +1095,20 @@ class MavlinkSession:
             self._send_heartbeat_now = False
             self._last_heartbeat = now
             self._heartbeat()
+        # A log download asked for goes on whoever listens (it was asked for).
+        self.flight_logs.pump(self._send)
         if now - self.gcs_heard > self.link_timeout_s:
             return  # nobody there: only heartbeats, as ArduPilot on a quiet port
         self._stream(now)
         self._junk(now)
+
+    def _wind_watch(self, now: float) -> None:
+        """The wind file's new wind into the parameters, the parameters into the vehicle."""
+        changed = self.wind_file.changed(now) if self.wind_file is not None else None
+        if changed is not None:
+            self.params["SIM_WIND_SPD"], self.params["SIM_WIND_DIR"] = changed
+        speed = max(0.0, self.params["SIM_WIND_SPD"])
+        self.vehicle.wind = wind_ned(speed, self.params["SIM_WIND_DIR"])
 
     def _auto_disarm(self) -> None:
         v = self.vehicle

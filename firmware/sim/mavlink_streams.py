@@ -215,6 +215,58 @@ def open_drone_id_arm_status(session: MavlinkSession) -> Fields:
     return (status, error.encode("ascii", "replace"))
 
 
+def smart_battery_info(session: MavlinkSession) -> Fields:
+    """The pack's identity and ratings [MAVLink common]; none without a serial number."""
+    if session.battery_serial is None:
+        return None
+    config = session.vehicle.config
+    capacity = round(config.battery_capacity_mah)
+    return (
+        0,
+        mavlink.MAV_BATTERY_FUNCTION_ALL,
+        mavlink.MAV_BATTERY_TYPE_LIPO,
+        capacity,
+        capacity,
+        0xFFFF,  # cycle count not known
+        session.battery_serial.encode("ascii", "replace"),
+        b"SIM LIPO",
+        0xFFFF,
+        0,
+        0,
+        0,
+        0,
+        config.cells,
+        0,
+        0,
+        b"",
+    )
+
+
+def wind_cov(session: MavlinkSession) -> Fields:
+    """PX4's wind estimate: the air's velocity North, East, Down [MAVLink WIND_COV];
+    ArduPilot does not send it."""
+    if not session.px4:
+        return None
+    v = session.vehicle
+    north, east, down = v.wind
+    # time_usec, wind_x/y/z, var_horiz, var_vert, wind_alt (MSL), horiz/vert accuracy
+    # (0: unknown).
+    return (int(v.time * 1e6), north, east, down, 0.5, 0.2, v.lla()[2], 0.0, 0.0)
+
+
+def wind(session: MavlinkSession) -> Fields:
+    """ArduPilot's wind estimate: the direction it comes from (degrees), its speed in the
+    ground plane and vertical speed [MAVLink ardupilotmega]; PX4 does not send it."""
+    if session.px4:
+        return None
+    north, east, down = session.vehicle.wind
+    from_deg = math.degrees(math.atan2(-east, -north)) % 360.0
+    return (from_deg, math.hypot(north, east), down)
+
+
+# Messages only one of the autopilots sends: the other refuses a request for them.
+AUTOPILOT_ONLY = {"WIND_COV": "px4", "WIND": "ardupilot"}
+
 STREAMED: dict[str, Callable[[MavlinkSession], Fields]] = {
     "SYS_STATUS": sys_status,
     "BATTERY_STATUS": battery_status,
@@ -228,4 +280,7 @@ STREAMED: dict[str, Callable[[MavlinkSession], Fields]] = {
     "EXTENDED_SYS_STATE": extended_sys_state,
     "AUTOPILOT_VERSION": autopilot_version,
     "OPEN_DRONE_ID_ARM_STATUS": open_drone_id_arm_status,
+    "WIND_COV": wind_cov,
+    "WIND": wind,
+    "SMART_BATTERY_INFO": smart_battery_info,
 }

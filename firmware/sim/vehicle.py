@@ -20,6 +20,10 @@ from onboard.navigation import euler_to_quaternion, lla_to_ned, ned_to_lla
 log = logging.getLogger(__name__)
 
 AUTONOMOUS_MODES = ("PositionHold", "PathPlanner", "ReturnToHome", "TabletControl")
+# The part of the wind's speed the position controller does not hold against in the air:
+# the vehicle is pushed downwind at this fraction of it and flies back (the simulator's own
+# figure, so a wind shows as a small drift, not a new flight model).
+WIND_DRIFT_FRACTION = 0.1
 # 4S LiPo open-circuit voltage per cell against charge left (fraction), coarse but monotonic.
 CELL_CURVE = ((0.0, 3.30), (0.05, 3.50), (0.2, 3.68), (0.5, 3.80), (0.8, 3.98), (1.0, 4.20))
 
@@ -77,6 +81,8 @@ class Vehicle:
     # A region of interest (north, east in m from home) the nose points at while flying;
     # None: the nose follows the direction of travel.
     roi: tuple[float, float] | None = None
+    # The air's velocity, m/s North-East-Down (firmware/sim/wind.py sets it).
+    wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         self.home = self.config.home
@@ -147,9 +153,16 @@ class Vehicle:
         self.time += dt
         if self.receiver.state == ARMED and self.flight_mode in AUTONOMOUS_MODES:
             self._fly(dt)
+            self._drift(dt)
         else:
             self._fall_or_rest(dt)
         self._drain(dt)
+
+    def _drift(self, dt: float) -> None:
+        """In the air, the wind pushes the vehicle a little downwind (WIND_DRIFT_FRACTION)."""
+        if self.airborne:
+            self.ned[0] += self.wind[0] * WIND_DRIFT_FRACTION * dt
+            self.ned[1] += self.wind[1] * WIND_DRIFT_FRACTION * dt
 
     def _follow_plan(self) -> None:
         """PathPlanner: feed Waypoint instances to the path follower until the first Invalid."""

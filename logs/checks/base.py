@@ -131,6 +131,27 @@ class LogView:
             return t, np.full(len(t), np.nan)
         return t, values.astype(np.float64)
 
+    def labelled(self, path: str, mapping: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+        """(times, values) of an enumeration read by its labels: a DFI stores text as the
+        number of its first appearance, so the same label has a different number in
+        each recording; labels not in `mapping` read as NaN."""
+        t, v = self.read(path)
+        labels = self.store.info(path).get("labels") or {}
+        codes = {int(k): mapping.get(label, np.nan) for k, label in labels.items()}
+        known = np.isfinite(v) & (v >= 0) & (v <= max(codes, default=-1))
+        table = np.full(max(codes, default=-1) + 1, np.nan)
+        for code, value in codes.items():
+            if code >= 0:
+                table[code] = value
+        out = np.full(len(v), np.nan)
+        out[known] = table[v[known].astype(np.int64)]
+        return t, out
+
+    def layers_with(self, *names: str) -> list[str]:
+        """The layers that have every one of `names`: a ROS bag's topics are named by
+        whoever recorded them, so a message is found by its fields."""
+        return [layer for layer, fields in self._fields.items() if all(n in fields for n in names)]
+
     def unit(self, path: str) -> str:
         return self.store.info(path).get("unit") or ""
 
@@ -179,7 +200,8 @@ class LogView:
     def armed(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(times, armed 0/1) from the log's arming record, or None when it has none:
         PX4 vehicle_status.arming_state (2 = armed), ArduPilot EV ids 10/11 (armed,
-        disarmed), MAVLink HEARTBEAT.base_mode bit 128 (MAV_MODE_FLAG_SAFETY_ARMED)."""
+        disarmed), MAVLink HEARTBEAT.base_mode bit 128 (MAV_MODE_FLAG_SAFETY_ARMED),
+        dRonin FlightStatus.Armed ("Armed"; "Arming" is not yet armed)."""
         if self._armed is not False:
             return self._armed  # type: ignore[return-value]
         found: tuple[np.ndarray, np.ndarray] | None = None
@@ -204,6 +226,14 @@ class LogView:
                 if p:
                     t, v = self.read(p)
                     found = (t, ((v.astype(np.int64) & 128) > 0).astype(np.float64))
+                    break
+        if found is None:
+            for layer in self.instances("FlightStatus"):
+                p = self.path(layer, "Armed")
+                if p:
+                    t, v = self.labelled(p, {"Disarmed": 0.0, "Arming": 0.0, "Armed": 1.0})
+                    keep = np.isfinite(v)
+                    found = (t[keep], v[keep])
                     break
         self._armed = found if found is not None and len(found[0]) else None
         return self._armed  # type: ignore[return-value]

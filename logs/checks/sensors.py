@@ -85,12 +85,42 @@ def vibration(view: LogView, thresholds: dict) -> Result:
         or _estimator_vibration(name, view, levels)
         or _recomputed_vibration(name, view, levels)
         or _vibration_levels(name, view, levels, flavour)
+        or _sampled_vibration(name, view, levels)
     )
     return found or not_checked(
         name,
         "no vehicle_imu_status, estimator_status, sensor_combined, vehicle_acceleration, "
-        "VIBE or VIBRATION",
+        "VIBE, VIBRATION, Accels or Imu linear_acceleration",
     )
+
+
+# PX4's metric is computed on every IMU sample (hundreds per second); from fewer than
+# this many accelerations a second the change between samples is the flight's motion,
+# not the airframe's vibration (our choice: a propeller's vibration lies well above 50 Hz,
+# so the samples must be at least twice that, the Nyquist rate).
+MIN_ACCEL_RATE_HZ = 100.0
+
+
+def _sampled_vibration(name: str, view: LogView, levels: dict) -> Result | None:
+    """PX4's metric recomputed from dRonin Accels (x, y, z in m/s²) or a ROS
+    sensor_msgs/Imu's linear_acceleration, when recorded fast enough."""
+    sources = [(x, [f"{x}/{f}" for f in ("x", "y", "z")]) for x in view.instances("Accels")]
+    axes = [f"linear_acceleration/{a}" for a in ("x", "y", "z")]
+    sources += [(x, [f"{x}/{a}" for a in axes]) for x in view.layers_with(*axes)]
+    for layer, paths in sources:
+        if not all(p in view.store.index["series"] for p in paths):
+            continue
+        t, _ = view.read(paths[0])
+        dt = np.diff(t)
+        rate = 1.0 / float(np.median(dt[dt > 0])) if (dt > 0).any() else 0.0
+        if rate < MIN_ACCEL_RATE_HZ:
+            return not_checked(
+                name,
+                f"{layer} recorded at {rate:.3g} Hz, too slow for vibration "
+                f"(needs {MIN_ACCEL_RATE_HZ:g} Hz)",
+            )
+        return _recomputed(name, view, layer, paths, levels["px4"])
+    return None
 
 
 def _imu_status_vibration(name: str, view: LogView, levels: dict) -> Result | None:
@@ -205,30 +235,36 @@ _CLIP_COUNTERS = (
 )
 
 
+def _clip_events(view: LogView, topic: str, fields: tuple, cumulative: bool) -> tuple:
+    """(times, counts, paths) of the new clips each counter of `topic` shows while armed."""
+    events_t, events_n, paths = [], [], []
+    for layer in view.instances(topic):
+        for f in fields:
+            p = view.path(layer, f)
+            if not p:
+                continue
+            t, v = view.read(p)
+            if not len(t):
+                continue
+            paths.append(p)
+            if cumulative:
+                # A counter that goes down restarted (a reboot): only rises count.
+                new = np.concatenate([[0.0], np.clip(np.diff(v), 0, None)])
+            else:
+                new = np.clip(v, 0, None)
+            new = np.where(view.armed_at(t) & np.isfinite(new), new, 0.0)
+            hit = new > 0
+            events_t.append(t[hit])
+            events_n.append(new[hit])
+    return events_t, events_n, paths
+
+
 def clipping(view: LogView, thresholds: dict) -> Result:
     """New clips counted while armed, from the first set of counters the log has."""
     name = "clipping"
     level = thresholds["clipping"]
     for topic, fields, cumulative in _CLIP_COUNTERS:
-        events_t, events_n, paths = [], [], []
-        for layer in view.instances(topic):
-            for f in fields:
-                p = view.path(layer, f)
-                if not p:
-                    continue
-                t, v = view.read(p)
-                if not len(t):
-                    continue
-                paths.append(p)
-                if cumulative:
-                    # A counter that goes down restarted (a reboot): only rises count.
-                    new = np.concatenate([[0.0], np.clip(np.diff(v), 0, None)])
-                else:
-                    new = np.clip(v, 0, None)
-                new = np.where(view.armed_at(t) & np.isfinite(new), new, 0.0)
-                hit = new > 0
-                events_t.append(t[hit])
-                events_n.append(new[hit])
+        events_t, events_n, paths = _clip_events(view, topic, fields, cumulative)
         if not paths:
             continue
         if not events_t or not sum(len(x) for x in events_t):
@@ -262,12 +298,16 @@ def clipping(view: LogView, thresholds: dict) -> Result:
             series=paths[:6],
             window=window_around(view, at),
         )
-    return not_checked(name, "no vehicle_imu_status, sensor_accel, VIBE or VIBRATION")
+    return not_checked(
+        name,
+        "no vehicle_imu_status, sensor_accel, VIBE or VIBRATION (dRonin Accels and ROS Imu "
+        "record no clipping count)",
+    )
 
 
 # --- GPS ---
 
-GpsRow = tuple[str, str, str, tuple[str, float], str | None]
+GpsRow = tuple[str, str, str | None, tuple[str, float] | None, str | None]
 _GPS: tuple[GpsRow, ...] = (
     # topic, fix field, satellites field, hdop field (and its scale), jamming field
     ("vehicle_gps_position", "fix_type", "satellites_used", ("hdop", 1.0), "jamming_indicator"),
@@ -275,8 +315,16 @@ _GPS: tuple[GpsRow, ...] = (
     ("GPS", "Status", "NSats", ("HDop", 1.0), None),
     # MAVLink GPS_RAW_INT.eph is HDOP x 100 (UINT16_MAX when unknown).
     ("GPS_RAW_INT", "fix_type", "satellites_visible", ("eph", 0.01), None),
+    # dRonin GPSPosition (gpsposition.xml): Status is an enumeration, read by its labels.
+    ("GPSPosition", "Status", "Satellites", ("HDOP", 1.0), None),
 )
 FIX_3D = 3  # GPS_FIX_TYPE_3D_FIX (MAVLink), PX4 fix_type 3, ArduPilot GPS status 3
+# dRonin GPSPosition.Status options in the order of the fix types above.
+DRONIN_FIX = {"NoGPS": 0.0, "NoFix": 1.0, "Fix2D": 2.0, "Fix3D": 3.0, "Diff3D": 4.0}
+# ROS sensor_msgs/NavSatFix: status.status is STATUS_NO_FIX (-1), STATUS_FIX (0),
+# STATUS_SBAS_FIX (1) or STATUS_GBAS_FIX (2); a fix carries a 3D position (latitude,
+# longitude, altitude), so any status from 0 up counts as a 3D fix.
+NAVSATFIX_FIELDS = ("status/status", "latitude", "longitude", "altitude")
 
 
 def gps(view: LogView, thresholds: dict) -> Result:
@@ -289,14 +337,28 @@ def gps(view: LogView, thresholds: dict) -> Result:
         layers = [x for x in view.instances(topic) if view.path(x, fix_f)]
         if layers:
             return _gps_receiver(name, view, level, layers[0], row)
-    return not_checked(name, "no vehicle_gps_position, GPS or GPS_RAW_INT")
+    for layer in view.layers_with(*NAVSATFIX_FIELDS):
+        return _gps_receiver(name, view, level, layer, (layer, "status/status", None, None, None))
+    return not_checked(
+        name, "no vehicle_gps_position, GPS, GPS_RAW_INT, GPSPosition or NavSatFix status"
+    )
+
+
+def _fix_types(view: LogView, topic: str, fix_f: str, path: str) -> tuple[np.ndarray, np.ndarray]:
+    """The fix as a fix type (3 a 3D fix) whatever the log recorded."""
+    if topic == "GPSPosition":
+        return view.labelled(path, DRONIN_FIX)
+    t, v = view.read(path)
+    if fix_f == NAVSATFIX_FIELDS[0]:
+        return t, np.where(np.isfinite(v), np.where(v >= 0, float(FIX_3D), 1.0), np.nan)
+    return t, v
 
 
 def _gps_receiver(name: str, view: LogView, level: dict, layer: str, row: GpsRow) -> Result:
     """The findings of one receiver (its _GPS row) from its first 3D fix on."""
-    topic, fix_f, sats_f, (hdop_f, hdop_scale), jam_f = row
+    topic, fix_f, sats_f, hdop, jam_f = row
     fix_path = view.path(layer, fix_f)
-    t, fix = view.read(fix_path)
+    t, fix = _fix_types(view, topic, fix_f, fix_path)
     if len(t) < 2:
         return not_checked(name, f"too few {topic} samples")
     has_fix = fix >= FIX_3D
@@ -305,12 +367,13 @@ def _gps_receiver(name: str, view: LogView, level: dict, layer: str, row: GpsRow
     first_fix = float(t[np.argmax(has_fix)])
     outages = _gps_outages(name, t, view.armed_at(t) & (t >= first_fix), has_fix, level)
     series = [fix_path]
-    sats_path = view.path(layer, sats_f)
+    sats_path = view.path(layer, sats_f) if sats_f else None
     satellites = None
     if sats_path:
         series.append(sats_path)
         satellites = _fewest_satellites(name, view, sats_path, first_fix, level)
-    hdop_path = view.path(layer, hdop_f)
+    hdop_f, hdop_scale = hdop or ("", 1.0)
+    hdop_path = view.path(layer, hdop_f) if hdop_f else None
     high_hdop = (
         _high_hdop(name, view, hdop_path, hdop_scale, first_fix, level) if hdop_path else None
     )

@@ -125,11 +125,18 @@ _BATTERY = (
     ("CURR", "Volt", 1.0, "Curr", 1.0),
     ("SYS_STATUS", "voltage_battery", 1e-3, "current_battery", 1e-2),
     ("BATTERY_STATUS", "voltages[0]", 1e-3, "current_battery", 1e-2),
+    # dRonin FlightBatteryState (flightbatterystate.xml).
+    ("FlightBatteryState", "Voltage", 1.0, "Current", 1.0),
 )
+# ROS sensor_msgs/BatteryState, found by its fields; its current is negative while
+# discharging, so the scale turns the draw positive.
+ROS_BATTERY = ("voltage", 1.0, "current", -1.0)
+ROS_BATTERY_FIELDS = ("voltage", "current", "percentage", "power_supply_status")
 
 
 def _cells(view: LogView, layer: str, volts: np.ndarray, full_cell_v: float) -> tuple[int, str]:
-    p = view.path(layer, "cell_count")
+    # PX4 battery_status.cell_count; dRonin FlightBatteryState.DetectedCellCount.
+    p = view.path(layer, "cell_count") or view.path(layer, "DetectedCellCount")
     if p:
         _, c = view.read(p)
         c = c[np.isfinite(c) & (c > 0)]
@@ -146,57 +153,77 @@ def battery_sag(view: LogView, thresholds: dict) -> Result:
     """The lowest voltage per cell while armed, against the empty and critical levels."""
     name = "battery_sag"
     level = thresholds["battery_sag"]
-    findings = []
-    for topic, v_field, v_scale, i_field, i_scale in _BATTERY:
-        for layer in view.instances(topic):
-            vp = view.path(layer, v_field)
-            if not vp:
-                continue
-            t, volts = view.read(vp)
-            volts = np.where(volts >= 65535, np.nan, volts) * v_scale
-            # Under half a volt is no battery connected (or an unused instance).
-            valid = np.isfinite(volts) & (volts > 0.5)
-            if valid.sum() < 2:
-                continue
-            t, volts = t[valid], volts[valid]
-            cells, how = _cells(view, layer, volts, level["full_cell_v"])
-            armed = view.armed_at(t)
-            if not armed.any():
-                continue
-            per_cell = volts / cells
-            ta, va = t[armed], per_cell[armed]
-            low = float(np.min(va))
-            status = grade(low, level, higher_is_worse=False)
-            limit = level["fail"] if status == FAIL else level["warning"]
-            at = first_time(ta, va < limit) if status != PASS else float(ta[np.argmin(va)])
-            rest = float(np.max(volts[: min(len(volts), 20)]))
-            series = [vp]
-            ip = view.path(layer, i_field)
-            current = ""
-            if ip:
-                series.append(ip)
-                ti, amps = view.read(ip)
-                if len(ti):
-                    k = min(int(np.searchsorted(ti, at)), len(ti) - 1)
-                    if math.isfinite(amps[k]) and amps[k] >= 0:
-                        current = f" drawing {amps[k] * i_scale:.1f} A"
-            findings.append(
-                Result(
-                    name,
-                    status,
-                    low,
-                    "V/cell",
-                    {"warning": level["warning"], "fail": level["fail"]},
-                    at,
-                    f"lowest {low:.2f} V per cell ({cells} cells, {how}; {low * cells:.2f} V, "
-                    f"{rest - low * cells:.2f} V below the first {rest:.2f} V) at {at:.1f} s{current}",
-                    series=series,
-                    window=window_around(view, at),
-                )
-            )
+    sources = [[(layer, *fields) for layer in view.instances(topic)] for topic, *fields in _BATTERY]
+    sources.append([(layer, *ROS_BATTERY) for layer in view.layers_with(*ROS_BATTERY_FIELDS)])
+    for group in sources:
+        findings = [
+            r for r in (_battery_layer(name, view, level, *source) for source in group) if r
+        ]
         if findings:
             return worst(findings)
-    return not_checked(name, "no battery_status, BAT, SYS_STATUS or BATTERY_STATUS voltage")
+    return not_checked(
+        name,
+        "no battery_status, BAT, SYS_STATUS, BATTERY_STATUS, FlightBatteryState or "
+        "BatteryState voltage",
+    )
+
+
+def _battery_layer(  # noqa: PLR0913 - one battery record's fields and scales
+    name: str,
+    view: LogView,
+    level: dict,
+    layer: str,
+    v_field: str,
+    v_scale: float,
+    i_field: str,
+    i_scale: float,
+) -> Result | None:
+    """The lowest voltage per cell of one battery record while armed, or None when it
+    holds no battery or was never armed."""
+    vp = view.path(layer, v_field)
+    if not vp:
+        return None
+    t, volts = view.read(vp)
+    volts = np.where(volts >= 65535, np.nan, volts) * v_scale
+    # Under half a volt is no battery connected (or an unused instance).
+    valid = np.isfinite(volts) & (volts > 0.5)
+    if valid.sum() < 2:
+        return None
+    t, volts = t[valid], volts[valid]
+    cells, how = _cells(view, layer, volts, level["full_cell_v"])
+    armed = view.armed_at(t)
+    if not armed.any():
+        return None
+    per_cell = volts / cells
+    ta, va = t[armed], per_cell[armed]
+    low = float(np.min(va))
+    status = grade(low, level, higher_is_worse=False)
+    limit = level["fail"] if status == FAIL else level["warning"]
+    at = first_time(ta, va < limit) if status != PASS else float(ta[np.argmin(va)])
+    rest = float(np.max(volts[: min(len(volts), 20)]))
+    series = [vp]
+    ip = view.path(layer, i_field)
+    current = ""
+    if ip:
+        series.append(ip)
+        ti, amps = view.read(ip)
+        if len(ti):
+            k = min(int(np.searchsorted(ti, at)), len(ti) - 1)
+            draw = amps[k] * i_scale
+            if math.isfinite(draw) and draw >= 0:
+                current = f" drawing {draw:.1f} A"
+    return Result(
+        name,
+        status,
+        low,
+        "V/cell",
+        {"warning": level["warning"], "fail": level["fail"]},
+        at,
+        f"lowest {low:.2f} V per cell ({cells} cells, {how}; {low * cells:.2f} V, "
+        f"{rest - low * cells:.2f} V below the first {rest:.2f} V) at {at:.1f} s{current}",
+        series=series,
+        window=window_around(view, at),
+    )
 
 
 # --- RC loss ---
@@ -209,7 +236,11 @@ def rc_loss(view: LogView, thresholds: dict) -> Result:
     name = "rc_loss"
     flags = _px4_rc_lost(view)
     lost_frames = _lost_frame_share(name, view, thresholds["rc_loss"])
-    sightings = [s for s in (flags, _err_rc_lost(view), _sys_status_rc_lost(view)) if s is not None]
+    sightings = [
+        s
+        for s in (flags, _err_rc_lost(view), _sys_status_rc_lost(view), _dronin_rc_lost(view))
+        if s is not None
+    ]
     if not sightings:
         return _rc_unrecorded(name, view)
     seen = _combined(sightings)
@@ -282,7 +313,8 @@ def _err_rc_lost(view: LogView) -> Sighting | None:
 
 
 def _sys_status_rc_lost(view: LogView) -> Sighting | None:
-    """MAVLink SYS_STATUS: an RC receiver present but not healthy while armed."""
+    """MAVLink SYS_STATUS: an RC receiver present but not healthy while armed. A vehicle
+    that never reports a receiver present tells nothing of RC loss (not a sighting)."""
     series, spans = [], []
     for layer in view.instances("SYS_STATUS"):
         present = view.path(layer, "onboard_control_sensors_present")
@@ -290,11 +322,30 @@ def _sys_status_rc_lost(view: LogView) -> Sighting | None:
         if present and health:
             t, pres = view.read(present)
             _, heal = view.read(health)
-            series.append(health)
             has_rc = (pres.astype(np.int64) & MAV_SENSOR_RC_RECEIVER) > 0
+            if not has_rc.any():
+                continue
+            series.append(health)
             bad = has_rc & ((heal.astype(np.int64) & MAV_SENSOR_RC_RECEIVER) == 0)
             spans += timed_runs(t, bad & view.armed_at(t))
     return Sighting("SYS_STATUS", series, spans) if series else None
+
+
+def _dronin_rc_lost(view: LogView) -> Sighting | None:
+    """dRonin ManualControlCommand.Connected "False" while armed (its manual control
+    module's verdict on the receiver). A recording where it never reads "True" had no
+    transmitter (a drone flown by its companion computer): not a sighting."""
+    for layer in view.instances("ManualControlCommand"):
+        p = view.path(layer, "Connected")
+        if not p:
+            continue
+        t, connected = view.labelled(p, {"False": 0.0, "True": 1.0})
+        if not (connected == 1.0).any():
+            return None
+        return Sighting(
+            "ManualControlCommand", [p], timed_runs(t, (connected == 0.0) & view.armed_at(t))
+        )
+    return None
 
 
 def _rc_unrecorded(name: str, view: LogView) -> Result:
@@ -311,7 +362,9 @@ def _rc_unrecorded(name: str, view: LogView) -> Result:
             series=[p for p in (view.path(view.instances("RCIN")[0], "C3"),) if p],
             window=window_around(view, None),
         )
-    return not_checked(name, "no input_rc, vehicle_status, ERR or SYS_STATUS")
+    return not_checked(
+        name, "no input_rc, vehicle_status, ERR, SYS_STATUS or ManualControlCommand Connected"
+    )
 
 
 def _rc_lost_spans(name: str, spans: list[tuple[float, float]]) -> Result | None:
@@ -472,14 +525,18 @@ def failsafe(view: LogView, thresholds: dict) -> Result:
     """Failsafes while armed: PX4 vehicle_status.failsafe, ArduPilot ERR failsafe
     subsystems, MAVLink HEARTBEAT system_status critical or emergency."""
     name = "failsafe"
-    sightings = [s for s in (_px4_failsafes(view), _err_failsafes(view)) if s is not None]
+    sightings = [
+        s
+        for s in (_px4_failsafes(view), _err_failsafes(view), _dronin_failsafes(view))
+        if s is not None
+    ]
     # HEARTBEAT's state, else ArduPilot's modes, speak only for a log with neither
     # vehicle_status nor ERR.
     seen = (
         _combined(sightings) if sightings else _heartbeat_critical(view) or _modes_without_err(view)
     )
     if seen is None:
-        return not_checked(name, "no vehicle_status, ERR or HEARTBEAT")
+        return not_checked(name, "no vehicle_status, ERR, HEARTBEAT or FlightStatus")
     if not seen.spans:
         return Result(
             name,
@@ -536,6 +593,45 @@ def _err_failsafes(view: LogView) -> Sighting | None:
     )
 
 
+# dRonin FlightStatus.ControlSource: who sets the flight mode. Failsafe and Geofence are
+# the flight controller taking control; Transmitter and Tablet are the pilot's choice.
+DRONIN_TAKEOVER = ("Failsafe", "Geofence")
+
+
+def _dronin_failsafes(view: LogView) -> Sighting | None:
+    """dRonin FlightStatus while armed: control taken by the failsafe or the geofence,
+    or the flight mode Failsafe, each named with the flight mode it brought."""
+    for layer in view.instances("FlightStatus"):
+        source_p = view.path(layer, "ControlSource")
+        mode_p = view.path(layer, "FlightMode")
+        if not (source_p or mode_p):
+            continue
+        t = view.read(source_p or mode_p)[0]
+        taken = np.zeros(len(t), dtype=bool)
+        cause = np.full(len(t), "", dtype=object)
+        if source_p:
+            _, src = view.labelled(source_p, {k: float(i) for i, k in enumerate(DRONIN_TAKEOVER)})
+            for i, kind in enumerate(DRONIN_TAKEOVER):
+                cause[src == i] = kind.lower()
+            taken |= np.isfinite(src)
+        modes = np.full(len(t), "", dtype=object)
+        if mode_p:
+            _, raw = view.read(mode_p)
+            labels = view.store.info(mode_p).get("labels") or {}
+            modes = np.array([labels.get(str(int(x)), "") if np.isfinite(x) else "" for x in raw])
+            in_failsafe = modes == "Failsafe"
+            cause[in_failsafe & ~taken] = "failsafe"
+            taken |= in_failsafe
+        armed = view.armed_at(t)
+        spans = []
+        for a, b in runs(taken & armed):
+            end = float(t[b]) if b < len(t) else float(t[b - 1])
+            mode = f" (flight mode {modes[a]})" if modes[a] else ""
+            spans.append((float(t[a]), end, f"{cause[a]} control{mode}"))
+        return Sighting("FlightStatus", [p for p in (source_p, mode_p) if p], spans)
+    return None
+
+
 def _heartbeat_critical(view: LogView) -> Sighting | None:
     """MAVLink HEARTBEAT system_status critical or emergency while armed."""
     for layer in view.instances("HEARTBEAT"):
@@ -568,7 +664,12 @@ def cpu_load(view: LogView, thresholds: dict) -> Result:
     """The highest load held for three records (PX4 cpuload.load, ArduPilot PM.Load,
     MAVLink SYS_STATUS.load), as a fraction of the processor."""
     name = "cpu_load"
-    for topic, field in (("cpuload", "load"), ("PM", "Load"), ("SYS_STATUS", "load")):
+    for topic, field in (
+        ("cpuload", "load"),
+        ("PM", "Load"),
+        ("SYS_STATUS", "load"),
+        ("SystemStats", "CPULoad"),
+    ):
         for layer in view.instances(topic):
             p = view.path(layer, field)
             if not p:
@@ -578,7 +679,10 @@ def cpu_load(view: LogView, thresholds: dict) -> Result:
                 return not_checked(name, f"too few {topic} samples")
             # PX4 records a fraction; ArduPilot PM.Load and MAVLink SYS_STATUS.load are
             # in tenths of a percent (d%).
-            if topic != "cpuload":
+            if topic == "SystemStats":
+                # dRonin SystemStats.CPULoad is in percent.
+                v = v / 100.0
+            elif topic != "cpuload":
                 v = v / 1000.0
             v = held(v, 3)
             level = thresholds["cpu_load"]
@@ -597,7 +701,7 @@ def cpu_load(view: LogView, thresholds: dict) -> Result:
                 series=[p],
                 window=window_around(view, at),
             )
-    return not_checked(name, "no cpuload, PM or SYS_STATUS")
+    return not_checked(name, "no cpuload, PM, SYS_STATUS or SystemStats")
 
 
 # --- logging dropouts ---

@@ -55,6 +55,9 @@ class VehicleState:
     # What to change on the flight controller before the agent can fly it (sentences,
     # e.g. "set ManualControlSettings.Arming to …"); empty when nothing is known wrong.
     setup: tuple[str, ...] = ()
+    # The battery's serial number where the flight controller reports one (MAVLink
+    # SMART_BATTERY_INFO or BATTERY_INFO); None otherwise.
+    battery_serial: str | None = None
 
     @property
     def airborne(self) -> bool:

@@ -20,8 +20,12 @@ own fields, so logs stay faithful, and the platform's object where one maps):
 | SYS_STATUS           | FlightBatteryState (merged),      | Voltage, Current, Remaining;  |
 |                      | SystemStats                       | CPULoad, RxErrors             |
 | BATTERY_STATUS       | FlightBatteryState (merged)       | ConsumedEnergy (mAh), Voltage |
+| SMART_BATTERY_INFO,  | (state: battery_serial, sent in   | serial_number, asked once per |
+| BATTERY_INFO         | the heartbeat's battery.serial)   | vehicle session               |
 | HIGHRES_IMU          | Accels, Gyros (deg/s),            | x, y, z, temperature;         |
 |                      | Magnetometer, BaroAltitude        | Altitude, Pressure (kPa)      |
+| WIND_COV (PX4),      | WindVelocityActual                | North, East, Down (m/s, the   |
+| WIND (ArduPilot)     |                                   | air's velocity), Source       |
 | (link, 1 Hz)         | FlightTelemetryStats              | Status, RxFailures, RxUnknown |
 
 Commands: arming by COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (force = 21196 in param2),
@@ -87,6 +91,10 @@ DEFAULT_RATES: dict[str, float] = {
     "BATTERY_STATUS": 1.0,
     "MISSION_CURRENT": 1.0,
     "HOME_POSITION": 0.5,
+    # The autopilot's wind estimate: PX4 sends WIND_COV, ArduPilot WIND; each refuses the
+    # other's, which is then not asked for again.
+    "WIND_COV": 1.0,
+    "WIND": 1.0,
 }
 # REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) that carry each message on ArduPilot.
 DATA_STREAMS = {
@@ -94,6 +102,7 @@ DATA_STREAMS = {
     mavlink.MAV_DATA_STREAM_EXTENDED_STATUS: ("SYS_STATUS", "BATTERY_STATUS", "MISSION_CURRENT"),
     mavlink.MAV_DATA_STREAM_POSITION: ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"),
     mavlink.MAV_DATA_STREAM_EXTRA1: ("ATTITUDE",),
+    mavlink.MAV_DATA_STREAM_EXTRA3: ("WIND",),
 }
 # Platform object → the MAVLink messages it is built from (for objrequest).
 PLATFORM_SOURCES = {
@@ -109,7 +118,27 @@ PLATFORM_SOURCES = {
     "Magnetometer": ("HIGHRES_IMU",),
     "BaroAltitude": ("HIGHRES_IMU",),
     "HomeLocation": ("HOME_POSITION",),
+    "WindVelocityActual": ("WIND_COV", "WIND"),
 }
+
+
+# Messages naming the fitted battery by its serial_number, newest first: BATTERY_INFO
+# (MAVLink development set) and SMART_BATTERY_INFO [MAVLink common].
+BATTERY_IDENTITY = ("BATTERY_INFO", "SMART_BATTERY_INFO")
+
+
+def battery_serial(m: Any) -> str | None:
+    """The serial_number of a BATTERY_INFO / SMART_BATTERY_INFO (NUL-padded characters),
+    None when empty."""
+    raw = m.serial_number
+    text = bytes(raw).decode(errors="replace") if isinstance(raw, bytes | bytearray) else raw
+    text = str(text).split("\0", 1)[0].strip()
+    return text or None
+
+
+# The flight controller's log coming down (onboard.fc.mavlink_logs): bytes of a file, not
+# telemetry; they go to the fetcher's handler only.
+NOT_TELEMETRY = frozenset({"LOG_ENTRY", "LOG_DATA"})
 
 
 def enum_name(enum: str, value: int) -> str:
@@ -379,7 +408,7 @@ class MavlinkFlightController(LinkDriver):
         self._update_state(kind, msg, now)
         if kind == "HEARTBEAT":
             self._on_heartbeat(msg, now)
-        if self._listeners:
+        if self._listeners and kind not in NOT_TELEMETRY:
             self._queue_event(kind, fields)
         # Platform objects are kept even without listeners: objrequest answers from them.
         for name, values in self._platform_objects(kind, msg):
@@ -446,6 +475,17 @@ class MavlinkFlightController(LinkDriver):
                     )
         with contextlib.suppress(FlightControllerError):
             self.request_message("HOME_POSITION", timeout=1.0)
+        self._request_battery_identity()
+
+    def _request_battery_identity(self) -> None:
+        """Ask once per vehicle session which battery is fitted (a pack is swapped with the
+        power off, so a new session); a flight controller without it refuses or is silent."""
+        for name in BATTERY_IDENTITY:
+            if getattr(mavlink, f"MAVLINK_MSG_ID_{name}", None) is None:
+                continue  # not in this dialect
+            with contextlib.suppress(FlightControllerError):
+                self.request_message(name, timeout=1.0)
+                return
 
     def _on_statustext(self, msg: Any, now: float) -> None:
         self.stats["statustext"] += 1
@@ -542,6 +582,8 @@ class MavlinkFlightController(LinkDriver):
                 changes["battery_remaining"] = m.battery_remaining / 100.0
         elif kind == "HOME_POSITION":
             changes["home"] = (m.latitude / 1e7, m.longitude / 1e7, m.altitude / 1000.0)
+        elif kind in BATTERY_IDENTITY:
+            changes["battery_serial"] = battery_serial(m)
         else:
             return
         self._holder.update(**changes)
@@ -1054,6 +1096,37 @@ def _home_location(m: Any) -> list[tuple[str, dict]]:
     ]
 
 
+def _wind_cov(m: Any) -> list[tuple[str, dict]]:
+    """PX4's estimate: wind_x/y/z are the air's velocity North, East, Down, NaN when
+    unknown [MAVLink WIND_COV]."""
+    values = (m.wind_x, m.wind_y, m.wind_z)
+    if not all(math.isfinite(v) for v in values[:2]):
+        return []
+    down = values[2] if math.isfinite(values[2]) else 0.0
+    return [
+        (
+            "WindVelocityActual",
+            {"North": values[0], "East": values[1], "Down": down, "Source": "WIND_COV"},
+        )
+    ]
+
+
+def _wind(m: Any) -> list[tuple[str, dict]]:
+    """ArduPilot's estimate: `direction` the wind comes from (degrees), `speed` in the
+    ground plane, `speed_z` vertical [MAVLink ardupilotmega, WIND]; the air moves the other
+    way."""
+    if not all(math.isfinite(v) for v in (m.direction, m.speed, m.speed_z)):
+        return []
+    towards = math.radians(m.direction + 180.0)
+    north, east = m.speed * math.cos(towards), m.speed * math.sin(towards)
+    return [
+        (
+            "WindVelocityActual",
+            {"North": north, "East": east, "Down": m.speed_z, "Source": "WIND"},
+        )
+    ]
+
+
 # MAVLink message -> the platform objects it updates.
 _PLATFORM_OBJECTS: dict[str, Callable[[Any], list[tuple[str, dict]]]] = {
     "HEARTBEAT": _flight_status,
@@ -1065,4 +1138,6 @@ _PLATFORM_OBJECTS: dict[str, Callable[[Any], list[tuple[str, dict]]]] = {
     "BATTERY_STATUS": _battery_status,
     "HIGHRES_IMU": _sensors,
     "HOME_POSITION": _home_location,
+    "WIND_COV": _wind_cov,
+    "WIND": _wind,
 }

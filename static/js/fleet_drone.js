@@ -36,6 +36,7 @@
       if (!c.trusted) clock.insertAdjacentHTML("beforeend", ' <span class="badge off">not trusted</span>');
     }
     set("last_seen", live.clock(drone.last_seen));
+    if (window.SkyhiveWind) window.SkyhiveWind.show(drone.fc);
   }
 
   /* Recent commands: each new command on top, its outcome filled in when it ends. */

@@ -198,10 +198,25 @@
       battery: live.batteryText(drone),
       mission: missionCell,
       link: live.age(drone.last_seen),
+      ready: fitToFly(drone),
     };
   }
 
-  const LABELS = { state: "State", alt: "Alt.", speed: "Speed", heading: "Heading", battery: "Battery", mission: "Mission · step", link: "Link" };
+  /* Whether the drone may fly: why it is not airworthy, and its pre-flight checklist. */
+  const CHECKLIST = { none: "not run", failed: "failed", passed: "passed", expired: "expired" };
+  function fitToFly(drone) {
+    const r = drone.readiness;
+    if (!r) return "–";
+    const air = r.airworthy
+      ? `<span class="airworthy">airworthy</span>`
+      : `<span class="not-airworthy">not airworthy: ${live.escapeHtml(r.reasons.join("; "))}</span>`;
+    const c = r.checklist || {};
+    const shown = `checklist ${CHECKLIST[c.status] || live.escapeHtml(String(c.status))}${c.required ? "" : " (not required)"}`;
+    const url = `/checklists/drones/${encodeURIComponent(drone.drone_id)}/`;
+    return `${air}<br><a class="checklist-${live.escapeHtml(String(c.status))}" href="${url}">${shown}</a>`;
+  }
+
+  const LABELS = { state: "State", alt: "Alt.", speed: "Speed", heading: "Heading", battery: "Battery", mission: "Mission · step", link: "Link", ready: "Fit to fly" };
 
   function buildRow(drone) {
     const row = document.createElement("tr");

@@ -38,6 +38,16 @@
     return SkyhiveMap.create(elementId, { zoomControl: true });
   }
 
+  /* Shows the points with some room around them, never closer than zoom 17 (as the fleet
+     map): a plan or track of one point has bounds of no size, which Leaflet would fill
+     at the map's maximum zoom, a view some 50 m across in which the zones, fences and
+     homes around it are out of sight. Not animated, so the view is final at once. */
+  const FIT_MAX_ZOOM = 17;
+  function fitTo(map, points) {
+    if (!points.length) return;
+    map.fitBounds(L.latLngBounds(points).pad(0.2), { maxZoom: FIT_MAX_ZOOM, animate: false });
+  }
+
   const PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b", "#e377c2"];
   const assigned = new Map();
   function colourFor(droneId) {
@@ -97,5 +107,5 @@
     return L.divIcon({ className: `drone-marker state-${drone.state || "lost_link"}`, html: body, iconSize: [18, 18], iconAnchor: [9, 9] });
   }
 
-  window.SkyhiveMissions = { api, escapeHtml, makeMap, colourFor, seconds, distance, liveSocket, fill, droneIcon };
+  window.SkyhiveMissions = { api, escapeHtml, makeMap, fitTo, colourFor, seconds, distance, liveSocket, fill, droneIcon };
 })();

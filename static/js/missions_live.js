@@ -50,8 +50,11 @@
       d.home = L.marker(live.home, { icon: home, title: `home of ${live.drone_id}` }).addTo(droneLayer);
     }
     if (!p || p.lat === null || p.lat === undefined) return;
-    if (!d.marker) d.marker = L.marker([p.lat, p.lon], { icon: droneIcon(live), title: live.drone_id, zIndexOffset: 1000 }).addTo(droneLayer);
-    else { d.marker.setLatLng([p.lat, p.lon]); d.marker.setIcon(droneIcon(live)); }
+    if (!d.marker) {
+      d.marker = L.marker([p.lat, p.lon], { icon: droneIcon(live), title: live.drone_id, zIndexOffset: 1000 }).addTo(droneLayer);
+      // Selecting a drone on the map plays its live video (static/js/missions_video.js).
+      d.marker.on("click", () => window.dispatchEvent(new CustomEvent("skyhive:select-drone", { detail: live.drone_id })));
+    } else { d.marker.setLatLng([p.lat, p.lon]); d.marker.setIcon(droneIcon(live)); }
     d.state = live.state;
     const points = d.track.getLatLngs();
     const last = points[points.length - 1];
@@ -106,7 +109,7 @@
     const plan = log.steps.filter((s) => s.command === "navigate").map((s) => [s.params.lat, s.params.lon]);
     if (plan.length) {
       L.polyline(plan, { color: "#999", weight: 1, dashArray: "4 4" }).addTo(planLayer);
-      if (!fitted) { map.fitBounds(L.latLngBounds(plan).pad(0.2)); fitted = true; }
+      if (!fitted) { M.fitTo(map, plan); fitted = true; }
     }
     const paths = new Map();
     for (const event of log.events) {

@@ -26,7 +26,7 @@
       .map((e) => ({ drone_id: e.drone_id, stage: e.command || `#${e.index}`, steps: 1, duration_s: e.duration_s }));
   }
 
-  function render(log) {
+  function render(log, storedId = null) {
     showError("");
     layer.clearLayers();
     $("log-title").textContent = log.mission && log.mission.name ? `${log.mission.name} (${log.mission.status || "?"})` : "Mission log";
@@ -59,7 +59,7 @@
         .bindTooltip(M.escapeHtml(e.message || kind));
       marks += 1;
     }
-    if (bounds.length) map.fitBounds(L.latLngBounds(bounds).pad(0.2));
+    M.fitTo(map, bounds);
     const body = document.querySelector("#stage-table tbody");
     body.replaceChildren();
     for (const s of stagesOf(log)) {
@@ -69,6 +69,9 @@
       body.append(row);
     }
     window.skyhiveLogViewer.shown = { drones: paths.size, marks, stages: body.children.length };
+    // The time cursor, replay and recorded video (static/js/missions_log_time.js).
+    window.skyhiveLogViewer.last = { log, mission: storedId };
+    window.dispatchEvent(new CustomEvent("skyhive:mission-log", { detail: window.skyhiveLogViewer.last }));
   }
 
   async function openFile(file) {
@@ -80,7 +83,7 @@
 
   async function openStored(id) {
     if (!id) return;
-    try { render(await M.api("GET", config.logUrl.replace(config.placeholder, id))); }
+    try { render(await M.api("GET", config.logUrl.replace(config.placeholder, id)), id); }
     catch (error) { showError(error.message); }
   }
 

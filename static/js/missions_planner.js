@@ -60,11 +60,32 @@
     return params;
   }
 
+  function actionSteps(action) {
+    if (action === "takepic") return [{ command: "takepic", params: {} }];
+    return action ? [{ command: action.command, params: { ...action.params } }] : [];
+  }
+
+  /* A terrain-following path (from the ground): every point climbs or descends to its
+     height above home at its leg's speed; only the coverage's waypoints take the action. */
+  function followedSteps(altitude, action) {
+    let height = altitude;
+    for (const p of area.followed) {
+      const delta = Math.round((p.height_m - height) * 1000) / 1000;
+      steps.push({ command: "navigate", params: { lat: p.lat, lon: p.lon, altitude_delta: delta, speed: p.speed_m_s } });
+      steps.push({ command: "wait_for_flight", params: { horizontal_tolerance: 2, vertical_tolerance: 2 } });
+      if (p.waypoint) steps.push(...actionSteps(action));
+      height += delta;
+    }
+    steps.push({ command: "land", params: {} });
+    renderSteps();
+  }
+
   function buildSteps() {
     if (!area) return;
     const altitude = Number($("altitude").value);
     const action = intermediateAction();
     steps = [{ command: "arm", params: {} }, { command: "takeoff", params: { altitude } }];
+    if (area.followed) { followedSteps(altitude, action); return; }
     for (const [lat, lon] of area.waypoints) {
       steps.push({ command: "navigate", params: { lat, lon, altitude_delta: 0 } });
       steps.push({ command: "wait_for_flight", params: { horizontal_tolerance: 2, vertical_tolerance: 2 } });
@@ -111,6 +132,7 @@
     terrainSeen = false;
     draftId = null;
     summarise();
+    document.dispatchEvent(new CustomEvent("skyhive:steps-changed"));
     const list = $("step-list");
     list.replaceChildren();
     steps.forEach((step, i) => {
@@ -164,19 +186,34 @@
     $("area").textContent = area.area_m2.toFixed(0);
   }
 
+  // Terrain following: heights are placed above the ground at the envelope's home,
+  // else the chosen drone's position, else the first corner.
+  let envelopeHome = null;
+  function followSpec() {
+    if (!$("follow-terrain").checked) return null;
+    const airspace = window.skyhiveAirspace;
+    const drone = airspace && airspace.dronePosition($("drone-choice").value);
+    return { home: envelopeHome || drone || vertices[0], tolerance_m: Number($("follow-tolerance").value) };
+  }
+
   // With a camera survey switched on, the spacings and the height come from the camera.
   async function areaFor(points) {
     const survey = window.skyhiveSurvey;
+    const body = { vertices: points, step_distance: Number($("step-distance").value), altitude: Number($("altitude").value) };
     if (survey && survey.active()) {
       const planned = await survey.plan(points, $("drone-choice").value || null);
       $("altitude").value = planned.geometry.height_m.toFixed(1);
       $("step-distance").value = planned.coverage.step_distance.toFixed(1);
       $("intermediate-action").value = "takepic";
-      return planned.coverage;
+      if (!followSpec()) return planned.coverage;
+      Object.assign(body, { step_distance: planned.coverage.step_distance, line_spacing: planned.line_spacing,
+                            altitude: planned.geometry.height_m });
     }
-    return M.api("POST", config.coverageUrl, {
-      vertices: points, step_distance: Number($("step-distance").value), altitude: Number($("altitude").value),
-    });
+    const following = followSpec();
+    if (following) body.terrain_following = following;
+    const answer = await M.api("POST", config.coverageUrl, body);
+    if (following) answer.request = body;
+    return answer;
   }
 
   async function requestCoverage() {
@@ -201,7 +238,13 @@
   $("clear-area").addEventListener("click", () => { vertices = []; area = null; steps = []; renderSteps(); drawArea(); });
   $("step-distance").addEventListener("change", requestCoverage);
   document.addEventListener("skyhive:survey-change", requestCoverage);
-  $("altitude").addEventListener("change", () => (area ? buildSteps() : null));
+  $("altitude").addEventListener("change", () => (area && area.followed ? requestCoverage() : area ? buildSteps() : null));
+  for (const id of ["follow-terrain", "follow-tolerance"]) {
+    $(id).addEventListener("change", () => {
+      $("follow-tolerance-label").hidden = !$("follow-terrain").checked;
+      requestCoverage();
+    });
+  }
   $("intermediate-action").addEventListener("change", () => {
     const kind = $("intermediate-action").value;
     $("action-param-label").hidden = !(kind === "sleep" || kind === "sense");
@@ -224,12 +267,16 @@
     (fence.polygons || []).forEach((p) => L.polygon(p.polygon, style(p.inclusion !== false)).addTo(fenceLayer));
     (fence.circles || []).forEach((c) => L.circle(c.circle.center, { radius: c.circle.radius, ...style(c.inclusion !== false) }).addTo(fenceLayer));
   }
-  M.api("GET", config.envelopeUrl).then((envelope) => drawFence(envelope.geoFence)).catch(() => null);
+  M.api("GET", config.envelopeUrl).then((envelope) => {
+    envelopeHome = envelope.home || null;
+    drawFence(envelope.geoFence);
+  }).catch(() => null);
 
   /* Ask the ground which steps the envelope refuses and mark them (an offending leg is
      drawn in red on the map too); which steps go beyond the envelope's defaults. */
   async function checkEnvelope(drone) {
     const answer = await M.api("POST", config.checkUrl, { steps, drone });
+    document.dispatchEvent(new CustomEvent("skyhive:plan-checked", { detail: answer }));
     drawFence(answer.envelope.geoFence);
     legLayer.clearLayers();
     const items = Array.from($("step-list").children);
@@ -294,7 +341,14 @@
     const confirm = confirmedBeyond ? { confirm_beyond_defaults: true } : {};
     if (!draftId) {
       const body = { name: $("mission-name").value, altitude: Number($("altitude").value), steps, ...confirm };
-      if (area) {
+      if (area && area.followed) {
+        // The ground builds a terrain-following mission itself, from the same request.
+        const r = area.request;
+        delete body.steps;
+        body.altitude = r.altitude;
+        body.coverage = { vertices: r.vertices, step_distance: r.step_distance, line_spacing: r.line_spacing,
+                          intermediate_action: intermediateAction(), terrain_following: r.terrain_following };
+      } else if (area) {
         body.extensibility = { vertices, vectors: area.vectors, step_distance: area.step_distance,
                                intermediate_action: intermediateAction() };
       }

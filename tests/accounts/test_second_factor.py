@@ -106,6 +106,21 @@ def test_moving_the_authenticator_asks_for_the_current_code(world):
     assert list(TOTPDevice.objects.filter(user=world.operator, confirmed=True)) == [new]
 
 
+def test_turning_the_authenticator_off_asks_for_its_current_code(world):
+    """Off, then on again with a new app, is no way around the current code: without it,
+    or with the password or a wrong code, the authenticator stays."""
+    client = signed_in(world.operator)
+    device = enrol(client, world.operator)
+    wrong = f"{(int(code(device)) + 1) % 1_000_000:06d}"
+    for proof in ({}, {"password": PASSWORD}, {"code": wrong}):
+        client.post("/accounts/security/two-factor/disable/", proof)
+        assert list(TOTPDevice.objects.filter(user=world.operator, confirmed=True)) == [device]
+    device.refresh_from_db()
+    device.throttle_reset()  # the wrong code slowed the device down (django-otp)
+    client.post("/accounts/security/two-factor/disable/", {"code": code(device, ahead=1)})
+    assert not TOTPDevice.objects.filter(user=world.operator, confirmed=True).exists()
+
+
 def test_enrolling_without_an_authenticator_asks_for_the_password(world):
     client = signed_in(world.viewer)
     client.get("/accounts/security/two-factor/")

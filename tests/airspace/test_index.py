@@ -95,6 +95,8 @@ def test_a_flights_legs_are_timed_at_its_speeds_and_widened():
     steps = [
         {"command": "arm"},
         {"command": "takeoff", "params": {"altitude": 20.0}},
+        # Climbed before it leaves (without the wait it leaves on a slant: test_slant.py).
+        {"command": "wait_for_flight"},
         {"command": "navigate", "params": {"lat": target[0], "lon": target[1]}},
         {"command": "land"},
     ]
@@ -107,5 +109,5 @@ def test_a_flights_legs_are_timed_at_its_speeds_and_widened():
     assert (cruise.low, cruise.high) == (18.0, 22.0) and (descent.low, descent.high) == (0.0, 22.0)
     assert abs(cruise.lat1 - target[0]) < 1e-12 and airborne_by == T + 30
     # Not landing: it hovers at its last waypoint for hold_s.
-    hovering, _ = flight_legs(steps[:3], (*ORIGIN, 0.0), T, pace)
+    hovering, _ = flight_legs(steps[:4], (*ORIGIN, 0.0), T, pace)
     assert hovering[-1].lat0 == hovering[-1].lat1 and hovering[-1].t1 == T + 90 * 1.5 + 30

@@ -36,13 +36,16 @@ def client_for(user) -> APIClient:  # type: ignore[no-untyped-def]
 
 
 def crossing(start: tuple[float, float], end: tuple[float, float], altitude: float) -> dict:
-    """Take off at home, fly from `start` to `end` (north, east metres), land."""
+    """Take off at home and climb to `altitude` before leaving (a navigate sent while
+    still climbing is flown on a slant: test_slant.py), fly from `start` to `end` (north,
+    east metres), land."""
     a, b = point_at(*start), point_at(*end)
     return {
         "name": f"{start} → {end}",
         "steps": [
             {"command": "arm"},
             {"command": "takeoff", "params": {"altitude": altitude}},
+            {"command": "wait_for_flight"},
             {"command": "navigate", "params": {"lat": a[0], "lon": a[1]}},
             {"command": "navigate", "params": {"lat": b[0], "lon": b[1]}},
             {"command": "land"},
@@ -197,11 +200,14 @@ def test_the_reservations_endpoint_lists_corridors_bands_and_windows_to_members_
 
 
 def _part(drone_id: str, home: tuple, far: tuple, first_index: int) -> PlannedPart:
-    """Take off at home, fly across to `far` and back home at the takeoff's height, land."""
+    """Take off at home and climb to its layer before leaving, as the platform's own parts
+    do (missions/handover.py), fly across to `far` and back home at the takeoff's height,
+    land."""
     a, b = point_at(*far), point_at(*home)
     steps = [
         {"command": "arm", "params": {}},
         {"command": "takeoff", "params": {"altitude": 20.0}},
+        {"command": "wait_for_flight", "params": {}},
         {"command": "navigate", "params": {"lat": a[0], "lon": a[1]}},
         {"command": "navigate", "params": {"lat": b[0], "lon": b[1]}},
         {"command": "land", "params": {}},
@@ -213,7 +219,7 @@ def _part(drone_id: str, home: tuple, far: tuple, first_index: int) -> PlannedPa
 def _split() -> Handover:
     parts = [
         _part("ACME_A", (-150, 0), (150, 0), 10),
-        _part("ACME_B", (0, -150), (0, 150), 15),
+        _part("ACME_B", (0, -150), (0, 150), 20),
     ]
     return Handover(parts, [s for p in parts for s in p.steps], [])
 
@@ -234,7 +240,7 @@ def test_the_platforms_own_split_over_two_drones_gets_separated_layers(two_drone
     # climbs one layer higher: 10 m vertical minimum + 2 × 2 m band tolerance.
     assert _takeoffs(plan) == {"ACME_A": 20.0, "ACME_B": 34.0}
     stored = {s["index"]: s for s in plan.new_steps}
-    assert stored[16]["params"]["altitude"] == 34.0 and stored[11]["params"]["altitude"] == 20.0
+    assert stored[21]["params"]["altitude"] == 34.0 and stored[11]["params"]["altitude"] == 20.0
     legs = {
         part.drone_id: reservations.planned_legs(by_id, part.steps)[0]
         for part in plan.assignments
@@ -245,19 +251,33 @@ def test_the_platforms_own_split_over_two_drones_gets_separated_layers(two_drone
     assert Airspace([other]).first_conflict(Flight(legs["ACME_B"], 2.0, 30.0, 10.0)) is None
 
 
-def test_a_split_with_no_clear_layer_under_the_ceiling_is_refused(two_drones):
+def test_a_split_with_no_clear_layer_under_the_ceiling_waits_or_is_refused(two_drones, settings):
     world = two_drones
     Organisation.objects.filter(pk=world.org.pk).update(envelope={"max_height": 30.0})
     drones = list(Drone.objects.filter(drone_id__in=["ACME_A", "ACME_B"]).order_by("drone_id"))
+    # No layer under the ceiling: ACME_B waits on the ground at the plan's height until
+    # ACME_A's crossing is behind it, its wait a new step before its arm.
+    plan = separation.layered_handover(_split(), drones)
+    assert _takeoffs(plan) == {"ACME_A": 20.0, "ACME_B": 20.0}
+    waiting = plan.assignments[1]
+    assert waiting.steps[0]["command"] == "sleep" and waiting.steps[0]["params"]["value"] > 0
+    assert waiting.preparation_indexes[0] == waiting.steps[0]["index"]
+    assert [s["index"] for s in plan.new_steps] == list(range(10, 23))
+    # Nor a wait within the longest allowed: refused.
+    settings.AIRSPACE_STAGGER_MAX_S = waiting.steps[0]["params"]["value"] - 10
     with pytest.raises(separation.Conflict) as refused:
         separation.layered_handover(_split(), drones)
     assert refused.value.code == "conflict" and "drone ACME_A" in refused.value.message
 
 
-def test_a_collaboration_whose_parts_cannot_be_separated_is_declined(world, outbox):
+def test_a_collaboration_whose_parts_layers_cannot_separate_is_staggered_or_declined(
+    world, outbox, settings
+):
     """The collaborative-sensing experiment's area ([Paula 2018], §5.4) is split into
     parts 7 m apart, each landing where it ends: with 30 m minima their landings come
-    down through each other's layers, so the extension is declined and nothing is sent."""
+    down through each other's layers. The joining drone waits on the ground until the
+    alarming drone's part is clear of it; without staggered departures the extension is
+    declined and nothing is sent."""
     area = coverage(rectangle(35, 28), 7)
     alarming = online_drone(world.org, "ACME_A", north=-10)
     online_drone(world.org, "ACME_B", north=-70, east=20)
@@ -270,15 +290,23 @@ def test_a_collaboration_whose_parts_cannot_be_separated_is_declined(world, outb
     assignment = start_mission(mission, drone=alarming).assignment
     Drone.objects.filter(pk=alarming.pk).update(airborne=True, alt=10.0)
     outbox.clear()
+    alarm = _alarm_event(mission, alarming, level="OUT_MEASURE", north=14)
+    settings.AIRSPACE_STAGGER_MAX_S = 0
     created = collaboration.collaborate(
-        mission_id=str(mission.pk),
-        assignment_id=str(assignment.pk),
-        alarm_event_id=_alarm_event(mission, alarming, level="OUT_MEASURE", north=14).pk,
+        mission_id=str(mission.pk), assignment_id=str(assignment.pk), alarm_event_id=alarm.pk
     )
     assert created == []
     decision = mission.events.get(data__decision="collaboration_failed")
     assert "separation minima" in decision.message and "drone ACME_A" in decision.message
     assert outbox.items() == []
+    decision.delete()
+    settings.AIRSPACE_STAGGER_MAX_S = 600.0
+    created = collaboration.collaborate(
+        mission_id=str(mission.pk), assignment_id=str(assignment.pk), alarm_event_id=alarm.pk
+    )
+    joining = next(a for a in created if a.drone.drone_id == "ACME_B")
+    first = mission.steps.get(index=joining.preparation[0])
+    assert first.command == "sleep" and first.params["value"] > 0
 
 
 def test_site_wide_another_organisations_drone_counts_and_is_not_named(world, settings):

@@ -34,14 +34,26 @@ ROUTES: dict[str, str | None] = {
     "telemetry/status/": "/telemetry/status/",
     "telemetry/drones/<str:drone_id>/": "/telemetry/drones/ACME_1/",
     "pastview/<str:drone_id>/": "/pastview/ACME_1/",
+    "video/": "/video/",
     "logs/": "/logs/",
     "logs/compare/": "/logs/compare/?ids={log}",
     "logs/<uuid:pk>/": "/logs/{log}/",
+    "logs/trends/": "/logs/trends/",
+    "logs/trends/<str:drone_id>/": "/logs/trends/ACME_1/",
+    # Needs two logs: tests/logs/test_trends_browser.py walks it.
+    "logs/compare/overlay/": None,
     "operations/": "/operations/",
     "records/drones/<str:drone_id>/": "/records/drones/ACME_1/",
     "records/pilots/<str:username>/": "/records/pilots/operator/",
     # Needs a recorded flight (only flights make records): tests/records/test_logbook_browser.py.
     "records/flights/<int:pk>/": None,
+    "maintenance/": "/maintenance/",
+    "maintenance/drones/<str:drone_id>/": "/maintenance/drones/ACME_1/",
+    "checklists/": "/checklists/",
+    "checklists/drones/<str:drone_id>/": "/checklists/drones/ACME_1/",
+    "batteries/": "/batteries/",
+    "batteries/drones/<str:drone_id>/choose/": None,  # POST only
+    "batteries/rules/": None,  # POST only
     "accounts/password/": "/accounts/password/",
     "accounts/password/done/": "/accounts/password/done/",
     "api/docs/": "/api/docs/",
@@ -80,6 +92,7 @@ ROUTES: dict[str, str | None] = {
     "missions/pictures/<int:pk>/": None,  # images
     "missions/pictures/<int:pk>/thumbnail/": None,  # images
     "logs/<uuid:pk>/download/": None,  # a file download
+    "logs/collection/<str:drone_id>/": None,  # POST only (the drone page's form)
     "pastview/api/<str:drone_id>/settings/": None,  # JSON
 }
 

@@ -7,6 +7,7 @@ import asyncio
 import json
 import os
 import signal
+import socket
 import threading
 import time
 from datetime import timedelta
@@ -202,3 +203,24 @@ def test_a_reply_arriving_after_the_connection_is_lost_comes_through_redis(
         drone.disconnect()
         drone.loop_stop()
     assert reply is not None and reply["result"] == {"late": True}
+
+
+def test_a_lost_connection_with_a_waiter_of_a_closed_event_loop_still_reconnects(
+    world_tx, broker, fresh_redis, ready_link, drone
+):
+    # A waiter left by an event loop that has ended (a finished test's, a stopped
+    # server's): losing the connection resolves it, which must not end paho's thread.
+    loop = asyncio.new_event_loop()
+
+    async def abandoned() -> None:
+        ready_link.expect(protocol.new_request_id(), "ACME_1")
+
+    loop.run_until_complete(abandoned())
+    loop.close()
+    ready_link.client.socket().shutdown(socket.SHUT_RDWR)
+    assert wait_for(lambda: not ready_link.ready.is_set(), 5), "the loss was not noticed"
+    assert ready_link.ready.wait(10), "the connection did not come back"
+    # No gateway runs: the reply can only come back over the connection that returned.
+    request = _request()
+    reply = async_to_sync(direct.arequest)("ACME_1", "control", request, timeout=5)
+    assert reply is not None and reply["request_id"] == request["request_id"]

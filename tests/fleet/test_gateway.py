@@ -340,10 +340,17 @@ def test_the_gateway_command_connects_and_drains_on_sigterm(broker, tmp_path):
         text=True,
     )
     try:
-        lines = [process.stdout.readline() for _ in range(2)]
-        assert any("connected to 127.0.0.1" in line for line in lines), lines
+        # Other lines (a warning from a library under load) may come first: read until the
+        # connection is reported or the process ends.
+        lines: list[str] = []
+        while not any("connected to 127.0.0.1" in line for line in lines):
+            line = process.stdout.readline()
+            assert line, lines
+            lines.append(line)
         process.send_signal(signal.SIGTERM)
-        output, _ = process.communicate(timeout=10)
+        # stop() gives each of its stages up to 5 s (outbox, lanes, batch thread): 30 s
+        # holds all of them with room for a loaded machine.
+        output, _ = process.communicate(timeout=30)
     finally:
         if process.poll() is None:
             process.kill()
@@ -389,6 +396,25 @@ def test_a_batch_of_heartbeats_is_one_update_keeping_each_drones_newest(world_tx
     assert Drone.objects.get(drone_id="ACME_1").lat == 3.0
     assert Drone.objects.get(drone_id="GLOBEX_1").lat == 2.0
     assert ConnectionEvent.objects.filter(kind="online").count() == 2
+
+
+def test_the_place_a_drone_last_stood_on_the_ground_is_its_home_once_it_flies(world_tx):
+    from fleet.envelopes import home_of
+    from fleet.heartbeats import handle_heartbeats
+    from onboard.protocol import parse_heartbeat
+
+    def beat(lat: float, alt: float, airborne: bool):  # type: ignore[no-untyped-def]
+        position = {"lat": lat, "lon": 0.5, "alt": alt}
+        message = heartbeat("ACME_1", position=position, armed=airborne, airborne=airborne)
+        return [("ACME_1", parse_heartbeat(message))]
+
+    handle_heartbeats(beat(1.0, 0.0, False))
+    handle_heartbeats(beat(1.001, 0.0, False))  # carried to another field: a new home
+    handle_heartbeats(beat(1.002, 12.0, True))
+    handle_heartbeats(beat(1.003, 15.0, True))
+    drone = Drone.objects.get(drone_id="ACME_1")
+    assert drone.home == [1.001, 0.5]
+    assert home_of(drone) == (1.001, 0.5)
 
 
 def test_the_offline_sweep_is_a_beat_task(world_tx, settings):

@@ -125,7 +125,9 @@ def test_zoom_requeries_series_by_range_and_replay_plays_only_the_selection(
     box = canvas.bounding_box()
 
     with page.expect_request(lambda r: "/series/" in r.url and "start=" in r.url) as request:
-        page.mouse.move(box["x"] + box["width"] / 2, box["y"] + 60)
+        # hover waits until the canvas stands still (the panels below it still load) and
+        # puts the pointer over it there.
+        canvas.hover(position={"x": box["width"] / 2, "y": 60})
         page.mouse.wheel(0, -800)
     query = parse_qs(urlparse(request.value.url).query)
     start, end = float(query["start"][0]), float(query["end"][0])
@@ -133,6 +135,7 @@ def test_zoom_requeries_series_by_range_and_replay_plays_only_the_selection(
     assert end - start < (info["end"] - info["start"]) / 2
     assert 100 <= int(query["points"][0]) <= 4000
 
+    box = canvas.bounding_box()  # where the canvas stands now
     page.mouse.move(box["x"] + box["width"] * 0.4, box["y"] + 60)
     page.mouse.down()
     page.mouse.move(box["x"] + box["width"] * 0.6, box["y"] + 60, steps=5)

@@ -14,6 +14,8 @@ from logs.synth_faults import FAULT_AT, ardupilot_bin, px4_ulog
 from tests.logs.conftest import upload, wait_until_processed
 
 pytestmark = [pytest.mark.e2e, pytest.mark.usefixtures("logs_settings")]
+# Every check's fields, as the API contract names them.
+CONTRACT = ("check", "status", "value", "unit", "threshold", "t", "reason")
 
 
 def client_for(user) -> Client:  # type: ignore[no-untyped-def]
@@ -39,7 +41,9 @@ def test_the_import_keeps_the_report_and_members_read_it(world_tx, motor_log, lo
     assert [c["name"] for c in kept["checks"]] == list(CHECKS)
     response = client_for(world_tx.viewer).get(f"/api/v1/logs/{log.pk}/checks/")
     assert response.status_code == 200
-    checks = {c["name"]: c for c in response.json()["checks"]}
+    checks = {c["check"]: c for c in response.json()["checks"]}
+    assert list(checks) == list(CHECKS)
+    assert all(set(CONTRACT) <= set(c) and c["name"] == n for n, c in checks.items())
     motors = checks["motor_imbalance"]
     assert motors["status"] == "fail"
     assert motors["t"] == pytest.approx(FAULT_AT["motor"], abs=0.1)

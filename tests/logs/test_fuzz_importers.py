@@ -274,7 +274,10 @@ def test_a_ulog_of_garbage_costs_one_read_not_one_per_byte(tmp_path):
     path.write_bytes(_ulog() + bytes(2 << 20))
     outcome, spent, _ = _bounded(path)
     assert isinstance(outcome, LogFormatError)
-    assert spent < TIME_FLOOR_S, spent  # was quadratic: 9 s for 20 KB
+    # Within the importers' stated bound for its size (docs/security.md); when the reader
+    # was quadratic in the bytes it skipped, 20 KB took 9 s.
+    size_mb = path.stat().st_size / 1e6
+    assert spent <= TIME_FLOOR_S + TIME_PER_MB_S * size_mb, spent
 
 
 _COMPRESSORS = {"bz2": bz2.compress, "lz4": lz4.frame.compress}

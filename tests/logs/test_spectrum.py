@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from logs.spectrum import SpectrumError, hann, spectrum, welch
-from logs.store import import_to_store
+from logs.store import import_to_store, open_store
 from logs.synth import write_ulog
 
 FS = 400.0
@@ -81,3 +83,22 @@ def test_a_short_window_gets_shorter_segments(store):
     assert short.nperseg == 128 and short.segments == 2
     with pytest.raises(KeyError):
         spectrum(store, "imu/nothing")
+
+
+# Flight Review's acceleration PSD of PX4's sample log (scipy.signal.spectrogram, Hann,
+# 256 samples, half overlap, density, averaged over time), computed with scipy 1.17:
+# the power per axis (m/s²)² and the peak, for docs/log-checks.md's anchors.
+FLIGHT_REVIEW_POWER = (0.0008237564088631188, 0.01054750282492023, 0.012926312592753675)
+FLIGHT_REVIEW_PEAK_HZ = 19.53125
+
+
+def test_the_acceleration_psd_of_px4s_sample_log_equals_flight_reviews(tmp_path):
+    sample = Path(__file__).resolve().parents[1] / "data" / "ulog" / "sample_appended_multiple.ulg"
+    import_to_store(sample, tmp_path / "store")
+    store = open_store(tmp_path / "store")
+    for axis, power in enumerate(FLIGHT_REVIEW_POWER):
+        found = spectrum(store, f"sensor_combined/accelerometer_m_s2[{axis}]", nperseg=256)
+        assert found.segments == 17 and found.fs == pytest.approx(250.0)
+        df = found.frequency[1] - found.frequency[0]
+        assert float(np.sum(found.psd) * df) == pytest.approx(power, rel=1e-4)
+        assert found.frequency[np.argmax(found.psd[1:]) + 1] == FLIGHT_REVIEW_PEAK_HZ

@@ -9,12 +9,12 @@ from logs import LogFormatError, find_special, import_log
 T0_US = 1_700_000_000_000_000
 
 
-def write_tlog(path, n=50):
+def write_tlog(path, n=50, t0_us=T0_US):
     """A .tlog as ground stations write it: 8-byte big-endian µs stamp + MAVLink packet."""
     mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
     with open(path, "wb") as f:
         for i in range(n):
-            stamp = struct.pack(">Q", T0_US + i * 100_000)
+            stamp = struct.pack(">Q", t0_us + i * 100_000)
             msgs = [
                 mavlink2.MAVLink_attitude_message(i * 100, 0.01 * i, -0.02 * i, 1.5, 0.0, 0.0, 0.0),
                 mavlink2.MAVLink_global_position_int_message(

@@ -34,23 +34,25 @@ def test_replacement_after_13_waypoints_hands_over_the_other_15_and_each_index_o
     plan = plan_replacement(tracked, stop_position=stop, altitude=10, drone_id="DRONE2")
     (assignment,) = plan.assignments
     assert assignment.drone_id == "DRONE2"
-    assert [s["command"] for s in assignment.steps[:4]] == [
+    # Climb, then go: it reaches its height over its own column before it leaves.
+    assert [s["command"] for s in assignment.steps[:5]] == [
         "arm",
         "takeoff",
+        "wait_for_flight",
         "navigate",
         "wait_for_flight",
     ]
     assert assignment.steps[1]["params"] == {"altitude": 10.0}
-    assert assignment.steps[2]["params"] == {"lat": stop[0], "lon": stop[1]}
-    assert assignment.preparation_indexes == [59, 60, 61, 62]
-    assert plan.new_steps == assignment.steps[:4]
+    assert assignment.steps[3]["params"] == {"lat": stop[0], "lon": stop[1]}
+    assert assignment.preparation_indexes == [59, 60, 61, 62, 63]
+    assert plan.new_steps == assignment.steps[:5]
 
     first_drone = [s["index"] for s in tracked if s["status"] == "completed"]
     second_drone = assignment.handed_over_indexes
     done = Counter(first_drone + second_drone)
     assert sorted(done) == list(range(59)), "no step skipped"
     assert set(done.values()) == {1}, "no step done twice"
-    navigated = [s for s in assignment.steps[4:] if s["command"] == "navigate"]
+    navigated = [s for s in assignment.steps[5:] if s["command"] == "navigate"]
     assert len(navigated) == 15
     assert navigated[0]["params"] == steps[28]["params"]
     assert assignment.steps[-1] == {"index": 58, "command": "land", "params": {}}
@@ -71,17 +73,18 @@ def test_replacement_mid_waypoint_first_flies_to_the_waypoint_its_wait_is_for(
     # The failing drone was sent to waypoint 14 (index 28) but had not arrived.
     plan = plan_replacement(with_status(steps, 28), stop_position=point_at(5, 5), altitude=10)
     assignment = plan.assignments[0]
-    assert [s["command"] for s in assignment.steps[:6]] == [
+    assert [s["command"] for s in assignment.steps[:7]] == [
         "arm",
         "takeoff",
+        "wait_for_flight",
         "navigate",
         "wait_for_flight",
         "navigate",
         "wait_for_flight",
     ]
-    assert assignment.steps[4]["params"] == {"lat": waypoints[13][0], "lon": waypoints[13][1]}
-    assert assignment.steps[5]["index"] == 29  # the mission's own pending wait
-    assert assignment.preparation_indexes == [59, 60, 61, 62, 63]
+    assert assignment.steps[5]["params"] == {"lat": waypoints[13][0], "lon": waypoints[13][1]}
+    assert assignment.steps[6]["index"] == 29  # the mission's own pending wait
+    assert assignment.preparation_indexes == [59, 60, 61, 62, 63, 64]
 
 
 def test_replacement_without_a_gps_fix_goes_to_the_last_completed_waypoint(
@@ -89,7 +92,7 @@ def test_replacement_without_a_gps_fix_goes_to_the_last_completed_waypoint(
 ):
     waypoints, steps = self_replacement_steps
     plan = plan_replacement(with_status(steps, 27), stop_position=None, altitude=10)
-    assert plan.assignments[0].steps[2]["params"] == {
+    assert plan.assignments[0].steps[3]["params"] == {
         "lat": waypoints[12][0],
         "lon": waypoints[12][1],
     }
@@ -143,8 +146,10 @@ def test_collaboration_gives_the_alarming_drone_a_part_without_preparation():
     assert by_drone["A"].preparation_indexes == []
     assert by_drone["A"].steps[0]["command"] == "navigate"
     for joining in ("B", "C"):
-        assert [s["command"] for s in by_drone[joining].steps[:2]] == ["arm", "takeoff"]
-        assert len(by_drone[joining].preparation_indexes) == 2
+        commands = [s["command"] for s in by_drone[joining].steps[:4]]
+        # It climbs to its height before it leaves (no slant across lower layers).
+        assert commands == ["arm", "takeoff", "wait_for_flight", "navigate"]
+        assert len(by_drone[joining].preparation_indexes) == 3
     covered = sorted(i for a in plan.assignments for i in a.waypoint_indexes)
     assert covered == list(range(56))
     navigated = [s for a in plan.assignments for s in a.steps if s["command"] == "navigate"]

@@ -53,6 +53,9 @@ def test_the_planner_turns_three_clicks_into_45_waypoints_and_sends_the_mission(
     # The list is summarised, one click away; open it and drag take-off above arm, then
     # back: the list is editable by drag and drop.
     assert "45 waypoints" in page.locator("#step-summary").inner_text()
+    # The height profile is drawn above the list once the plan is checked: drag after it
+    # has appeared, or the list moves under the pointer mid-drag.
+    page.wait_for_selector("#height-profile:not([hidden])")
     page.click("#step-details summary")
     commands = page.locator("#step-list .step select.command")
     steps = page.locator("#step-list .step")

@@ -180,7 +180,7 @@ def test_a_duplicated_critical_alarm_causes_one_replacement(world, outbox):
     )
     assert replacing.step_indexes == remaining
     prep = [mission.steps.get(index=i).command for i in replacing.preparation]
-    assert prep[:3] == ["arm", "takeoff", "navigate"]
+    assert prep[:4] == ["arm", "takeoff", "wait_for_flight", "navigate"]
     decision = mission.events.get(kind=Event.Kind.DECISION, data__decision="replacement")
     assert decision.data["drone_id"] == "ACME_B" and decision.data["since_alarm_ms"] >= 0
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import threading
+
 import pytest
 
 from onboard.failsafe import DrainMeter, FailSafe, Limits, energy_to_get_home, parse_bounds
@@ -184,6 +186,38 @@ def test_a_completed_mission_returns_and_a_stopped_one_holds() -> None:
     assert failsafe.recovery is None
     failsafe.mission_ended("completed")
     assert failsafe.recovery == "return" and fc.calls[-1] == ("goto", 0.0, 0.0, -10.0)
+
+
+class TickDuringGoto(FakeFlightController):
+    """Runs `tick` on another thread, and waits for it, before a goto is sent: the
+    agent's supervisor ticking between a take-over's decision and its command, as a
+    loaded machine lets it."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tick = None
+
+    def goto_ned(self, north: float, east: float, down: float) -> None:
+        tick, self.tick = self.tick, None
+        if tick is not None:
+            thread = threading.Thread(target=tick)
+            thread.start()
+            thread.join(5)
+        super().goto_ned(north, east, down)
+
+
+def test_a_mission_completed_over_home_lands_after_its_return_whenever_the_tick_comes() -> None:
+    """Rule: the fail-safe's own commands reach the drone in the order it decides them;
+    a landing over home is never overtaken by the return that led to it."""
+    fc = TickDuringGoto()
+    fc.arm()
+    fc.move_to(0.0, 0.0, -10.0)  # the mission ended over home
+    failsafe, _, _ = failsafe_for(fc)
+    fc.tick = failsafe.check_recovery
+    failsafe.mission_ended("completed")
+    failsafe.check_recovery()
+    assert fc.calls[-2:] == [("goto", 0.0, 0.0, -10.0), ("land",)]
+    assert failsafe.recovery == "land"
 
 
 def test_a_mission_completed_on_the_ground_disarms_at_once() -> None:

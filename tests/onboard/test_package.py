@@ -35,6 +35,8 @@ MODULE_OF = {
     "numpy": "numpy",
     "pillow": "PIL",
     "gpiod": "gpiod",
+    "aiortc": "aiortc",
+    "av": "av",
 }
 HOME = (40.6303, -8.6575, 12.0)
 SCALE = 20.0

@@ -73,7 +73,15 @@ def test_a_failing_remote_id_keeps_the_drone_from_arming(world_tx, failing_drone
         timeout=20,
         interval=0.1,
     )
-    assert received(tmp_path, "OPEN_DRONE_ID_OPERATOR_ID")["operator_id"] == "FIN87astrdge12k8"
+    # The module records each message as it comes: the operator id follows the basic id.
+    assert wait_for(
+        lambda: (
+            (received(tmp_path, "OPEN_DRONE_ID_OPERATOR_ID") or {}).get("operator_id")
+            == "FIN87astrdge12k8"
+        ),
+        timeout=20,
+        interval=0.1,
+    )
 
     client = client_for(world_tx.operator)
     verdict = client.get(f"/api/v1/drones/{DRONE}/airworthiness/").json()

@@ -449,16 +449,26 @@ def connect_any(client, urls: str) -> None:  # type: ignore[no-untyped-def]
     raise AssertionError(f"no broker node answers: {error!r}")
 
 
+def drone_client_id(urls: str) -> str:
+    """The drone id of a drone's broker URLs (comma-separated): the client id a drone
+    account without its agent connects with."""
+    from urllib.parse import unquote, urlsplit
+
+    return unquote(urlsplit(urls.split(",")[0]).username or "")
+
+
 def publish_as(url: str, topic: str, message: dict) -> None:
-    """Publish once with a drone's own credentials (QoS 1), as a redelivery would arrive."""
+    """Publish once with a drone's own credentials (QoS 1), as a redelivery would arrive.
+    The client id is the drone id, one a drone account may use beside its agent's
+    `skyhive-agent-<id>` (brokers refuse or replace any other)."""
     import json
     import threading
 
     import paho.mqtt.client as mqtt
 
-    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=uuid.uuid4().hex)
+    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=drone_client_id(url))
     connected = threading.Event()
-    client.on_connect = lambda c, u, f, rc, p: connected.set()
+    client.on_connect = lambda c, u, f, rc, p: rc.is_failure or connected.set()
     connect_any(client, url)
     client.loop_start()
     try:
@@ -591,7 +601,9 @@ class Telemetry:
         import paho.mqtt.client as mqtt
 
         try:
-            client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=uuid.uuid4().hex)
+            client = mqtt.Client(
+                mqtt.CallbackAPIVersion.VERSION2, client_id=drone_client_id(self.url)
+            )
             client.max_queued_messages_set(0)
             connect_any(client, self.url)
             client.loop_start()

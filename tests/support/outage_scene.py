@@ -37,6 +37,15 @@ def main(failing_id: str, spare_id: str) -> dict:
                 "battery_voltage": 16.4,
             },
         )
+    # Every scene's drones share this organisation and database: the reservations an
+    # earlier scene's flights left (its drones are no longer flown) are ended.
+    from django.utils import timezone
+
+    from airspace.models import Reservation
+
+    Reservation.objects.filter(organisation=org, ended_at__isnull=True).exclude(
+        drone__drone_id__in=[failing_id, spare_id]
+    ).update(ended_at=timezone.now(), end_reason="scene reset")
     steps = [{"command": "arm"}, {"command": "takeoff", "params": {"altitude": 10}}]
     for north in (20.0, 40.0):
         lat, lon = point_at(north, 10.0)

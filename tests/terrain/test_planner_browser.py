@@ -88,3 +88,36 @@ def test_without_any_terrain_the_planner_says_so_and_sends(page, live_asgi, worl
     plan(page, 900.0)
     sent(page)
     assert "No terrain at home" in page.locator("#terrain-warnings li").first.inner_text()
+
+
+def test_a_terrain_following_survey_is_planned_drawn_and_sent(page, live_asgi, world_tx, tmp_path):
+    from .test_following import STRIP
+
+    with terrain_on_the_server(tmp_path, hill_tile()):
+        envelopes.set_envelope(world_tx.org, {"home": list(HOME), "max_height": 400, "max_distance": 2000})  # fmt: skip
+        login(page, live_asgi, "operator")
+        page.goto(f"{live_asgi.url}/missions/plan/")
+        page.wait_for_function("window.skyhivePlanner && window.skyhiveAirspace")
+        page.check("#follow-terrain")
+        page.fill("#altitude", "50")
+        page.fill("#step-distance", "300")
+        page.evaluate(
+            "(pts) => pts.forEach((p) => window.skyhivePlanner.map.fire('click', {latlng: L.latLng(p[0], p[1])}))",
+            STRIP,
+        )
+        page.wait_for_selector("#height-profile:not([hidden])")
+        summary = page.locator("#height-profile-summary").inner_text()
+        assert "above the terrain" in summary, summary
+        assert page.locator("polygon.profile-ground").count() >= 1
+        speeds = page.evaluate(
+            "window.skyhivePlanner.steps.filter((s) => s.command === 'navigate').map((s) => s.params.speed)"
+        )
+        assert len(speeds) > 4 and all(0 < v <= 5 for v in speeds)
+        page.click("#send-mission")
+        page.wait_for_selector("#beyond-defaults:not([hidden])")
+        page.fill("#beyond-defaults-typed", "CONFIRM")
+        page.click("#beyond-defaults-send")
+        sent(page)
+        mission = Mission.objects.get()
+        assert mission.extensibility["terrain_following"]["height_agl_m"] == 50
+        assert mission.plan_home == list(HOME)

@@ -3,16 +3,21 @@
 Mosquitto as scripts/services.sh starts it: the ground's processes on a listener of their
 own, drones on theirs, where the client id is the username. Two drone accounts and the
 gateway: a drone that asks for another's client id gets its own, the victim stays
-connected and keeps its queued QoS 1 messages. RabbitMQ 3.10 cannot bind a client id to
-its account; what it does refuse (another account's session queue) is checked on the
-real cluster, and what remains is stated in docs/security.md ("Broker sessions").
+connected and keeps its queued QoS 1 messages. On RabbitMQ 3.10 (the real two-node
+cluster scripts/rabbitmq.sh starts) the nodes' auth service refuses a drone that asks for
+another account's client id, and the holder stays connected; another account's session
+queue is refused too. See docs/security.md ("Broker sessions").
 """
 
 from __future__ import annotations
 
+import io
+import json
 import os
 import pwd
 import shutil
+import signal
+import socket
 import stat
 import subprocess
 import tempfile
@@ -24,10 +29,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from django.core.management import call_command
 
 from fleet import credentials
+from fleet.models import Drone
 from runtime.processes import free_port, wait_for
-from workers.broker.credentials import MosquittoBackend, stored_hash
+from workers.broker.credentials import DRONE_TAG, MosquittoBackend, rabbitmq_hash, stored_hash
+from workers.broker.rabbitmq_admin import RabbitMQAdmin, rabbit_password_hash
+from workers.broker.rabbitmq_auth import password_parameter
 
 from .test_rabbitmq_credentials import Peer, drone_url, ground_peer, rabbit  # noqa: F401
 
@@ -220,18 +229,58 @@ def test_the_database_superuser_password_file_is_never_readable_by_others():
     assert all(stat.S_IMODE(mode) & 0o077 == 0 for mode in seen.values()), seen
 
 
-# -- RabbitMQ: what its MQTT plugin refuses -----------------------------------------------
+# -- RabbitMQ: the client id is bound to the account by the nodes' auth service -----------
+
+
+def _rabbit_gateway_id() -> str:
+    return f"gateway-{uuid.uuid4().hex[:6]}-0"
+
+
+@pytest.mark.django_db(transaction=True)
+def test_on_rabbitmq_a_drone_asking_for_another_accounts_client_id_is_refused_and_the_holder_stays(
+    world_tx,
+    rabbit,  # noqa: F811
+):
+    victim_creds = credentials.provision("ACME_1")
+    attacker_creds = credentials.provision("GLOBEX_1")
+    gateway_id = _rabbit_gateway_id()
+    gateway = Peer(rabbit.mqtt_urls[0], gateway_id, clean_session=False)
+    gateway.subscribe("+/alarms/out")
+    publisher_id = f"web-test-{uuid.uuid4().hex[:6]}"
+    publisher = Peer(rabbit.mqtt_urls[1], publisher_id)
+    victim = Peer(drone_url(victim_creds, 2), "skyhive-agent-ACME_1", clean_session=False)
+    victim.subscribe("ACME_1/+/in")
+    stolen_ids = ["skyhive-agent-ACME_1", "ACME_1", gateway_id, publisher_id]
+    for node in (1, 2):
+        for stolen in stolen_ids:
+            with pytest.raises(ConnectionRefusedError, match=REFUSED):
+                Peer(drone_url(attacker_creds, node), stolen)
+        with pytest.raises(ConnectionRefusedError, match=REFUSED):  # the broker makes one up
+            Peer(drone_url(attacker_creds, node), "")
+    for holder in (gateway, publisher, victim):
+        assert not _gone(holder)
+    # Each holder's link still works, and the attacker flies under its own ids.
+    attacker = Peer(drone_url(attacker_creds, 1), "skyhive-agent-GLOBEX_1")
+    attacker.subscribe("GLOBEX_1/+/in")
+    publisher.publish("ACME_1/control/in", b"for the victim")
+    publisher.publish("GLOBEX_1/control/in", b"for the attacker")
+    victim.publish("ACME_1/alarms/out", b"alarm")
+    assert wait_for(lambda: ("ACME_1/control/in", b"for the victim") in victim.received, 5)
+    assert wait_for(lambda: ("GLOBEX_1/control/in", b"for the attacker") in attacker.received, 5)
+    assert wait_for(lambda: ("ACME_1/alarms/out", b"alarm") in gateway.received, 5)
+    assert victim.topics() == ["ACME_1/control/in"]
+    for peer in (gateway, publisher, victim, attacker):
+        peer.stop()
 
 
 @pytest.mark.django_db(transaction=True)
 def test_on_rabbitmq_a_drone_cannot_take_or_wipe_another_accounts_session(world_tx, rabbit):  # noqa: F811
-    """RabbitMQ 3.10 registers a client id before the session, whoever asks: the holder is
-    disconnected (it reconnects). The session queue and what is queued in it stay: both
-    resuming it and a clean session (which deletes it) need permissions on a queue that
-    only its own account has."""
+    """Neither resuming another account's persistent session nor wiping it with a clean
+    one gets through: the client id is refused at login, and the session queue needs
+    permissions only its own account has. What was queued for the holders stays."""
     victim_creds = credentials.provision("ACME_1")
     attacker_creds = credentials.provision("GLOBEX_1")
-    gateway_id = f"gateway-{uuid.uuid4().hex[:6]}-0"
+    gateway_id = _rabbit_gateway_id()
     gateway = Peer(rabbit.mqtt_urls[0], gateway_id, clean_session=False)
     gateway.subscribe("+/alarms/out")
     victim = Peer(drone_url(victim_creds, 1), "ACME_1", clean_session=False)
@@ -240,7 +289,7 @@ def test_on_rabbitmq_a_drone_cannot_take_or_wipe_another_accounts_session(world_
     gateway.stop()
     ground = ground_peer(rabbit, 1)
     ground.publish("ACME_1/control/in", b"queued command")
-    sender = Peer(drone_url(victim_creds, 2), f"sender-{uuid.uuid4().hex[:6]}")
+    sender = Peer(drone_url(victim_creds, 2), "skyhive-agent-ACME_1")
     sender.publish("ACME_1/alarms/out", b"queued alarm")
     time.sleep(0.5)
     for stolen in ("ACME_1", gateway_id):
@@ -253,3 +302,83 @@ def test_on_rabbitmq_a_drone_cannot_take_or_wipe_another_accounts_session(world_
     assert wait_for(lambda: ("ACME_1/alarms/out", b"queued alarm") in gateway.received, 5)
     for peer in (victim, gateway, ground, sender):
         peer.stop()
+
+
+@pytest.mark.django_db(transaction=True)
+def test_on_rabbitmq_drones_are_refused_while_the_auth_service_is_down_or_silent_and_the_ground_is_not(
+    world_tx,
+    rabbit,  # noqa: F811
+):
+    """Fail closed for drones: node 1's auth service stopped, then a listener on its port
+    that never answers (the node gives up after auth_http.request_timeout). The ground's
+    logins never reach it; node 2, whose service runs, still takes the drone."""
+    creds = credentials.provision("ACME_1")
+    pid_file = ROOT / ".data" / rabbit.profile / "rabbitmq" / "1" / "auth.pid"
+    os.kill(int(pid_file.read_text()), signal.SIGTERM)
+    assert wait_for(lambda: not _port_open(rabbit.port_base + 41), 5)
+    try:
+        with pytest.raises(ConnectionRefusedError, match=REFUSED):
+            Peer(drone_url(creds, 1), "ACME_1")
+        Peer(rabbit.mqtt_urls[0], f"web-test-{uuid.uuid4().hex[:6]}").stop()
+        Peer(drone_url(creds, 2), "ACME_1").stop()
+        with socket.create_server(("127.0.0.1", rabbit.port_base + 41)) as silent:
+            silent.settimeout(10)
+            with pytest.raises(ConnectionRefusedError, match=REFUSED):
+                Peer(drone_url(creds, 1), "ACME_1", connect_timeout=15)
+            asked, _ = silent.accept()  # the node did ask, and got no answer
+            asked.close()
+            Peer(rabbit.mqtt_urls[0], f"web-test-{uuid.uuid4().hex[:6]}").stop()
+    finally:
+        rabbit.start_node(1)  # starts the node's auth service again
+    Peer(drone_url(creds, 1), "ACME_1").stop()
+
+
+@pytest.mark.django_db(transaction=True)
+def test_on_rabbitmq_drone_users_left_with_a_password_of_their_own_are_upgraded_at_start(
+    world_tx,
+    rabbit,  # noqa: F811
+):
+    """A cluster provisioned before the auth service checked client ids keeps each drone's
+    password in its user, where the internal backend logs it in under any client id. The
+    ground's start (`provision_drone --upgrade`, run by `make run`) moves the hash to its
+    parameter with the same password, removes an outdated user the database no longer
+    has, and changes nothing the second time."""
+    victim_creds = credentials.provision("ACME_1")
+    old_creds = credentials.provision("GLOBEX_1")
+    admin = RabbitMQAdmin.from_settings()
+    stored = Drone.objects.get(drone_id="GLOBEX_1").mqtt_password_hash
+    admin.put_user("GLOBEX_1", rabbitmq_hash(stored), tags=[DRONE_TAG])
+    admin.delete_global_parameter(password_parameter("GLOBEX_1"))
+    admin.put_user("STALE_1", rabbit_password_hash("old"), tags=[DRONE_TAG])
+    # The earlier form bypasses the client-id check: this is what the start must close.
+    Peer(drone_url(old_creds, 1), f"not-mine-{uuid.uuid4().hex[:6]}").stop()
+
+    upgraded = _upgrade()
+
+    assert {"GLOBEX_1", "STALE_1"} <= set(upgraded) and "ACME_1" not in upgraded
+    users = {user["name"]: user for user in admin.users()}
+    assert "STALE_1" not in users and users["GLOBEX_1"]["password_hash"] == ""
+    victim = Peer(drone_url(victim_creds, 2), "skyhive-agent-ACME_1")
+    for node in (1, 2):
+        for stolen in ("skyhive-agent-ACME_1", f"not-mine-{uuid.uuid4().hex[:6]}"):
+            with pytest.raises(ConnectionRefusedError, match=REFUSED):
+                Peer(drone_url(old_creds, node), stolen)
+        Peer(drone_url(old_creds, node), "skyhive-agent-GLOBEX_1").stop()  # same password
+    assert not _gone(victim)
+    victim.stop()
+    assert not {"ACME_1", "GLOBEX_1", "STALE_1"} & set(_upgrade())
+
+
+def _upgrade() -> list[str]:
+    out = io.StringIO()
+    call_command("provision_drone", "--upgrade", stdout=out)
+    return json.loads(out.getvalue())["upgraded"]
+
+
+# A CONNACK refusing the login (not a connection that timed out).
+REFUSED = "Bad user name or password"
+
+
+def _port_open(port: int) -> bool:
+    with socket.socket() as probe:
+        return probe.connect_ex(("127.0.0.1", port)) == 0

@@ -87,8 +87,8 @@ def node_url(creds: credentials.Credentials, node: int) -> str:
 class Drone:
     """A drone's MQTT connection to one node: publishes, and records what it is sent.
 
-    Its RabbitMQ user may only own session queues of the client ids drones use, so one
-    that subscribes connects as the drone id itself."""
+    A drone account logs in only under the client ids drones use (its id, or the agent's
+    `skyhive-agent-<id>`); a ground connection takes any id of its own."""
 
     def __init__(self, url: str, drone_id: str, *, client_id: str | None = None) -> None:
         from urllib.parse import unquote, urlsplit
@@ -239,8 +239,8 @@ def test_two_gateways_on_different_nodes_handle_every_drone_message_exactly_once
         started(cleanup, recording_gateway("gw-b", 2, cluster)),
     ]
     drones = [
-        started(cleanup, Drone(node_url(first, 1), "ACME_1")),
-        started(cleanup, Drone(node_url(second, 2), "GLOBEX_1")),
+        started(cleanup, Drone(node_url(first, 1), "ACME_1", client_id="ACME_1")),
+        started(cleanup, Drone(node_url(second, 2), "GLOBEX_1", client_id="GLOBEX_1")),
     ]
     SEEN.clear()
     start = time.time()
@@ -283,8 +283,8 @@ def test_two_ingests_store_every_telemetry_sample_exactly_once(world_tx, on_clus
     creds = credentials.provision("ACME_1")
     ingests = [ingestor(cleanup, 1, cluster), ingestor(cleanup, 2, cluster)]
     drones = [
-        started(cleanup, Drone(node_url(creds, 1), "ACME_1")),
-        started(cleanup, Drone(node_url(creds, 2), "ACME_1")),
+        started(cleanup, Drone(node_url(creds, 1), "ACME_1", client_id="ACME_1")),
+        started(cleanup, Drone(node_url(creds, 2), "ACME_1", client_id="skyhive-agent-ACME_1")),
     ]
     start = time.time() - 60
     for i in range(600):

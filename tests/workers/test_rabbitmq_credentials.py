@@ -69,7 +69,9 @@ def _forget_drone_users(admin: RabbitMQAdmin) -> None:
 class Peer:
     """A connected paho client that records what it receives and whether it was cut off."""
 
-    def __init__(self, url: str, client_id: str, *, clean_session: bool = True) -> None:
+    def __init__(
+        self, url: str, client_id: str, *, clean_session: bool = True, connect_timeout: float = 5
+    ) -> None:
         parts = urlsplit(url)
         self.received: list[tuple[str, bytes]] = []
         self.disconnected = threading.Event()
@@ -90,7 +92,7 @@ class Peer:
         self.client.on_connect = on_connect
         self.client.connect(parts.hostname, parts.port, keepalive=10)
         self.client.loop_start()
-        connected.wait(5)
+        connected.wait(connect_timeout)
         if "rc" not in outcome or outcome["rc"].is_failure:
             self.stop()
             raise ConnectionRefusedError(str(outcome.get("rc")))

@@ -4,7 +4,8 @@ The package is the one place that knows which broker runs (settings.MQTT_BROKER)
 nodes and the consumers; `credentials` its users and ACLs (Mosquitto's files, or RabbitMQ
 users through `rabbitmq_admin`); `figures` and `mosquitto_sys` what the operations page
 shows of it, `probe` whether a node accepts the ground's connection (/health); `amqp` and
-`mqtt_reader` the two kinds of consumer.
+`mqtt_reader` the two kinds of consumer; `client` the paho connection of the gateway, a web
+process's direct link and the past view (no ground module outside this package imports paho).
 
 Two brokers are supported (settings.MQTT_BROKER). Mosquitto is one node and shares the
 drones' messages among several ground processes with MQTT shared subscriptions

@@ -10,8 +10,10 @@ settings.MQTT_BROKER:
 - RabbitMQ (MQTT plugin, clustered): one user per drone through the management API
   (workers.broker.rabbitmq_admin), with vhost permissions limited to the drone's own MQTT
   session queues and `amq.topic`, and topic permissions on `amq.topic` equivalent to
-  Mosquitto's ACL (RabbitMQ maps MQTT's `/` to `.` in routing keys). Revocation deletes the
-  user, closes its open connections and drops its session queues.
+  Mosquitto's ACL (RabbitMQ maps MQTT's `/` to `.` in routing keys). The user has no
+  password of its own: its hash is a global parameter that the nodes' auth service
+  (workers.broker.rabbitmq_auth) checks, with the client id. Revocation deletes the
+  user and that parameter, closes its open connections and drops its session queues.
 
 A stored hash holds Mosquitto's `$7$` hash (PBKDF2-SHA512, as `mosquitto_passwd` writes it)
 followed, after a space, by RabbitMQ's own salted SHA-256 hash: the two formats cannot be
@@ -46,6 +48,7 @@ from .rabbitmq_admin import (
     RabbitMQAdminError,
     rabbit_password_hash,
 )
+from .rabbitmq_auth import PARAMETER_PREFIX, password_parameter
 
 log = logging.getLogger(__name__)
 
@@ -166,6 +169,13 @@ class BrokerBackend(Protocol):
 
     def sync(self, drones: list[tuple[str, str]]) -> SyncReport: ...
 
+    def outdated_users(self) -> list[str]:
+        """Drone users the broker holds in an earlier form than provisioning writes now."""
+
+    def upgrade(self, outdated: list[str], drones: list[tuple[str, str]]) -> None:
+        """Bring these outdated users to the current form: `drones` are the live ones among
+        them with their stored hashes; the others go."""
+
 
 def backend(live_drones: LiveDrones) -> BrokerBackend:
     """The backend of the configured broker (settings.MQTT_BROKER)."""
@@ -279,6 +289,14 @@ class MosquittoBackend:
         removed = sorted(before - set(service_users()) - {d for d, _ in drones})
         return SyncReport("mosquitto", users=len(drones), removed=removed, reloaded=reloaded)
 
+    def outdated_users(self) -> list[str]:
+        # The files are rewritten whole from the database at every change, and the client
+        # id is bound to the username by the broker's configuration: no earlier form stays.
+        return []
+
+    def upgrade(self, outdated: list[str], drones: list[tuple[str, str]]) -> None:
+        pass
+
 
 def _reload(pid_file: Path) -> bool:
     try:
@@ -301,21 +319,29 @@ def session_queue_pattern(drone_id: str) -> str:
 
 
 def rabbitmq_definitions(drones: list[tuple[str, str]]) -> dict:
-    """Users, vhost and topic permissions of these drones, as `POST /api/definitions`
-    takes them. The drone may declare, bind and consume only its own session queues and
-    publish only to amq.topic; on amq.topic it may write only `<id>.<channel>.out` and
-    read (subscribe to) only `<id>.<channel>.in`, like the Mosquitto ACL's
-    `<id>/+/out` and `<id>/+/in`."""
-    users, permissions, topic_permissions = [], [], []
+    """Users, vhost and topic permissions and password hashes of these drones, as
+    `POST /api/definitions` takes them. The drone may declare, bind and consume only its
+    own session queues and publish only to amq.topic; on amq.topic it may write only
+    `<id>.<channel>.out` and read (subscribe to) only `<id>.<channel>.in`, like the
+    Mosquitto ACL's `<id>/+/out` and `<id>/+/in`. The user's own password hash is empty,
+    so the internal backend never logs a drone in: the auth service does, from the hash
+    in the drone's global parameter, and only under the drone's own client ids."""
+    users, permissions, topic_permissions, parameters = [], [], [], []
     for drone_id, hashed in drones:
         queues = session_queue_pattern(drone_id)
         own = rf"^(amq\.topic|{queues})$"
         users.append(
             {
                 "name": drone_id,
-                "password_hash": hashed,
+                "password_hash": "",
                 "hashing_algorithm": HASHING_ALGORITHM,
                 "tags": DRONE_TAG,
+            }
+        )
+        parameters.append(
+            {
+                "name": password_parameter(drone_id),
+                "value": {"password_hash": hashed, "hashing_algorithm": HASHING_ALGORITHM},
             }
         )
         permissions.append(
@@ -337,7 +363,12 @@ def rabbitmq_definitions(drones: list[tuple[str, str]]) -> dict:
                 "read": rf"^{escaped}\.[^.]+\.in$",
             }
         )
-    return {"users": users, "permissions": permissions, "topic_permissions": topic_permissions}
+    return {
+        "users": users,
+        "permissions": permissions,
+        "topic_permissions": topic_permissions,
+        "global_parameters": parameters,
+    }
 
 
 class RabbitMQBackend:
@@ -370,12 +401,46 @@ class RabbitMQBackend:
             ours = [u["name"] for u in self.admin.users() if DRONE_TAG in _tags(u)]
             extra = sorted(set(ours) - wanted)
             self._remove(extra)
+            # A hash left without its user (its removal was cut short) goes too.
+            for drone_id in sorted(set(self.admin.global_parameters(PARAMETER_PREFIX)) - wanted):
+                self.admin.delete_global_parameter(password_parameter(drone_id))
             return extra
 
         removed = self._call(rebuild)
         return SyncReport(
             "rabbitmq", users=len(usable), removed=removed, needs_new_password=unusable
         )
+
+    def outdated_users(self) -> list[str]:
+        """Drone users that still hold a password of their own (provisioned before the
+        auth service checked the client id: the internal backend logs them in under any
+        client id) or whose hash parameter is missing."""
+
+        def listed() -> list[str]:
+            hashes = set(self.admin.global_parameters(PARAMETER_PREFIX))
+            return sorted(
+                user["name"]
+                for user in self.admin.users()
+                if DRONE_TAG in _tags(user)
+                and (user.get("password_hash") or user["name"] not in hashes)
+            )
+
+        return self._call(listed)
+
+    def upgrade(self, outdated: list[str], drones: list[tuple[str, str]]) -> None:
+        """The live drones among `outdated` get the current form (no password of their
+        own, their hash in its parameter, the same permissions); any other outdated user
+        (a drone gone from the database, or one without a RabbitMQ hash) is removed, so no
+        user keeps a password the internal backend would accept."""
+        usable, _ = _split_by_rabbit_hash([(d, h) for d, h in drones if d in set(outdated)])
+        kept = {drone_id for drone_id, _ in usable}
+
+        def rewrite() -> None:
+            if usable:
+                self.admin.import_definitions(rabbitmq_definitions(usable))
+            self._remove(sorted(set(outdated) - kept))
+
+        self._call(rewrite)
 
     def _remove(self, drone_ids: list[str]) -> None:
         """Delete the users, close their connections, drop their session queues."""
@@ -386,6 +451,8 @@ class RabbitMQBackend:
         # second listing catches it).
         connections = self.admin.connections_of(drone_ids)
         self.admin.delete_users(drone_ids)
+        for drone_id in drone_ids:
+            self.admin.delete_global_parameter(password_parameter(drone_id))
         for name in dict.fromkeys(connections + self.admin.connections_of(drone_ids)):
             self.admin.close_connection(name, "broker credentials revoked")
         # Commands queued for a revoked drone must not reach it if it is ever re-issued.

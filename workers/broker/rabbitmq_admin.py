@@ -167,6 +167,17 @@ class RabbitMQAdmin:
         """Merge users, permissions, topic permissions... in one call (nothing is removed)."""
         self.request("POST", "definitions", definitions)
 
+    # -- global parameters ----------------------------------------------------------------
+
+    def global_parameters(self, prefix: str) -> list[str]:
+        """The names after `prefix` of the cluster's global parameters that start with it."""
+        listed = self.request("GET", "global-parameters") or []
+        names = [p.get("name", "") for p in listed]
+        return [name[len(prefix) :] for name in names if name.startswith(prefix)]
+
+    def delete_global_parameter(self, name: str) -> bool:
+        return self.delete(f"global-parameters/{_q(name)}")
+
     # -- connections and queues -----------------------------------------------------------
 
     def connections_of(self, users: Iterable[str]) -> list[str]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import secrets
 from pathlib import Path
 
+from django.apps import apps
 from django.conf import settings
 from django.contrib.auth import get_user_model
 from django.core.management.base import BaseCommand
@@ -26,6 +27,12 @@ class Command(BaseCommand):
         # demo organisation does not require one until its admin turns the rule on.
         organisation, _ = Organisation.objects.get_or_create(
             slug="demo", defaults={"name": "Demo", "require_remote_id": False}
+        )
+        # Nor does it need pre-flight checklists (docs/checklists.md) until its admin
+        # turns the rule on; the checklists app builds on this one, so its model is named.
+        apps.get_model("checklists", "Policy").objects.get_or_create(
+            organisation=organisation,
+            defaults={"required": False, "valid_minutes": settings.CHECKLIST_VALID_MINUTES_DEFAULT},
         )
         User = get_user_model()
         user = User.objects.filter(username="admin").first()

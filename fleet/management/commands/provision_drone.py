@@ -3,7 +3,10 @@
 One id prints one JSON object, as docs/protocol.md's "Provisioning a drone" says; several ids
 are provisioned in one broker update and print a JSON list of those objects. `--sync`
 rebuilds the broker's drone users from the database instead (a replaced broker node or
-cluster) and prints what it did.
+cluster) and prints what it did. `--upgrade` brings drone users the broker keeps in an
+earlier form to the current one (on RabbitMQ: users still holding a password of their own,
+which the client-id check would not see) and prints their ids; it changes nothing when
+none is left, and `make run` runs it at every start.
 """
 
 from __future__ import annotations
@@ -13,7 +16,13 @@ import json
 from django.core.exceptions import ValidationError
 from django.core.management.base import BaseCommand, CommandError
 
-from fleet.credentials import BrokerUnavailable, ProvisioningError, provision_many, sync_broker
+from fleet.credentials import (
+    BrokerUnavailable,
+    ProvisioningError,
+    provision_many,
+    sync_broker,
+    upgrade_broker,
+)
 
 
 class Command(BaseCommand):
@@ -27,12 +36,20 @@ class Command(BaseCommand):
             action="store_true",
             help="rebuild the broker's drone users and permissions from the database",
         )
+        parser.add_argument(
+            "--upgrade",
+            action="store_true",
+            help="bring drone users kept in an earlier form to the current one",
+        )
 
     def handle(self, *args, **options) -> None:  # type: ignore[no-untyped-def]
         ids = options["drone_ids"]
-        if options["sync"] == bool(ids):
-            raise CommandError("Give drone ids, or --sync alone.")
+        if sum((options["sync"], options["upgrade"], bool(ids))) != 1:
+            raise CommandError("Give drone ids, or --sync or --upgrade alone.")
         try:
+            if options["upgrade"]:
+                self.stdout.write(json.dumps({"upgraded": upgrade_broker()}))
+                return
             if options["sync"]:
                 self.stdout.write(json.dumps(sync_broker().to_dict()))
                 return

@@ -49,6 +49,13 @@ class Command(BaseCommand):
             default=float(os.environ.get("SIM_POSE_RATE", "30")),
             help="pose samples per second each drone sends (default 30)",
         )
+        # Live video to the media server (docs/video.md); 0 turns it off.
+        parser.add_argument(
+            "--live-fps",
+            type=float,
+            default=float(os.environ.get("SIM_LIVE_FPS", "15")),
+            help="live video frames per second each drone publishes (default 15, 0: none)",
+        )
 
     def handle(self, *args, **options) -> None:  # type: ignore[no-untyped-def]
         count = options["count"]
@@ -85,6 +92,9 @@ class Command(BaseCommand):
             str(workdir),
             "--",
             *streaming_args(options["video_rate"], options["pose_rate"]),
+            *live_video_args(options["live_fps"]),
+            # Each flight's logs come to this ground by themselves after landing.
+            *["--ground-url", settings.LOG_COLLECT_GROUND_URL, "--uplink", "wifi"],
         ]
         self.stdout.write(f"starting {count} simulated drone(s) around {options['home']}")
         self.stdout.flush()
@@ -98,6 +108,15 @@ def cluster_nodes() -> list[str]:
         return []
     nodes = [urlsplit(url) for url in settings.MQTT_URLS]
     return [f"mqtt://{node.hostname}:{node.port or 1883}" for node in nodes]
+
+
+def live_video_args(fps: float) -> list[str]:
+    """The agent flags that publish its camera to the media server (none for 0 fps)."""
+    if fps == 0:
+        return []
+    if not 1 <= fps <= 30:
+        raise CommandError("--live-fps must be 0 or within 1..30")
+    return ["--media-url", settings.LIVE_VIDEO_PUBLIC_URL, "--live-fps", f"{fps:g}"]
 
 
 def streaming_args(video_rate: float, pose_rate: float) -> list[str]:

@@ -25,7 +25,7 @@ class Command(BaseCommand):
         for signum in (signal.SIGTERM, signal.SIGINT):
             signal.signal(signum, lambda *_: stopping.set())
         process = PastViewProcess(options["broker"], client_id=options["client_id"])
-        self.stdout.write(f"pastview: {process.host}:{process.port}")
+        self.stdout.write(f"pastview: {process.address}")
         self.stdout.flush()
         process.run(stopping)
         self.stdout.write("pastview: stopped")

@@ -101,6 +101,13 @@ export class LogViewer extends EventTarget {
     import("./attitude.js").then(({ AttitudeView }) => {
       this.attitude = new AttitudeView(this.part("attitude"), this.part("angles"), this);
     });
+    // The flight's recorded video, when the log's drone recorded any during the log.
+    if (this.root.dataset.video) {
+      import("./video.js").then(({ VideoPanel }) => {
+        this.video = new VideoPanel(this.part("video-card"), this, this.root.dataset.video);
+        return this.video.load();
+      });
+    }
     this.root.dataset.loaded = "true";
     this.dispatchEvent(new Event("loaded"));
   }

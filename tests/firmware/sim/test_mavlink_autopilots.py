@@ -13,7 +13,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from firmware.sim.mavlink_server import MavlinkSession
-from firmware.sim.mavlink_streams import STREAMED
+from firmware.sim.mavlink_streams import AUTOPILOT_ONLY, STREAMED
 from firmware.sim.remote_id import RemoteIdModule
 from firmware.sim.vehicle import Vehicle, VehicleConfig
 from onboard.fc.mavlink import MavlinkCodec
@@ -334,9 +334,11 @@ def test_px4_streams_unasked_and_describes_itself_in_autopilot_version():
 
 @pytest.mark.parametrize("name", sorted(STREAMED))
 def test_every_message_in_the_stream_table_answers_a_request_for_it(name):
-    ground = Ground("ardupilot")
+    ground = Ground(AUTOPILOT_ONLY.get(name, "ardupilot"))
     if name == "OPEN_DRONE_ID_ARM_STATUS":
         ground.session.remote_id = RemoteIdModule()  # the Remote ID module's own message
+    if name == "SMART_BATTERY_INFO":
+        ground.session.battery_serial = "SIMPACK-1"  # a smart battery's own message
     ground.inbox.clear()
     message_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
     assert ground.command(mavlink.MAV_CMD_REQUEST_MESSAGE, message_id) == 0

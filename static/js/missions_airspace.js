@@ -1,0 +1,143 @@
+/* The planner's view of the shared airspace and the ground: the other drones'
+   reservations on the map, the leg of this plan that would meet one (from the ground's
+   check), and the plan's height profile over the imported terrain. */
+(function () {
+  "use strict";
+  const M = window.SkyhiveMissions;
+  const planner = window.skyhivePlanner;
+  const config = JSON.parse(document.getElementById("planner-config").textContent);
+  const $ = (id) => document.getElementById(id);
+  const SVG = "http://www.w3.org/2000/svg";
+  const RESERVATIONS_EVERY_MS = 10000;
+  const CHECK_AFTER_MS = 600;
+  if (!planner) return;
+
+  const reservedLayer = L.layerGroup().addTo(planner.map);
+  const conflictLayer = L.layerGroup().addTo(planner.map);
+  const positions = {};
+
+  function clock(iso) {
+    return new Date(iso).toLocaleTimeString([], { hour: "2-digit", minute: "2-digit" });
+  }
+
+  function drawReservations(answer) {
+    reservedLayer.clearLayers();
+    for (const r of answer.reservations || []) {
+      for (const leg of r.legs) {
+        const band = `${leg.band_m[0].toFixed(0)}–${leg.band_m[1].toFixed(0)} m`;
+        L.polyline([leg.start, leg.end], { color: "#e08a00", weight: 6, opacity: 0.5, className: "reserved-leg" })
+          .bindTooltip(`${r.drone_id}: ${band}, ${clock(leg.window[0])}–${clock(leg.window[1])}`)
+          .addTo(reservedLayer);
+      }
+    }
+  }
+
+  async function loadReservations() {
+    if (!config.reservationsUrl) return;
+    try {
+      drawReservations(await M.api("GET", config.reservationsUrl));
+    } catch (error) {
+      reservedLayer.clearLayers();
+    }
+  }
+
+  async function loadDrones() {
+    if (!config.dronesUrl) return;
+    const answer = await M.api("GET", config.dronesUrl);
+    for (const d of Array.isArray(answer) ? answer : answer.results || []) {
+      if (d.position) positions[d.drone_id] = [d.position.lat, d.position.lon];
+    }
+  }
+
+  function showConflicts(conflicts) {
+    conflictLayer.clearLayers();
+    const box = $("airspace-conflicts");
+    box.querySelector("ul").replaceChildren(...conflicts.map((c) => {
+      L.polyline(c.leg, { color: "#c33", weight: 5, className: "conflicting-leg" }).bindTooltip(c.message).addTo(conflictLayer);
+      L.circleMarker(c.at, { radius: 6, color: "#c33", className: "conflict-point" }).addTo(conflictLayer);
+      const item = document.createElement("li");
+      item.textContent = c.message;
+      return item;
+    }));
+    box.hidden = !conflicts.length;
+  }
+
+  function svg(name, attributes) {
+    const element = document.createElementNS(SVG, name);
+    for (const [key, value] of Object.entries(attributes)) element.setAttribute(key, String(value));
+    return element;
+  }
+
+  // Runs of consecutive known values (the ground has none where no terrain is imported).
+  function runs(xs, ys) {
+    const found = [];
+    let run = [];
+    xs.forEach((x, i) => {
+      if (ys[i] === null) { if (run.length) found.push(run); run = []; } else run.push([x, ys[i]]);
+    });
+    if (run.length) found.push(run);
+    return found;
+  }
+
+  function drawProfile(profile) {
+    const figure = $("height-profile");
+    const chart = $("height-profile-chart");
+    chart.replaceChildren();
+    if (!profile || profile.distance_m.length < 2) { figure.hidden = true; return; }
+    const W = 600, H = 170, PAD = 18;
+    const ground = profile.ground_m.filter((g) => g !== null);
+    const low = Math.min(0, ...ground), high = Math.max(1, ...profile.height_m, ...ground);
+    const length = Math.max(1, profile.distance_m[profile.distance_m.length - 1]);
+    const x = (d) => (PAD + (d / length) * (W - 2 * PAD)).toFixed(1);
+    const y = (h) => (H - PAD - ((h - low) / (high - low)) * (H - 2 * PAD)).toFixed(1);
+    for (const run of runs(profile.distance_m, profile.ground_m)) {
+      const top = run.map(([d, g]) => `${x(d)},${y(g)}`).join(" ");
+      const base = `${x(run[run.length - 1][0])},${y(low)} ${x(run[0][0])},${y(low)}`;
+      chart.append(svg("polygon", { points: `${top} ${base}`, class: "profile-ground" }));
+    }
+    const flight = profile.distance_m.map((d, i) => `${x(d)},${y(profile.height_m[i])}`).join(" ");
+    chart.append(svg("polyline", { points: flight, class: "profile-flight" }));
+    for (const step of profile.steps) {
+      const dot = svg("circle", { cx: x(step.distance_m), cy: y(step.height_m), r: 2.5, class: "profile-step" });
+      const title = svg("title", {});
+      title.textContent = `Step ${step.index}: ${step.height_m} m above home`;
+      dot.append(title);
+      chart.append(dot);
+    }
+    const label = svg("text", { x: PAD, y: 12, class: "profile-label" });
+    label.textContent = `${high.toFixed(0)} m`;
+    chart.append(label);
+    const clearance = profile.distance_m.map((d, i) => (profile.ground_m[i] === null ? null : profile.height_m[i] - profile.ground_m[i]));
+    const known = clearance.filter((c) => c !== null);
+    $("height-profile-summary").textContent = `${(length / 1000).toFixed(2)} km, highest ${Math.max(...profile.height_m).toFixed(0)} m above home` +
+      (known.length ? `, lowest ${Math.min(...known).toFixed(0)} m above the terrain` : ", no terrain imported under it");
+    figure.hidden = false;
+  }
+
+  function show(answer) {
+    drawProfile(answer.profile);
+    showConflicts(answer.conflicts || []);
+  }
+
+  // A changed plan is checked again shortly after the last change.
+  let timer = null;
+  document.addEventListener("skyhive:steps-changed", () => {
+    clearTimeout(timer);
+    timer = setTimeout(async () => {
+      const steps = planner.steps;
+      if (!steps.length) { drawProfile(null); showConflicts([]); return; }
+      try {
+        show(await M.api("POST", config.checkUrl, { steps, drone: $("drone-choice").value || null }));
+      } catch (error) {
+        drawProfile(null);
+      }
+    }, CHECK_AFTER_MS);
+  });
+  document.addEventListener("skyhive:plan-checked", (event) => show(event.detail));
+  $("drone-choice").addEventListener("change", () => document.dispatchEvent(new CustomEvent("skyhive:steps-changed")));
+
+  window.skyhiveAirspace = { dronePosition: (id) => positions[id] || null, reload: loadReservations };
+  loadDrones().catch(() => null);
+  loadReservations();
+  setInterval(loadReservations, RESERVATIONS_EVERY_MS);
+})();
