@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 
+from fleet.models import Drone
 from tests.conftest import login
 from tests.missions.conftest import online_drone
 
@@ -17,6 +18,9 @@ def test_reservations_are_drawn_and_a_conflicting_leg_is_marked(page, live_asgi,
     online_drone(world_tx.org, "ACME_A", north=-150)
     online_drone(world_tx.org, "ACME_B", east=-150)
     assert start(world_tx.operator, crossing((-150, 0), (150, 0), 20), "ACME_A").status_code == 200
+    # It took off: its reservation holds until it lands, however slowly the page loads
+    # (one never seen airborne by its take-off's deadline is taken to have landed).
+    Drone.objects.filter(drone_id="ACME_A").update(airborne=True, alt=20.0)
     login(page, live_asgi, "operator")
     page.goto(f"{live_asgi.url}/missions/plan/")
     page.wait_for_function("window.skyhivePlanner && window.skyhiveAirspace")

@@ -98,11 +98,25 @@ class Peer:
             raise ConnectionRefusedError(str(outcome.get("rc")))
 
     def subscribe(self, topic: str, qos: int = 1) -> None:
+        """Return once the broker answered: SUBACK, or the cut-off a forbidden filter gets."""
+        answered = threading.Event()
+        self.client.on_subscribe = lambda *args: answered.set()
         self.client.subscribe(topic, qos=qos)
-        time.sleep(0.3)  # SUBACK, or the broker's reaction to a forbidden filter
+        deadline = time.monotonic() + 10
+        while not (answered.is_set() or self.disconnected.is_set()):
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"no answer to subscribing to {topic}")
+            time.sleep(0.02)
+        time.sleep(0.3)  # a refusal in the SUBACK is followed by the connection's close
 
     def publish(self, topic: str, payload: bytes, qos: int = 1) -> None:
-        self.client.publish(topic, payload, qos=qos)
+        """Return once the broker took the message (PUBACK for QoS 1), or the link closed."""
+        info = self.client.publish(topic, payload, qos=qos)
+        deadline = time.monotonic() + 10
+        while qos and not (info.is_published() or self.disconnected.is_set()):
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"no PUBACK for {topic}")
+            time.sleep(0.02)
 
     def topics(self) -> list[str]:
         return [topic for topic, _ in self.received]
