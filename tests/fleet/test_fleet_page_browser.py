@@ -116,7 +116,8 @@ def test_the_drone_page_follows_commands_and_the_clock_live(page, live_asgi, wor
     login(page, live_asgi, "operator")
     page.goto(f"{live_asgi.url}/drones/ACME_1/")
     page.wait_for_function("document.querySelector('#command-history .empty')")
-    time.sleep(0.5)  # the socket is open once the page's script ran; let it join
+    # The snapshot is sent once the socket joined its group: changes from now on reach it.
+    page.wait_for_function("performance.getEntriesByName('fleet:snapshot').length > 0")
 
     entry = CommandLog.objects.create(
         drone=world_tx.drone, user=world_tx.operator, request_id="r1", command="takepic"
@@ -247,7 +248,8 @@ def test_the_telemetry_overview_follows_its_drones_live(page, live_asgi, world_t
     page.goto(f"{live_asgi.url}/telemetry/?filter=lost_link")
     row = page.locator("#telemetry-overview tr[data-drone='LOST_1']")
     assert row.locator("[data-field=online]").inner_text() == "offline"
-    time.sleep(1.0)  # the socket joins its group once the page's script ran
+    # The snapshot is sent once the socket joined its group: changes from now on reach it.
+    page.wait_for_function("performance.getEntriesByName('fleet:snapshot').length > 0")
     assert handle_heartbeat("LOST_1", heartbeat("LOST_1", lat=40.0, alt=3.0)) is None
     page.wait_for_function(
         "document.querySelector('tr[data-drone=LOST_1] [data-field=online]')"

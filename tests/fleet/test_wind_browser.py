@@ -31,7 +31,8 @@ def test_the_drone_page_shows_the_wind_against_the_limit_live(page, live_asgi, w
     assert "5.0 m/s from 270°" in card.inner_text()
     assert "8 m/s" in card.locator("[data-wind=limit]").inner_text()
     assert card.locator("[data-wind=verdict]").get_attribute("data-above") == "no"
-    time.sleep(0.5)  # the socket is open once the page's script ran; let it join
+    # The snapshot is sent once the socket joined its group: changes from now on reach it.
+    page.wait_for_function("performance.getEntriesByName('fleet:snapshot').length > 0")
 
     # The wind rises to 12 m/s from the north, then the drone returns: live.
     beat = heartbeat("ACME_1", lat=40.0, alt=10.0)
