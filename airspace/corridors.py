@@ -26,7 +26,9 @@ finishes the take-off item first and flies level, as a paced leg does (its targe
 for the climb: onboard/mission.py PacedLeg). Its leg is reserved for both: from
 where the climb began to the target, in pieces (`slant_pieces`), each with a band from the
 lowest height the drone can be at along it — climbing at its slowest while moving at its
-fastest, the pace's slack and early factors — up to its highest target.
+fastest, the pace's slack and early factors — up to its highest target. That slope is
+terrain/climbout.py's `climb_slope`: the terrain clearance holds such a leg to the same
+lowest heights.
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
+
+from terrain.climbout import climb_slope, slowest_climb
 
 EARTH_RADIUS = 6_378_137.0  # WGS-84 equatorial radius, as onboard/envelope.py uses
 # Below this height a drone is on the ground: it takes no airspace.
@@ -146,7 +150,7 @@ class _Rise:
 
     def slept(self, seconds: float, pace: Pace) -> None:
         reach = max(0.0, self.direction * (self.heights[-1] - self.start))
-        self.least = min(reach, self.least + seconds * _slowest_climb(pace))
+        self.least = min(reach, self.least + seconds * slowest_climb(pace))
         self.sent += seconds
 
     def sent_to(self, height: float) -> None:
@@ -164,14 +168,6 @@ class _Move:
     step: int
     speed: float | None = None
     rise: _Rise | None = None
-
-
-def _slowest_climb(pace: Pace) -> float:
-    return pace.climb_m_s / (1.0 + pace.slack)
-
-
-def _fastest_speed(speed: float, pace: Pace) -> float:
-    return speed / pace.early if pace.early > 0 else math.inf
 
 
 def _window(
@@ -241,7 +237,7 @@ def slant_pieces(move: _Move, pace: Pace) -> list[tuple[float, float, float]]:
     need = rise.direction * (b.height - rise.start)
     across = ground_distance(a.lat, a.lon, b.lat, b.lon)
     # Metres of climb per metre flown, at the slowest climb and the fastest flight.
-    slope = _slowest_climb(pace) / _fastest_speed(move.speed or pace.speed_m_s, pace)
+    slope = climb_slope(pace, move.speed)
     cuts = {0.0, 1.0}
     if slope > 0 and pace.step_m > 0:
         k = math.floor(rise.least / pace.step_m) + 1

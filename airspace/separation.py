@@ -180,15 +180,8 @@ def climb_under_way(drone: Drone) -> list[dict]:
     it accepted, more than the vertical tolerance away: that climb as an `altitude` step.
     A sideways command sent now is flown from its height on a slant to the target at that
     height (onboard/navigation.py adds it to the last target), and is checked so."""
-    target = drone.nav_target
-    if not drone.airborne or drone.alt is None or not isinstance(target, list | tuple):
-        return []
-    if len(target) != 3 or not isinstance(target[2], int | float):
-        return []
-    rise = -float(target[2]) - float(drone.alt)
-    if abs(rise) <= settings.AIRSPACE_VERTICAL_TOLERANCE_M:
-        return []
-    return [{"command": "altitude", "params": {"value": rise}}]
+    rise = envelopes.rise_under_way(drone)
+    return [] if rise is None else [{"command": "altitude", "params": {"value": rise}}]
 
 
 def reserve_command(drone: Drone, command: str, reply: Mapping[str, Any] | None) -> None:

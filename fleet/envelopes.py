@@ -20,6 +20,7 @@ from django.utils.module_loading import import_string
 from onboard import envelope as env
 from onboard import protocol
 from terrain import guard as terrain
+from terrain.climbout import Climb, Paced, climb_slope
 from workers import outbox
 
 from .identity import identity_for
@@ -189,6 +190,36 @@ def current_target(drone: Drone, home: Sequence[float] | None) -> env.NED | None
     return position_ned(drone, home)
 
 
+def rise_under_way(drone: Drone) -> float | None:
+    """Metres a drone in the air still climbs (+) or descends (-) to the height of the last
+    target it accepted, when more than the vertical tolerance: a sideways command sent now
+    is flown from its height on a slant to the target at that height (onboard/navigation.py
+    adds it to the last target). The airspace checks it so too (airspace/separation.py)."""
+    target = drone.nav_target
+    if not drone.airborne or drone.alt is None or not isinstance(target, list | tuple):
+        return None
+    if len(target) != 3 or not isinstance(target[2], int | float):
+        return None
+    rise = -float(target[2]) - float(drone.alt)
+    return rise if abs(rise) > settings.AIRSPACE_VERTICAL_TOLERANCE_M else None
+
+
+def drone_pace(drone: Drone) -> Paced:
+    """How fast the drone is assumed to fly and climb, as the airspace assumes it (named in
+    settings.AIRSPACE_PACE, not imported: airspace sits above fleet)."""
+    return import_string(settings.AIRSPACE_PACE)(drone)
+
+
+def command_climb(drone: Drone, command: str, params: Mapping[str, Any]) -> Climb | None:
+    """A sideways command sent while the drone still climbs: flown on a slant from the
+    height it is at now (terrain/climbout.py), which its terrain clearance is checked on."""
+    rise = rise_under_way(drone)
+    if command not in env.HORIZONTAL_COMMANDS or rise is None or rise <= 0:
+        return None
+    speed = params.get("speed")
+    return Climb(float(drone.alt or 0.0), climb_slope(drone_pace(drone), speed and float(speed)))
+
+
 def _battery_percent(drone: Drone) -> float | None:
     return None if drone.battery_remaining is None else drone.battery_remaining * 100.0
 
@@ -212,8 +243,9 @@ def check_command(
     violation = violation or published_zones("move")(
         drone.organisation, home, move, base, drone.airborne
     )
+    climb = command_climb(drone, command, params)
     assessed = terrain.move_assessment(
-        drone.organisation_id, home, base, move, ceiling=envelope.max_height
+        drone.organisation_id, home, base, move, ceiling=envelope.max_height, climb=climb
     )
     violation = violation or assessed.violation
     if violation is not None:
@@ -247,8 +279,10 @@ def step_violations(
         start, airborne = (0.0, 0.0, 0.0), False
         found = env.step_violations(envelope, home, steps, start, airborne, None)
     found += published_zones("steps")(organisation, home, steps, start, airborne)
+    # The legs flown while a climb is under way at the drone's pace, else the settings'.
+    pace = drone_pace(drone) if drone is not None else None
     found += terrain.step_violations(
-        organisation.pk, home, steps, start, ceiling=envelope.max_height
+        organisation.pk, home, steps, start, ceiling=envelope.max_height, pace=pace
     )
     return sorted(found, key=lambda v: v.index)
 

@@ -7,6 +7,19 @@ whole length, its altitude taken as linear from one end to the other. A descent 
 (`altitude` down) must end at least that high above the terrain below. A take-off or a
 climb moves away from the ground and is never refused; landing never is.
 
+Climb-out: a sideways leg sent while a take-off or a climb is still under way (no
+`wait_for_flight` between them; for a command, a drone still climbing to its last
+target) is flown on a slant from the height the drone is at, and is checked against the
+height it has surely reached at each point, least(d) = min(target, h0 + s·d)
+(terrain/climbout.py), not against the straight line from the climb's target. While
+least(d) is below the minimum clearance (and below the leg's target) the drone is
+climbing out of its take-off: it must be at least as high above the terrain as above
+home there, i.e. the terrain may not rise above home's elevation. From where least(d)
+reaches the minimum (or the leg's target) the minimum holds as on any leg: a leg whose
+target is below the minimum is refused whether it waits for its climb or not. The ceiling
+above the terrain is still held on the straight line at the target's height, the highest
+the drone can be.
+
 Heights are above home, and home is on the ground: the altitude above mean sea level of a
 point is the terrain's elevation at home plus its height above home. Where the terrain
 does not cover a leg (or home), or covers it with voids, that part is not checked (the
@@ -34,6 +47,7 @@ import numpy as np
 from django.conf import settings
 
 from onboard import envelope as env
+from terrain.climbout import Climb, Paced, climb_slope, slowest_climb
 from terrain.lookup import LegClearance, Surface
 from terrain.models import TerrainClearance, TerrainTile
 
@@ -42,6 +56,9 @@ MAX_HEIGHT_AGL = "max_height_agl"
 # Rounding of heights between the ground's walk and the samples: a leg flown exactly at
 # the ceiling is not refused for a centimetre.
 CEILING_TOLERANCE_M = 0.05
+# The same rounding for the climb-out rule: terrain level with home is not above it for
+# the bilinear interpolation's last bits.
+CLIMB_OUT_TOLERANCE_M = 0.05
 Walked = tuple[int | None, env.Move, env.NED | None]  # step index, move, the leg's start
 
 
@@ -207,11 +224,21 @@ class _Ground:
 
 
 def _assess_leg(
-    result: Assessment, ground: _Ground, index: int | None, ends: list, found: LegClearance
+    result: Assessment,
+    ground: _Ground,
+    index: int | None,
+    ends: list,
+    found: LegClearance,
+    climb: Climb | None = None,
 ) -> None:
-    """`ends`: the leg's start and end as [lat, lon, altitude]."""
+    """`ends`: the leg's start and end as [lat, lon, altitude]; `climb`: the climb under
+    way when it is flown on a slant."""
     a, b = ends
-    violation = _leg_violation(found, ground.minimum, ((a[0], a[1]), (b[0], b[1])))
+    legs = ((a[0], a[1]), (b[0], b[1]))
+    if climb is None:
+        violation = _leg_violation(found, ground.minimum, legs)
+    else:
+        violation = _slant_violation(ground, ends, found.length_m, climb, legs)
     if not found.fully_covered:
         result.warn(index, _gap_warning(found), [g.to_dict() for g in found.gaps])
     if violation is not None:
@@ -220,6 +247,81 @@ def _assess_leg(
         above = _ceiling_leg_violation(found, ground.ceiling, ((a[0], a[1]), (b[0], b[1])))
         if above is not None:
             result.violations.append(env.StepViolation(index, above))  # type: ignore[arg-type]
+
+
+def _slant_pieces(
+    ground: _Ground, length: float, climb: Climb, target: float
+) -> list[tuple[float, float, bool]]:
+    """The stretches (metres along the leg) where least(d) is a straight line: climbing
+    out (True: below the minimum and the target), climbing on to the target, level."""
+    out = min(length, climb.reaches(min(ground.minimum, target)))
+    up = max(out, min(length, climb.reaches(target)))
+    pieces = [(0.0, out, True), (out, up, False), (up, length, False)]
+    return [p for p in pieces if p[1] - p[0] > env.MIN_LEG]
+
+
+def _slant_violation(
+    ground: _Ground, ends: list, length: float, climb: Climb, legs: tuple
+) -> TerrainViolation | None:
+    """The first place along a leg flown while climbing where the drone, at the height
+    it has surely reached, breaks the climb-out rule or the minimum clearance."""
+    a, b = np.array(ends[0], float), np.array(ends[1], float)
+    target = b[2] - ground.home_elevation
+    pieces = _slant_pieces(ground, length, climb, target)
+    starts: list[list[float]] = []
+    stops: list[list[float]] = []
+    for d0, d1, out in pieces:
+        for d, points in ((d0, starts), (d1, stops)):
+            point = a + (b - a) * (d / length)
+            # Climbing out, the leg is sampled at home's elevation: its clearance there is
+            # how far the terrain lies below home.
+            height = 0.0 if out else climb.least(d, target)
+            points.append([point[0], point[1], ground.home_elevation + height])
+    found = ground.surface.clearances(np.array(starts), np.array(stops), highest=False)
+    for (d0, _, out), piece in zip(pieces, found, strict=True):
+        if piece.minimum is None or piece.at is None:
+            continue
+        lat, lon, along = piece.at[0], piece.at[1], d0 + piece.at[2]
+        least = climb.least(along, target)
+        if out and piece.minimum < -CLIMB_OUT_TOLERANCE_M:
+            return _climb_out_violation((lat, lon, along), least, -piece.minimum, legs)
+        if not out and piece.minimum < ground.minimum:
+            return _climbing_violation((lat, lon, along), least, piece.minimum, ground, legs)
+    return None
+
+
+def _climb_out_violation(
+    at: tuple[float, float, float], least: float, rise: float, legs: tuple
+) -> TerrainViolation:
+    lat, lon, along = at
+    return TerrainViolation(
+        TERRAIN_CLEARANCE,
+        f"The leg to the target is flown while the drone is still climbing out of its "
+        f"take-off: {along:.0f} m along it, at ({lat:.5f}, {lon:.5f}), it is surely only "
+        f"{least:.1f} m above home, and the terrain there rises {rise:.1f} m above home's "
+        f"elevation, leaving {least - rise:.1f} m of clearance; below the minimum terrain "
+        "clearance the terrain may not rise above home.",
+        legs,
+        clearance=round(least - rise, 1),
+        minimum=round(least, 1),
+    )
+
+
+def _climbing_violation(
+    at: tuple[float, float, float], least: float, clearance: float, ground: _Ground, legs: tuple
+) -> TerrainViolation:
+    lat, lon, along = at
+    side = "above" if clearance >= 0 else "below"
+    return TerrainViolation(
+        TERRAIN_CLEARANCE,
+        f"The leg to the target is flown while the drone is still climbing: {along:.0f} m "
+        f"along it, at ({lat:.5f}, {lon:.5f}), it is surely only {least:.1f} m above home, "
+        f"{abs(clearance):.1f} m {side} the terrain, below the minimum terrain clearance of "
+        f"{ground.minimum:g} m.",
+        legs,
+        clearance=round(clearance, 1),
+        minimum=ground.minimum,
+    )
 
 
 def _climb_violation(ground: _Ground, move: env.Move, start: env.NED | None) -> CeilingViolation | None:  # fmt: skip
@@ -254,8 +356,14 @@ def _assess_descent(result: Assessment, ground: _Ground, walked: Walked) -> None
         result.violations.append(env.StepViolation(index, violation))  # type: ignore[arg-type]
 
 
-def _assess_moves(result: Assessment, ground: _Ground, moves: Sequence[Walked]) -> None:
-    """Every leg sampled in one pass (Surface.clearances), then each move in step order."""
+def _assess_moves(
+    result: Assessment,
+    ground: _Ground,
+    moves: Sequence[Walked],
+    climbs: Mapping[int | None, Climb],
+) -> None:
+    """Every leg sampled in one pass (Surface.clearances), then each move in step order;
+    a leg flown while a climb is under way (`climbs`, by step) is sampled on its slant."""
     legs = [w for w in moves if _is_leg(w[1], w[2])]
     starts = ground.lla(np.array([w[2] for w in legs], float).reshape(-1, 3))
     ends = ground.lla(np.array([w[1].ned for w in legs], float).reshape(-1, 3))
@@ -264,7 +372,8 @@ def _assess_moves(result: Assessment, ground: _Ground, moves: Sequence[Walked]) 
     pairs = iter(zip(starts.tolist(), ends.tolist(), strict=True))
     for walked in moves:
         if _is_leg(walked[1], walked[2]):
-            _assess_leg(result, ground, walked[0], list(next(pairs)), next(found))
+            pair, leg = list(next(pairs)), next(found)
+            _assess_leg(result, ground, walked[0], pair, leg, climbs.get(walked[0]))
         else:
             _assess_descent(result, ground, walked)
 
@@ -274,10 +383,12 @@ def assess(
     home: Sequence[float] | None,
     moves: Iterable[Walked],
     ceiling: float | None = None,
+    climbs: Mapping[int | None, Climb] | None = None,
 ) -> Assessment:
     """Every move (step index, move, the leg's start in NED from home) held to the
     organisation's minimum terrain clearance, and to `ceiling` (the drone's maximum
-    height) above the terrain where the organisation reads its ceiling there."""
+    height) above the terrain where the organisation reads its ceiling there. `climbs`:
+    the legs flown while a climb is under way, by step index (None: a command's)."""
     result = Assessment()
     # A take-off climbs from the ground and a landing is never refused: only moves count.
     moves = [m for m in moves if m[1].kind == "goto"]
@@ -297,7 +408,7 @@ def assess(
         return result
     minimum, above_terrain = terrain_rules(organisation_id)
     ground = _Ground(surface, home, home_elevation, minimum, ceiling if above_terrain else None)
-    _assess_moves(result, ground, moves)
+    _assess_moves(result, ground, moves, climbs or {})
     return result
 
 
@@ -316,16 +427,78 @@ def mission_moves(
     return moves
 
 
+@dataclass(frozen=True)
+class SettingsPace:
+    """The pace of a drone whose gear states no speed (airspace/reservations.py pace_for
+    builds its Pace from the same settings): for a plan no drone flies yet."""
+
+    speed_m_s: float = field(default_factory=lambda: float(settings.AIRSPACE_CRUISE_SPEED_M_S))
+    climb_m_s: float = field(default_factory=lambda: float(settings.AIRSPACE_CLIMB_SPEED_M_S))
+    slack: float = field(default_factory=lambda: float(settings.AIRSPACE_TIME_SLACK))
+    early: float = field(default_factory=lambda: float(settings.AIRSPACE_TIME_EARLY))
+
+
+def _height(target: env.NED | None) -> float:
+    return 0.0 if target is None else -target[2]
+
+
+def _after_sleep(surely: float | None, seconds: float, target: float, pace: Paced) -> float | None:
+    """A sleep is flown climbing: the climb is surely done once its slowest climb is."""
+    if surely is None:
+        return None
+    surely += seconds * slowest_climb(pace)
+    return None if surely >= target else surely
+
+
+def mission_climbs(
+    home: Sequence[float] | None,
+    steps: Sequence[Mapping[str, Any]],
+    start: env.NED | None,
+    pace: Paced | None = None,
+) -> dict[int | None, Climb]:
+    """The legs of a mission flown while a climb is under way, by step index: a take-off
+    or a climb in place stays under way until a `wait_for_flight`, a landing or the next
+    sideways leg, which flies it out on a slant (terrain/climbout.py)."""
+    pace = pace or SettingsPace()
+    climbs: dict[int | None, Climb] = {}
+    surely: float | None = None  # the height surely reached while a climb is under way
+    target = start
+    for index, step in enumerate(steps):
+        command, params = step["command"], step.get("params") or {}
+        if command == "wait_for_flight":
+            surely = None
+        elif command == "sleep":
+            surely = _after_sleep(surely, float(params.get("value", 0.0)), _height(target), pace)
+        move = env.resolve(command, params, target, target, home)
+        if move is None:
+            continue
+        if _is_leg(move, target):
+            if surely is not None:
+                speed = params.get("speed")
+                climbs[index] = Climb(surely, climb_slope(pace, speed and float(speed)))
+            surely = None
+        elif move.kind == "land":
+            surely = None
+        else:  # a take-off or a move in place: climbing on from where it surely is
+            base = _height(target) if surely is None else surely
+            surely = base if -move.ned[2] > base else None
+        target = move.ned
+    return climbs
+
+
 def step_violations(
     organisation_id: int | None,
     home: Sequence[float] | None,
     steps: Sequence[Mapping[str, Any]],
     start: env.NED | None,
     ceiling: float | None = None,
+    pace: Paced | None = None,
 ) -> list[env.StepViolation]:
     """Every step of a mission flown from `start` that comes below the minimum clearance
-    (or above `ceiling` over the terrain, where the organisation reads it so)."""
-    return assess(organisation_id, home, mission_moves(home, steps, start), ceiling).violations
+    (or above `ceiling` over the terrain, where the organisation reads it so); `pace`: the
+    drone's (airspace/reservations.py pace_for), for its legs flown while climbing."""
+    moves, climbs = mission_moves(home, steps, start), mission_climbs(home, steps, start, pace)
+    return assess(organisation_id, home, moves, ceiling, climbs).violations
 
 
 def plan_warnings(
@@ -344,7 +517,10 @@ def move_assessment(
     start: env.NED | None,
     move: env.Move,
     ceiling: float | None = None,
+    climb: Climb | None = None,
 ) -> Assessment:
     """The terrain's refusal (`violation`) and warnings of one command's move from `start`
-    (its current target)."""
-    return assess(organisation_id, home, [(None, move, start)], ceiling)
+    (its current target); `climb`: the climb under way when it is sent, from the drone's
+    current height."""
+    climbs: dict[int | None, Climb] = {} if climb is None else {None: climb}
+    return assess(organisation_id, home, [(None, move, start)], ceiling, climbs)

@@ -34,6 +34,8 @@ AIRSPACE_HOLD_S = env.float("AIRSPACE_HOLD_S", 300.0)
 # What fleet/envelopes.py calls for a command (named, not imported: fleet sits below).
 AIRSPACE_COMMAND_CHECK = "airspace.separation.check_command"
 AIRSPACE_COMMAND_RESERVE = "airspace.separation.reserve_command"
+# A drone's pace (fleet/envelopes.py: its legs flown while climbing, for the terrain).
+AIRSPACE_PACE = "airspace.reservations.pace_for"
 # Live separation (airspace/live.py): how often the ground looks at its airborne drones,
 # how far ahead it flies them on at their velocity and in what steps, how old a previous
 # fix may be to give a velocity, and how long a held pair is not held again.

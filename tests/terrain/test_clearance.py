@@ -48,13 +48,16 @@ def client_for(user) -> APIClient:  # type: ignore[no-untyped-def]
 
 
 def over_the_hill(altitude: float) -> dict:
-    """Take off at home to `altitude`, fly north over the hill top at that height, land."""
+    """Take off at home to `altitude`, fly north over the hill top at that height once
+    there (sent at once, the leg would be flown climbing: tests/terrain/test_climb_out.py),
+    land."""
     return {
         "name": "over the hill",
         "confirm_beyond_defaults": True,
         "steps": [
             {"command": "arm"},
             {"command": "takeoff", "params": {"altitude": altitude}},
+            {"command": "wait_for_flight"},
             {"command": "navigate", "params": {"lat": BEYOND_HILL[0], "lon": BEYOND_HILL[1]}},
             {"command": "land"},
         ],
@@ -120,7 +123,7 @@ def test_a_leg_through_the_hill_is_refused_with_409_terrain_clearance(hill_impor
     body = response.json()
     assert body["code"] == "terrain_clearance"
     found = re.search(
-        r"Step 2: The straight leg to the target passes ([\d.]+) m below the terrain", body["error"]
+        r"Step 3: The straight leg to the target passes ([\d.]+) m below the terrain", body["error"]
     )
     assert found and float(found.group(1)) == pytest.approx(150.0, abs=1.0), body["error"]
     assert "below the minimum terrain clearance of 30 m" in body["error"]
@@ -137,7 +140,7 @@ def test_the_same_leg_high_enough_is_accepted(hill_imported, high_envelope):
     )
     assert check.status_code == 200
     (row,) = check.json()["violations"]
-    assert (row["index"], row["limit"]) == (2, "terrain_clearance")
+    assert (row["index"], row["limit"]) == (3, "terrain_clearance")
     assert row["leg"][0] == pytest.approx(list(HOME))
 
 
@@ -229,9 +232,12 @@ def terrain_frame_plan() -> dict:
 
     items = [
         item(1, 22, 10, 4, 300, HOME),  # take off to 300 m above the terrain at home
-        item(2, 16, 10, 4, 80, top),  # 80 m above the hill top: MAV_FRAME_GLOBAL_TERRAIN_ALT
-        item(3, 16, 0, 3, 100, south, p6=999),  # "calculated above terrain" (QGC's own AMSL)
-        item(4, 21, 3, 1, 0, HOME),
+        # Over home at that height first: the leg to the hill top leaves once it is there
+        # (its waypoint's wait_for_flight), not while still climbing out.
+        item(2, 16, 10, 4, 300, HOME),
+        item(3, 16, 10, 4, 80, top),  # 80 m above the hill top: MAV_FRAME_GLOBAL_TERRAIN_ALT
+        item(4, 16, 0, 3, 100, south, p6=999),  # "calculated above terrain" (QGC's own AMSL)
+        item(5, 21, 3, 1, 0, HOME),
     ]
     return {
         "fileType": "Plan", "groundStation": "QGroundControl", "version": 1,
@@ -268,12 +274,13 @@ def test_a_terrain_frame_plan_imports_with_heights_above_home(hill_imported, hig
     south = ned_to_latlon(-400.0, 0.0, HOME)
     expected = [
         300.0,
+        300.0,
         dem.bilinear(*dem.hill_top()) + 80.0 - home_ground,
         dem.bilinear(*south) + 100.0 - home_ground,
     ]
     expected.append(expected[-1])  # the landing item: back over home at that height
     assert altitudes == pytest.approx(expected, abs=1e-3)
-    assert expected[1] == pytest.approx(280.0)
+    assert expected[2] == pytest.approx(280.0)
 
 
 def test_a_terrain_frame_plan_without_terrain_is_refused_with_the_reason(

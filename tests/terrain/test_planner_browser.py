@@ -32,11 +32,13 @@ def terrain_on_the_server(folder: Path, dem: Dem) -> Iterator[None]:
 
 
 def plan(page, north: float) -> None:  # type: ignore[no-untyped-def]
-    """Take off at home to 50 m and fly `north` metres (south when negative), in the planner."""
+    """Take off at home to 50 m and, once there, fly `north` metres (south when negative),
+    in the planner."""
     lat, lon = ned_to_latlon(north, 0.0, HOME)
     steps = [
         {"command": "arm", "params": {}},
         {"command": "takeoff", "params": {"altitude": 50}},
+        {"command": "wait_for_flight", "params": {}},
         {"command": "navigate", "params": {"lat": lat, "lon": lon}},
         {"command": "land", "params": {}},
     ]
@@ -63,7 +65,7 @@ def test_a_leg_through_the_hill_is_marked_and_drawn(page, live_asgi, world_tx, t
         plan(page, 1.5 * HILL_NORTH)
         page.wait_for_selector("#planner-error:not([hidden])")
         error = page.locator("#planner-error").inner_text()
-        assert "Step 2: The straight leg to the target passes" in error
+        assert "Step 3: The straight leg to the target passes" in error
         assert "minimum terrain clearance of 30 m" in error
         page.wait_for_selector("path.offending-leg", state="attached")
         assert page.locator("#terrain-warnings").is_hidden()
