@@ -21,6 +21,10 @@ const EXTRA_SEEKS = 16;
 // presents the sought frame later): a picture unchanged by a seek is taken as the seek's
 // only when no new frame is presented within this time.
 const SAME_FRAME_WAIT_MS = 1000;
+// A seek that nothing answered within this time (no `seeked`, no frame presented, or a
+// frame whose stamp could not be read) is made again, up to the search's bound; past it
+// the picture shown stays, so a search always ends.
+const STALL_MS = 3000;
 
 export class VideoPanel {
   constructor(card, viewer, url) {
@@ -109,6 +113,22 @@ export class VideoPanel {
     }
     if (this.video.readyState >= 1) this.video.currentTime = target;
     else this.video.addEventListener("loadedmetadata", () => { this.video.currentTime = target; }, { once: true });
+    this.watchStall();
+  }
+
+  watchStall() {
+    const seeks = this.seeks;
+    setTimeout(() => {
+      const search = this.search;
+      if (this.seeks !== seeks || !search || this.card.dataset.state !== "seeking") return;
+      search.seeks += 1;
+      if (search.seeks <= this.seekBound()) {
+        this.seek(this.beside(search.target));
+        return;
+      }
+      this.card.dataset.state = "shown";
+      this.search = null;
+    }, STALL_MS);
   }
 
   watchFrames() {
@@ -148,7 +168,9 @@ export class VideoPanel {
       // presented again by seeking to it once more.
       if ((exact || again) && search && !search.landed && this.card.dataset.state === "seeking") {
         search.seeks += 1;
-        if (search.seeks <= this.seekBound()) this.seek(search.target);
+        // An unchanged picture gets no new presentation by seeking to it again: a
+        // neighbouring frame is sought first, and the search comes back from there.
+        if (search.seeks <= this.seekBound()) this.seek(again ? this.beside(search.target) : search.target);
       }
       return;
     }
@@ -264,6 +286,15 @@ export class VideoPanel {
   }
 
   /** Seeks one paused seek may take: one per frame, and the probes for the file's end. */
+  /** A file time one frame's length from `target`, inside the recording. */
+  beside(target) {
+    const duration = Number.isFinite(this.video.duration) ? this.video.duration : 0;
+    const frames = this.current ? this.current.frames : 0;
+    if (!duration || !frames) return target;
+    const step = duration / frames;
+    return target + step < duration ? target + step : Math.max(0, target - step);
+  }
+
   seekBound() {
     return (this.current ? this.current.frames : 0) + EXTRA_SEEKS;
   }
