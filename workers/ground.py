@@ -19,6 +19,8 @@ MANAGE = str(REPO_ROOT / "manage.py")
 # Worker-to-worker chatter nothing here reads; without it a worker starts faster.
 NO_CHATTER = ("--without-heartbeat", "--without-gossip", "--without-mingle")
 KINDS = ("web", "gateway", "ingest", "worker", "beat")
+# Starts of a web server whose free port another process took before it bound it.
+WEB_PORT_TRIES = 3
 
 
 def web_argv(port: int) -> list[str]:
@@ -164,8 +166,27 @@ class GroundProcesses:
             process.start()
         deadline = time.monotonic() + timeout
         for process in pending:
-            process.wait_ready(max(1.0, deadline - time.monotonic()))
+            self._wait_ready(process, deadline)
         return self
+
+    def _wait_ready(self, process: Supervised, deadline: float) -> None:
+        """Wait until `process` is ready. A web server's port is chosen free before it
+        binds it, and another process may take it between the two: such a server starts
+        again on another free port, a few times at most."""
+        import time
+
+        for attempt in range(WEB_PORT_TRIES):
+            try:
+                process.wait_ready(max(1.0, deadline - time.monotonic()))
+                return
+            except RuntimeError:
+                taken = "address already in use" in process.output()[-3000:]
+                last = attempt == WEB_PORT_TRIES - 1
+                if last or process.alive or not taken or not process.name.startswith("web"):
+                    raise
+            process.port = free_port()
+            process.argv = web_argv(process.port)
+            process.start()
 
     def __getitem__(self, name: str) -> Supervised:
         return self.processes[name]
