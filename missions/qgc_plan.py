@@ -7,7 +7,7 @@ refused. It re-exports as those simple items.
 
 | item | steps |
 |---|---|
-| 22 NAV_TAKEOFF, 84 NAV_VTOL_TAKEOFF | arm, takeoff(altitude) — QGC missions start disarmed on the ground |
+| 22 NAV_TAKEOFF, 84 NAV_VTOL_TAKEOFF | arm, takeoff(altitude), wait_for_flight — QGC missions start disarmed on the ground; the autopilot completes the climb before the next item |
 | 16 NAV_WAYPOINT | navigate(lat, lon, altitude_delta), wait_for_flight(acceptance radius), sleep(hold) if hold > 0 |
 | 19 NAV_LOITER_TIME | navigate, wait_for_flight, sleep(time) |
 | 21 NAV_LAND, 85 NAV_VTOL_LAND | land, preceded by navigate + wait_for_flight when it is not where the drone already is |
@@ -414,6 +414,14 @@ class _Reader:
             self.add("arm", {})
             self.armed = True
         self.add("takeoff", {"altitude": alt, "qgc": hint})
+        # The autopilot flies a take-off item to its altitude before the next item (PX4
+        # User Guide, "Mission Mode (VTOL)": ascends to the take-off altitude, then heads
+        # for the next position; in the air "a TAKEOFF item is treated as a normal
+        # waypoint", "Mission Mode (Multicopter)", docs.px4.io). Our takeoff step does not
+        # wait, and a leg sent during the climb is flown on a slant: the wait (default
+        # tolerances, no pictures: the climb covers no ground) flies the plan level.
+        self.body.append(("wait_for_flight", {}))
+        self.sources.append(self.where)
         self.altitude = alt
 
     def land(self, p: list, hint: dict, coordinate: tuple[float, float], alt: float) -> None:

@@ -71,7 +71,8 @@ def test_an_imported_plan_beyond_the_defaults_needs_a_confirmation(raised, outbo
     client = client_for(raised.operator)
     plan = qgc_mission(point_at(-1200, 0), point_at(0, 0))
     refused = client.post("/api/v1/missions/import-plan/", plan, format="json")
-    assert_needs_confirmation(refused, "default maximum distance", 2, outbox)
+    # arm, takeoff, the wait for its height, then the first waypoint: step 3.
+    assert_needs_confirmation(refused, "default maximum distance", 3, outbox)
     assert not Mission.objects.exists()
 
     upload = SimpleUploadedFile("far.plan", json.dumps(plan).encode())

@@ -96,9 +96,11 @@ def test_every_simple_item_maps_in_relative_amsl_and_terrain_frames():
     steps = plain(import_plan(load("mixed_frames.plan")).steps)
     by_index = {s["index"]: (s["command"], s["params"]) for s in steps}
     assert by_index[1] == ("takeoff", {"altitude": 15})
+    # The autopilot completes a take-off item before the next: the first leg is level.
+    assert by_index[2] == ("wait_for_flight", {})
     # AMSL 70 m over a home at 50 m AMSL is 20 m: 5 m above the 15 m takeoff. The speed
     # (DO_CHANGE_SPEED) and region of interest (DO_SET_ROI_LOCATION) ride on the leg.
-    assert by_index[2] == (
+    assert by_index[3] == (
         "navigate",
         {
             "lat": 40.6306,
@@ -108,26 +110,27 @@ def test_every_simple_item_maps_in_relative_amsl_and_terrain_frames():
             "roi": [40.631, -8.657],
         },
     )
-    assert by_index[3] == ("wait_for_flight", {"horizontal_tolerance": 1.5})
-    assert by_index[4] == ("takepic", {})  # the trigger's "shoot once now"
+    assert by_index[4] == ("wait_for_flight", {"horizontal_tolerance": 1.5})
+    assert by_index[5] == ("takepic", {})  # the trigger's "shoot once now"
     # Calculated above terrain: AMSLAltAboveTerrain 72 m → 22 m, with pictures every 10 m.
-    assert by_index[5][1]["altitude_delta"] == 2.0
-    assert by_index[6] == ("wait_for_flight", {"photo_distance": 10})
+    assert by_index[6][1]["altitude_delta"] == 2.0
+    assert by_index[7] == ("wait_for_flight", {"photo_distance": 10})
     # Terrain frame (10): AMSLAltAboveTerrain 68 m → 18 m; ROI none; a 5 s loiter.
-    assert by_index[7] == (
+    assert by_index[8] == (
         "navigate",
         {"lat": 40.6311, "lon": -8.6574, "altitude_delta": -4.0, "speed": 4},
     )
-    assert by_index[9] == ("sleep", {"value": 5})
-    assert [by_index[i][0] for i in (10, 11)] == ["takepic", "takepic"]  # 2000 and 203
+    assert by_index[10] == ("sleep", {"value": 5})
+    assert [by_index[i][0] for i in (11, 12)] == ["takepic", "takepic"]  # 2000 and 203
     # VTOL land at AMSL 50 m (ground level), VTOL takeoff to 10 m above terrain.
-    assert [by_index[i][0] for i in (12, 13, 14, 15)] == [
+    assert [by_index[i][0] for i in (13, 14, 15, 16, 17)] == [
         "navigate",
         "wait_for_flight",
         "land",
         "takeoff",
+        "wait_for_flight",
     ]
-    assert by_index[15][1] == {"altitude": 10.0}
+    assert by_index[16][1] == {"altitude": 10.0}
     assert [s["command"] for s in steps[-3:]] == ["navigate", "wait_for_flight", "land"]
     assert (steps[-3]["params"]["lat"], steps[-3]["params"]["lon"]) == (40.6303, -8.6575)
     assert encode_mission_payload("m", "a", steps)  # a mission a drone accepts
@@ -136,11 +139,13 @@ def test_every_simple_item_maps_in_relative_amsl_and_terrain_frames():
 def test_a_survey_complex_item_is_flattened_into_its_generated_items():
     plan = import_plan(load("survey_distance.plan"))
     commands = [s["command"] for s in plan.steps]
-    assert commands == ["arm", "takeoff", "takepic"] + ["navigate", "wait_for_flight"] * 5 + [
-        "land"
-    ]
+    assert commands == ["arm", "takeoff", "wait_for_flight", "takepic"] + [
+        "navigate",
+        "wait_for_flight",
+    ] * 5 + ["land"]
+    # The take-off's wait comes before the trigger distance is set.
     waits = [s["params"] for s in plan.steps if s["command"] == "wait_for_flight"]
-    assert [w.get("photo_distance") for w in waits] == [8, 8, 8, 8, None]
+    assert [w.get("photo_distance") for w in waits] == [None, 8, 8, 8, 8, None]
 
 
 def test_a_complex_item_without_generated_items_is_refused_with_the_reason():
@@ -291,7 +296,7 @@ def test_a_plan_round_trips_through_the_api_with_its_leg_settings(world):
     steps = first.json()["steps"]
     navigate = next(s for s in steps if s["command"] == "navigate")
     assert navigate["params"]["speed"] == 4 and navigate["params"]["roi"] == [40.631, -8.657]
-    assert {"photo_distance": 10}.items() <= steps[6]["params"].items()
+    assert {"photo_distance": 10}.items() <= steps[7]["params"].items()
     exported = client.get(f"/api/v1/missions/{first.json()['id']}/plan/")
     assert plan_errors(json.loads(exported.content)) == []
     again = client.post(

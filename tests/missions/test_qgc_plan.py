@@ -16,6 +16,7 @@ from missions.qgc_plan import (
     import_plan,
 )
 from onboard.protocol import encode_mission_payload
+from terrain.guard import mission_climbs
 from tests.missions.planning import rectangle
 
 FIXTURES = Path(__file__).parent / "fixtures"
@@ -48,16 +49,17 @@ def test_an_imported_plan_is_a_mission_a_drone_accepts(name):
 def test_survey_plan_becomes_arm_takeoff_waypoints_pictures_and_return_home():
     plan = import_plan(load("survey_photos_rtl.plan"))
     commands = [s["command"] for s in plan.steps]
-    assert commands[:2] == ["arm", "takeoff"]
+    # The autopilot completes the take-off item before the next: a wait for its height.
+    assert commands[:3] == ["arm", "takeoff", "wait_for_flight"]
     assert plan.steps[1]["params"]["altitude"] == 10
     assert commands.count("takepic") == 3
     assert commands[-3:] == ["navigate", "wait_for_flight", "land"]
     home = plan.steps[-3]["params"]
     assert (home["lat"], home["lon"]) == (40.6303, -8.6575)
     # A 2 s hold is a sleep after arrival; a 1.5 m acceptance radius is the wait's tolerance.
-    assert {"index": 7, "command": "sleep", "params": {"value": 2}} in plan.steps
-    assert plan.steps[10]["params"] == {"horizontal_tolerance": 1.5}
-    assert plan.steps[9]["params"]["altitude_delta"] == pytest.approx(7.214466517236122)
+    assert {"index": 8, "command": "sleep", "params": {"value": 2}} in plan.steps
+    assert plan.steps[11]["params"] == {"horizontal_tolerance": 1.5}
+    assert plan.steps[10]["params"]["altitude_delta"] == pytest.approx(7.214466517236122)
 
 
 def test_geofence_and_rally_points_come_back_as_plain_values():
@@ -137,7 +139,9 @@ def test_our_coverage_mission_exports_as_takeoff_waypoints_photos_and_land():
     assert items[-1]["command"] == 21
     assert [i["doJumpId"] for i in items] == list(range(1, len(items) + 1))
     again = import_plan(dumps(document))
-    assert [s["command"] for s in again.steps] == [s["command"] for s in steps]
+    # Read back, the take-off item waits for its height as the autopilot flies it.
+    commands = [s["command"] for s in steps]
+    assert [s["command"] for s in again.steps] == [*commands[:2], "wait_for_flight", *commands[2:]]
 
 
 def test_steps_without_a_qgroundcontrol_item_are_refused_on_export_naming_the_step():
@@ -154,8 +158,8 @@ def test_steps_without_a_qgroundcontrol_item_are_refused_on_export_naming_the_st
 def test_a_hover_and_capture_survey_flies_the_items_qgroundcontrol_generated():
     plan = import_plan((FIXTURES / "hover_survey.plan").read_text())
     commands = [s["command"] for s in plan.steps]
-    assert commands[:2] == ["arm", "takeoff"]
-    assert commands[2:14] == ["navigate", "wait_for_flight", "takepic"] * 4
+    assert commands[:3] == ["arm", "takeoff", "wait_for_flight"]
+    assert commands[3:15] == ["navigate", "wait_for_flight", "takepic"] * 4
     assert commands[-3:] == ["navigate", "wait_for_flight", "land"]
     survey = load("hover_survey.plan")["mission"]["items"][1]["TransectStyleComplexItem"]["Items"]
     exported = export_qgc_plan(plan)["mission"]["items"]
@@ -179,7 +183,7 @@ def test_a_survey_triggering_the_camera_by_distance_takes_pictures_while_flying(
     }
     steps = import_plan(plan).steps
     waits = [s["params"] for s in steps if s["command"] == "wait_for_flight"]
-    assert waits[0] == {} and waits[1]["photo_distance"] == 25
+    assert waits[:2] == [{}, {}] and waits[2]["photo_distance"] == 25
 
 
 def test_a_complex_item_nested_in_a_survey_is_refused_before_it_is_read():
@@ -196,3 +200,16 @@ def test_a_complex_item_nested_in_a_survey_is_refused_before_it_is_read():
 def test_a_plan_over_the_size_limit_is_refused_before_it_is_parsed():
     with pytest.raises(QgcPlanError, match="is over"):
         import_plan(b" " * (MAX_PLAN_BYTES + 1))
+
+
+@pytest.mark.parametrize("name", [*PLANS, "hover_survey.plan"])
+def test_an_imported_plan_flies_its_first_leg_level_after_the_climb(name):
+    """The autopilot completes a take-off item before the next one: no leg of an
+    imported plan is flown while its take-off is still climbing."""
+    plan = import_plan((FIXTURES / name).read_text())
+    takeoff = next(i for i, s in enumerate(plan.steps) if s["command"] == "takeoff")
+    assert plan.steps[takeoff + 1]["command"] == "wait_for_flight"
+    assert mission_climbs(plan.home, plan.steps, (0.0, 0.0, 0.0)) == {}
+    # Without the wait its first leg would be checked, and flown, on a slant.
+    slanted = plan.steps[: takeoff + 1] + plan.steps[takeoff + 2 :]
+    assert mission_climbs(plan.home, slanted, (0.0, 0.0, 0.0))
