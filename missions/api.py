@@ -518,7 +518,12 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
                 "terrain_warnings": envelopes.terrain_warnings(organisation, steps, drone),
                 "terrain_imported": has_terrain(),
                 "envelope": envelopes.envelope_body(organisation),
-                "profile": height_profile(_checked_home(organisation, steps, drone), steps),
+                "profile": height_profile(
+                    _checked_home(organisation, steps, drone),
+                    steps,
+                    organisation.pk,
+                    envelopes.drone_pace(drone) if drone else None,
+                ),
                 "conflicts": separation.plan_conflicts(drone, steps) if drone else [],
             }
         )

@@ -5,18 +5,34 @@ distance flown over the ground.
 The path is the one the envelope walks (terrain/guard.py mission_moves): take-off, legs
 from target to target, landing. Each leg gets samples in proportion to its length (at
 least its two ends); the ground is None where no terrain covers a sample or it is a void.
+
+A sideways leg sent while a climb is under way (terrain/guard.py mission_climbs) is flown
+on a slant: the profile also carries, for each such leg, the height the drone has surely
+reached along it, least(d) = min(target, h0 + s·d) (terrain/climbout.py), as the corners
+of that low edge, and its clearance held as the terrain check holds it — while least(d)
+is below the minimum the drone climbs out and the terrain may not rise above home, from
+there least(d) keeps the minimum above the terrain.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from terrain.guard import _latlon, mission_moves
-from terrain.lookup import Surface
+from onboard import envelope as env
+from terrain.climbout import Climb, Paced
+from terrain.guard import (
+    CLIMB_OUT_TOLERANCE_M,
+    _latlon,
+    min_clearance,
+    mission_climbs,
+    mission_moves,
+)
+from terrain.lookup import LegClearance, Surface
 
 # Samples in a whole profile: enough for a chart some hundreds of pixels wide.
 SAMPLES = 400
@@ -51,9 +67,129 @@ def _rounded(values: np.ndarray) -> list[float | None]:
     return [None if math.isnan(v) else round(v, 1) for v in values.tolist()]
 
 
-def profile(home: Sequence[float] | None, steps: Sequence[Mapping[str, Any]]) -> dict | None:
+def _round(value: float | None) -> float | None:
+    return None if value is None else round(value, 1)
+
+
+@dataclass(frozen=True)
+class _SlantLeg:
+    """A leg flown while a climb is under way: its step, its ends (NED from home), where
+    it begins on the profile and the climb it flies out."""
+
+    index: int
+    start: np.ndarray
+    end: np.ndarray
+    from_m: float
+    climb: Climb
+
+    @property
+    def length(self) -> float:
+        return float(math.hypot(self.end[0] - self.start[0], self.end[1] - self.start[1]))
+
+    @property
+    def target(self) -> float:
+        return -float(self.end[2])
+
+    def pieces(self, minimum: float) -> list[tuple[float, float, bool]]:
+        """The stretches (metres along) where the low edge is straight, as the terrain
+        check cuts them: climbing out (True: below the minimum and the target), climbing
+        on to the target, level at it."""
+        length, climb = self.length, self.climb
+        out = min(length, climb.reaches(min(minimum, self.target)))
+        up = max(out, min(length, climb.reaches(self.target)))
+        pieces = [(0.0, out, True), (out, up, False), (up, length, False)]
+        return [p for p in pieces if p[1] - p[0] > env.MIN_LEG]
+
+    def height(self, along: float, out: bool) -> float:
+        """The height above home a piece is sampled at: climbing out, home's own (its
+        clearance there is how far the terrain lies below home), else the low edge."""
+        return 0.0 if out else self.climb.least(along, self.target)
+
+    def point(self, along: float, height: float) -> np.ndarray:
+        ned = self.start + (self.end - self.start) * (along / self.length)
+        return np.array([ned[0], ned[1], -height])
+
+
+def _piece_clearances(
+    surface: Surface, home: Sequence[float], home_ground: float, leg: _SlantLeg, pieces: list
+) -> list[LegClearance]:
+    """Each piece's clearance above the terrain (its ends as latitude, longitude and
+    altitude above sea level, sampled as terrain/guard.py samples them)."""
+    ends = [[leg.point(d, leg.height(d, out)) for d in (d0, d1)] for d0, d1, out in pieces]
+    ned = np.array(ends, float).reshape(-1, 3)
+    lla = np.column_stack((_latlon(ned, home), home_ground - ned[:, 2]))
+    return surface.clearances(lla[0::2], lla[1::2], highest=False)
+
+
+def _edge(leg: _SlantLeg, pieces: list) -> list[list[float]]:
+    """The low edge's corners: [profile distance, height above home]."""
+    corners = sorted({0.0, leg.length, *(p[1] for p in pieces)})
+    return [[round(leg.from_m + d, 1), round(leg.climb.least(d, leg.target), 1)] for d in corners]
+
+
+def _slant(
+    surface: Surface,
+    home: Sequence[float],
+    home_ground: float | None,
+    minimum: float,
+    leg: _SlantLeg,
+) -> dict:
+    """One leg flown while climbing: its low edge, the terrain's highest rise above home
+    while it climbs out, its lowest clearance from there on, and whether the terrain
+    check refuses it (rule: the terrain may not rise above home while climbing out, the
+    minimum holds from there)."""
+    pieces = leg.pieces(minimum)
+    found: list[LegClearance | None] = [None] * len(pieces)
+    if home_ground is not None and pieces:
+        found = list(_piece_clearances(surface, home, home_ground, leg, pieces))
+    rise = lowest = at = None
+    for (d0, _, out), piece in zip(pieces, found, strict=True):
+        if piece is None or piece.minimum is None or piece.at is None:
+            continue
+        if out:
+            rise = -piece.minimum if rise is None else max(rise, -piece.minimum)
+        elif lowest is None or piece.minimum < lowest:
+            lowest, at = piece.minimum, leg.from_m + d0 + piece.at[2]
+    out_to = next((d1 for _, d1, out in pieces if out), None)
+    refused = (rise is not None and rise > CLIMB_OUT_TOLERANCE_M) or (
+        lowest is not None and lowest < minimum
+    )
+    return {
+        "index": leg.index,
+        "from_m": round(leg.from_m, 1),
+        "to_m": round(leg.from_m + leg.length, 1),
+        "level_m": [round(-float(leg.start[2]), 1), round(leg.target, 1)],
+        "edge": _edge(leg, pieces),
+        "climbing_out_to_m": None if out_to is None else round(leg.from_m + out_to, 1),
+        "climb_out_rise_m": _round(rise),
+        "lowest_clearance_m": _round(lowest),
+        "lowest_at_m": _round(at),
+        "refused": bool(refused),
+    }
+
+
+def _slant_legs(
+    corners: np.ndarray, indexes: list, corner_along: np.ndarray, climbs: Mapping
+) -> list[_SlantLeg]:
+    return [
+        _SlantLeg(
+            indexes[k], corners[k - 1], corners[k], float(corner_along[k - 1]), climbs[indexes[k]]
+        )
+        for k in range(1, len(corners))
+        if indexes[k] in climbs
+    ]
+
+
+def profile(
+    home: Sequence[float] | None,
+    steps: Sequence[Mapping[str, Any]],
+    organisation_id: int | None = None,
+    pace: Paced | None = None,
+) -> dict | None:
     """The height profile of `steps` flown from the ground at `home`, or None without a
-    home. `ground_m` is above the ground at home; `terrain` says whether any is known."""
+    home. `ground_m` is above the ground at home; `terrain` says whether any is known.
+    `slants`: the legs flown while a climb is under way (at `pace`, the drone's; else the
+    settings'), held to the organisation's minimum clearance (`minimum_clearance_m`)."""
     if home is None:
         return None
     corners, indexes = _vertices(home, steps)
@@ -66,9 +202,13 @@ def profile(home: Sequence[float] | None, steps: Sequence[Mapping[str, Any]]) ->
     home_ground = surface.elevation(float(home[0]), float(home[1]))
     relative = ground - (home_ground if home_ground is not None else np.nan)
     corner_along = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(corners[:, 0]), np.diff(corners[:, 1])))))  # fmt: skip
+    minimum = min_clearance(organisation_id)
+    climbs = mission_climbs(home, steps, (0.0, 0.0, 0.0), pace)
+    legs = _slant_legs(corners, indexes, corner_along, climbs)
     return {
         "terrain": home_ground is not None and bool(np.isfinite(relative).any()),
         "home_ground_m": None if home_ground is None else round(home_ground, 1),
+        "minimum_clearance_m": minimum,
         "distance_m": [round(d, 1) for d in along.tolist()],
         "height_m": [round(-d, 1) for d in points[:, 2].tolist()],
         "ground_m": _rounded(relative),
@@ -77,4 +217,5 @@ def profile(home: Sequence[float] | None, steps: Sequence[Mapping[str, Any]]) ->
             for i, d, c in zip(indexes, corner_along, corners, strict=True)
             if i is not None
         ],
+        "slants": [_slant(surface, home, home_ground, minimum, leg) for leg in legs],
     }
