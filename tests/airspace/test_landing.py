@@ -12,6 +12,8 @@ from airspace.models import LandingSlot, Reservation
 from fleet.models import Drone
 from tests.missions.conftest import online_drone, point_at
 
+from .scenes import failing_over_origin, replace
+
 pytestmark = pytest.mark.django_db
 
 
@@ -212,30 +214,6 @@ def test_other_organisations_queues_are_their_own(world):
     assert landing.send_home(mine) is None
 
 
-def _failing_over(world, home_north: float):  # type: ignore[no-untyped-def]
-    """ACME_A flew a mission north from its home and stopped failing at the origin, 10 m
-    up; ACME_B waits on the ground 150 m south."""
-    from missions.creation import create_mission
-    from missions.planning import mission_steps
-    from missions.startstop import start_mission
-    from tests.missions.test_services import _alarm_event, _complete
-
-    failing = online_drone(world.org, "ACME_A", north=home_north)
-    online_drone(world.org, "ACME_B", north=-150)
-    points = [point_at(100.0 * i, 0.0) for i in range(4)]
-    mission = create_mission(
-        organisation=world.org, name="north", steps=mission_steps(points, altitude=10)
-    )
-    assignment = start_mission(mission, drone=failing).assignment
-    _complete(failing, mission, assignment, [0, 1, 2, 3])
-    here = point_at(0, 0)
-    Drone.objects.filter(pk=failing.pk).update(
-        airborne=True, alt=10.0, lat=here[0], lon=here[1], home=list(point_at(home_north, 0))
-    )
-    failing.refresh_from_db()
-    return failing, mission, assignment, _alarm_event(mission, failing, north=0)
-
-
 def _clear_of(flight_row: Reservation, other: Reservation) -> bool:
     from airspace.corridors import Leg
     from airspace.index import Airspace, Flight
@@ -248,16 +226,9 @@ def _clear_of(flight_row: Reservation, other: Reservation) -> bool:
 def test_a_replacement_flying_to_a_drone_still_returning_home_keeps_clear_of_it(
     world, outbox, django_capture_on_commit_callbacks
 ):  # type: ignore[no-untyped-def]
-    from missions import replacement
-
-    failing, mission, assignment, alarm = _failing_over(world, -20.0)
+    failing, mission, assignment, alarm = failing_over_origin(world, -20.0, with_home=True)
     with django_capture_on_commit_callbacks(execute=True):
-        replacing = replacement.replace_drone(
-            mission_id=str(mission.pk),
-            assignment_id=str(assignment.pk),
-            alarm_event_id=alarm.pk,
-            then="return",
-        )
+        replacing = replace(mission, assignment, alarm, then="return")
     assert replacing is not None and replacing.drone.drone_id == "ACME_B"
     # Its site is free: it goes home as before (the stop's `then`), counted as landing.
     slot = LandingSlot.objects.get(drone=failing, ended_at__isnull=True)
@@ -273,20 +244,13 @@ def test_a_replacement_flying_to_a_drone_still_returning_home_keeps_clear_of_it(
 def test_a_stopped_drone_whose_home_is_busy_holds_over_it_and_keeps_the_replacement_clear(
     world, outbox, django_capture_on_commit_callbacks
 ):  # type: ignore[no-untyped-def]
-    from missions import replacement
-
-    failing, mission, assignment, alarm = _failing_over(world, -20.0)
+    failing, mission, assignment, alarm = failing_over_origin(world, -20.0, with_home=True)
     # Another drone is landing at a home 25 m from ACME_A's: the same site.
     other = flying(world.org, "ACME_C", 5.0, north=-45.0)
     Drone.objects.filter(pk=other.pk).update(battery_remaining=0.1)  # no replacement
     assert landing.send_home(other) is None
     with django_capture_on_commit_callbacks(execute=True):
-        replacing = replacement.replace_drone(
-            mission_id=str(mission.pk),
-            assignment_id=str(assignment.pk),
-            alarm_event_id=alarm.pk,
-            then="return",
-        )
+        replacing = replace(mission, assignment, alarm, then="return")
     assert replacing is not None and replacing.drone.drone_id == "ACME_B"
     slot = LandingSlot.objects.get(drone=failing, ended_at__isnull=True)
     assert slot.state == LandingSlot.State.HOLDING

@@ -15,15 +15,16 @@ from airspace import reservations, separation
 from airspace.index import Airspace, Flight, Reserved
 from airspace.models import Reservation, SeparationMinima
 from fleet.models import Drone, Organisation
-from missions import collaboration, replacement
+from missions import collaboration
 from missions.creation import create_mission
 from missions.handover import Assignment as PlannedPart
 from missions.handover import Handover
 from missions.models import Assignment, Mission
 from missions.planning import coverage, mission_steps
 from missions.startstop import start_mission
+from tests.airspace.scenes import failing_over_origin, replace
 from tests.missions.conftest import online_drone, point_at, rectangle
-from tests.missions.test_services import _alarm_event, _complete
+from tests.missions.test_services import _alarm_event
 
 pytestmark = pytest.mark.django_db
 PLACE = re.compile(r"at (-?\d+\.\d+), (-?\d+\.\d+) from (\S+)\.$")
@@ -327,21 +328,8 @@ def test_site_wide_another_organisations_drone_counts_and_is_not_named(world, se
 def test_a_replacement_flying_to_where_the_failing_drone_hovers_climbs_a_layer(world):
     """The failing drone hovers at 10 m where it stopped; its replacement's leg ends
     there, so it flies one layer up (24 m) rather than into the column under it."""
-    failing = online_drone(world.org, "ACME_A", north=-20)
-    online_drone(world.org, "ACME_B", north=-150)
-    points = [point_at(100.0 * i, 0.0) for i in range(4)]
-    mission = create_mission(
-        organisation=world.org, name="north", steps=mission_steps(points, altitude=10)
-    )
-    assignment = start_mission(mission, drone=failing).assignment
-    _complete(failing, mission, assignment, [0, 1, 2, 3])
-    here = point_at(0, 0)
-    Drone.objects.filter(pk=failing.pk).update(airborne=True, alt=10.0, lat=here[0], lon=here[1])
-    replacing = replacement.replace_drone(
-        mission_id=str(mission.pk),
-        assignment_id=str(assignment.pk),
-        alarm_event_id=_alarm_event(mission, failing, north=0).pk,
-    )
+    failing, mission, assignment, alarm = failing_over_origin(world, -20.0)
+    replacing = replace(mission, assignment, alarm)
     assert replacing is not None and replacing.drone.drone_id == "ACME_B"
     takeoff = mission.steps.get(index__in=replacing.preparation, command="takeoff")
     assert takeoff.params["altitude"] == 24.0

@@ -17,10 +17,10 @@ from fleet.models import Drone, Organisation
 from missions import collaboration
 from missions.creation import create_mission
 from missions.models import Assignment, Event, Mission, MissionStatus
-from missions.planning import mission_steps
 from missions.progress import apply_progress
 from missions.startstop import start_mission
 from onboard import protocol
+from tests.airspace.scenes import failing_over_origin, replace
 from tests.missions.conftest import online_drone, point_at
 from tests.missions.test_services import _alarm_event, _complete, _progress
 from tests.support.experiments import survey_with_alarm
@@ -320,24 +320,9 @@ def test_a_replacement_with_no_clear_layer_waits_for_the_failing_drones_way_down
     """The failing drone comes down where it stopped; its replacement flies there at the
     mission's 10 m and no layer fits under a 20 m ceiling: it waits on the ground until
     the failing drone's descent is behind it, rather than the replacement being refused."""
-    from missions import replacement
-
     Organisation.objects.filter(pk=world.org.pk).update(envelope={"max_height": 20.0})
-    failing = online_drone(world.org, "ACME_A", north=-20)
-    online_drone(world.org, "ACME_B", north=-150)
-    points = [point_at(100.0 * i, 0.0) for i in range(4)]
-    mission = create_mission(
-        organisation=world.org, name="north", steps=mission_steps(points, altitude=10)
-    )
-    assignment = start_mission(mission, drone=failing).assignment
-    _complete(failing, mission, assignment, [0, 1, 2, 3])
-    here = point_at(0, 0)
-    Drone.objects.filter(pk=failing.pk).update(airborne=True, alt=10.0, lat=here[0], lon=here[1])
-    replacing = replacement.replace_drone(
-        mission_id=str(mission.pk),
-        assignment_id=str(assignment.pk),
-        alarm_event_id=_alarm_event(mission, failing, north=0).pk,
-    )
+    failing, mission, assignment, alarm = failing_over_origin(world, -20.0)
+    replacing = replace(mission, assignment, alarm)
     assert replacing is not None, list(mission.events.values_list("message", flat=True))
     steps = _steps_of(replacing)
     assert [s.command for s in steps[:3]] == ["sleep", "arm", "takeoff"]

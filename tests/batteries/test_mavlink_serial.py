@@ -8,10 +8,8 @@ from __future__ import annotations
 import pytest
 
 from batteries.models import Battery
-from firmware.sim import start_simulator
-from firmware.sim.fleet import agent_process, copy_gear
 from fleet.models import Drone
-from runtime.processes import Supervised, wait_for
+from runtime.processes import wait_for
 from tests.fleet.conftest import (  # noqa: F401 (fixtures)
     _shared_broker,
     broker,
@@ -20,7 +18,7 @@ from tests.fleet.conftest import (  # noqa: F401 (fixtures)
     fresh_redis,
     gateway,
 )
-from tests.onboard.mavlink.conftest import HOME, TIME_SCALE
+from tests.support.mavlink_drone import simulated_mavlink_drone
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
@@ -33,28 +31,13 @@ def smart_battery_drone(request, world_tx, broker, gateway, tmp_path, settings):
     """ACME_BAT1 on a simulated autopilot whose battery reports serial SIMPACK-0001."""
     settings.HEARTBEAT_INTERVAL_S = 0.5
     Drone.objects.create(organisation=world_tx.org, drone_id=DRONE)
-    sim = start_simulator(
-        home=HOME,
-        time_scale=TIME_SCALE,
-        fc="mavlink",
-        extra_args=["--autopilot", request.param, "--battery-serial", SERIAL],
-        log_file=tmp_path / "sim.log",
-    )
-    copy_gear(tmp_path)
-    agent = agent_process(
+    with simulated_mavlink_drone(
         DRONE,
-        tmp_path,
-        sim.link_url,
         drone_url(broker, DRONE),
-        fc="mavlink",
-        time_scale=TIME_SCALE,
-        extra=["--heartbeat-interval", "0.5"],
-    ).start()
-    try:
+        tmp_path,
+        ["--autopilot", request.param, "--battery-serial", SERIAL],
+    ):
         yield
-    finally:
-        assert isinstance(agent, Supervised) and agent.stop() == 0
-        sim.stop()
 
 
 def reported() -> str | None:

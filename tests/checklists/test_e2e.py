@@ -8,10 +8,8 @@ import pytest
 
 from checklists import definitions
 from checklists.models import Policy
-from firmware.sim import start_simulator
-from firmware.sim.fleet import agent_process, copy_gear
 from fleet.models import Drone
-from runtime.processes import Supervised, wait_for
+from runtime.processes import wait_for
 from tests.fleet.conftest import (  # noqa: F401 (fixtures)
     _shared_broker,
     broker,
@@ -20,7 +18,7 @@ from tests.fleet.conftest import (  # noqa: F401 (fixtures)
     fresh_redis,
     gateway,
 )
-from tests.onboard.mavlink.conftest import HOME, TIME_SCALE
+from tests.support.mavlink_drone import simulated_mavlink_drone
 
 pytestmark = [pytest.mark.e2e, pytest.mark.django_db(transaction=True)]
 
@@ -42,19 +40,8 @@ def drone(world_tx, broker, gateway, tmp_path, settings):  # type: ignore[no-unt
         world_tx.org, {"name": "Before flight", "items": ITEMS}, world_tx.owner
     )
     Drone.objects.create(organisation=world_tx.org, drone_id=DRONE)
-    sim = start_simulator(
-        home=HOME, time_scale=TIME_SCALE, fc="mavlink", log_file=tmp_path / "sim.log"
-    )
-    copy_gear(tmp_path)
-    agent = agent_process(
-        DRONE, tmp_path, sim.link_url, drone_url(broker, DRONE), fc="mavlink",
-        time_scale=TIME_SCALE, extra=["--heartbeat-interval", "0.5"],
-    ).start()  # fmt: skip
-    try:
+    with simulated_mavlink_drone(DRONE, drone_url(broker, DRONE), tmp_path):
         yield template
-    finally:
-        assert isinstance(agent, Supervised) and agent.stop() == 0
-        sim.stop()
 
 
 def arm(client):  # type: ignore[no-untyped-def]

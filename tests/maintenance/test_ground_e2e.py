@@ -6,11 +6,9 @@ from __future__ import annotations
 
 import pytest
 
-from firmware.sim import start_simulator
-from firmware.sim.fleet import agent_process, copy_gear
 from fleet.models import Drone
 from maintenance.models import Schedule
-from runtime.processes import Supervised, wait_for
+from runtime.processes import wait_for
 from tests.fleet.conftest import (  # noqa: F401 (fixtures)
     _shared_broker,
     broker,
@@ -19,7 +17,7 @@ from tests.fleet.conftest import (  # noqa: F401 (fixtures)
     fresh_redis,
     gateway,
 )
-from tests.onboard.mavlink.conftest import HOME, TIME_SCALE
+from tests.support.mavlink_drone import simulated_mavlink_drone
 
 from .support import flown
 
@@ -37,22 +35,8 @@ def overdue_drone(world_tx, broker, gateway, tmp_path, settings):  # type: ignor
     schedule = Schedule.objects.create(
         organisation=world_tx.org, drone=drone, name="Post-flight inspection", every_flights=1
     )
-    sim = start_simulator(home=HOME, time_scale=TIME_SCALE, fc="mavlink", log_file=tmp_path / "s")
-    copy_gear(tmp_path)
-    agent = agent_process(
-        DRONE,
-        tmp_path,
-        sim.link_url,
-        drone_url(broker, DRONE),
-        fc="mavlink",
-        time_scale=TIME_SCALE,
-        extra=["--heartbeat-interval", "0.5"],
-    ).start()
-    try:
+    with simulated_mavlink_drone(DRONE, drone_url(broker, DRONE), tmp_path):
         yield schedule
-    finally:
-        assert isinstance(agent, Supervised) and agent.stop() == 0
-        sim.stop()
 
 
 def _arm(user):  # type: ignore[no-untyped-def]

@@ -6,10 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from firmware.sim import start_simulator
-from firmware.sim.fleet import agent_process, copy_gear
 from fleet.models import Drone, Organisation
-from runtime.processes import Supervised, wait_for
+from runtime.processes import wait_for
 from tests.fleet.conftest import (  # noqa: F401 (fixtures)
     _shared_broker,
     broker,
@@ -18,7 +16,7 @@ from tests.fleet.conftest import (  # noqa: F401 (fixtures)
     fresh_redis,
     gateway,
 )
-from tests.onboard.mavlink.conftest import HOME, TIME_SCALE
+from tests.support.mavlink_drone import simulated_mavlink_drone
 
 from .test_agent_odid import received
 
@@ -36,28 +34,10 @@ def failing_drone(world_tx, broker, gateway, tmp_path, settings):  # type: ignor
         require_remote_id=True, operator_id="FIN87astrdge12k8"
     )
     Drone.objects.create(organisation=world_tx.org, drone_id=DRONE, serial_number=SERIAL)
-    sim = start_simulator(
-        home=HOME,
-        time_scale=TIME_SCALE,
-        fc="mavlink",
-        extra_args=["--remote-id-fail", "transmitter fault"],
-        log_file=tmp_path / "sim.log",
-    )
-    copy_gear(tmp_path)
-    agent = agent_process(
-        DRONE,
-        tmp_path,
-        sim.link_url,
-        drone_url(broker, DRONE),
-        fc="mavlink",
-        time_scale=TIME_SCALE,
-        extra=["--heartbeat-interval", "0.5"],
-    ).start()
-    try:
+    with simulated_mavlink_drone(
+        DRONE, drone_url(broker, DRONE), tmp_path, ["--remote-id-fail", "transmitter fault"]
+    ):
         yield
-    finally:
-        assert isinstance(agent, Supervised) and agent.stop() == 0
-        sim.stop()
 
 
 def remote_id_of() -> dict | None:
