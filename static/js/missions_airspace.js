@@ -79,10 +79,68 @@
     return found;
   }
 
+  // The height on a polyline of [distance, height] corners at distance d.
+  function heightAt(corners, d) {
+    for (let i = 1; i < corners.length; i++) {
+      const [d0, h0] = corners[i - 1], [d1, h1] = corners[i];
+      if (d <= d1 || i === corners.length - 1) return d1 > d0 ? h0 + ((h1 - h0) * (Math.min(d, d1) - d0)) / (d1 - d0) : h1;
+    }
+    return corners[0][1];
+  }
+
+  /* A leg flown while a climb is under way: the height the drone has surely reached along
+     it (dashed, `data-edge` its corners in metres), the band up to the level path shaded,
+     and the lowest clearance on it marked; red where the terrain check refuses it. */
+  function drawSlant(chart, slant, minimum, x, y) {
+    const mark = slant.refused ? " refused" : "";
+    const edge = slant.edge.map(([d, h]) => `${x(d)},${y(h)}`).join(" ");
+    const level = `${x(slant.to_m)},${y(slant.level_m[1])} ${x(slant.from_m)},${y(slant.level_m[0])}`;
+    chart.append(svg("polygon", { points: `${edge} ${level}`, class: `profile-slant-band${mark}` }));
+    const line = svg("polyline", { points: edge, class: `profile-slant${mark}`, "data-step": slant.index, "data-edge": JSON.stringify(slant.edge) });
+    const title = svg("title", {});
+    title.textContent = slantText(slant, minimum);
+    line.append(title);
+    chart.append(line);
+    if (slant.lowest_at_m === null) return;
+    const at = svg("circle", { cx: x(slant.lowest_at_m), cy: y(heightAt(slant.edge, slant.lowest_at_m)), r: 3, class: `profile-slant-lowest${mark}` });
+    chart.append(at);
+  }
+
+  // "Step 2 flown while climbing: at least 12 m above ground at 0.15 km; climbing out to
+  // 0.04 km; refused: below the minimum of 30 m".
+  function slantText(slant, minimum) {
+    const km = (d) => `${(d / 1000).toFixed(2)} km`;
+    let text = `Step ${slant.index} flown while climbing`;
+    const lowest = slant.lowest_clearance_m;
+    if (lowest !== null) text += lowest >= 0 ? `: at least ${lowest.toFixed(0)} m above ground` : `: as much as ${(-lowest).toFixed(0)} m below ground`;
+    if (lowest !== null) text += ` at ${km(slant.lowest_at_m)}`;
+    if (slant.climbing_out_to_m !== null) {
+      const rise = slant.climb_out_rise_m;
+      text += `; climbing out to ${km(slant.climbing_out_to_m)}` + (rise !== null && rise > 0 ? `, over ground up to ${rise.toFixed(1)} m above home` : "");
+    }
+    if (!slant.refused) return text;
+    const low = lowest !== null && lowest < minimum;
+    return text + (low ? `; refused: below the minimum of ${minimum} m` : "; refused: the ground rises above home while it climbs out");
+  }
+
+  function listSlants(profile) {
+    const list = $("height-profile-slants");
+    const slants = (profile && profile.slants) || [];
+    list.replaceChildren(...slants.map((slant) => {
+      const item = document.createElement("li");
+      item.textContent = slantText(slant, profile.minimum_clearance_m);
+      if (slant.refused) item.classList.add("refused");
+      item.dataset.step = slant.index;
+      return item;
+    }));
+    list.hidden = !slants.length;
+  }
+
   function drawProfile(profile) {
     const figure = $("height-profile");
     const chart = $("height-profile-chart");
     chart.replaceChildren();
+    listSlants(profile);
     if (!profile || profile.distance_m.length < 2) { figure.hidden = true; return; }
     const W = 600, H = 170, PAD = 18;
     const ground = profile.ground_m.filter((g) => g !== null);
@@ -95,6 +153,7 @@
       const base = `${x(run[run.length - 1][0])},${y(low)} ${x(run[0][0])},${y(low)}`;
       chart.append(svg("polygon", { points: `${top} ${base}`, class: "profile-ground" }));
     }
+    for (const slant of profile.slants || []) drawSlant(chart, slant, profile.minimum_clearance_m, x, y);
     const flight = profile.distance_m.map((d, i) => `${x(d)},${y(profile.height_m[i])}`).join(" ");
     chart.append(svg("polyline", { points: flight, class: "profile-flight" }));
     for (const step of profile.steps) {
