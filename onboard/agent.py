@@ -361,7 +361,9 @@ class Agent:
             str(self.config.media_url), self.drone_id, password, fps=self.config.live_fps
         )
         poses = PoseSource(lambda: self.fc.state, VideoConfig(time_scale=self.config.time_scale))
-        return LiveVideo(config, poses.sample, enabled=self.gear.has_camera)
+        return LiveVideo(
+            config, poses.sample, enabled=self.gear.has_camera, uplink=self.mqtt.socket
+        )
 
     def _supervise(self) -> None:
         while not self._stop.wait(0.2):

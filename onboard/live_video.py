@@ -19,6 +19,11 @@ Video never delays a command or a telemetry sample, by construction:
   160 x 120, back up with hysteresis). The estimate is delay-based: it falls as soon as
   the link's queue grows, so the video leaves the link's capacity to the agent's MQTT
   traffic (commands, telemetry) rather than queueing ahead of it.
+- The agent's MQTT connection crosses the same uplink, and the kernel knows how long its
+  oldest unacknowledged byte has waited: the feeder reads it every 50 ms (``UplinkProbe``,
+  Linux only) and tells the child the uplink's queue on the same pipe, within a frame
+  rather than the second a receiver report takes, so the video pauses before commands'
+  answers and telemetry wait long behind it.
 
 Each frame carries its capture time drawn into its top rows (onboard/framecode.py),
 read by the media server and the browser to show the glass-to-glass delay.
@@ -37,6 +42,8 @@ import json
 import logging
 import os
 import signal
+import socket
+import struct
 import subprocess
 import sys
 import threading
@@ -44,7 +51,7 @@ import time
 import urllib.error
 import urllib.parse
 import urllib.request
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from fractions import Fraction
@@ -61,6 +68,19 @@ RETRY_S = 2.0
 NICE = 10
 SENDER_REPORTS_KEPT = 64  # sender reports whose sending time is noted
 RESENT_KEPT = 4096  # the re-sent packets remembered (a sequence number wraps at 65536)
+# "off": the uplink's queue is not measured from the MQTT connection, for a drone whose
+# MQTT crosses another link than its video (its queue would say nothing of the video's).
+UPLINK_ENV = "SKYHIVE_LIVE_VIDEO_UPLINK_QUEUE"
+UPLINK_PROBE_S = 0.05
+UPLINK_KEPT = 600  # write samples kept: 30 s of them, the oldest an unacked byte is dated by
+# struct tcp_info (linux/tcp.h), the fields read by their byte offsets (checked with
+# offsetof against the headers of Linux 6.18; unchanged since they were added, the
+# structure only grows at its end): tcpi_bytes_acked (__u64, since Linux 4.1) and
+# tcpi_min_rtt (__u32 microseconds, the least round trip of the last 5 minutes, 4.6).
+TCP_INFO_BYTES_ACKED = 120
+TCP_INFO_MIN_RTT = 148
+TCP_INFO_LEN = 152
+SIOCOUTQ = 0x5411  # linux/sockios.h: the bytes written and not yet acknowledged
 
 Pose = tuple[tuple[float, float, float], tuple[float, float, float, float]]
 
@@ -112,10 +132,13 @@ class LiveVideo:
         pose: Callable[[], Pose | None],
         *,
         enabled: Callable[[], bool] = lambda: True,
+        uplink: Callable[[], socket.socket | None] | None = None,
     ) -> None:
         self.config = config
         self.pose = pose
         self.enabled = enabled
+        measured = uplink is not None and os.environ.get(UPLINK_ENV, "on") != "off"
+        self.uplink = UplinkProbe(uplink) if measured and uplink is not None else None
         self.counts: Counter[str] = Counter()
         self._process: subprocess.Popen | None = None
         self._stop = threading.Event()
@@ -157,7 +180,9 @@ class LiveVideo:
             process.wait(5)
 
     def _feed(self) -> None:
-        period = 1.0 / self.config.fps
+        # A pose per step too: the child keeps the newest, so more poses than frames is
+        # harmless, and the uplink's queue is read at least every UPLINK_PROBE_S.
+        period = min(1.0 / self.config.fps, UPLINK_PROBE_S)
         restart_at = 0.0
         while not self._stop.wait(period):
             if not self.enabled():
@@ -171,20 +196,79 @@ class LiveVideo:
                 if time.monotonic() < restart_at:
                     continue
                 self._process = self._spawn()
+            self._send_uplink_queue()
             self._send_pose()
 
     def _send_pose(self) -> None:
         pose = self.pose()
-        if pose is None or self._process is None or self._process.stdin is None:
+        if pose is None:
             return
-        line = (json.dumps([*pose[0], *pose[1]]) + "\n").encode()
+        sent = self._send([*pose[0], *pose[1]])
+        self.counts["poses" if sent else "poses_dropped"] += 1
+
+    def _send_uplink_queue(self) -> None:
+        # A line an older child skips: it reads a list of 7 numbers only.
+        queue_s = self.uplink.queue_s(time.monotonic()) if self.uplink is not None else None
+        if queue_s is not None and self._send({"queue_s": round(queue_s, 3)}):
+            self.counts["uplink_queues"] += 1
+
+    def _send(self, value: object) -> bool:
+        """Write one line to the child without blocking; False when it could not."""
+        if self._process is None or self._process.stdin is None:
+            return False
         try:
-            os.write(self._process.stdin.fileno(), line)
-            self.counts["poses"] += 1
-        except BlockingIOError:
-            self.counts["poses_dropped"] += 1  # the child is behind: never wait for it
-        except (BrokenPipeError, OSError):
-            self.counts["poses_dropped"] += 1
+            os.write(self._process.stdin.fileno(), (json.dumps(value) + "\n").encode())
+            return True
+        except OSError:  # full (the child is behind: never wait for it) or closed
+            return False
+
+
+class UplinkProbe:
+    """The queue on the uplink the agent's MQTT connection crosses: how long its oldest
+    unacknowledged byte has waited, less the least round trip the connection has seen,
+    from the kernel's counts (TCP_INFO and SIOCOUTQ; Linux). None where they cannot be
+    read (another system, no connection): the round trips of the RTCP reports remain.
+
+    Two system calls a sample, a few microseconds; the MQTT client's thread is not
+    involved (the kernel answers for its socket)."""
+
+    def __init__(self, connection: Callable[[], socket.socket | None]) -> None:
+        self.connection = connection
+        self.written: deque[tuple[float, int]] = deque(maxlen=UPLINK_KEPT)
+        self._socket: socket.socket | None = None
+
+    def queue_s(self, now: float) -> float | None:
+        sock = self.connection()
+        counts = _tcp_counts(sock) if sock is not None else None
+        if counts is None:
+            return None
+        acked, unacked, least_rtt_s = counts
+        if sock is not self._socket:  # a new connection counts from 0
+            self._socket = sock
+            self.written.clear()
+        self.written.append((now, acked + unacked))
+        while self.written[0][1] <= acked and len(self.written) > 1:
+            self.written.popleft()
+        wait = video_adaptation.uplink_wait_s(self.written, acked, now)
+        return max(0.0, wait - least_rtt_s)
+
+
+def _tcp_counts(sock: socket.socket) -> tuple[int, int, float] | None:
+    """A TCP socket's bytes acknowledged, bytes written and not yet acknowledged, and
+    least round trip (s); None where the kernel does not tell.
+
+    TCP_INFO before SIOCOUTQ: an acknowledgement between the two then makes the written
+    total (their sum) smaller, and the oldest byte's wait shorter, never longer."""
+    try:
+        info = sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_INFO, TCP_INFO_LEN)
+        outq = fcntl.ioctl(sock.fileno(), SIOCOUTQ, b"\0" * 4)
+    except (OSError, AttributeError, ValueError):  # not Linux, not TCP, closed
+        return None
+    if len(info) < TCP_INFO_LEN:
+        return None
+    (acked,) = struct.unpack_from("=Q", info, TCP_INFO_BYTES_ACKED)
+    (least_us,) = struct.unpack_from("=I", info, TCP_INFO_MIN_RTT)
+    return acked, struct.unpack("=i", outq)[0], least_us / 1e6
 
 
 # -- the child: camera, encoder, WebRTC ---------------------------------------------------
@@ -195,16 +279,27 @@ class LatestPose:
 
     def __init__(self) -> None:
         self.value: Pose = ((0.0, 0.0, -1.0), (0.0, 0.0, 0.0, 1.0))
+        # Told each uplink queue the agent measured ({"queue_s": x} lines), from this
+        # reading thread.
+        self.on_uplink_queue: Callable[[float], None] | None = None
 
     def read_forever(self, stream) -> None:  # type: ignore[no-untyped-def]
         for line in stream:
             try:
-                n, e, d, qx, qy, qz, qw = (float(v) for v in json.loads(line))
-            except (ValueError, TypeError):
+                value = json.loads(line)
+                if isinstance(value, dict):
+                    self._uplink_queue(float(value["queue_s"]))
+                    continue
+                n, e, d, qx, qy, qz, qw = (float(v) for v in value)
+            except (ValueError, TypeError, KeyError, RuntimeError):  # RuntimeError: loop closed
                 continue
             self.value = ((n, e, d), (qx, qy, qz, qw))
         # The agent is gone (its end of the pipe closed): so is the reason to stream.
         os.kill(os.getpid(), signal.SIGTERM)
+
+    def _uplink_queue(self, queue_s: float) -> None:
+        if self.on_uplink_queue is not None:
+            self.on_uplink_queue(queue_s)
 
 
 class LinkAdaptation:
@@ -244,6 +339,16 @@ class LinkAdaptation:
         if pause:
             self.paused_until = max(self.paused_until, self.clock() + pause)
             self.counts["pauses"] += 1
+
+    def uplink_queue(self, queue_s: float) -> None:
+        """The uplink's queue the agent measured on its MQTT connection (UplinkProbe)."""
+        self._update(video_adaptation.observe_uplink_queue(self.state, queue_s))
+        pause = video_adaptation.uplink_pause_s(queue_s)
+        if pause:
+            now = self.clock()
+            if self.paused_until <= now:
+                self.counts["uplink_pauses"] += 1
+            self.paused_until = max(self.paused_until, now + pause)
 
     def _update(self, state: video_adaptation.Adaptation) -> None:
         before, was_narrow = self.size, self.state.narrow
@@ -501,6 +606,8 @@ async def publish_once(
 
     adaptation = LinkAdaptation(config, counts, time.monotonic)
     use_adaptive_encoder(adaptation)
+    loop = asyncio.get_running_loop()
+    poses.on_uplink_queue = lambda q: loop.call_soon_threadsafe(adaptation.uplink_queue, q)
     pc = RTCPeerConnection()
     ended = asyncio.Event()
 
@@ -519,7 +626,6 @@ async def publish_once(
         "Content-Type": "application/sdp",
         "Authorization": basic_auth(config.drone_id, config.password),
     }
-    loop = asyncio.get_running_loop()
     status, body, location = await loop.run_in_executor(
         None, _request, config.publish_url, "POST", pc.localDescription.sdp.encode(), headers
     )
@@ -538,6 +644,7 @@ async def publish_once(
         for task in pending:
             task.cancel()
     finally:
+        poses.on_uplink_queue = None
         await pc.close()
         if location:
             url = urllib.parse.urljoin(config.publish_url, location)

@@ -208,6 +208,11 @@ class MqttLink:
         """QoS 1 messages not yet acknowledged by the broker."""
         return len(self.client._out_messages)  # paho has no public accessor
 
+    def socket(self) -> socket.socket | None:
+        """The connection's socket (None while not connected), for reading the kernel's
+        counts of it; never read from or written to outside paho's thread."""
+        return self.client.socket()
+
     def start(self) -> None:
         # connect_async + loop_start: the loop thread keeps retrying, with backoff, until
         # the broker answers, and again after every disconnect.

@@ -24,6 +24,16 @@ The rule:
   ground later than teleoperation's bound anyway (docs/video.md), and would only hold
   back the commands' answers and telemetry queued with it. The link's buffer drains at
   all the link carries beyond MQTT, not at the little the video leaves.
+- **The uplink's own queue**: the agent's MQTT connection crosses the same link, and the
+  kernel knows how long its oldest unacknowledged byte has waited (onboard/live_video.py
+  reads it every 50 ms, ``uplink_wait_s``). Less the least round trip the connection
+  has seen, that is the link's queue, measured a sample period after it forms rather
+  than a report interval (about a second) after. The link is narrow once it exceeds
+  ``QUEUE_EVIDENCE_S``, as with a round trip; and while it exceeds
+  ``UPLINK_PAUSE_QUEUE_S`` (0.2 s, lower than the round trips' 0.5 s: this measure
+  comes every 50 ms, so a pause it starts ends at the first sample under the bound,
+  ``UPLINK_PAUSE_HOLD_S`` after the last one over it) no frame is sent. The bound is
+  what a command's answer may wait behind video at the onset of a narrowing.
 - **Bitrate**: the encoder's target is the estimate, at most 1.5 Mbit/s and at least
   ``WIDE_FLOOR_BPS`` (250 kbit/s, aiortc's own floor) on a link not known to be narrow,
   ``MIN_TARGET_BPS`` (30 kbit/s) on a narrow one: there the picture gets coarser rather
@@ -52,6 +62,7 @@ feeds them every estimate and round trip it receives and renders the size they c
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 
 NEED_BITS_PER_PIXEL = 0.07
@@ -64,6 +75,9 @@ MIN_TARGET_BPS = 30_000
 WIDE_FLOOR_BPS = 250_000
 QUEUE_EVIDENCE_S = 0.2
 PAUSE_QUEUE_S = 0.5
+UPLINK_PAUSE_QUEUE_S = 0.2
+# Two of the agent's 50 ms samples and a late one: a pause outlives a sample that is late.
+UPLINK_PAUSE_HOLD_S = 0.15
 # libwebrtc honours a keyframe request at most every 300 ms ([libwebrtc encoder feedback]).
 MIN_KEYFRAME_INTERVAL_S = 0.3
 KEYFRAME_SHARE = 0.5
@@ -136,6 +150,33 @@ def observe_rtt(state: Adaptation, rtt_s: float) -> Adaptation:
     if queue > QUEUE_EVIDENCE_S:
         return replace(state, narrow=True, wide_since=None, least_rtt_s=least, queue_s=queue)
     return replace(state, least_rtt_s=least, queue_s=queue)
+
+
+def uplink_wait_s(written: Iterable[tuple[float, int]], acked: int, now: float) -> float:
+    """How long the oldest byte of a TCP connection not yet acknowledged has waited, at
+    least: `written` holds (time, bytes written so far) samples oldest first, `acked` the
+    bytes acknowledged now. That byte was written after the last sample short of it and by
+    the first past it: it has waited since then. 0 when every written byte is acknowledged."""
+    for at, total in written:
+        if total > acked:
+            return now - at
+    return 0.0
+
+
+def observe_uplink_queue(state: Adaptation, queue_s: float) -> Adaptation:
+    """The state after the uplink's own queue was measured at `queue_s` (the agent's MQTT
+    connection's oldest unacknowledged byte's wait less its least round trip): narrow once
+    it exceeds QUEUE_EVIDENCE_S."""
+    if queue_s > QUEUE_EVIDENCE_S:
+        return replace(state, narrow=True, wide_since=None)
+    return state
+
+
+def uplink_pause_s(queue_s: float) -> float:
+    """How long to send no frame after the uplink's queue was measured at `queue_s`:
+    UPLINK_PAUSE_HOLD_S while it exceeds UPLINK_PAUSE_QUEUE_S, so the pause lasts until
+    the samples show the queue under the bound."""
+    return UPLINK_PAUSE_HOLD_S if queue_s > UPLINK_PAUSE_QUEUE_S else 0.0
 
 
 def decide(
