@@ -10,8 +10,9 @@ A sideways leg sent while a climb is under way (terrain/guard.py mission_climbs)
 on a slant: the profile also carries, for each such leg, the height the drone has surely
 reached along it, least(d) = min(target, h0 + s·d) (terrain/climbout.py), as the corners
 of that low edge, and its clearance held as the terrain check holds it — while least(d)
-is below the minimum the drone climbs out and the terrain may not rise above home, from
-there least(d) keeps the minimum above the terrain.
+is less than the minimum above the ground the climb began over (home, for a take-off)
+the drone climbs out and the terrain may not rise above that ground, from there least(d)
+keeps the minimum above the terrain.
 """
 
 from __future__ import annotations
@@ -90,32 +91,53 @@ class _SlantLeg:
     def target(self) -> float:
         return -float(self.end[2])
 
-    def pieces(self, minimum: float) -> list[tuple[float, float, bool]]:
+    def pieces(self, minimum: float, offset: float) -> list[tuple[float, float, bool]]:
         """The stretches (metres along) where the low edge is straight, as the terrain
-        check cuts them: climbing out (True: below the minimum and the target), climbing
-        on to the target, level at it."""
+        check cuts them: climbing out (True: less than the minimum above the ground the
+        climb began over, `offset` metres below home, and below the target), climbing on
+        to the target, level at it."""
         length, climb = self.length, self.climb
-        out = min(length, climb.reaches(min(minimum, self.target)))
+        out = min(length, climb.reaches(min(minimum - offset, self.target)))
         up = max(out, min(length, climb.reaches(self.target)))
         pieces = [(0.0, out, True), (out, up, False), (up, length, False)]
         return [p for p in pieces if p[1] - p[0] > env.MIN_LEG]
 
-    def height(self, along: float, out: bool) -> float:
-        """The height above home a piece is sampled at: climbing out, home's own (its
-        clearance there is how far the terrain lies below home), else the low edge."""
-        return 0.0 if out else self.climb.least(along, self.target)
+    def height(self, along: float, out: bool, offset: float) -> float:
+        """The height above home a piece is sampled at: climbing out, the climb's ground
+        (its clearance there is how far the terrain lies below that ground), else the low
+        edge."""
+        return -offset if out else self.climb.least(along, self.target)
 
     def point(self, along: float, height: float) -> np.ndarray:
         ned = self.start + (self.end - self.start) * (along / self.length)
         return np.array([ned[0], ned[1], -height])
 
 
+def _climb_offset(
+    surface: Surface, home: Sequence[float], home_ground: float, climb: Climb
+) -> float:
+    """How high home lies above the ground the climb began over (its `origin`, north and
+    east of home; none: over home), where the terrain gives it: climbing out, the terrain
+    may not rise above that ground."""
+    origin = getattr(climb, "origin", None)
+    if origin is None or math.hypot(*origin) < env.MIN_LEG:
+        return 0.0
+    lat, lon = env.ned_to_latlon(origin[0], origin[1], home)
+    below = surface.elevation(lat, lon)
+    return 0.0 if below is None else home_ground - below
+
+
 def _piece_clearances(
-    surface: Surface, home: Sequence[float], home_ground: float, leg: _SlantLeg, pieces: list
+    surface: Surface,
+    home: Sequence[float],
+    home_ground: float,
+    leg: _SlantLeg,
+    pieces: list,
+    offset: float,
 ) -> list[LegClearance]:
     """Each piece's clearance above the terrain (its ends as latitude, longitude and
     altitude above sea level, sampled as terrain/guard.py samples them)."""
-    ends = [[leg.point(d, leg.height(d, out)) for d in (d0, d1)] for d0, d1, out in pieces]
+    ends = [[leg.point(d, leg.height(d, out, offset)) for d in (d0, d1)] for d0, d1, out in pieces]
     ned = np.array(ends, float).reshape(-1, 3)
     lla = np.column_stack((_latlon(ned, home), home_ground - ned[:, 2]))
     return surface.clearances(lla[0::2], lla[1::2], highest=False)
@@ -134,14 +156,15 @@ def _slant(
     minimum: float,
     leg: _SlantLeg,
 ) -> dict:
-    """One leg flown while climbing: its low edge, the terrain's highest rise above home
-    while it climbs out, its lowest clearance from there on, and whether the terrain
-    check refuses it (rule: the terrain may not rise above home while climbing out, the
-    minimum holds from there)."""
-    pieces = leg.pieces(minimum)
+    """One leg flown while climbing: its low edge, the terrain's highest rise above the
+    ground the climb began over (home for a take-off) while it climbs out, its lowest
+    clearance from there on, and whether the terrain check refuses it (rule: the terrain
+    may not rise above that ground while climbing out, the minimum holds from there)."""
+    offset = 0.0 if home_ground is None else _climb_offset(surface, home, home_ground, leg.climb)
+    pieces = leg.pieces(minimum, offset)
     found: list[LegClearance | None] = [None] * len(pieces)
     if home_ground is not None and pieces:
-        found = list(_piece_clearances(surface, home, home_ground, leg, pieces))
+        found = list(_piece_clearances(surface, home, home_ground, leg, pieces, offset))
     rise = lowest = at = None
     for (d0, _, out), piece in zip(pieces, found, strict=True):
         if piece is None or piece.minimum is None or piece.at is None:
