@@ -29,6 +29,17 @@ lowest height the drone can be at along it — climbing at its slowest while mov
 fastest, the pace's slack and early factors — up to its highest target. That slope is
 terrain/climbout.py's `climb_slope`: the terrain clearance holds such a leg to the same
 lowest heights.
+
+A move sent while earlier moves are still under way (no `wait_for_flight` since them; a
+`sleep` does not end them) may be flown from anywhere on them: a step-by-step drone turns
+to its target from where it is, an autopilot mission flies through the earlier targets.
+Besides its planned leg it is reserved as a fan (onboard/envelope.py `fan_origins`, the
+rule stated once): legs from points at most 10 m apart along the unfinished moves' hull to
+its target, each there from the time the move may be sent until the later of the planned
+leg's end and the time flying straight from its origin takes, at any height between the
+lowest and highest of the unfinished moves' ends and the target. Cutting the corner the
+drone may reach the target sooner than through the earlier targets: the later legs'
+windows open from that soonest time (`_Where.soonest`).
 """
 
 from __future__ import annotations
@@ -37,6 +48,7 @@ import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
+from onboard import envelope as env
 from terrain.climbout import climb_slope, slowest_climb
 
 EARTH_RADIUS = 6_378_137.0  # WGS-84 equatorial radius, as onboard/envelope.py uses
@@ -92,6 +104,13 @@ class _Where:
     height: float
     seconds: float  # nominal time since the flight began
     waited: float = 0.0  # of which spent waiting on the ground before leaving it
+    # The soonest nominal time the drone can be here: earlier than `seconds` after a move
+    # that may cut the corner of the moves before it (the fan below). None: `seconds`.
+    soonest: float | None = None
+
+    @property
+    def earliest(self) -> float:
+        return self.seconds if self.soonest is None else min(self.seconds, self.soonest)
 
 
 def offset(lat: float, lon: float, north: float, east: float) -> tuple[float, float]:
@@ -168,6 +187,12 @@ class _Move:
     step: int
     speed: float | None = None
     rise: _Rise | None = None
+    # Sent while earlier moves were under way: the points it may be flown from besides
+    # `a` (onboard/envelope.py fan_origins), when it may be sent, and the heights the
+    # drone may be at on the way (those of the unfinished moves' ends).
+    fan: tuple[_Where, ...] = ()
+    sent: float = 0.0
+    heights: tuple[float, float] = (0.0, 0.0)
 
 
 def _window(
@@ -179,30 +204,57 @@ def _window(
 
 
 def _leg(start: _Where, end: _Where, pace: Pace, began: float, step: int | None) -> Leg:
-    t0, t1 = _window(start.seconds, end.seconds, start.waited, pace, began)
+    t0, t1 = _window(start.earliest, end.seconds, start.waited, pace, began)
     low = max(0.0, min(start.height, end.height) - pace.vertical_m)
     high = max(start.height, end.height) + pace.vertical_m
     return Leg(start.lat, start.lon, end.lat, end.lon, low, high, t0, t1, step)
 
 
+def _local(where: _Where, origin: _Where) -> env.NED:
+    north, east = env.latlon_to_ne(where.lat, where.lon, (origin.lat, origin.lon))
+    return north, east, -where.height
+
+
+def _fan(chain: Sequence[_Where], end: _Where) -> tuple[tuple[_Where, ...], float]:
+    """A move to `end` sent while the moves of `chain` (where they began, then their
+    targets) are under way: where else it may be flown from (onboard/envelope.py
+    `fan_origins`) and how far the drone surely still is from `end` when it is sent."""
+    base = chain[0]
+    local = [_local(where, base) for where in chain]
+    target = _local(end, base)
+    origins = tuple(
+        _Where(*env.ned_to_latlon(north, east, (base.lat, base.lon)), -down, 0.0)
+        for north, east, down in env.fan_origins(local)
+        if math.dist((north, east), target[:2]) >= env.MIN_LEG
+    )
+    return origins, env.hull_distance(local, target)
+
+
 def _moves(steps: Sequence[Mapping], start: _Where, pace: Pace) -> Iterator[_Move]:
     """Each step that moves the drone or makes it hover, in flying order. A climb or
     descent in place stays under way until a `wait_for_flight` or the next move; a
-    sideways move sent meanwhile carries it (`rise`)."""
+    sideways move sent meanwhile carries it (`rise`). Moves stay under way until a
+    `wait_for_flight`; one sent meanwhile carries its fan (`fan`)."""
     here = start
     rise: _Rise | None = None
+    chain = [start]  # where the moves under way began, then their targets
+    sent = start.seconds  # the soonest the next step can be sent: at once, unless waited
     for position, step in enumerate(steps):
         command = step.get("command")
         if command == "wait_for_flight":
             rise = None
+            chain, sent = [here], max(sent, here.earliest)
             continue
         if command == "sleep":
             value = float((step.get("params") or {}).get("value", 0.0))
             before_leaving = here.height < GROUND_M and here.seconds == here.waited
             waited = here.waited + value if before_leaving else here.waited
-            end = _Where(here.lat, here.lon, here.height, here.seconds + value, waited)
+            end = _Where(
+                here.lat, here.lon, here.height, here.seconds + value, waited, here.earliest + value
+            )
             if rise is not None:
                 rise.slept(value, pace)
+            sent += value
             yield _Move(here, end, position)
             here = end
             continue
@@ -212,9 +264,16 @@ def _moves(steps: Sequence[Mapping], start: _Where, pace: Pace) -> Iterator[_Mov
         lat, lon, height, speed = target
         across = ground_distance(here.lat, here.lon, lat, lon)
         seconds = across / (speed or pace.speed_m_s) + abs(height - here.height) / pace.climb_m_s
-        end = _Where(lat, lon, height, here.seconds + seconds, here.waited)
+        end = _Where(lat, lon, height, here.seconds + seconds, here.waited, here.earliest + seconds)
         slanted = rise if command in SIDEWAYS and across > 0 else None
-        yield _Move(here, end, position, speed, slanted)
+        fan: tuple[_Where, ...] = ()
+        if command in (*SIDEWAYS, "altitude") and len(chain) > 1:
+            fan, still = _fan(chain, end)
+            # Cutting the corner, it may be there sooner than through the earlier targets.
+            end.soonest = min(end.earliest, sent + still / (speed or pace.speed_m_s))
+        heights = [w.height for w in (*chain, end)]
+        yield _Move(here, end, position, speed, slanted, fan, sent, (min(heights), max(heights)))
+        chain.append(end)
         # A move in place (a sideways one to where the drone is too) leaves the climb under
         # way, towards its new height; a sideways leg flies it out.
         if slanted is not None or across > 0:
@@ -224,6 +283,24 @@ def _moves(steps: Sequence[Mapping], start: _Where, pace: Pace) -> Iterator[_Mov
         elif height != here.height:
             rise = _Rise(here.height, [height], here.seconds)
         here = end
+
+
+def _fan_legs(move: _Move, pace: Pace, began: float) -> list[Leg]:
+    """A move's fan legs (onboard/envelope.py `fan_origins`): each from one of its origins
+    to its target, there from the time it may be sent until the later of the planned
+    leg's end and the time flying straight from that origin takes, at any height the
+    unfinished moves and the target span."""
+    b, speed = move.b, move.speed or pace.speed_m_s
+    low = max(0.0, move.heights[0] - pace.vertical_m)
+    high = move.heights[1] + pace.vertical_m
+    legs = []
+    for origin in move.fan:
+        flown = ground_distance(origin.lat, origin.lon, b.lat, b.lon) / speed
+        flown += abs(b.height - origin.height) / pace.climb_m_s
+        end = max(b.seconds, move.sent + flown)
+        t0, t1 = _window(move.sent, end, move.a.waited, pace, began)
+        legs.append(Leg(origin.lat, origin.lon, b.lat, b.lon, low, high, t0, t1, move.step))
+    return legs
 
 
 def slant_pieces(move: _Move, pace: Pace) -> list[tuple[float, float, float]]:
@@ -319,6 +396,7 @@ def flight_legs(
             legs.extend(_slanted_legs(move, pace, began))
         else:
             legs.append(_leg(a, b, pace, began, move.step))
+        legs.extend(_fan_legs(move, pace, began))
     if last.height >= GROUND_M:
         hover = _Where(last.lat, last.lon, last.height, last.seconds + pace.hold_s)
         legs.append(_leg(last, hover, pace, began, None))

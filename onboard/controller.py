@@ -11,6 +11,7 @@ from collections.abc import Callable
 from typing import Any
 
 from . import protocol
+from .envelope import FROM_HERE_NOTE, command_starts
 from .fc.base import FlightController, FlightControllerError
 from .navigation import NavigationError, NavigationProcessor, current_ned
 
@@ -130,10 +131,17 @@ class Controller:
             state = self.fc.state
             planned = self.navigation.plan(command, params, state)
             last = self.navigation.last_target
-            start = last.ned if last is not None else current_ned(state)
+            here = current_ned(state)
             in_mission = "mission_id" in context
-            refusal = self.guard(command, planned.kind, planned.ned, state, in_mission, start)
-            if refusal is not None:
+            # The leg from the last target, and from where the drone is while it is still
+            # on its way there (onboard/envelope.py command_starts).
+            starts = command_starts(last.ned if last is not None else None, here)
+            for start in starts:
+                refusal = self.guard(command, planned.kind, planned.ned, state, in_mission, start)
+                if refusal is None:
+                    continue
+                if len(starts) > 1 and start is starts[-1]:
+                    refusal = refusal.rstrip(".") + FROM_HERE_NOTE + "."
                 raise CommandError(refusal)
         target = self.navigation.execute(command, params)
         north, east, down = target.ned

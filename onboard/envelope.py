@@ -485,6 +485,139 @@ def _leg_violation(
     return Violation("geofence", f"The straight leg to the target {breach}.", leg)
 
 
+# -- legs sent before the last one ends ------------------------------------------------------
+# Rule: the agent sends a mission's steps one after another and only a `wait_for_flight`
+# waits for the drone to arrive (a `sleep` waits a time, not an arrival). A move sent while
+# earlier moves are still under way (no wait_for_flight since the first of them) may be
+# flown from anywhere the drone can be by then: a step-by-step drone turns to the new
+# target from where it is, an autopilot mission flies through the earlier targets. The
+# drone is within the hull of where the unfinished moves began and of their targets, so
+# the new leg is checked as a fan: from origins spaced along that hull's boundary (both
+# ends of an unfinished leg among them, so the planned leg from the previous target and
+# the shortcut from where the moves began are both in it), all to the new target. A leg
+# from inside the hull is part of a fan leg from its boundary (the same line, longer),
+# and between two neighbouring fan legs lies a sliver at most the spacing wide at its
+# base: the fan covers the swept triangle to within the spacing.
+#
+# Spacing: FAN_SPACING_M (10 m), five times the corridor radius and the waypoint
+# tolerance (2 m): a fence edge, an exclusion or published zone, a reservation or a rise
+# of the terrain narrower than 10 m at the base of the fan is the only thing it can
+# miss. At most FAN_MAX_ORIGINS origins per leg (about 640 m of unfinished boundary at
+# 10 m): beyond it the spacing grows to the boundary's length over the cap, and with
+# more hull corners than the cap the corners alone are the origins.
+FAN_SPACING_M = 10.0
+FAN_MAX_ORIGINS = 64
+SHORTCUT_NOTE = (
+    " It is sent while the moves before it are still under way (no wait_for_flight since"
+    " them), so the drone may turn to it from anywhere along them; a wait_for_flight"
+    " before it makes the drone fly through the previous target."
+)
+
+
+# A drone within this horizontal distance of its last target has reached it: the waypoint
+# tolerance ([Paula 2018] algorithm 1), as the airspace corridors' radius.
+ARRIVED_M = 2.0
+FROM_HERE_NOTE = " (flown from where the drone is now: it is still on its way to its last target)"
+
+
+def hull_distance(unfinished: Sequence[NED], point: NED) -> float:
+    """Horizontal metres from `point` to the hull of `unfinished` (0 inside it): how far
+    the drone surely still is from a new target when it is sent (see `fan_origins`)."""
+    corners = _hull(unfinished)
+    if not corners:
+        return math.inf
+    p = point[:2]
+    if len(corners) > 2 and all(
+        _cross(a[:2], b[:2], p) >= 0
+        for a, b in zip(corners, corners[1:] + corners[:1], strict=True)
+    ):
+        return 0.0
+    sides = (
+        zip(corners, corners[1:] + corners[:1], strict=True)
+        if len(corners) > 1
+        else [(corners[0], corners[0])]
+    )
+    return min(_side_distance(a[:2], b[:2], p) for a, b in sides)
+
+
+def _side_distance(a: Sequence[float], b: Sequence[float], p: Sequence[float]) -> float:
+    dn, de = b[0] - a[0], b[1] - a[1]
+    length = dn * dn + de * de
+    share = (
+        0.0
+        if length == 0
+        else max(0.0, min(1.0, ((p[0] - a[0]) * dn + (p[1] - a[1]) * de) / length))
+    )
+    return math.dist(p, (a[0] + share * dn, a[1] + share * de))
+
+
+def command_starts(last: NED | None, here: NED | None) -> list[NED | None]:
+    """Where the drone checks a command's leg from: its last target (the planned leg), and,
+    while it is still flying to that target (farther than ARRIVED_M from it), where it is
+    now, since it turns to the new target from there. The fan rule above, for one command
+    with the drone's position known: the ground's check of the same rule, as a last resort."""
+    if last is None:
+        return [here]
+    if here is None or math.dist(here[:2], last[:2]) <= ARRIVED_M:
+        return [last]
+    return [last, here]
+
+
+def _hull(points: Sequence[NED]) -> list[NED]:
+    """The corners of the points' convex hull in the horizontal plane, in order (a point
+    repeated horizontally keeps its latest height; collinear points give the two ends)."""
+    latest = {(round(p[0], 3), round(p[1], 3)): p for p in points}
+    ordered = sorted(latest.values(), key=lambda p: (p[0], p[1]))
+    if len(ordered) < 3:
+        return ordered
+
+    def half(seq: Sequence[NED]) -> list[NED]:
+        kept: list[NED] = []
+        for p in seq:
+            while len(kept) >= 2 and _cross(kept[-2][:2], kept[-1][:2], p[:2]) <= 0:
+                kept.pop()
+            kept.append(p)
+        return kept[:-1]
+
+    return half(ordered) + half(ordered[::-1])
+
+
+def _along(a: NED, b: NED, share: float) -> NED:
+    return (
+        a[0] + share * (b[0] - a[0]),
+        a[1] + share * (b[1] - a[1]),
+        a[2] + share * (b[2] - a[2]),
+    )
+
+
+def fan_origins(
+    unfinished: Sequence[NED], spacing: float = FAN_SPACING_M, cap: int = FAN_MAX_ORIGINS
+) -> list[NED]:
+    """Where the fan legs of a move start (see the rule above): `unfinished` is where the
+    moves under way began, then their targets in order, the last being the new leg's
+    planned start. Points of the boundary of their hull, at most `spacing` apart (coarser
+    past `cap` points), heights linear along each side; none within MIN_LEG of the planned
+    start (its leg is the planned one). Empty when no move is under way."""
+    corners = _hull(unfinished)
+    if len(corners) < 2:
+        return []
+    sides = list(zip(corners, corners[1:] + corners[:1], strict=True))
+    if len(corners) == 2:
+        sides = sides[:1]  # a straight line: along it once, its far end added below
+    lengths = [math.dist(a[:2], b[:2]) for a, b in sides]
+    step = max(spacing, sum(lengths) / max(1, cap - len(sides)))
+    points = [
+        _along(a, b, i / parts)
+        for (a, b), length in zip(sides, lengths, strict=True)
+        for parts in (max(1, math.ceil(length / step)),)
+        for i in range(parts)
+    ]
+    if len(corners) == 2:
+        points.append(corners[1])
+    planned = unfinished[-1]
+    return [p for p in points if math.dist(p[:2], planned[:2]) >= MIN_LEG]
+
+
 # -- the check ----------------------------------------------------------------------------
 
 
@@ -586,23 +719,65 @@ class StepViolation:
     violation: Violation
 
 
+@dataclass(frozen=True)
+class WalkedLeg:
+    """One leg of a mission walked from its start: the step's index and move, where the
+    leg starts and whether the drone is airborne before it. `shortcut`: one of the step's
+    fan legs (see `fan_origins`), flown from a point of the moves still under way, not
+    from the previous target."""
+
+    index: int
+    move: Move
+    start: NED | None
+    airborne: bool
+    shortcut: bool = False
+
+
+def walk_legs(
+    home: Sequence[float] | None,
+    steps: Sequence[Mapping[str, Any]],
+    start: NED | None,
+    airborne: bool,
+) -> Iterator[WalkedLeg]:
+    """Each moving step of a mission flown from `start`: its planned leg from the previous
+    target, then, for a move sent while earlier ones are under way, its fan legs from the
+    points of the unfinished moves (`fan_origins`). Refused steps are walked as if flown."""
+    target = start
+    # Where the drone was when no move was under way (the start, the target a
+    # wait_for_flight reached), then every target sent since: it is within their hull.
+    unfinished: list[NED] = [] if start is None else [start]
+    for index, step in enumerate(steps):
+        command = step["command"]
+        if command == "wait_for_flight":
+            unfinished = [] if target is None else [target]
+            continue
+        move = resolve(command, step.get("params") or {}, target, target, home)
+        if move is None:
+            continue
+        yield WalkedLeg(index, move, target, airborne)
+        if move.kind == "goto":
+            for origin in fan_origins(unfinished):
+                if math.dist(origin[:2], move.ned[:2]) >= MIN_LEG:
+                    yield WalkedLeg(index, move, origin, airborne, shortcut=True)
+        unfinished.append(move.ned)
+        target = move.ned
+        # Only a takeoff lifts a drone off and only a land puts it down; a move does not.
+        airborne = {"takeoff": True, "land": False}.get(move.kind, airborne)
+
+
 def walk(
     home: Sequence[float] | None,
     steps: Sequence[Mapping[str, Any]],
     start: NED | None,
     airborne: bool,
+    shortcuts: bool = True,
 ) -> Iterator[tuple[int, Move, NED | None, bool]]:
-    """Each moving step of a mission flown from `start`: (index, move, the leg's start,
-    airborne before it). Refused steps are walked as if flown."""
-    target = start
-    for index, step in enumerate(steps):
-        move = resolve(step["command"], step.get("params") or {}, target, target, home)
-        if move is None:
-            continue
-        yield index, move, target, airborne
-        target = move.ned
-        # Only a takeoff lifts a drone off and only a land puts it down; a move does not.
-        airborne = {"takeoff": True, "land": False}.get(move.kind, airborne)
+    """Each leg of a mission flown from `start` (`walk_legs`) as (index, move, the leg's
+    start, airborne before it): a step's planned leg first, then its fan legs, with the
+    same index and move. `shortcuts=False`: the planned legs only (the path as drawn)."""
+    for leg in walk_legs(home, steps, start, airborne):
+        if shortcuts or not leg.shortcut:
+            yield leg.index, leg.move, leg.start, leg.airborne
 
 
 def step_violations(
@@ -619,12 +794,16 @@ def step_violations(
     The walk goes on past a refused step as if it had been flown, so a planner can mark
     every offending step at once.
     """
-    found = []
-    for index, move, leg_start, flying in walk(home, steps, start, airborne):
-        violation = check(envelope, home, move, flying, battery, leg_start)
+    found: dict[int, StepViolation] = {}
+    for leg in walk_legs(home, steps, start, airborne):
+        if leg.index in found:
+            continue  # one refusal per step: its planned leg's, else its first fan leg's
+        violation = check(envelope, home, leg.move, leg.airborne, battery, leg.start)
+        if violation is not None and leg.shortcut:
+            violation = replace(violation, message=violation.message + SHORTCUT_NOTE)
         if violation is not None:
-            found.append(StepViolation(index, violation))
-    return found
+            found[leg.index] = StepViolation(leg.index, violation)
+    return list(found.values())
 
 
 def beyond_defaults(target: Move) -> Violation | None:
@@ -658,7 +837,7 @@ def steps_beyond_defaults(
 ) -> list[StepViolation]:
     """Every step of a mission flown from `start` whose move goes beyond the defaults."""
     found = []
-    for index, move, _, _ in walk(home, steps, start, False):
+    for index, move, _, _ in walk(home, steps, start, False, shortcuts=False):
         beyond = beyond_defaults(move)
         if beyond is not None:
             found.append(StepViolation(index, beyond))

@@ -106,12 +106,17 @@ def test_a_mission_walk_names_the_step_whose_leg_crosses() -> None:
         {"command": "takeoff", "params": {"altitude": 10}},
         {"command": "changeE", "params": {"value": 60}},
         {"command": "navigate", "params": {"lat": east[0], "lon": east[1]}},
+        # Arrived before turning north: else the drone may cut the corner through the zone.
+        {
+            "command": "wait_for_flight",
+            "params": {"horizontal_tolerance": 2, "vertical_tolerance": 2},
+        },
         {"command": "navigate", "params": {"lat": north[0], "lon": north[1]}},
         {"command": "navigate", "params": {"lat": HOME[0], "lon": HOME[1]}},
     ]
     found = env.step_violations(envelope, HOME, steps, (0.0, 0.0, 0.0), False, None)
     # Up the east side is clear; back home from 200 m north crosses the zone.
-    assert [(v.index, v.violation.limit) for v in found] == [(4, "geofence")]
+    assert [(v.index, v.violation.limit) for v in found] == [(5, "geofence")]
     assert "exclusion circle 0" in found[0].violation.message
 
 
