@@ -69,7 +69,7 @@ def _rounded(values: np.ndarray) -> list[float | None]:
 
 
 def _round(value: float | None) -> float | None:
-    return None if value is None else round(value, 1)
+    return None if value is None else round(value, 1) + 0.0  # + 0.0: no -0.0
 
 
 @dataclass(frozen=True)
