@@ -116,11 +116,11 @@
     if (lowest !== null) text += ` at ${km(slant.lowest_at_m)}`;
     if (slant.climbing_out_to_m !== null) {
       const rise = slant.climb_out_rise_m;
-      text += `; climbing out to ${km(slant.climbing_out_to_m)}` + (rise !== null && rise > 0 ? `, over ground up to ${rise.toFixed(1)} m above home` : "");
+      text += `; climbing out to ${km(slant.climbing_out_to_m)}` + (rise !== null && rise > 0 ? `, over terrain up to ${rise.toFixed(1)} m above where the climb began` : "");
     }
     if (!slant.refused) return text;
     const low = lowest !== null && lowest < minimum;
-    return text + (low ? `; refused: below the minimum of ${minimum} m` : "; refused: the ground rises above home while it climbs out");
+    return text + (low ? `; refused: below the minimum of ${minimum} m` : "; refused: climbing out, the terrain rises above where the climb began");
   }
 
   function listSlants(profile) {
