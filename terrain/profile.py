@@ -149,6 +149,20 @@ def _edge(leg: _SlantLeg, pieces: list) -> list[list[float]]:
     return [[round(leg.from_m + d, 1), round(leg.climb.least(d, leg.target), 1)] for d in corners]
 
 
+def _judged(pieces: list, found: list) -> tuple[float | None, float | None, float | None]:
+    """(the terrain's highest rise above the climb's ground while climbing out, the lowest
+    clearance after it, metres along the leg where that is); None where no terrain."""
+    rise = lowest = at = None
+    for (d0, _, out), piece in zip(pieces, found, strict=True):
+        if piece is None or piece.minimum is None or piece.at is None:
+            continue
+        if out:
+            rise = -piece.minimum if rise is None else max(rise, -piece.minimum)
+        elif lowest is None or piece.minimum < lowest:
+            lowest, at = piece.minimum, d0 + piece.at[2]
+    return rise, lowest, at
+
+
 def _slant(
     surface: Surface,
     home: Sequence[float],
@@ -165,14 +179,7 @@ def _slant(
     found: list[LegClearance | None] = [None] * len(pieces)
     if home_ground is not None and pieces:
         found = list(_piece_clearances(surface, home, home_ground, leg, pieces, offset))
-    rise = lowest = at = None
-    for (d0, _, out), piece in zip(pieces, found, strict=True):
-        if piece is None or piece.minimum is None or piece.at is None:
-            continue
-        if out:
-            rise = -piece.minimum if rise is None else max(rise, -piece.minimum)
-        elif lowest is None or piece.minimum < lowest:
-            lowest, at = piece.minimum, leg.from_m + d0 + piece.at[2]
+    rise, lowest, at = _judged(pieces, found)
     out_to = next((d1 for _, d1, out in pieces if out), None)
     refused = (rise is not None and rise > CLIMB_OUT_TOLERANCE_M) or (
         lowest is not None and lowest < minimum
@@ -186,7 +193,7 @@ def _slant(
         "climbing_out_to_m": None if out_to is None else round(leg.from_m + out_to, 1),
         "climb_out_rise_m": _round(rise),
         "lowest_clearance_m": _round(lowest),
-        "lowest_at_m": _round(at),
+        "lowest_at_m": None if at is None else _round(leg.from_m + at),
         "refused": bool(refused),
     }
 
