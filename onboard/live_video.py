@@ -315,6 +315,7 @@ class LinkAdaptation:
         self.state = video_adaptation.Adaptation()
         self.estimate_bps: float | None = None
         self.paused_until = 0.0  # no frame is sent before this time (self.clock)
+        self.uplink_queue_s: float | None = None  # the newest the agent measured
         self.on_resume: Callable[[], Awaitable[None]] | None = None  # told when it ends
         self.counts = counts
         self.clock = clock
@@ -342,6 +343,7 @@ class LinkAdaptation:
 
     def uplink_queue(self, queue_s: float) -> None:
         """The uplink's queue the agent measured on its MQTT connection (UplinkProbe)."""
+        self.uplink_queue_s = queue_s
         self._update(video_adaptation.observe_uplink_queue(self.state, queue_s))
         pause = video_adaptation.uplink_pause_s(queue_s)
         if pause:
@@ -355,8 +357,9 @@ class LinkAdaptation:
         self.state = state
         if state.narrow != was_narrow:
             self.counts["narrow" if state.narrow else "wide"] += 1
-            log.info("live video link %s (round trip least %.3f s, estimate %s bit/s)",
-                     "narrow" if state.narrow else "wide again", state.least_rtt_s or 0.0,
+            log.info("live video link %s (round trip least %.3f s, queue %.3f s, uplink queue "
+                     "%s s, estimate %s bit/s)", "narrow" if state.narrow else "wide again",
+                     state.least_rtt_s or 0.0, state.queue_s, self.uplink_queue_s,
                      self.estimate_bps)  # fmt: skip
         if self.size != before:
             self.counts[f"size_{self.size}"] += 1
