@@ -8,7 +8,7 @@ import pytest
 
 from onboard import protocol
 
-from .test_e2e import _pos
+from .test_e2e import HOME, _pos
 from .test_envelope_e2e import envelope_message
 from .test_failsafe_e2e import broker, fly  # noqa: F401 (fixtures)
 
@@ -41,8 +41,11 @@ def test_the_agent_refuses_a_leg_across_an_exclusion_zone_and_flies_one_beside_i
     # after that starts from the hold.
     ground.wait_for("mission", lambda m: m.get("status") == "stopped")
 
-    # 30 m north first, then east: the leg passes 30 m from the zone's centre.
+    # 30 m north first, then east: the leg passes 30 m from the zone's centre. Sent
+    # before the drone is there it would turn east from where it is, across the zone (the
+    # agent refuses that: test_envelope_shortcuts.py), so it is sent once it has arrived.
     assert ground.command("changeN", value=30)["ok"]
+    ground.wait_for("heartbeats", lambda m: _pos(m, "lat") > HOME[0] + 28.5 / 111_320)
     beside = ground.command("changeE", value=120)
     assert beside["ok"] is True, beside
     assert beside["result"]["target"]["east"] == pytest.approx(120.0)
