@@ -9,7 +9,8 @@ buffer within a sample of the narrowing rather than a receiver report's second.
 
 SKYHIVE_COMPARE_UPLINK=1 also runs the agent with that measure off
 (SKYHIVE_LIVE_VIDEO_UPLINK_QUEUE=off, the RTCP round trips alone), and asserts that it
-breaks the bound the measure keeps.
+breaks the bound the measure keeps; and the link's buffer as fq_codel (Linux's default
+queue discipline, its flows isolated) where the kernel has it.
 """
 
 from __future__ import annotations
@@ -139,3 +140,14 @@ def test_without_the_uplink_measure_commands_wait_longer(kernel_link):  # type: 
     link, media, ground = kernel_link("off")
     rtts = onset_round_trips(link, ground)
     assert max(rtts) >= ONSET_BOUND_S, rtts
+
+
+@compare_only
+def test_fq_codel_keeps_commands_out_of_the_videos_queue(kernel_link):  # type: ignore[no-untyped-def]
+    link, media, ground = kernel_link("off")
+    try:
+        link.shape(1_000_000, BUFFER_S, queue="fq_codel")
+    except OSError as exc:
+        pytest.skip(f"no fq_codel in this kernel ({exc})")
+    rtts = onset_round_trips(link, ground, queue="fq_codel")
+    assert max(rtts) < ONSET_BOUND_S, rtts

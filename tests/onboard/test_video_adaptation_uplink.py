@@ -32,7 +32,7 @@ def test_the_oldest_unacknowledged_byte_waited_since_the_first_sample_that_wrote
     assert uplink_wait_s(written, 900, 10.2) == 0.0  # everything acknowledged
 
 
-def test_a_queue_over_200_ms_narrows_the_link_and_pauses_the_video():
+def test_a_queue_over_200_ms_narrows_the_link_and_one_over_100_ms_pauses_the_video():
     assert not observe_uplink_queue(Adaptation(), QUEUE_EVIDENCE_S).narrow
     assert observe_uplink_queue(Adaptation(), QUEUE_EVIDENCE_S + 0.01).narrow
     assert uplink_pause_s(UPLINK_PAUSE_QUEUE_S) == 0.0
