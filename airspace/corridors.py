@@ -36,10 +36,12 @@ to its target from where it is, an autopilot mission flies through the earlier t
 Besides its planned leg it is reserved as a fan (onboard/envelope.py `fan_origins`, the
 rule stated once): legs from points at most 10 m apart along the unfinished moves' hull to
 its target, each there from the time the move may be sent until the later of the planned
-leg's end and the time flying straight from its origin takes, at any height between the
-lowest and highest of the unfinished moves' ends and the target. Cutting the corner the
-drone may reach the target sooner than through the earlier targets: the later legs'
-windows open from that soonest time (`_Where.soonest`).
+leg's end and the time flying straight from the farthest origin takes, at any height
+between the lowest and highest of the unfinished moves' ends and the target. Of moves
+sent together (no wait_for_flight nor sleep between them) only the last one's fan is
+reserved: it covers the others' (`_kept_fans`). Cutting the corner the drone may reach
+the target sooner than through the earlier targets: the later legs' windows open from
+that soonest time (`_Where.soonest`).
 """
 
 from __future__ import annotations
@@ -187,12 +189,12 @@ class _Move:
     step: int
     speed: float | None = None
     rise: _Rise | None = None
-    # Sent while earlier moves were under way: the points it may be flown from besides
-    # `a` (onboard/envelope.py fan_origins), when it may be sent, and the heights the
-    # drone may be at on the way (those of the unfinished moves' ends).
-    fan: tuple[_Where, ...] = ()
+    # Sent while earlier moves were under way: those moves (its fan starts on their
+    # hull), when it may be sent, and which moves were sent together with it (no
+    # wait_for_flight nor sleep between them).
+    unfinished: _Unfinished | None = None
     sent: float = 0.0
-    heights: tuple[float, float] = (0.0, 0.0)
+    burst: int = 0
 
 
 def _window(
@@ -210,24 +212,46 @@ def _leg(start: _Where, end: _Where, pace: Pace, began: float, step: int | None)
     return Leg(start.lat, start.lon, end.lat, end.lon, low, high, t0, t1, step)
 
 
-def _local(where: _Where, origin: _Where) -> env.NED:
-    north, east = env.latlon_to_ne(where.lat, where.lon, (origin.lat, origin.lon))
-    return north, east, -where.height
+@dataclass(frozen=True)
+class _Unfinished:
+    """The moves under way since the last wait_for_flight: the corners of the hull of
+    where they began and of their targets, in metres about `base` (lat, lon), and the
+    lowest and highest of those heights. Only the corners are kept: the hull of them and a
+    new target is the hull of every point and it, so a long burst costs its hull's size."""
 
+    base: tuple[float, float]
+    corners: tuple[env.NED, ...]
+    low: float
+    high: float
 
-def _fan(chain: Sequence[_Where], end: _Where) -> tuple[tuple[_Where, ...], float]:
-    """A move to `end` sent while the moves of `chain` (where they began, then their
-    targets) are under way: where else it may be flown from (onboard/envelope.py
-    `fan_origins`) and how far the drone surely still is from `end` when it is sent."""
-    base = chain[0]
-    local = [_local(where, base) for where in chain]
-    target = _local(end, base)
-    origins = tuple(
-        _Where(*env.ned_to_latlon(north, east, (base.lat, base.lon)), -down, 0.0)
-        for north, east, down in env.fan_origins(local)
-        if math.dist((north, east), target[:2]) >= env.MIN_LEG
-    )
-    return origins, env.hull_distance(local, target)
+    @classmethod
+    def at(cls, where: _Where) -> _Unfinished:
+        return cls((where.lat, where.lon), ((0.0, 0.0, -where.height),), where.height, where.height)
+
+    def local(self, where: _Where) -> env.NED:
+        north, east = env.latlon_to_ne(where.lat, where.lon, self.base)
+        return north, east, -where.height
+
+    def sent_to(self, where: _Where) -> _Unfinished:
+        corners = tuple(env.hull_corners([*self.corners, self.local(where)]))
+        return _Unfinished(
+            self.base, corners, min(self.low, where.height), max(self.high, where.height)
+        )
+
+    def fan(self, start: _Where, target: _Where) -> list[_Where]:
+        """onboard/envelope.py `fan_origins` for a move from `start` (its previous target)
+        to `target`: where else it may be flown from."""
+        goal = self.local(target)
+        return [
+            _Where(*env.ned_to_latlon(north, east, self.base), -down, 0.0)
+            for north, east, down in env.fan_origins([*self.corners, self.local(start)])
+            if math.dist((north, east), goal[:2]) >= env.MIN_LEG
+        ]
+
+    def farthest(self, target: _Where) -> float:
+        """Metres from the hull's farthest corner to `target` (no origin is farther)."""
+        goal = self.local(target)
+        return max(math.dist(corner[:2], goal[:2]) for corner in self.corners)
 
 
 def _moves(steps: Sequence[Mapping], start: _Where, pace: Pace) -> Iterator[_Move]:
@@ -237,13 +261,14 @@ def _moves(steps: Sequence[Mapping], start: _Where, pace: Pace) -> Iterator[_Mov
     `wait_for_flight`; one sent meanwhile carries its fan (`fan`)."""
     here = start
     rise: _Rise | None = None
-    chain = [start]  # where the moves under way began, then their targets
+    unfinished = _Unfinished.at(start)
+    burst = 0
     sent = start.seconds  # the soonest the next step can be sent: at once, unless waited
     for position, step in enumerate(steps):
         command = step.get("command")
         if command == "wait_for_flight":
             rise = None
-            chain, sent = [here], max(sent, here.earliest)
+            unfinished, sent, burst = _Unfinished.at(here), max(sent, here.earliest), burst + 1
             continue
         if command == "sleep":
             value = float((step.get("params") or {}).get("value", 0.0))
@@ -254,7 +279,7 @@ def _moves(steps: Sequence[Mapping], start: _Where, pace: Pace) -> Iterator[_Mov
             )
             if rise is not None:
                 rise.slept(value, pace)
-            sent += value
+            sent, burst = sent + value, burst + 1
             yield _Move(here, end, position)
             here = end
             continue
@@ -266,14 +291,14 @@ def _moves(steps: Sequence[Mapping], start: _Where, pace: Pace) -> Iterator[_Mov
         seconds = across / (speed or pace.speed_m_s) + abs(height - here.height) / pace.climb_m_s
         end = _Where(lat, lon, height, here.seconds + seconds, here.waited, here.earliest + seconds)
         slanted = rise if command in SIDEWAYS and across > 0 else None
-        fan: tuple[_Where, ...] = ()
-        if command in (*SIDEWAYS, "altitude") and len(chain) > 1:
-            fan, still = _fan(chain, end)
+        under_way = None
+        if command in (*SIDEWAYS, "altitude") and len(unfinished.corners) > 1:
+            under_way = unfinished
             # Cutting the corner, it may be there sooner than through the earlier targets.
+            still = env.hull_distance(unfinished.corners, unfinished.local(end))
             end.soonest = min(end.earliest, sent + still / (speed or pace.speed_m_s))
-        heights = [w.height for w in (*chain, end)]
-        yield _Move(here, end, position, speed, slanted, fan, sent, (min(heights), max(heights)))
-        chain.append(end)
+        yield _Move(here, end, position, speed, slanted, under_way, sent, burst)
+        unfinished = unfinished.sent_to(end)
         # A move in place (a sideways one to where the drone is too) leaves the climb under
         # way, towards its new height; a sideways leg flies it out.
         if slanted is not None or across > 0:
@@ -285,22 +310,47 @@ def _moves(steps: Sequence[Mapping], start: _Where, pace: Pace) -> Iterator[_Mov
         here = end
 
 
-def _fan_legs(move: _Move, pace: Pace, began: float) -> list[Leg]:
-    """A move's fan legs (onboard/envelope.py `fan_origins`): each from one of its origins
-    to its target, there from the time it may be sent until the later of the planned
-    leg's end and the time flying straight from that origin takes, at any height the
-    unfinished moves and the target span."""
+def _fan_end(move: _Move, pace: Pace) -> float:
+    """When its fan's flights may end (nominal): the later of the planned leg's end and
+    the time flying straight from the farthest origin takes after the move was sent."""
+    u = move.unfinished
+    assert u is not None
     b, speed = move.b, move.speed or pace.speed_m_s
-    low = max(0.0, move.heights[0] - pace.vertical_m)
-    high = move.heights[1] + pace.vertical_m
-    legs = []
-    for origin in move.fan:
-        flown = ground_distance(origin.lat, origin.lon, b.lat, b.lon) / speed
-        flown += abs(b.height - origin.height) / pace.climb_m_s
-        end = max(b.seconds, move.sent + flown)
-        t0, t1 = _window(move.sent, end, move.a.waited, pace, began)
-        legs.append(Leg(origin.lat, origin.lon, b.lat, b.lon, low, high, t0, t1, move.step))
-    return legs
+    climb = max(abs(b.height - u.low), abs(b.height - u.high)) / pace.climb_m_s
+    return max(b.seconds, move.sent + u.farthest(b) / speed + climb)
+
+
+def _fan_legs(move: _Move, pace: Pace, began: float, until: float) -> list[Leg]:
+    """A move's fan legs (onboard/envelope.py `fan_origins`): each from one of its origins
+    to its target, there from the time it may be sent until `until` (nominal), at any
+    height the unfinished moves and the target span."""
+    u, b = move.unfinished, move.b
+    assert u is not None
+    low = max(0.0, min(u.low, b.height) - pace.vertical_m)
+    high = max(u.high, b.height) + pace.vertical_m
+    t0, t1 = _window(move.sent, until, move.a.waited, pace, began)
+    return [
+        Leg(origin.lat, origin.lon, b.lat, b.lon, low, high, t0, t1, move.step)
+        for origin in u.fan(move.a, b)
+    ]
+
+
+def _kept_fans(moves: Sequence[_Move], pace: Pace) -> dict[int, float]:
+    """Which moves' fans are reserved (by position in `moves`), each until when.
+
+    Moves sent together (one burst) are all under way at once: the last one's fan covers
+    the region of each earlier one's (the hull it starts from holds their origins and
+    targets), its band theirs (the heights of more ends) and its window opens as theirs
+    (the same sending time). Only it is reserved, until the latest end of theirs: the
+    flight's legs stay about one fan per burst, not one per move. A conflict met there
+    names that last move's step."""
+    last: dict[int, int] = {}
+    until: dict[int, float] = {}
+    for position, move in enumerate(moves):
+        if move.unfinished is not None:
+            last[move.burst] = position
+            until[move.burst] = max(until.get(move.burst, 0.0), _fan_end(move, pace))
+    return {position: until[burst] for burst, position in last.items()}
 
 
 def slant_pieces(move: _Move, pace: Pace) -> list[tuple[float, float, float]]:
@@ -385,7 +435,9 @@ def flight_legs(
     legs: list[Leg] = []
     airborne_by: float | None = began if start.height >= GROUND_M else None
     last = start
-    for move in _moves(steps, start, pace):
+    moves = list(_moves(steps, start, pace))
+    fans = _kept_fans(moves, pace)
+    for position, move in enumerate(moves):
         a, b = move.a, move.b
         last = b
         if max(a.height, b.height) < GROUND_M:
@@ -396,7 +448,8 @@ def flight_legs(
             legs.extend(_slanted_legs(move, pace, began))
         else:
             legs.append(_leg(a, b, pace, began, move.step))
-        legs.extend(_fan_legs(move, pace, began))
+        if position in fans:
+            legs.extend(_fan_legs(move, pace, began, fans[position]))
     if last.height >= GROUND_M:
         hover = _Where(last.lat, last.lon, last.height, last.seconds + pace.hold_s)
         legs.append(_leg(last, hover, pace, began, None))

@@ -523,7 +523,7 @@ FROM_HERE_NOTE = " (flown from where the drone is now: it is still on its way to
 def hull_distance(unfinished: Sequence[NED], point: NED) -> float:
     """Horizontal metres from `point` to the hull of `unfinished` (0 inside it): how far
     the drone surely still is from a new target when it is sent (see `fan_origins`)."""
-    corners = _hull(unfinished)
+    corners = hull_corners(unfinished)
     if not corners:
         return math.inf
     p = point[:2]
@@ -563,7 +563,7 @@ def command_starts(last: NED | None, here: NED | None) -> list[NED | None]:
     return [last, here]
 
 
-def _hull(points: Sequence[NED]) -> list[NED]:
+def hull_corners(points: Sequence[NED]) -> list[NED]:
     """The corners of the points' convex hull in the horizontal plane, in order (a point
     repeated horizontally keeps its latest height; collinear points give the two ends)."""
     latest = {(round(p[0], 3), round(p[1], 3)): p for p in points}
@@ -598,7 +598,7 @@ def fan_origins(
     planned start. Points of the boundary of their hull, at most `spacing` apart (coarser
     past `cap` points), heights linear along each side; none within MIN_LEG of the planned
     start (its leg is the planned one). Empty when no move is under way."""
-    corners = _hull(unfinished)
+    corners = hull_corners(unfinished)
     if len(corners) < 2:
         return []
     sides = list(zip(corners, corners[1:] + corners[:1], strict=True))
@@ -744,7 +744,8 @@ def walk_legs(
     points of the unfinished moves (`fan_origins`). Refused steps are walked as if flown."""
     target = start
     # Where the drone was when no move was under way (the start, the target a
-    # wait_for_flight reached), then every target sent since: it is within their hull.
+    # wait_for_flight reached) and every target sent since: it is within their hull, kept
+    # as its corners (the hull of them and a new target is the hull of all and it).
     unfinished: list[NED] = [] if start is None else [start]
     for index, step in enumerate(steps):
         command = step["command"]
@@ -755,11 +756,11 @@ def walk_legs(
         if move is None:
             continue
         yield WalkedLeg(index, move, target, airborne)
-        if move.kind == "goto":
-            for origin in fan_origins(unfinished):
+        if move.kind == "goto" and target is not None:
+            for origin in fan_origins([*unfinished, target]):
                 if math.dist(origin[:2], move.ned[:2]) >= MIN_LEG:
                     yield WalkedLeg(index, move, origin, airborne, shortcut=True)
-        unfinished.append(move.ned)
+        unfinished = hull_corners([*unfinished, move.ned])
         target = move.ned
         # Only a takeoff lifts a drone off and only a land puts it down; a move does not.
         airborne = {"takeoff": True, "land": False}.get(move.kind, airborne)

@@ -136,3 +136,24 @@ def test_a_conflict_only_on_the_shortcut_refuses_the_start_and_a_wait_clears_it(
     accepted = start(world.operator, corner_mission(WAIT), "ACME_B")
     assert accepted.status_code == 200, accepted.json()
     assert Reservation.objects.filter(ended_at__isnull=True).count() == 2
+
+
+def test_a_burst_of_moves_reserves_one_fan_covering_every_shortcut():
+    # Four navigates sent at once: the drone may be anywhere in their hull. Only the last
+    # one's fan is reserved (it covers the others'), so the flight's legs stay few; the
+    # first corner's shortcut is still met, named as the burst's last step.
+    burst = [
+        {"command": "takeoff", "params": {"altitude": 20}},
+        WAIT,
+        navigate(300, 0),
+        navigate(300, 300),
+        navigate(600, 300),
+        navigate(600, 600),
+        {"command": "land"},
+    ]
+    legs, _ = flight_legs(burst, (*ORIGIN, 0.0), T, PACE)
+    per_step = {step: sum(leg.step == step for leg in legs) for step in (3, 4, 5)}
+    assert per_step[3] == per_step[4] == 1 and per_step[5] > 1
+    assert len(legs) <= 6 + 64  # takeoff, four legs, the landing and one fan at most
+    clash, legs = conflict(burst, diagonal_across(20.0))
+    assert clash is not None and legs[clash.leg].step == 5
