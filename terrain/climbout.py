@@ -53,10 +53,13 @@ def climb_slope(pace: Paced, speed: float | None = None) -> float:
 @dataclass(frozen=True)
 class Climb:
     """A climb under way as a sideways leg begins: the height above home the drone has
-    surely reached (`start`, h0) and the metres it surely climbs per metre flown."""
+    surely reached (`start`, h0), the metres it surely climbs per metre flown, and where
+    the climb began (`origin`, north and east metres from home; None: over home), whose
+    ground the terrain's climb-out rule compares with."""
 
     start: float
     slope: float
+    origin: tuple[float, float] | None = None
 
     def least(self, along: float, target: float) -> float:
         """The height above home the drone has surely reached `along` metres into the leg."""

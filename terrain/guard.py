@@ -8,14 +8,15 @@ whole length, its altitude taken as linear from one end to the other. A descent 
 climb moves away from the ground and is never refused; landing never is.
 
 Climb-out: a sideways leg sent while a take-off or a climb is still under way (no
-`wait_for_flight` between them; for a command, a drone still climbing to its last
-target) is flown on a slant from the height the drone is at, and is checked against the
+`wait_for_flight` between them; for a command, and for the first leg of a mission
+started, a drone still climbing to its last target) is flown on a slant from the height the drone is at, and is checked against the
 height it has surely reached at each point, least(d) = min(target, h0 + s·d)
 (terrain/climbout.py), not against the straight line from the climb's target. While
-least(d) is below the minimum clearance (and below the leg's target) the drone is
-climbing out of its take-off: it must be at least as high above the terrain as above
-home there, i.e. the terrain may not rise above home's elevation. From where least(d)
-reaches the minimum (or the leg's target) the minimum holds as on any leg: a leg whose
+the drone is less than the minimum clearance above the ground the climb began over
+(home's for a take-off at home; elsewhere the ground under the climb, home's where the
+terrain does not give it) and below the leg's target, it is climbing out: it must be at
+least as high above the terrain as above that ground, i.e. the terrain may not rise
+above it. From there the minimum holds as on any leg: a leg whose
 target is below the minimum is refused whether it waits for its climb or not. The ceiling
 above the terrain is still held on the straight line at the target's height, the highest
 the drone can be.
@@ -250,14 +251,30 @@ def _assess_leg(
 
 
 def _slant_pieces(
-    ground: _Ground, length: float, climb: Climb, target: float
+    ground: _Ground, length: float, climb: Climb, target: float, offset: float
 ) -> list[tuple[float, float, bool]]:
     """The stretches (metres along the leg) where least(d) is a straight line: climbing
-    out (True: below the minimum and the target), climbing on to the target, level."""
-    out = min(length, climb.reaches(min(ground.minimum, target)))
+    out (True: less than the minimum above the ground the climb began over, `offset`
+    metres below home, and below the target), climbing on to the target, level."""
+    out = min(length, climb.reaches(min(ground.minimum - offset, target)))
     up = max(out, min(length, climb.reaches(target)))
     pieces = [(0.0, out, True), (out, up, False), (up, length, False)]
     return [p for p in pieces if p[1] - p[0] > env.MIN_LEG]
+
+
+def _over_home(climb: Climb) -> bool:
+    return climb.origin is None or math.hypot(*climb.origin) < env.MIN_LEG
+
+
+def _climb_ground(ground: _Ground, climb: Climb) -> float:
+    """The elevation (m above sea level) of the ground the climb began over, which the
+    terrain may not rise above while climbing out: home's for a climb over home, and
+    where the terrain does not give it there."""
+    if _over_home(climb):
+        return ground.home_elevation
+    lat, lon = env.ned_to_latlon(climb.origin[0], climb.origin[1], ground.home)
+    below = ground.surface.elevation(lat, lon)
+    return ground.home_elevation if below is None else below
 
 
 def _slant_violation(
@@ -267,15 +284,17 @@ def _slant_violation(
     it has surely reached, breaks the climb-out rule or the minimum clearance."""
     a, b = np.array(ends[0], float), np.array(ends[1], float)
     target = b[2] - ground.home_elevation
-    pieces = _slant_pieces(ground, length, climb, target)
+    reference = _climb_ground(ground, climb)
+    offset = ground.home_elevation - reference  # home's height above the climb's ground
+    pieces = _slant_pieces(ground, length, climb, target, offset)
     starts: list[list[float]] = []
     stops: list[list[float]] = []
     for d0, d1, out in pieces:
         for d, points in ((d0, starts), (d1, stops)):
             point = a + (b - a) * (d / length)
-            # Climbing out, the leg is sampled at home's elevation: its clearance there is
-            # how far the terrain lies below home.
-            height = 0.0 if out else climb.least(d, target)
+            # Climbing out, the leg is sampled at the elevation of the climb's ground: its
+            # clearance there is how far the terrain lies below that ground.
+            height = -offset if out else climb.least(d, target)
             points.append([point[0], point[1], ground.home_elevation + height])
     found = ground.surface.clearances(np.array(starts), np.array(stops), highest=False)
     for (d0, _, out), piece in zip(pieces, found, strict=True):
@@ -284,26 +303,36 @@ def _slant_violation(
         lat, lon, along = piece.at[0], piece.at[1], d0 + piece.at[2]
         least = climb.least(along, target)
         if out and piece.minimum < -CLIMB_OUT_TOLERANCE_M:
-            return _climb_out_violation((lat, lon, along), least, -piece.minimum, legs)
+            above = least + offset  # the height above the climb's ground
+            return _climb_out_violation((lat, lon, along), least, above, -piece.minimum, climb, legs)  # fmt: skip
         if not out and piece.minimum < ground.minimum:
             return _climbing_violation((lat, lon, along), least, piece.minimum, ground, legs)
     return None
 
 
 def _climb_out_violation(
-    at: tuple[float, float, float], least: float, rise: float, legs: tuple
+    at: tuple[float, float, float],
+    least: float,
+    above: float,
+    rise: float,
+    climb: Climb,
+    legs: tuple,
 ) -> TerrainViolation:
+    """`above`: the height over the climb's ground; `rise`: the terrain's above it."""
     lat, lon, along = at
+    home = _over_home(climb)
+    ground = "home's elevation" if home else "the ground the climb began over"
+    limit = "home" if home else "the ground the climb began over"
     return TerrainViolation(
         TERRAIN_CLEARANCE,
         f"The leg to the target is flown while the drone is still climbing out of its "
         f"take-off: {along:.0f} m along it, at ({lat:.5f}, {lon:.5f}), it is surely only "
-        f"{least:.1f} m above home, and the terrain there rises {rise:.1f} m above home's "
-        f"elevation, leaving {least - rise:.1f} m of clearance; below the minimum terrain "
-        "clearance the terrain may not rise above home.",
+        f"{least:.1f} m above home, and the terrain there rises {rise:.1f} m above {ground}, "
+        f"leaving {above - rise:.1f} m of clearance; below the minimum terrain clearance the "
+        f"terrain may not rise above {limit}.",
         legs,
-        clearance=round(least - rise, 1),
-        minimum=round(least, 1),
+        clearance=round(above - rise, 1),
+        minimum=round(above, 1),
     )
 
 
@@ -455,13 +484,17 @@ def mission_climbs(
     steps: Sequence[Mapping[str, Any]],
     start: env.NED | None,
     pace: Paced | None = None,
+    climbing_from: float | None = None,
 ) -> dict[int | None, Climb]:
     """The legs of a mission flown while a climb is under way, by step index: a take-off
     or a climb in place stays under way until a `wait_for_flight`, a landing or the next
-    sideways leg, which flies it out on a slant (terrain/climbout.py)."""
+    sideways leg, which flies it out on a slant (terrain/climbout.py). `climbing_from`:
+    the height of a drone still climbing to `start` (fleet/envelopes.py rise_under_way)
+    when the mission starts: its first leg flies that climb out."""
     pace = pace or SettingsPace()
     climbs: dict[int | None, Climb] = {}
-    surely: float | None = None  # the height surely reached while a climb is under way
+    surely = climbing_from  # the height surely reached while a climb is under way
+    origin = None if start is None else (start[0], start[1])  # where that climb began
     target = start
     for index, step in enumerate(steps):
         command, params = step["command"], step.get("params") or {}
@@ -475,11 +508,13 @@ def mission_climbs(
         if _is_leg(move, target):
             if surely is not None:
                 speed = params.get("speed")
-                climbs[index] = Climb(surely, climb_slope(pace, speed and float(speed)))
+                climbs[index] = Climb(surely, climb_slope(pace, speed and float(speed)), origin)
             surely = None
         elif move.kind == "land":
             surely = None
         else:  # a take-off or a move in place: climbing on from where it surely is
+            if surely is None:
+                origin = (move.ned[0], move.ned[1])
             base = _height(target) if surely is None else surely
             surely = base if -move.ned[2] > base else None
         target = move.ned
@@ -493,11 +528,14 @@ def step_violations(
     start: env.NED | None,
     ceiling: float | None = None,
     pace: Paced | None = None,
+    climbing_from: float | None = None,
 ) -> list[env.StepViolation]:
     """Every step of a mission flown from `start` that comes below the minimum clearance
     (or above `ceiling` over the terrain, where the organisation reads it so); `pace`: the
-    drone's (airspace/reservations.py pace_for), for its legs flown while climbing."""
-    moves, climbs = mission_moves(home, steps, start), mission_climbs(home, steps, start, pace)
+    drone's (airspace/reservations.py pace_for), for its legs flown while climbing;
+    `climbing_from`: the height of a drone still climbing to `start` (mission_climbs)."""
+    moves = mission_moves(home, steps, start)
+    climbs = mission_climbs(home, steps, start, pace, climbing_from)
     return assess(organisation_id, home, moves, ceiling, climbs).violations
 
 

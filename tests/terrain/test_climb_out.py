@@ -205,7 +205,8 @@ def test_the_climb_under_way_is_tracked_step_by_step():
     ]
     climbs = mission_climbs(HOME, steps, (0.0, 0.0, 0.0), Pace())
     assert set(climbs) == {4, 7}
-    assert climbs[4] == Climb(40.0, pytest.approx(SLOPE))  # type: ignore[arg-type]
+    # The climb began over home (where the climb-out rule compares the terrain with).
+    assert climbs[4] == Climb(40.0, pytest.approx(SLOPE), (0.0, 0.0))  # type: ignore[arg-type]
     # From 70 m, 6 s at the slowest climb (4/3 m/s): 78 m; 8 m/s at its fastest is 16 m/s.
     assert climbs[7].start == pytest.approx(78.0)
     assert climbs[7].slope == pytest.approx((2.0 / 1.5) / 16.0)
