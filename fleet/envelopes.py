@@ -210,14 +210,25 @@ def drone_pace(drone: Drone) -> Paced:
     return import_string(settings.AIRSPACE_PACE)(drone)
 
 
+def climbing_from(drone: Drone) -> float | None:
+    """The height of a drone in the air still climbing to its last target (rise_under_way),
+    from which a sideways leg sent now is flown on a slant; None when it is not climbing."""
+    rise = rise_under_way(drone)
+    return None if rise is None or rise <= 0 else float(drone.alt or 0.0)
+
+
 def command_climb(drone: Drone, command: str, params: Mapping[str, Any]) -> Climb | None:
     """A sideways command sent while the drone still climbs: flown on a slant from the
-    height it is at now (terrain/climbout.py), which its terrain clearance is checked on."""
-    rise = rise_under_way(drone)
-    if command not in env.HORIZONTAL_COMMANDS or rise is None or rise <= 0:
+    height it is at now (terrain/climbout.py), which its terrain clearance and the
+    published zones are checked on. The climb began under its last target (a climb in
+    place), the ground the terrain's climb-out rule compares with."""
+    height = climbing_from(drone)
+    if command not in env.HORIZONTAL_COMMANDS or height is None:
         return None
     speed = params.get("speed")
-    return Climb(float(drone.alt or 0.0), climb_slope(drone_pace(drone), speed and float(speed)))
+    slope = climb_slope(drone_pace(drone), speed and float(speed))
+    column = current_target(drone, home_of(drone))
+    return Climb(height, slope, None if column is None else (column[0], column[1]))
 
 
 def _battery_percent(drone: Drone) -> float | None:
@@ -240,10 +251,10 @@ def check_command(
     move = env.Move(move.kind, move.ned, horizontal)
     envelope = drone_envelope(drone)
     violation = env.check(envelope, home, move, drone.airborne, _battery_percent(drone), base)
-    violation = violation or published_zones("move")(
-        drone.organisation, home, move, base, drone.airborne
-    )
     climb = command_climb(drone, command, params)
+    violation = violation or published_zones("move")(
+        drone.organisation, home, move, base, drone.airborne, climb=climb
+    )
     assessed = terrain.move_assessment(
         drone.organisation_id, home, base, move, ceiling=envelope.max_height, climb=climb
     )
@@ -278,11 +289,15 @@ def step_violations(
         envelope = with_fence(organisation_envelope(organisation), fence)
         start, airborne = (0.0, 0.0, 0.0), False
         found = env.step_violations(envelope, home, steps, start, airborne, None)
-    found += published_zones("steps")(organisation, home, steps, start, airborne)
-    # The legs flown while a climb is under way at the drone's pace, else the settings'.
+    # The legs flown while a climb is under way at the drone's pace, else the settings';
+    # a drone still climbing when the mission starts flies its first leg on that climb.
     pace = drone_pace(drone) if drone is not None else None
+    rising = climbing_from(drone) if drone is not None else None
+    found += published_zones("steps")(
+        organisation, home, steps, start, airborne, pace=pace, climbing_from=rising
+    )
     found += terrain.step_violations(
-        organisation.pk, home, steps, start, ceiling=envelope.max_height, pace=pace
+        organisation.pk, home, steps, start, envelope.max_height, pace, climbing_from=rising
     )
     return sorted(found, key=lambda v: v.index)
 

@@ -7,10 +7,17 @@ organisation recorded one that has not expired; conditional zones are shown, not
 (zones/bands.py places each band there). A drone already inside a zone's volume in the
 air may fly out of it (as with the geofence: wind, or a zone published meanwhile); its
 target is checked anyway. Time is now: a command is sent now, a mission starts now.
+
+A sideways leg flown while a climb is under way (no `wait_for_flight` after a take-off or
+a climb; a command to a drone still climbing; terrain/climbout.py) passes lower than the
+straight line: `d` metres along it the drone may be anywhere from the height it has
+surely reached, min(target, h0 + s·d), up to the highest height it was sent to. A zone
+whose band meets that range over the zone is crossed, as is one the straight line meets.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
@@ -22,6 +29,8 @@ from django.utils import timezone
 
 import terrain
 from onboard import envelope as env
+from terrain.climbout import Climb, Paced
+from terrain.guard import mission_climbs
 
 from .bands import Band
 from .models import Authorisation, Restriction, Zone
@@ -72,6 +81,24 @@ class Volume:
     def crossed(self, home: Sequence[float], start: env.NED, end: env.NED) -> bool:
         """Does the part of the leg within the band pass over the zone?"""
         span = band_span(-start[2], -end[2], *self.band.about_home(self.home_elevation))
+        return self.passes(home, start, end, span)
+
+    def crossed_climbing(
+        self, home: Sequence[float], start: env.NED, end: env.NED, climb: Climb
+    ) -> bool:
+        """Does the part of the leg flown while climbing where the drone may be within
+        the band pass over the zone?"""
+        span = slant_span(climb, start, end, *self.band.about_home(self.home_elevation))
+        return self.passes(home, start, end, span)
+
+    def passes(
+        self,
+        home: Sequence[float],
+        start: env.NED,
+        end: env.NED,
+        span: tuple[float, float] | None,
+    ) -> bool:
+        """Does the stretch `span` (fractions of the leg) pass over the zone?"""
         if span is None:
             return False
         a, b = (_along(start, end, t) for t in span)
@@ -98,6 +125,22 @@ def band_span(h0: float, h1: float, lower: float, upper: float) -> tuple[float, 
     ends = sorted(((lower - h0) / (h1 - h0), (upper - h0) / (h1 - h0)))
     t0, t1 = max(ends[0], 0.0), min(ends[1], 1.0)
     return (t0, t1) if t0 <= t1 else None
+
+
+def slant_span(
+    climb: Climb, start: env.NED, end: env.NED, lower: float, upper: float
+) -> tuple[float, float] | None:
+    """The fractions (0, t1) of a leg flown while climbing where the heights the drone may
+    be at, [min(target, h0 + s·d), the highest sent], meet [lower, upper]: from the leg's
+    start to where the height surely reached passes `upper`, or None."""
+    target = -end[2]
+    highest = max(-start[2], target, climb.start)
+    if highest < lower or climb.least(0.0, target) > upper:
+        return None
+    length = math.hypot(end[0] - start[0], end[1] - start[1])
+    if target <= upper or length <= 0.0:
+        return (0.0, 1.0)
+    return (0.0, min(1.0, climb.reaches(upper) / length))
 
 
 def _along(start: env.NED, end: env.NED, t: float) -> env.NED:
@@ -141,8 +184,10 @@ def leg_violation(
     start: env.NED | None,
     move: env.Move,
     airborne: bool,
+    climb: Climb | None = None,
 ) -> ZoneViolation | None:
-    """The first zone the move's target is inside of, or its leg crosses."""
+    """The first zone the move's target is inside of, or its leg crosses (flown on a slant
+    from `climb` when a climb is under way as it leaves)."""
     if move.kind == "land":
         return None  # landing is always allowed, as by the envelope
     end = move.ned
@@ -153,12 +198,23 @@ def leg_violation(
             return ZoneViolation(ZONE, f"The target is inside {volume.describe()}")
         if start is None or (airborne and volume.covers(home, start)):
             continue
+        leg = (env.ned_to_latlon(*start[:2], home), env.ned_to_latlon(*end[:2], home))
         if volume.crossed(home, start, end):
-            leg = (env.ned_to_latlon(*start[:2], home), env.ned_to_latlon(*end[:2], home))
             return ZoneViolation(
                 ZONE, f"The straight leg to the target crosses {volume.describe()}", leg
             )
+        if climb is not None and volume.crossed_climbing(home, start, end, climb):
+            return ZoneViolation(ZONE, _climbing_message(climb, end, volume), leg)
     return None
+
+
+def _climbing_message(climb: Climb, end: env.NED, volume: Volume) -> str:
+    rate = f", surely climbing only 1 m per {1 / climb.slope:.1f} m along it" if climb.slope > 0 else ""  # fmt: skip
+    return (
+        "The leg to the target is flown while the drone is still climbing (no "
+        f"wait_for_flight after the climb): from {climb.start:.1f} m above home{rate} to "
+        f"{-end[2]:.1f} m, it crosses {volume.describe()}"
+    )
 
 
 def move_violation(
@@ -168,14 +224,16 @@ def move_violation(
     start: env.NED | None,
     airborne: bool,
     at: datetime | None = None,
+    climb: Climb | None = None,
 ) -> ZoneViolation | None:
     """What fleet/envelopes.py asks for a command's move (from `start`, the drone's
-    current target), at `at` (now)."""
+    current target), at `at` (now); `climb`: the climb under way when it is sent
+    (fleet/envelopes.py command_climb)."""
     if home is None or move.kind == "land":
         return None
     points = [move.ned] if start is None else [start, move.ned]
     volumes = candidates(organisation, home, points, at or timezone.now())
-    return leg_violation(volumes, home, start, move, airborne)
+    return leg_violation(volumes, home, start, move, airborne, climb)
 
 
 def step_violations(
@@ -185,9 +243,13 @@ def step_violations(
     start: env.NED | None,
     airborne: bool,
     at: datetime | None = None,
+    pace: Paced | None = None,
+    climbing_from: float | None = None,
 ) -> list[env.StepViolation]:
     """Every mission step whose move or leg a published zone refuses, walked as the
-    envelope walks them (onboard/envelope.py `walk`)."""
+    envelope walks them (onboard/envelope.py `walk`); the legs flown while a climb is
+    under way at the drone's `pace` (terrain/guard.py mission_climbs, `climbing_from`:
+    the height of a drone still climbing to `start`)."""
     if home is None:
         return []
     legs = list(env.walk(home, steps, start, airborne))
@@ -197,9 +259,10 @@ def step_violations(
     volumes = candidates(organisation, home, points, at or timezone.now())
     if not volumes:
         return []
+    climbs = mission_climbs(home, steps, start, pace, climbing_from)
     found = []
     for index, move, leg_start, flying in legs:
-        violation = leg_violation(volumes, home, leg_start, move, flying)
+        violation = leg_violation(volumes, home, leg_start, move, flying, climbs.get(index))
         if violation is not None:
             found.append(env.StepViolation(index, violation))
     return found

@@ -172,3 +172,19 @@ def test_an_authorisation_is_refused_for_a_prohibited_zone_or_in_the_past(world_
     response = authorise(world_tx.owner, zone, past)
     assert response.status_code == 400 and "expires_at" in response.json()["fields"]
     assert not Authorisation.objects.exists()
+
+
+def test_a_leg_sent_while_still_climbing_crosses_a_band_it_would_pass_over_level(world_tx, flying):
+    """A field from 20 m to 30 m. 5 m up over home and still climbing to 40 m, the drone
+    is sent 300 m north: flown from 5 m on a slant it may be in the band over the field.
+    Done climbing, the leg is level at 40 m, over the band, and is sent."""
+    field(lowerLimit=20, upperLimit=30)
+    beyond = env.ned_to_latlon(300.0, 0.0, HOME)
+    Drone.objects.filter(drone_id="ACME_1").update(alt=5.0, nav_target=[0.0, 0.0, -40.0])
+    response = command(world_tx.operator, "navigate", lat=beyond[0], lon=beyond[1])
+    body = assert_zone_refusal(response, flying, "flown while the drone is still climbing")
+    assert "from 5.0 m above home" in body["error"]
+    at_height(40.0)
+    response = command(world_tx.operator, "navigate", lat=beyond[0], lon=beyond[1])
+    assert response.status_code == 200, response.content
+    assert [r["command"] for r in flying.requests] == ["navigate"]
