@@ -72,7 +72,8 @@ RESENT_KEPT = 4096  # the re-sent packets remembered (a sequence number wraps at
 # MQTT crosses another link than its video (its queue would say nothing of the video's).
 UPLINK_ENV = "SKYHIVE_LIVE_VIDEO_UPLINK_QUEUE"
 UPLINK_PROBE_S = 0.05
-UPLINK_KEPT = 600  # write samples kept: 30 s of them, the oldest an unacked byte is dated by
+# Write samples kept, 30 s of them: a byte unacknowledged for longer reads as 30 s old.
+UPLINK_KEPT = 600
 # struct tcp_info (linux/tcp.h), the fields read by their byte offsets (checked with
 # offsetof against the headers of Linux 6.18; unchanged since they were added, the
 # structure only grows at its end): tcpi_bytes_acked (__u64, since Linux 4.1) and
@@ -137,8 +138,9 @@ class LiveVideo:
         self.config = config
         self.pose = pose
         self.enabled = enabled
-        measured = uplink is not None and os.environ.get(UPLINK_ENV, "on") != "off"
-        self.uplink = UplinkProbe(uplink) if measured and uplink is not None else None
+        if os.environ.get(UPLINK_ENV, "on") == "off":
+            uplink = None
+        self.uplink = UplinkProbe(uplink) if uplink is not None else None
         self.counts: Counter[str] = Counter()
         self._process: subprocess.Popen | None = None
         self._stop = threading.Event()
@@ -610,7 +612,11 @@ async def publish_once(
     adaptation = LinkAdaptation(config, counts, time.monotonic)
     use_adaptive_encoder(adaptation)
     loop = asyncio.get_running_loop()
-    poses.on_uplink_queue = lambda q: loop.call_soon_threadsafe(adaptation.uplink_queue, q)
+
+    def uplink_queue(queue_s: float) -> None:  # from the pose pipe's reading thread
+        loop.call_soon_threadsafe(adaptation.uplink_queue, queue_s)
+
+    poses.on_uplink_queue = uplink_queue
     pc = RTCPeerConnection()
     ended = asyncio.Event()
 

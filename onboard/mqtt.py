@@ -210,8 +210,9 @@ class MqttLink:
 
     def socket(self) -> socket.socket | None:
         """The connection's socket (None while not connected), for reading the kernel's
-        counts of it; never read from or written to outside paho's thread."""
-        return self.client.socket()
+        counts of it; never read from or written to outside paho's thread. paho types it
+        as its SocketLike: a socket.socket over TCP and TLS, a wrapper over WebSockets."""
+        return self.client.socket()  # type: ignore[return-value]
 
     def start(self) -> None:
         # connect_async + loop_start: the loop thread keeps retrying, with backoff, until

@@ -37,7 +37,7 @@ The rule:
   about twice the bound. Measured on a kernel-shaped 80 kbit/s link with a 2 s buffer
   (tests/livevideo/test_kernel_link.py), commands' round trips in a narrowing's first
   4 s peaked at 0.69–1.04 s with a bound of 0.2 s (5 runs) and 0.36–0.57 s with 0.1 s
-  (7 runs). Below 0.1 s a link's own jitter would pause the picture; on that link's
+  (9 runs). Below 0.1 s a link's own jitter would pause the picture; on that link's
   open phase the measure stayed under 0.05 s.
 - **Bitrate**: the encoder's target is the estimate, at most 1.5 Mbit/s and at least
   ``WIDE_FLOOR_BPS`` (250 kbit/s, aiortc's own floor) on a link not known to be narrow,

@@ -45,7 +45,7 @@ ONSET_S = 4.0  # the narrowing's first seconds, before the RTCP round trips tell
 OPEN_S = 3.0
 # The most a command's round trip takes in the narrowing's first 4 s with the measure on.
 # Measured on the 2-core development machine: with it on, 0.36–0.57 s at most (median
-# 0.13–0.29 s, 7 runs); with it off, 2.5–10.3 s at most (median 0.25–0.74 s, 6 runs: the
+# 0.13–0.29 s, 9 runs); with it off, 2.5–10.3 s at most (median 0.25–0.74 s, 6 runs: the
 # buffer filled before a receiver report told). The bound is twice the first's worst and
 # half the second's best.
 ONSET_BOUND_S = 1.2
