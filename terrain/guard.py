@@ -389,7 +389,7 @@ def _assess_moves(
     result: Assessment,
     ground: _Ground,
     moves: Sequence[Walked],
-    climbs: Mapping[int | None, Climb],
+    climbs: Mapping[Any, Climb],
 ) -> None:
     """Every leg sampled in one pass (Surface.clearances), then each move in step order;
     a leg flown while a climb is under way (`climbs`, by step) is sampled on its slant."""
@@ -402,7 +402,8 @@ def _assess_moves(
     for walked in moves:
         if _is_leg(walked[1], walked[2]):
             pair, leg = list(next(pairs)), next(found)
-            _assess_leg(result, ground, walked[0], pair, leg, climbs.get(walked[0]))
+            climb = climbs.get((walked[0], walked[2]), climbs.get(walked[0]))
+            _assess_leg(result, ground, walked[0], pair, leg, climb)
         else:
             _assess_descent(result, ground, walked)
 
@@ -412,12 +413,13 @@ def assess(
     home: Sequence[float] | None,
     moves: Iterable[Walked],
     ceiling: float | None = None,
-    climbs: Mapping[int | None, Climb] | None = None,
+    climbs: Mapping[Any, Climb] | None = None,
 ) -> Assessment:
     """Every move (step index, move, the leg's start in NED from home) held to the
     organisation's minimum terrain clearance, and to `ceiling` (the drone's maximum
     height) above the terrain where the organisation reads its ceiling there. `climbs`:
-    the legs flown while a climb is under way, by step index (None: a command's)."""
+    the legs flown while a climb is under way, by step index (None: a command's), or by
+    (step index, the leg's start) for one leg of a step."""
     result = Assessment()
     # A take-off climbs from the ground and a landing is never refused: only moves count.
     moves = [m for m in moves if m[1].kind == "goto"]
@@ -442,18 +444,17 @@ def assess(
 
 
 def mission_moves(
-    home: Sequence[float] | None, steps: Sequence[Mapping[str, Any]], start: env.NED | None
+    home: Sequence[float] | None,
+    steps: Sequence[Mapping[str, Any]],
+    start: env.NED | None,
+    shortcuts: bool = False,
 ) -> list[Walked]:
-    """A mission's moves flown from `start`, each leg from the previous target, as the
-    envelope walks them (onboard.envelope.step_violations)."""
-    moves: list[Walked] = []
-    target = start
-    for index, step in enumerate(steps):
-        move = env.resolve(step["command"], step.get("params") or {}, target, target, home)
-        if move is not None:
-            moves.append((index, move, target))
-            target = move.ned
-    return moves
+    """A mission's moves flown from `start` as the envelope walks them (onboard/envelope.py
+    `walk`), each leg from the previous target; `shortcuts`: with the legs of a move sent
+    before the earlier ones ended (its fan legs, with the step's index and move), as the
+    clearance checks them; without, the path as drawn."""
+    walked = env.walk(home, steps, start, False, shortcuts)
+    return [(index, move, leg) for index, move, leg, _ in walked]
 
 
 @dataclass(frozen=True)
@@ -534,9 +535,48 @@ def step_violations(
     (or above `ceiling` over the terrain, where the organisation reads it so); `pace`: the
     drone's (airspace/reservations.py pace_for), for its legs flown while climbing;
     `climbing_from`: the height of a drone still climbing to `start` (mission_climbs)."""
-    moves = mission_moves(home, steps, start)
-    climbs = mission_climbs(home, steps, start, pace, climbing_from)
-    return assess(organisation_id, home, moves, ceiling, climbs).violations
+    moves = mission_moves(home, steps, start, shortcuts=True)
+    climbs: dict[Any, Climb] = dict(mission_climbs(home, steps, start, pace, climbing_from))
+    climbs.update(_fan_climbs(moves, steps, climbs, pace or SettingsPace()))
+    return _first_per_step(assess(organisation_id, home, moves, ceiling, climbs).violations)
+
+
+def _fan_climbs(
+    moves: Sequence[Walked],
+    steps: Sequence[Mapping[str, Any]],
+    climbs: Mapping[Any, Climb],
+    pace: Paced,
+) -> dict[tuple[int | None, env.NED], Climb]:
+    """The climbs of a step's fan legs (every leg of a step after its planned one) that
+    start lower than their target: sent before the moves they cut across ended, they leave
+    from wherever the drone is there and climb on at least at its slowest, as on a slant
+    from that point (the step's own climb, where it has one, from no higher)."""
+    found: dict[tuple[int | None, env.NED], Climb] = {}
+    planned: set[int | None] = set()
+    for index, move, start in moves:
+        if index not in planned or start is None:
+            planned.add(index)
+            continue
+        if -start[2] >= -move.ned[2]:
+            continue  # level or going down: the straight line holds
+        step = climbs.get(index)
+        speed = (steps[index].get("params") or {}).get("speed") if index is not None else None
+        slope = step.slope if step else climb_slope(pace, speed and float(speed))
+        height = min(-start[2], step.start) if step else -start[2]
+        found[(index, start)] = Climb(height, slope, (start[0], start[1]))
+    return found
+
+
+def _first_per_step(found: list[env.StepViolation]) -> list[env.StepViolation]:
+    """One refusal of each kind per step: its planned leg's, else its first fan leg's."""
+    seen: set[tuple[int | None, type]] = set()
+    kept = []
+    for item in found:
+        key = (item.index, type(item.violation))
+        if key not in seen:
+            seen.add(key)
+            kept.append(item)
+    return kept
 
 
 def plan_warnings(

@@ -14,8 +14,9 @@ from onboard import envelope as env
 from onboard.envelope import ned_to_latlon
 from terrain import guard
 from terrain.climbout import Climb, climb_slope
+from terrain.importer import import_path
 
-from .dem import HOME
+from .dem import GROUND, HOME, hill_tile, write_hgt
 from .test_clearance import client_for
 from .test_climb_out import import_rows, north_of_home
 
@@ -125,3 +126,41 @@ def test_a_mission_started_on_a_drone_still_climbing_flies_its_first_leg_on_that
     (found,) = envelopes.step_violations(world.org, [leg], drone)
     assert found.index == 0 and "still climbing out" in found.violation.message
     assert envelopes.step_violations(world.org, [{"command": "wait_for_flight"}, leg], drone) == []
+
+
+def test_a_corner_cut_by_a_leg_sent_before_the_last_one_ended_is_checked(
+    terrain_dir, tmp_path, world
+):
+    """A block 100 m high 337–709 m north and 200–600 m east of home. The plan flies east
+    800 m, then north 800 m, at 60 m: its legs as drawn pass beside the block. Sent one
+    after the other without waiting, the second may be flown from anywhere along the first
+    (its fan legs, onboard/envelope.py walk), straight across the block: refused, step 3.
+    Waiting at each target, the drone flies the corner: accepted."""
+    dem = hill_tile()
+    dem.samples[:] = GROUND
+    (north_row, west_col), (south_row, east_col) = (
+        dem.sample_at(*ned_to_latlon(n, e, HOME)) for n, e in ((709.0, 200.0), (337.0, 600.0))
+    )
+    dem.samples[north_row : south_row + 1, west_col : east_col + 1] = GROUND + 100.0
+    import_path(write_hgt(tmp_path, dem))
+    east, corner = ned_to_latlon(0.0, 800.0, HOME), ned_to_latlon(800.0, 800.0, HOME)
+
+    def plan(wait: bool) -> list[dict]:
+        waited = [{"command": "wait_for_flight"}] if wait else []
+        return [
+            {"command": "arm"},
+            {"command": "takeoff", "params": {"altitude": 60}},
+            *waited,
+            {"command": "navigate", "params": {"lat": east[0], "lon": east[1]}},
+            *waited,
+            {"command": "navigate", "params": {"lat": corner[0], "lon": corner[1]}},
+        ]
+
+    start = (0.0, 0.0, 0.0)
+    drawn = guard.mission_moves(HOME, plan(False), start)
+    walked = guard.mission_moves(HOME, plan(False), start, shortcuts=True)
+    assert len(walked) > len(drawn) == 3
+    assert walked == [(i, m, s) for i, m, s, _ in env.walk(HOME, plan(False), start, False)]
+    (found,) = guard.step_violations(None, HOME, plan(False), start)
+    assert found.index == 3 and found.violation.code == "terrain_clearance"
+    assert guard.step_violations(None, HOME, plan(True), start) == []

@@ -116,25 +116,27 @@ def test_climbing_out_the_terrain_may_not_rise_above_home(terrain_dir, tmp_path,
 
 
 def test_a_climb_over_the_plateau_is_marked_as_the_check_judges_it(ridge, homed):
-    """Climbed first to 40 m, the drone flies 200 m north onto the plateau (30 m above home),
-    climbs in place 20 m more, to 60 m, and, without waiting, flies on 100 m: that leg is flown
-    while climbing from 40 m over ground 30 m above home, and the profile marks it as the
-    terrain check judges it."""
+    """Climbed first to 40 m, the drone flies 200 m north onto the plateau (30 m above home)
+    and, once there (a leg sent earlier could cut across the ramp: its fan legs), climbs in
+    place 20 m more, to 60 m, and, without waiting, flies on 100 m: that leg is flown while
+    climbing from 40 m over ground 30 m above home, and the profile marks it as the terrain
+    check judges it."""
     on, beyond = (ned_to_latlon(n, 0.0, HOME) for n in (200.0, 300.0))
     plan = [
         {"command": "arm"},
         {"command": "takeoff", "params": {"altitude": 40}},
         {"command": "wait_for_flight"},
         {"command": "navigate", "params": {"lat": on[0], "lon": on[1]}},
+        {"command": "wait_for_flight"},
         {"command": "altitude", "params": {"value": 20}},
         {"command": "navigate", "params": {"lat": beyond[0], "lon": beyond[1]}},
         {"command": "land"},
     ]
     answer = check(homed, plan)
     (slant,) = answer["profile"]["slants"]
-    assert slant["index"] == 5
+    assert slant["index"] == 6
     assert slant["from_m"] == pytest.approx(200.0, abs=0.5)
     assert slant["edge"][0] == [pytest.approx(200.0, abs=0.5), 40.0]
     assert slant["edge"][-1] == [pytest.approx(300.0, abs=0.5), pytest.approx(40 + 100 * SLOPE, abs=0.1)]  # fmt: skip
     assert slant["level_m"] == [60.0, 60.0]
-    assert slant["refused"] is (5 in [v["index"] for v in answer["violations"]])
+    assert slant["refused"] is (6 in [v["index"] for v in answer["violations"]])
