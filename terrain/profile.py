@@ -119,7 +119,7 @@ def _climb_offset(
     """How high home lies above the ground the climb began over (its `origin`, north and
     east of home; none: over home), where the terrain gives it: climbing out, the terrain
     may not rise above that ground."""
-    origin = getattr(climb, "origin", None)
+    origin = climb.origin
     if origin is None or math.hypot(*origin) < env.MIN_LEG:
         return 0.0
     lat, lon = env.ned_to_latlon(origin[0], origin[1], home)

@@ -140,3 +140,9 @@ def test_a_climb_over_the_plateau_is_marked_as_the_check_judges_it(ridge, homed)
     assert slant["edge"][-1] == [pytest.approx(300.0, abs=0.5), pytest.approx(40 + 100 * SLOPE, abs=0.1)]  # fmt: skip
     assert slant["level_m"] == [60.0, 60.0]
     assert slant["refused"] is (6 in [v["index"] for v in answer["violations"]])
+    # Less than the minimum (30 m) above the plateau the climb began over, the drone climbs
+    # out the whole leg, over ground no higher than the plateau: flown. (Held to home's
+    # ground, it would be only 10 m over the plateau, below the minimum.)
+    assert slant["climbing_out_to_m"] == pytest.approx(300.0, abs=0.5)
+    assert slant["climb_out_rise_m"] == pytest.approx(0.0, abs=0.05)
+    assert slant["refused"] is False
