@@ -536,9 +536,23 @@ def step_violations(
     drone's (airspace/reservations.py pace_for), for its legs flown while climbing;
     `climbing_from`: the height of a drone still climbing to `start` (mission_climbs)."""
     moves = mission_moves(home, steps, start, shortcuts=True)
+    climbs = leg_climbs(home, steps, start, moves, pace, climbing_from)
+    return _first_per_step(assess(organisation_id, home, moves, ceiling, climbs).violations)
+
+
+def leg_climbs(
+    home: Sequence[float] | None,
+    steps: Sequence[Mapping[str, Any]],
+    start: env.NED | None,
+    moves: Sequence[Walked],
+    pace: Paced | None = None,
+    climbing_from: float | None = None,
+) -> dict[Any, Climb]:
+    """The climbs the walked `moves` are flown on: by step index for a step's planned leg
+    (mission_climbs), by (step index, the leg's start) for a fan leg (_fan_climbs)."""
     climbs: dict[Any, Climb] = dict(mission_climbs(home, steps, start, pace, climbing_from))
     climbs.update(_fan_climbs(moves, steps, climbs, pace or SettingsPace()))
-    return _first_per_step(assess(organisation_id, home, moves, ceiling, climbs).violations)
+    return climbs
 
 
 def _fan_climbs(

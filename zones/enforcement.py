@@ -30,7 +30,7 @@ from django.utils import timezone
 import terrain
 from onboard import envelope as env
 from terrain.climbout import Climb, Paced
-from terrain.guard import mission_climbs
+from terrain.guard import leg_climbs
 
 from .bands import Band
 from .models import Authorisation, Restriction, Zone
@@ -248,8 +248,8 @@ def step_violations(
 ) -> list[env.StepViolation]:
     """Every mission step whose move or leg a published zone refuses, walked as the
     envelope walks them (onboard/envelope.py `walk`); the legs flown while a climb is
-    under way at the drone's `pace` (terrain/guard.py mission_climbs, `climbing_from`:
-    the height of a drone still climbing to `start`)."""
+    under way at the drone's `pace` (terrain/guard.py leg_climbs, `climbing_from`: the
+    height of a drone still climbing to `start`), fan legs included."""
     if home is None:
         return []
     legs = list(env.walk(home, steps, start, airborne))
@@ -259,10 +259,12 @@ def step_violations(
     volumes = candidates(organisation, home, points, at or timezone.now())
     if not volumes:
         return []
-    climbs = mission_climbs(home, steps, start, pace, climbing_from)
+    walked = [(index, move, leg_start) for index, move, leg_start, _ in legs]
+    climbs = leg_climbs(home, steps, start, walked, pace, climbing_from)
     found = []
     for index, move, leg_start, flying in legs:
-        violation = leg_violation(volumes, home, leg_start, move, flying, climbs.get(index))
+        climb = climbs.get((index, leg_start), climbs.get(index))
+        violation = leg_violation(volumes, home, leg_start, move, flying, climb)
         if violation is not None:
             found.append(env.StepViolation(index, violation))
     return found
