@@ -142,6 +142,13 @@ def test_a_mission_leg_beside_the_zone_is_accepted(world, outbox):
     beside = body(200)
     beside["steps"][3]["params"] = {"lat": lat, "lon": lon}
     beside["steps"][2]["params"] = dict(zip(("lat", "lon"), point_at(0, 40), strict=True))
+    # Arrived 40 m east before going north: sent at once, the drone may turn north from
+    # home, and that line passes 19.6 m from the zone's centre (its radius is 20 m).
+    wait = {
+        "command": "wait_for_flight",
+        "params": {"horizontal_tolerance": 2, "vertical_tolerance": 2},
+    }
+    beside["steps"].insert(3, wait)
     created = client_for(world.operator).post("/api/v1/missions/", beside, format="json")
     assert created.status_code == 201, created.json()
 
