@@ -554,8 +554,8 @@ def _side_distance(a: Sequence[float], b: Sequence[float], p: Sequence[float]) -
 def command_starts(last: NED | None, here: NED | None) -> list[NED | None]:
     """Where the drone checks a command's leg from: its last target (the planned leg), and,
     while it is still flying to that target (farther than ARRIVED_M from it), where it is
-    now, since it turns to the new target from there. The fan rule above, for one command
-    with the drone's position known: the ground's check of the same rule, as a last resort."""
+    now, since it turns to the new target from there. The fan rule above for one command,
+    where the drone knows where it is: its last-resort check of the ground's rule."""
     if last is None:
         return [here]
     if here is None or math.dist(here[:2], last[:2]) <= ARRIVED_M:
@@ -593,11 +593,12 @@ def _along(a: NED, b: NED, share: float) -> NED:
 def fan_origins(
     unfinished: Sequence[NED], spacing: float = FAN_SPACING_M, cap: int = FAN_MAX_ORIGINS
 ) -> list[NED]:
-    """Where the fan legs of a move start (see the rule above): `unfinished` is where the
-    moves under way began, then their targets in order, the last being the new leg's
-    planned start. Points of the boundary of their hull, at most `spacing` apart (coarser
-    past `cap` points), heights linear along each side; none within MIN_LEG of the planned
-    start (its leg is the planned one). Empty when no move is under way."""
+    """Where the fan legs of a move start (see the rule above): `unfinished` holds where
+    the moves under way began and their targets (or just their hull's corners), the last
+    being the new leg's planned start (its previous target). Points of the boundary of
+    their hull, at most `spacing` apart (coarser past `cap` points), heights linear along
+    each side; none within MIN_LEG of the planned start (its leg is the planned one).
+    Empty when no move is under way."""
     corners = hull_corners(unfinished)
     if len(corners) < 2:
         return []
