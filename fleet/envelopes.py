@@ -250,23 +250,42 @@ def check_command(
     horizontal = command in env.HORIZONTAL_COMMANDS
     move = env.Move(move.kind, move.ned, horizontal)
     envelope = drone_envelope(drone)
-    violation = env.check(envelope, home, move, drone.airborne, _battery_percent(drone), base)
     climb = command_climb(drone, command, params)
-    violation = violation or published_zones("move")(
-        drone.organisation, home, move, base, drone.airborne, climb=climb
-    )
-    assessed = terrain.move_assessment(
-        drone.organisation_id, home, base, move, ceiling=envelope.max_height, climb=climb
-    )
-    violation = violation or assessed.violation
-    if violation is not None:
-        raise OutsideEnvelope(violation)
+    warnings: list[dict] = []
+    # From the last target (the planned leg) and, while the drone is still on its way
+    # there, from where it is: it turns to the new target at once (the agent's own check,
+    # onboard/envelope.py command_starts).
+    for start in env.command_starts(base, here):
+        violation, found = _leg_violation(drone, envelope, home, move, start, climb)
+        if violation is not None:
+            raise OutsideEnvelope(violation)
+        warnings = warnings or found
     beyond = None if confirmed else env.beyond_defaults(move)
     if beyond is not None:
         raise NeedsConfirmation(beyond)
     # Separation from the other drones' reserved airspace (airspace/separation.py).
     import_string(settings.AIRSPACE_COMMAND_CHECK)(drone, command, params)
-    return assessed.warnings
+    return warnings
+
+
+def _leg_violation(
+    drone: Drone,
+    envelope: env.Envelope,
+    home: Sequence[float] | None,
+    move: env.Move,
+    start: env.NED | None,
+    climb: Climb | None,
+) -> tuple[env.Violation | None, list[dict]]:
+    """The envelope's, the published zones' or the terrain's refusal of the leg from
+    `start` (the first that refuses), and where its terrain could not be checked."""
+    violation = env.check(envelope, home, move, drone.airborne, _battery_percent(drone), start)
+    violation = violation or published_zones("move")(
+        drone.organisation, home, move, start, drone.airborne, climb=climb
+    )
+    assessed = terrain.move_assessment(
+        drone.organisation_id, home, start, move, ceiling=envelope.max_height, climb=climb
+    )
+    return violation or assessed.violation, assessed.warnings
 
 
 def step_violations(

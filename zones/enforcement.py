@@ -261,10 +261,12 @@ def step_violations(
         return []
     walked = [(index, move, leg_start) for index, move, leg_start, _ in legs]
     climbs = leg_climbs(home, steps, start, walked, pace, climbing_from)
-    found = []
+    found: dict[int, env.StepViolation] = {}  # one refusal per step, as the envelope's
     for index, move, leg_start, flying in legs:
+        if index in found:
+            continue
         climb = climbs.get((index, leg_start), climbs.get(index))
         violation = leg_violation(volumes, home, leg_start, move, flying, climb)
         if violation is not None:
-            found.append(env.StepViolation(index, violation))
-    return found
+            found[index] = env.StepViolation(index, violation)
+    return list(found.values())
