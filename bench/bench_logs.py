@@ -4,7 +4,8 @@ Run: .venv/bin/python -m bench.bench_logs [--bin-slice-mb N]
 
 - logs.import_ulog_100mb: our import_log of a generated ~100 MB ULog vs pyulog's own parse.
 - logs.import_ulog_1gb_s / logs.import_ulog_1gb_rss: the same on ~1 GB, each side in its own
-  process, with the peak resident memory of each (--skip-1gb leaves them out).
+  process, with the peak resident memory of each (--skip-1gb leaves them out, --only-1gb
+  runs only them; --ulog-1gb-file PATH keeps the generated file there for the next run).
 - logs.import_bin_100mb: our import_log of a generated ~100 MB ArduPilot .bin vs pymavlink's
   full decode (mavlink_connection + recv_match loop). pymavlink takes tens of seconds per
   100 MB, so with --bin-slice-mb both sides are timed on the first N MB of the same
@@ -115,9 +116,12 @@ def _in_child(side: str, path: Path) -> tuple[float, int]:
     return float(out[-2]), int(out[-1])
 
 
-def bench_ulog_1gb(directory: Path) -> None:
-    path = directory / "huge.ulg"
-    synthetic_ulog(path, seconds=_seconds_for(synthetic_ulog, directory, 1024 * MB))
+def bench_ulog_1gb(directory: Path, keep: Path | None = None) -> None:
+    """`keep`: a path where the generated file is kept and reused by the next run (the
+    synthetic log is deterministic, so a kept file is the one that would be generated)."""
+    path = keep or directory / "huge.ulg"
+    if not path.exists():
+        synthetic_ulog(path, seconds=_seconds_for(synthetic_ulog, directory, 1024 * MB))
     size = path.stat().st_size
     ours_s, ours_rss = _in_child("ours", path)
     theirs_s, theirs_rss = _in_child("pyulog", path)
@@ -140,8 +144,9 @@ def bench_ulog_1gb(directory: Path) -> None:
         baseline_value=theirs_rss / MB,
         higher_is_better=False,
         goal=(
-            "peak resident memory <= 1.5x the file size (the decoded values and their "
-            "times, plus one topic's copy while it is joined)"
+            "peak resident memory <= 1.5x the file size (the interpreter, the decoded "
+            "records with their times converted in place, the attitude's Euler angles and "
+            "one chunk of the file)"
         ),
         bound_mib=round(1.5 * size / MB, 1),
         **common,
@@ -203,13 +208,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--bin-slice-mb", type=float, default=None)
     parser.add_argument("--skip-1gb", action="store_true", help="leave out the 1 GB ULog")
+    parser.add_argument("--only-1gb", action="store_true", help="run only the 1 GB ULog")
+    parser.add_argument(
+        "--ulog-1gb-file", type=Path, default=None, help="keep (and reuse) the 1 GB ULog here"
+    )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="bench_logs_") as tmp:
         directory = Path(tmp)
+        if args.only_1gb:
+            bench_ulog_1gb(directory, args.ulog_1gb_file)
+            return
         bench_hour_series()
         bench_ulog(directory)
         if not args.skip_1gb:
-            bench_ulog_1gb(directory)
+            bench_ulog_1gb(directory, args.ulog_1gb_file)
         bench_bin(directory, args.bin_slice_mb)
 
 

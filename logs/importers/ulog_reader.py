@@ -6,9 +6,13 @@ data payload to a buffer; here one tight loop only follows the message sizes, an
 message of a subscription is then gathered at once through a numpy view whose records start
 at any byte (stride 1), so the per-message Python work is a few operations.
 
-The file is read in chunks of CHUNK_BYTES, so memory stays bounded by the decoded data plus
-one chunk and its message offsets; each topic's parts are joined, and let go of, one topic
-at a time.
+Two passes over the file, each in chunks of CHUNK_BYTES: the first follows the headers,
+handles the non-data messages and keeps, per chunk, where each subscription's records start
+(4 bytes a message); the second, once every topic's row count is known, copies the records
+of each chunk straight into their topic's final array, allocated once at its full size.
+Memory holds the decoded data once (the arrays' pages are touched as they are filled while
+the first pass's offsets are let go of, chunk by chunk) plus one chunk: no topic is ever
+held in parts and then joined.
 Corruption is handled like pyulog: an impossible header moves on by one byte (or to the
 next sync sequence when the log has them), a data message of an unknown subscription or an
 impossible size is skipped, and the log is flagged corrupt.
@@ -39,6 +43,12 @@ MAGIC = b"ULog\x01\x12\x35"
 SYNC = b"\x2f\x73\x13\x20\x25\x0c\xbb\x12"
 HEADER_BYTES = 16
 CHUNK_BYTES = 64 << 20
+# Records copied from a chunk into a topic's array at a time (a few MiB of records).
+COPY_BLOCK = 1 << 16
+# Record starts are kept in blocks of this many: allocations this large are mapped pages of
+# their own (glibc maps anything over 32 MiB), so a block the second pass has used up goes
+# back to the system instead of leaving holes in the heap.
+STARTS_BLOCK = 16 << 20
 # The same corruption heuristic as pyulog: a header this implausible is not a message.
 MAX_PLAUSIBLE_SIZE = 10_000
 KNOWN_TYPES = np.frombuffer(b"FDIMPQARSOLCB", dtype=np.uint8)
@@ -103,7 +113,22 @@ class Subscription:
     msg_id: int
     dtype: np.dtype
     max_size: int
-    parts: list[np.ndarray] = field(default_factory=list)
+    count: int = 0
+
+    @property
+    def key(self) -> tuple[str, int, int]:
+        """Subscriptions with the same key (a topic subscribed again) make one Dataset."""
+        return self.name, self.multi_id, self.msg_id
+
+
+@dataclass
+class _Piece:
+    """A window of the file read by the first pass, and the start of each data record in
+    it (relative to `pos`) by subscription, in file order."""
+
+    pos: int
+    length: int
+    picks: list[tuple[Subscription, np.ndarray]] = field(default_factory=list)
 
 
 @dataclass
@@ -136,6 +161,8 @@ class _Reader:
         self.formats: dict[str, list[tuple[str, int, str]]] = {}
         self.subscriptions: dict[int, Subscription] = {}
         self.finished: list[Subscription] = []
+        self.pieces: list[_Piece] = []
+        self.starts = _Blocks()
         self.in_data = False
         self.has_sync = True
         self.careful = False
@@ -185,7 +212,7 @@ class _Reader:
             chunk = self._bytes(pos, chunk_end - pos)
             offsets, stop = _walk(chunk, 0, len(chunk))
             good, bad = self._check(chunk, offsets)
-            self._process(chunk, good)
+            self._process(chunk, good, pos)
             if bad is not None:
                 pos, self.careful = pos + bad, True
             elif chunk_end == end:
@@ -218,7 +245,7 @@ class _Reader:
         window = self._bytes(pos, min(end - pos, CAREFUL_BYTES))
         scan = _scan(window, self.has_sync)
         self.out.file_corruption |= scan.corrupt
-        self._process(window, np.frombuffer(scan.offsets, dtype=np.int64))
+        self._process(window, np.frombuffer(scan.offsets, dtype=np.int64), pos)
         self.careful = not scan.clean
         if scan.needs_sync:  # the next sync sequence lies past this window
             return self._recover(pos + scan.stop, end)
@@ -245,9 +272,10 @@ class _Reader:
         self.file.seek(pos)
         return self.file.read(count)
 
-    def _process(self, chunk: bytes, offsets: np.ndarray) -> None:
-        """Handle the few non-data messages in order; gather the data messages between two
-        subscriptions in bulk."""
+    def _process(self, chunk: bytes, offsets: np.ndarray, pos: int) -> None:
+        """Handle the few non-data messages in order; sort the data messages between two
+        subscriptions to their subscription in bulk. `chunk` is the file from `pos`."""
+        piece = _Piece(pos, len(chunk))
         raw = np.frombuffer(chunk, dtype=np.uint8)
         types = raw[offsets + 2]
         others = np.flatnonzero(types != DATA)
@@ -256,13 +284,17 @@ class _Reader:
             at = int(offsets[index])
             kind = chunk[at + 2]
             if kind == ord("A") or kind == ord("R"):
-                self._gather(chunk, raw, offsets[first:index], types[first:index])
+                self._pick(piece, raw, offsets[first:index], types[first:index])
                 first = index + 1
             size = chunk[at] | chunk[at + 1] << 8
             self._message(kind, chunk[at + 3 : at + 3 + size])
-        self._gather(chunk, raw, offsets[first:], types[first:])
+        self._pick(piece, raw, offsets[first:], types[first:])
+        if piece.picks:
+            self.pieces.append(piece)
 
-    def _gather(self, chunk: bytes, raw: np.ndarray, offsets: np.ndarray, types: np.ndarray):
+    def _pick(self, piece: _Piece, raw: np.ndarray, offsets: np.ndarray, types: np.ndarray):
+        """Note where the records of each current subscription start; a data message of no
+        subscription, or shorter or longer than its format allows, is left out."""
         data = offsets[types == DATA]
         if not len(data):
             return
@@ -279,7 +311,8 @@ class _Reader:
                 self.out.file_corruption = True
             starts = data[fits] + 5
             if len(starts):
-                sub.parts.append(_records(chunk, sub.dtype)[starts])
+                piece.picks.append((sub, self.starts.keep(starts, piece.length)))
+                sub.count += len(starts)
 
     def _message(self, kind: int, payload: bytes) -> None:
         handler = _HANDLERS.get(kind)
@@ -376,18 +409,31 @@ class _Reader:
         self.out.dropouts_ms += struct.unpack_from("<H", payload)[0]
 
     def _finish(self) -> None:
-        """Each topic's parts joined into one array, the parts let go of as soon as they
-        are joined: memory holds the decoded data once, plus one topic's copy at most."""
-        subs = [*self.finished, *self.subscriptions.values()]
-        merged: dict[tuple[str, int, int], list[np.ndarray]] = {}
-        for sub in subs:
-            if sub.parts:
-                merged.setdefault((sub.name, sub.multi_id, sub.msg_id), []).extend(sub.parts)
-                sub.parts = []
-        for name, multi_id, msg_id in list(merged):
-            parts = merged.pop((name, multi_id, msg_id))
-            records = parts[0] if len(parts) == 1 else np.concatenate(parts)
-            del parts
+        """The second pass: each topic's array allocated at its full size, then filled
+        chunk by chunk in file order."""
+        counts: dict[tuple[str, int, int], int] = {}
+        dtypes: dict[tuple[str, int, int], np.dtype] = {}
+        for sub in [*self.finished, *self.subscriptions.values()]:
+            if sub.count:
+                counts[sub.key] = counts.get(sub.key, 0) + sub.count
+                dtypes.setdefault(sub.key, sub.dtype)
+        # np.empty only reserves: a page counts as memory once a record is copied onto it.
+        arrays = {key: np.empty(count, dtype=dtypes[key]) for key, count in counts.items()}
+        filled = dict.fromkeys(counts, 0)
+        pieces, self.pieces, self.starts = self.pieces, [], _Blocks()
+        pieces.reverse()
+        # One buffer for every chunk, and records copied a block at a time: the second
+        # pass adds one chunk and one block to the arrays it fills.
+        buffer = memoryview(bytearray(max((p.length for p in pieces), default=0)))
+        while pieces:
+            piece = pieces.pop()
+            self.file.seek(piece.pos)
+            chunk = buffer[: self.file.readinto(buffer[: piece.length])]
+            for sub, starts in piece.picks:
+                filled[sub.key] = _copy(chunk, starts, arrays[sub.key], filled[sub.key])
+            del chunk, piece, starts
+        del buffer
+        for (name, multi_id, msg_id), records in arrays.items():
             data = {n: records[n] for n in records.dtype.names}
             self.out.data_list.append(Dataset(name, multi_id, msg_id, data))
         self.out.data_list.sort(key=lambda d: (d.name, d.multi_id))
@@ -402,6 +448,26 @@ _HANDLERS = {
     ord("L"): _Reader._logging,
     ord("O"): _Reader._dropout,
 }
+
+
+class _Blocks:
+    """Record starts within a chunk, copied into STARTS_BLOCK-long uint32 blocks; each kept
+    array is a view that holds its block, freed once no view of it is left."""
+
+    def __init__(self) -> None:
+        self.block = np.empty(0, dtype=np.uint32)
+        self.used = 0
+
+    def keep(self, starts: np.ndarray, length: int) -> np.ndarray:
+        # Offsets within a chunk fit 4 bytes unless the chunk grew past 4 GiB for one message.
+        if length > 0xFFFFFFFF or len(starts) > STARTS_BLOCK:
+            return starts.copy()
+        if self.used + len(starts) > len(self.block):
+            self.block, self.used = np.empty(STARTS_BLOCK, dtype=np.uint32), 0
+        kept = self.block[self.used : self.used + len(starts)]
+        kept[:] = starts
+        self.used += len(starts)
+        return kept
 
 
 def _walk(buf: bytes, pos: int, end: int) -> tuple[np.ndarray, int]:
@@ -479,11 +545,24 @@ def _plausible(buf: bytes) -> np.ndarray:
     return np.flatnonzero(good | past_end)
 
 
-def _records(chunk: bytes, dtype: np.dtype) -> np.ndarray:
+def _records(chunk: bytes | memoryview, dtype: np.dtype) -> np.ndarray:
     """Every byte of `chunk` as the start of a record of `dtype` (overlapping, read-only):
     indexing it with message offsets copies exactly those records."""
     count = len(chunk) - dtype.itemsize + 1
     return np.ndarray((max(count, 0),), dtype=dtype, buffer=chunk, strides=(1,))
+
+
+def _copy(chunk: memoryview, starts: np.ndarray, dest: np.ndarray, at: int) -> int:
+    """The records of `chunk` at `starts` copied into `dest` from row `at`, COPY_BLOCK at a
+    time; returns the row after the last one copied. Copied as opaque records of the same
+    size: the same bytes, several times faster than field by field."""
+    opaque = np.dtype(f"V{dest.dtype.itemsize}")
+    records, out = _records(chunk, opaque), dest.view(opaque)
+    for block in range(0, len(starts), COPY_BLOCK):
+        picked = starts[block : block + COPY_BLOCK]
+        out[at : at + len(picked)] = records[picked]
+        at += len(picked)
+    return at
 
 
 def _field(text: str) -> tuple[str, int, str]:

@@ -57,6 +57,17 @@ def test_messages_split_across_chunks_are_read_whole(monkeypatch, chunk):
         _assert_same(read_ulog(path), ULog(str(path)))
 
 
+@pytest.mark.parametrize("block", [1, 7, 1 << 20])
+def test_record_starts_kept_across_many_blocks_fill_every_topic_in_order(monkeypatch, block):
+    """Starts split over many blocks, or one chunk's starts longer than a block (kept on
+    their own): the second pass still fills each topic in file order."""
+    monkeypatch.setattr(ulog_reader, "CHUNK_BYTES", 4096)
+    monkeypatch.setattr(ulog_reader, "STARTS_BLOCK", block)
+    monkeypatch.setattr(ulog_reader, "COPY_BLOCK", 5)
+    for path in REAL_LOGS:
+        _assert_same(read_ulog(path), ULog(str(path)))
+
+
 def test_a_log_cut_in_the_middle_of_a_message_keeps_every_whole_message(tmp_path):
     source = tmp_path / "full.ulg"
     synthetic_ulog(source, seconds=2)
