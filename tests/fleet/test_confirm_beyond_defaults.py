@@ -115,7 +115,9 @@ def test_a_leg_across_an_exclusion_zone_is_refused_one_beside_it_is_sent(world_t
     assert refused.status_code == 409, refused.content
     assert refused.json()["code"] == "outside_envelope"
     assert "leg" in refused.json()["error"] and "exclusion circle 0" in refused.json()["error"]
-    # From a target 30 m north the leg passes 30 m from the zone's centre.
-    Drone.objects.filter(drone_id="ACME_1").update(nav_target=[30.0, 0.0, -10.0])
+    # From a target 30 m north, reached, the leg passes 30 m from the zone's centre (on
+    # its way there, the leg from where it is would still cross the zone).
+    lat, lon = env.ned_to_latlon(30.0, 0.0, HOME)
+    Drone.objects.filter(drone_id="ACME_1").update(nav_target=[30.0, 0.0, -10.0], lat=lat, lon=lon)
     assert command(world_tx.operator, "changeE", value=120).status_code == 200
     only_received(flying, "changeE")
