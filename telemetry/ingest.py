@@ -178,6 +178,12 @@ class Chunk:
     settle: Callable[[], None] | None = None  # acknowledges it to the broker
 
 
+# A pause this long in the input ends a batch: at the end of a burst, its last rows are
+# written at once rather than after the flush interval. Longer than the reader's gap
+# between two full reads on a busy core, so a steady stream still fills whole batches.
+QUIET_S = 0.05
+
+
 class SampleBuffer:
     """Accepted messages not yet committed, bounded in rows.
 
@@ -239,17 +245,23 @@ class SampleBuffer:
         finally:
             self._room_waiters -= 1
 
-    def take(self, max_rows: int, wait: float, min_rows: int) -> list[Chunk]:
-        """Up to max_rows worth of chunks, once min_rows are queued or `wait` s passed."""
+    def take(
+        self, max_rows: int, wait: float, min_rows: int, quiet: float = QUIET_S
+    ) -> list[Chunk]:
+        """Up to max_rows worth of chunks, once min_rows are queued, or rows are queued and
+        none came for `quiet` s (the input paused: nothing is gained by waiting for more),
+        or `wait` s passed."""
         with self._rows_ready:
             deadline = time.monotonic() + wait
             self._wanted = min_rows
             try:
+                seen = 0
                 while self.queued < min_rows:
                     remaining = deadline - time.monotonic()
-                    if remaining <= 0:
+                    if remaining <= 0 or seen == self.queued > 0:
                         break
-                    self._rows_ready.wait(remaining)
+                    seen = self.queued
+                    self._rows_ready.wait(min(remaining, quiet))
             finally:
                 self._wanted = None
             out: list[Chunk] = []

@@ -29,7 +29,7 @@ def test_a_waiting_writer_wakes_once_its_rows_are_there_not_at_every_put():
 
     def writer() -> None:
         began = time.monotonic()
-        rows = sum(c.rows for c in buffer.take(max_rows=50, wait=5, min_rows=10))
+        rows = sum(c.rows for c in buffer.take(max_rows=50, wait=5, min_rows=10, quiet=5))
         took.append((time.monotonic() - began, rows))
 
     thread = threading.Thread(target=writer)
@@ -41,6 +41,23 @@ def test_a_waiting_writer_wakes_once_its_rows_are_there_not_at_every_put():
     assert buffer.put(_chunk(1), wait=0)
     thread.join(2)
     assert took and took[0][0] < 1.0 and took[0][1] == 10
+
+
+def test_a_pause_in_the_input_ends_the_batch_before_the_interval():
+    buffer = SampleBuffer(max_rows=100)
+    took: list[tuple[float, int]] = []
+
+    def writer() -> None:
+        began = time.monotonic()
+        rows = sum(c.rows for c in buffer.take(max_rows=50, wait=30, min_rows=10, quiet=0.05))
+        took.append((time.monotonic() - began, rows))
+
+    thread = threading.Thread(target=writer)
+    thread.start()
+    assert buffer.put_many([_chunk(3)] * 3, wait=0) == 3  # 9 rows, then nothing more
+    thread.join(10)
+    assert took and took[0][1] == 9, "the last rows of a burst waited for rows never coming"
+    assert took[0][0] < 10, "they waited out the flush interval"
 
 
 def test_a_putter_waiting_for_room_goes_on_when_rows_are_released():
