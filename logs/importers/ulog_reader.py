@@ -296,10 +296,13 @@ class _Reader:
         """Note where the records of each current subscription start; a data message of no
         subscription, or shorter or longer than its format allows, is left out."""
         data = offsets[types == DATA]
+        sizes = (raw[data] | (raw[data + 1].astype(np.int64) << 8)) - 2
+        if (sizes < 0).any():  # too short to name its subscription: skipped, like garbage
+            self.out.file_corruption = True
+            data, sizes = data[sizes >= 0], sizes[sizes >= 0]
         if not len(data):
             return
         ids = raw[data + 3] | (raw[data + 4].astype(np.int64) << 8)
-        sizes = (raw[data] | (raw[data + 1].astype(np.int64) << 8)) - 2
         for msg_id in np.flatnonzero(np.bincount(ids)).tolist():
             mine = ids == msg_id
             sub = self.subscriptions.get(msg_id)

@@ -100,6 +100,21 @@ def _cut(source: Path, tmp_path: Path, size: int) -> Path:
     return path
 
 
+@pytest.mark.parametrize("size", [0, 1])
+def test_a_data_message_too_short_for_its_id_is_skipped_and_flagged(tmp_path, size):
+    """At the very end of the file its id would lie past the last byte."""
+    source = REAL_LOGS[0]
+    short = tmp_path / "short.ulg"
+    short.write_bytes(source.read_bytes() + bytes([size, 0, ord("D")]) + b"\x07" * size)
+    ours = read_ulog(short)
+    assert ours.file_corruption
+    a, b = _datasets(ours), _datasets(read_ulog(source))
+    assert list(a) == list(b)
+    for key, fields in b.items():
+        for name, values in fields.items():
+            np.testing.assert_array_equal(a[key][name], values, err_msg=f"{key} {name}")
+
+
 def test_a_file_that_is_not_a_ulog_is_refused(tmp_path):
     path = tmp_path / "not.ulg"
     path.write_bytes(b"PK\x03\x04" + bytes(100))
