@@ -135,6 +135,7 @@ class Agent:
             arm_timeout=config.arm_timeout,
             events=self._event,
             guard=guards(self.envelope.refusal, self.wind.guard),
+            on_arm=lambda: self.failsafe.arm_requested(),
         )
         self.worker = MissionWorker(
             fc,

@@ -38,9 +38,12 @@ class Controller:
         arm_timeout: float = 15.0,
         events: EventSink | None = None,
         guard: Guard | None = None,
+        on_arm: Callable[[], None] | None = None,
     ) -> None:
         self.fc = fc
         self.guard = guard
+        # Told of every arm asked for, before it is sent (the fail-safe's landed state).
+        self.on_arm = on_arm or (lambda: None)
         self.navigation = navigation
         self.gear = gear
         self.arm_timeout = arm_timeout
@@ -96,6 +99,7 @@ class Controller:
     # -- arming ---------------------------------------------------------------------------
 
     def _do_arm(self, params: dict, context: dict) -> dict:
+        self.on_arm()
         if self.fc.state.armed:
             return {"armed": True}
         self.events("arming", {"action": "arm", "phase": "requested"})

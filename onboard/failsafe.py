@@ -417,8 +417,20 @@ class FailSafe:
         target = self.navigation.last_target if self.navigation is not None else None
         return target is not None and target.kind == "land"
 
+    def arm_requested(self) -> None:
+        """An arm asked for on the ground is for a new flight, not the tail of a landing:
+        the landing's auto-disarm no longer applies (a disarm and the next arm may both
+        fall between two ticks, which would not see the drone disarmed in between)."""
+        with self._commanding:
+            self._was_airborne = False
+            self._landed_at = None
+
     def check_landed(self) -> bool:
         """Disarm a drone that has sat landed and armed for the auto-disarm delay."""
+        with self._commanding:
+            return self._check_landed()
+
+    def _check_landed(self) -> bool:
         state = self.fc.state
         if state.airborne or not state.armed:
             self._was_airborne = state.airborne

@@ -6,7 +6,9 @@ import threading
 
 import pytest
 
+from onboard.controller import Controller
 from onboard.failsafe import DrainMeter, FailSafe, Limits, energy_to_get_home, parse_bounds
+from onboard.navigation import NavigationProcessor
 
 from .fakes import FakeFlightController
 
@@ -243,6 +245,25 @@ def test_a_landed_drone_disarms_after_the_delay_but_not_before_take_off() -> Non
     assert not failsafe.check_landed()
     clock.now = 103.1
     assert failsafe.check_landed() and not fc.state.armed
+
+
+def test_an_arm_for_the_next_flight_is_not_taken_for_the_last_landing() -> None:
+    """The flight controller disarmed itself on landing and a new mission armed it again,
+    both between two ticks: the fail-safe never saw the drone disarmed, but the arm was
+    asked for, so the landing's auto-disarm does not cut the new flight."""
+    fc = FakeFlightController()
+    fc.arm()
+    failsafe, clock, _ = failsafe_for(fc, auto_disarm_delay=2)
+    clock.now = 100.0
+    fc.move_to(0, 0, -10)
+    failsafe.check_landed()
+    fc.move_to(0, 0, 0)
+    assert not failsafe.check_landed()  # landed, armed: the delay runs
+    fc.disarm()
+    Controller(fc, NavigationProcessor(fc), on_arm=failsafe.arm_requested).execute("arm", {})
+    assert fc.state.armed
+    clock.now = 103.1
+    assert not failsafe.check_landed() and fc.state.armed
 
 
 def test_an_unknown_link_loss_action_is_refused() -> None:
