@@ -18,12 +18,12 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 
 from config.api import StrictSerializer
-from config.throttling import AuthRateThrottle
 from fleet.models import Membership, Organisation
 
 from . import tokens, twofactor
 from .errors import Refused
 from .models import ApiToken
+from .throttling import AuthRateThrottle
 
 
 class TokenRequestSerializer(StrictSerializer):

@@ -1,9 +1,10 @@
 """Signing in: password, then a one-time code for users with an authenticator.
 
-Failed attempts are limited by the LOGIN_RATE throttle (config/throttling.py): per
-client address and per username, over the limit further tries are refused with 429
-until the window ends (a lock-out that lifts by itself, so nobody can lock a colleague
-out for good). Every attempt is kept for the user's own security page.
+Failed attempts are limited by the LOGIN_RATE throttle (accounts/throttling.py, counting
+with config.throttling.LoginAttempts): per client address and per username, over the
+limit further tries are refused with 429 until the window ends (a lock-out that lifts by
+itself, so nobody can lock a colleague out for good). Every attempt is kept for the
+user's own security page.
 """
 
 from __future__ import annotations
@@ -22,10 +23,10 @@ from django.utils import timezone
 from django.utils.http import url_has_allowed_host_and_scheme
 
 from config.throttling import LoginAttempts, client_address
-from config.throttling import LoginView as ThrottledLoginView
 
 from . import twofactor
 from .models import SignInAttempt
+from .throttling import LoginView as ThrottledLoginView
 
 PENDING = "accounts_pending_sign_in"
 # A password accepted pending its code is forgotten after this long.

@@ -1,5 +1,12 @@
-"""Limits on password guessing (the API's token view and the portal's login page) and on
-actions that move a drone (commands, mission starts, teleoperation).
+"""Rate limits any app may use: the rate format (`parse_rate`), the client's address,
+failed sign-ins per address and per name (`LoginAttempts`), and the limits on actions
+that move a drone (commands, mission starts, teleoperation).
+
+They live in config because several apps share them: fleet, missions and pastview count
+drone-moving actions here, and a failed sign-in counts the same whether a person's
+(accounts) or a drone's (logs/collect_api.py), and logs may not import accounts. The
+people's own sign-in throttles, the token view's and the login page's, are accounts'
+alone and live in accounts/throttling.py.
 
 Counts live in Django's cache (Redis), so every web process shares them. The client is
 its address as DRF tells it (the last NUM_PROXIES hops of X-Forwarded-For are trusted,
@@ -12,10 +19,9 @@ from collections import defaultdict
 from typing import Any
 
 from django.conf import settings
-from django.contrib.auth import views as auth_views
 from django.core.cache import cache
-from django.http import HttpRequest, HttpResponse
-from rest_framework.throttling import SimpleRateThrottle
+from django.http import HttpRequest
+from rest_framework.throttling import BaseThrottle, SimpleRateThrottle
 
 PERIODS_S = {"s": 1, "m": 60, "h": 3600, "d": 86400}
 
@@ -28,26 +34,15 @@ def parse_rate(rate: str) -> tuple[int, int]:
     return int(count), PERIODS_S[period.strip()[0]]
 
 
-class AuthRateThrottle(SimpleRateThrottle):
-    """`POST /api/v1/token/`: AUTH_TOKEN_RATE requests per client address."""
-
-    scope = "auth"
-
-    def get_rate(self) -> str:
-        return settings.AUTH_TOKEN_RATE
-
-    def get_cache_key(self, request, view) -> str:  # type: ignore[no-untyped-def]
-        return self.cache_format % {"scope": self.scope, "ident": self.get_ident(request)}
-
-
 def client_address(request: HttpRequest) -> str:
-    """The caller's address, as the token view's throttle sees it."""
-    return AuthRateThrottle().get_ident(request)
+    """The caller's address, as every DRF throttle sees it (NUM_PROXIES hops trusted)."""
+    return BaseThrottle().get_ident(request)
 
 
 class LoginAttempts:
     """Failed logins in the current LOGIN_RATE window, per client address and per
-    username: either one over the limit refuses further tries until the window ends."""
+    username (a person's, or `drone:<id>` for a drone's): either one over the limit
+    refuses further tries until the window ends."""
 
     def __init__(self, request: HttpRequest, username: str | None = None) -> None:
         self.limit, self.window_s = parse_rate(settings.LOGIN_RATE)
@@ -70,25 +65,6 @@ class LoginAttempts:
                 cache.incr(key)
             except ValueError:  # the window ended between the two calls
                 cache.add(key, 1, timeout=self.window_s)
-
-
-class LoginView(auth_views.LoginView):
-    """Django's login page, refusing with 429 while the caller's failures are over the
-    limit, so a password cannot be guessed faster than LOGIN_RATE."""
-
-    def post(self, request: HttpRequest, *args, **kwargs) -> HttpResponse:  # type: ignore[no-untyped-def]
-        attempts = LoginAttempts(request)
-        if attempts.exhausted():
-            message = "Too many failed logins; try again in a minute."
-            context = self.get_context_data(form=self.get_form(), throttled=message)
-            return self.render_to_response(context, status=429)
-        return super().post(request, *args, **kwargs)
-
-    def form_invalid(self, form):  # type: ignore[no-untyped-def]
-        # Only refused credentials count: a password accepted pending a second
-        # factor (accounts.signin) is not a failure.
-        LoginAttempts(self.request).failed()
-        return super().form_invalid(form)
 
 
 class ActionRateThrottle(SimpleRateThrottle):

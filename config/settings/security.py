@@ -47,7 +47,8 @@ REQUEST_BODY_LIMITS = [
 ]
 
 # Password guessing: token requests per client address, failed logins per address and
-# per username (config/throttling.py), like "10/min".
+# per username (accounts/throttling.py; the failures counted by config/throttling.py,
+# which a drone's sign-in shares), like "10/min".
 AUTH_TOKEN_RATE = env.str("AUTH_TOKEN_RATE", "10/min")
 LOGIN_RATE = env.str("LOGIN_RATE", "10/min")
 # Actions that move a drone, per user and, for API tokens, per token (config/throttling.py;
