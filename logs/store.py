@@ -7,6 +7,8 @@ Layout of a store directory:
     t<k>.npy     int64 nanoseconds; written once per distinct time array (a message's
                  fields share one)
     v<k>.npy     values (int64, float, or unicode for text series)
+    c<k>.npy     times or values written while the log was parsed (Columns), by an
+                 importer that streams; the index names them like the others
 
 Writes go to a hidden sibling directory that is renamed into place, so a reader never
 sees a half-written store and a failed import leaves nothing behind.
@@ -19,12 +21,16 @@ import math
 import os
 import shutil
 import uuid
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
 from logs.importers import import_log
-from logs.importers.base import DEFAULT_LIMITS, Limits, Progress, no_progress
+from logs.importers.base import DEFAULT_LIMITS, Limits, Progress, StoreWriteError, no_progress
 from logs.lod import downsample
 from logs.series import LogData, find_special
 
@@ -38,12 +44,17 @@ def _seconds(ns: int) -> float:
 
 def write_store(log: LogData, directory: str | Path) -> dict:
     """Write `log` to `directory` atomically (replacing an older store there); returns the index."""
-    directory = Path(directory)
+    return _replace(Path(directory), lambda out: _write(log, out))
+
+
+def _replace(directory: Path, fill: Callable[[Path], dict]) -> dict:
+    """`fill` writes a store into an empty hidden directory, which then replaces `directory`;
+    when it raises, nothing is left behind and an older store stays."""
     directory.parent.mkdir(parents=True, exist_ok=True)
     tmp = directory.parent / f".{directory.name}.tmp-{uuid.uuid4().hex}"
     tmp.mkdir()
     try:
-        index = _write(log, tmp)
+        index = fill(tmp)
         old = None
         if directory.exists():
             old = directory.parent / f".{directory.name}.old-{uuid.uuid4().hex}"
@@ -57,19 +68,110 @@ def write_store(log: LogData, directory: str | Path) -> dict:
     return index
 
 
-def _write(log: LogData, out: Path) -> dict:
+@dataclass
+class Column:
+    """One .npy file of a store being written: `count` rows of `dtype`, `filled` so far.
+    A column of times keeps its smallest and largest value as they come."""
+
+    name: str
+    dtype: np.dtype
+    count: int
+    times: bool = False
+    filled: int = 0
+    low: int | None = None
+    high: int | None = None
+
+
+class Columns:
+    """The array files of a store being written while its log is parsed, for an importer
+    that streams (logs.importers.base.StreamingImporter). A column's .npy header, row count
+    included, is written when it is made and its rows are appended in order, a block at a
+    time, so no series is ever held whole; `load` maps a complete column back read-only, and
+    the store's index then names that file instead of saving the array again."""
+
+    # Files kept open between appends; past this many, all are closed and reopened as needed.
+    MAX_OPEN = 256
+
+    def __init__(self, out: Path) -> None:
+        self.out = out
+        self.columns: list[Column] = []
+        # The arrays `load` returned, by id (each kept, so that no other array takes its id).
+        self.saved: dict[int, tuple[np.ndarray, Column]] = {}
+        self._open: dict[str, BinaryIO] = {}
+
+    def create(self, dtype: np.dtype | type, count: int, *, times: bool = False) -> Column:
+        column = Column(f"c{len(self.columns)}.npy", np.dtype(dtype), count, times)
+        header = {
+            "descr": np.lib.format.dtype_to_descr(column.dtype),
+            "fortran_order": False,
+            "shape": (count,),
+        }
+        with self._io():
+            np.lib.format.write_array_header_1_0(self._file(column, "wb"), header)
+        self.columns.append(column)
+        return column
+
+    def append(self, column: Column, values: np.ndarray) -> None:
+        """The next rows of `column` (cast to its dtype)."""
+        if column.filled + len(values) > column.count:
+            raise ValueError(f"{column.name}: more than its {column.count} rows")
+        values = np.ascontiguousarray(values, dtype=column.dtype)
+        if column.times and len(values):
+            low, high = int(values.min()), int(values.max())
+            column.low = low if column.low is None else min(column.low, low)
+            column.high = high if column.high is None else max(column.high, high)
+        with self._io():
+            self._file(column, "ab").write(values.data.cast("B"))
+        column.filled += len(values)
+
+    def load(self, column: Column) -> np.ndarray:
+        """A complete column, memory-mapped read-only."""
+        if column.filled != column.count:
+            raise ValueError(f"{column.name}: {column.filled} of its {column.count} rows")
+        with self._io():
+            handle = self._open.pop(column.name, None)
+            if handle is not None:
+                handle.close()
+            array = np.load(self.out / column.name, mmap_mode="r", allow_pickle=False)
+        self.saved[id(array)] = (array, column)
+        return array
+
+    def close(self) -> None:
+        for handle in self._open.values():
+            handle.close()
+        self._open.clear()
+
+    def _file(self, column: Column, mode: str) -> BinaryIO:
+        handle = self._open.get(column.name)
+        if handle is None:
+            if len(self._open) >= self.MAX_OPEN:
+                self.close()
+            handle = self._open[column.name] = open(self.out / column.name, mode)  # noqa: SIM115
+        return handle
+
+    @staticmethod
+    @contextmanager
+    def _io() -> Iterator[None]:
+        """A failed write (a full disk) is the server's trouble, not the log's."""
+        try:
+            yield
+        except OSError as exc:
+            raise StoreWriteError(f"writing the store failed: {exc}") from exc
+
+
+def _write(log: LogData, out: Path, columns: Columns | None = None) -> dict:
+    saved = columns.saved if columns is not None else {}
     time_files: dict[int, str] = {}
     series: dict[str, dict] = {}
     layers: dict[str, dict] = {}
     for number, s in enumerate(log):
         tname = time_files.get(id(s.times))
         if tname is None:
-            tname = time_files[id(s.times)] = f"t{len(time_files)}.npy"
-            np.save(out / tname, np.ascontiguousarray(s.times, dtype=np.int64), allow_pickle=False)
-        vname = f"v{number}.npy"
-        np.save(out / vname, np.ascontiguousarray(s.values), allow_pickle=False)
-        start = _seconds(int(s.times.min())) if len(s.times) else None
-        end = _seconds(int(s.times.max())) if len(s.times) else None
+            tname = time_files[id(s.times)] = _save(
+                out, s.times, f"t{len(time_files)}.npy", saved, np.int64
+            )
+        vname = _save(out, s.values, f"v{number}.npy", saved)
+        start, end = _span(s.times, saved)
         series[s.path] = {
             "unit": s.unit,
             "kind": s.kind,
@@ -109,6 +211,25 @@ def _write(log: LogData, out: Path) -> dict:
         f.flush()
         os.fsync(f.fileno())
     return json.loads(text)
+
+
+def _save(out: Path, array: np.ndarray, name: str, saved: dict, dtype: type | None = None) -> str:
+    """The file of `array` in `out`: the column it was loaded from, or `name`, saved now."""
+    known = saved.get(id(array))
+    if known is not None:
+        return known[1].name
+    np.save(out / name, np.ascontiguousarray(array, dtype=dtype), allow_pickle=False)
+    return name
+
+
+def _span(times: np.ndarray, saved: dict) -> tuple[float | None, float | None]:
+    """First and last time in seconds; a column of times knows them without being read."""
+    if not len(times):
+        return None, None
+    known = saved.get(id(times))
+    if known is not None and known[1].low is not None:
+        return _seconds(known[1].low), _seconds(known[1].high)
+    return _seconds(int(times.min())), _seconds(int(times.max()))
 
 
 class LogStore:
@@ -215,8 +336,21 @@ def import_to_store(
     progress: Progress = no_progress,
 ) -> LogStore:
     """What the import task runs: parse any supported log and store it atomically.
-    Raises LogFormatError (nothing written) when the file cannot be read."""
-    log = import_log(path, limits=limits, progress=lambda f: progress(0.9 * f))
-    write_store(log, directory)
+    Raises LogFormatError (nothing written) when the file cannot be read.
+
+    An importer that streams writes its arrays into the store as it parses them, so the
+    log is never held in memory whole; any other is read whole, then written."""
+
+    def fill(out: Path) -> dict:
+        columns = Columns(out)
+        try:
+            log = import_log(
+                path, limits=limits, progress=lambda f: progress(0.9 * f), columns=columns
+            )
+            return _write(log, out, columns)
+        finally:
+            columns.close()
+
+    _replace(Path(directory), fill)
     progress(1.0)
     return open_store(directory)

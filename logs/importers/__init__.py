@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from logs.importers.base import (
     DEFAULT_LIMITS,
@@ -10,6 +11,7 @@ from logs.importers.base import (
     Limits,
     LogFormatError,
     Progress,
+    StoreWriteError,
     describe,
     no_progress,
 )
@@ -20,6 +22,9 @@ from logs.importers.rosbag import RosbagImporter
 from logs.importers.tlog import TlogImporter
 from logs.importers.ulog import UlogImporter
 from logs.series import LogData
+
+if TYPE_CHECKING:
+    from logs.store import Columns
 
 # Order matters only for sniffing: formats with strong magic bytes first.
 REGISTRY: list[Importer] = [
@@ -50,9 +55,17 @@ def pick_importer(path: Path, head: bytes) -> Importer:
 
 
 def import_log(
-    path: str | Path, *, limits: Limits = DEFAULT_LIMITS, progress: Progress = no_progress
+    path: str | Path,
+    *,
+    limits: Limits = DEFAULT_LIMITS,
+    progress: Progress = no_progress,
+    columns: Columns | None = None,
 ) -> LogData:
     """Read any supported flight log into the common data model.
+
+    With `columns` (a store being written, logs.store.import_to_store), an importer that
+    streams (base.StreamingImporter) writes its series there as it parses, and the result
+    holds them memory-mapped; any other reads the whole file as without.
 
     Raises LogFormatError with a user-facing sentence for unknown, oversized, truncated or
     corrupt files; never anything else for bad input.
@@ -71,11 +84,13 @@ def import_log(
             f"The file {path.name!r} is {size} bytes, over the limit of {limits.max_file_bytes}."
         )
     importer = pick_importer(path, head)
+    write = getattr(importer, "write", None) if columns is not None else None
     try:
-        log = importer.read(path, limits=limits, progress=progress)
-    except LogFormatError:
-        raise
-    except MemoryError:
+        if write is not None:
+            log = write(path, columns, limits=limits, progress=progress)
+        else:
+            log = importer.read(path, limits=limits, progress=progress)
+    except (LogFormatError, MemoryError, StoreWriteError):
         raise
     except Exception as exc:
         # Library readers (pyulog, pymavlink, rosbags) raise assorted errors on corrupt

@@ -5,15 +5,23 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from logs.series import LogData
+
+if TYPE_CHECKING:
+    from logs.store import Columns
 
 Progress = Callable[[float], None]
 
 
 class LogFormatError(Exception):
     """The file is not a log we can read; the message is one sentence for the user."""
+
+
+class StoreWriteError(Exception):
+    """Writing a parsed log to its store failed (a full disk): the server's trouble, never
+    reported as the file's."""
 
 
 @dataclass(frozen=True)
@@ -44,6 +52,17 @@ class Importer(Protocol):
 
     def read(self, path: Path, *, limits: Limits, progress: Progress) -> LogData:
         """Parse the whole file; raise LogFormatError with a clear sentence if it is bad."""
+        ...
+
+
+class StreamingImporter(Importer, Protocol):
+    """A format whose logs can be too large to hold: `write` parses like `read` but writes
+    each series' times and values into `columns` (a store being written) as they are
+    decoded, and the LogData it returns holds them mapped back from there
+    (logs.store.Columns.load). logs.store.import_to_store uses it when present."""
+
+    def write(self, path: Path, columns: Columns, *, limits: Limits, progress: Progress) -> LogData:
+        """Parse the whole file into `columns`; raise LogFormatError if it is bad."""
         ...
 
 
