@@ -161,3 +161,34 @@ def test_the_walk_stops_at_the_first_message_the_buffer_does_not_hold_whole(tail
     assert offsets.tolist() == [0, 3, 8, 18]
     assert stop == len(messages)
     assert ulog_reader._walk(b"")[1] == 0
+
+
+def test_damaged_ulogs_are_stored_or_refused_alike_streamed_and_whole(tmp_path):
+    original = _synthetic(tmp_path, 2).read_bytes()
+    rng = np.random.default_rng(11)
+    outcomes = {"stored": 0, "refused": 0}
+    for trial in range(24):
+        data = bytearray(original)
+        if trial % 2:
+            data = data[: int(rng.integers(1, len(data)))]
+        else:
+            for at in rng.integers(0, len(data), size=int(rng.integers(1, 20))):
+                data[at] = int(rng.integers(0, 256))
+        path = tmp_path / f"bad{trial}.ulg"
+        path.write_bytes(bytes(data))
+        streamed, whole = tmp_path / f"streamed{trial}", tmp_path / f"whole{trial}"
+        try:
+            log = import_log(path)
+        except LogFormatError as exc:
+            with pytest.raises(LogFormatError) as refused:
+                import_to_store(path, streamed)
+            assert str(refused.value) == str(exc)
+            assert not streamed.exists()
+            outcomes["refused"] += 1
+            continue
+        write_store(log, whole)
+        import_to_store(path, streamed)
+        _assert_same_store(streamed, whole)
+        outcomes["stored"] += 1
+    assert outcomes["stored"] and outcomes["refused"], outcomes
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
