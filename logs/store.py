@@ -25,7 +25,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO
+from typing import IO
 
 import numpy as np
 
@@ -97,7 +97,7 @@ class Columns:
         self.columns: list[Column] = []
         # The arrays `load` returned, by id (each kept, so that no other array takes its id).
         self.saved: dict[int, tuple[np.ndarray, Column]] = {}
-        self._open: dict[str, BinaryIO] = {}
+        self._open: dict[str, IO[bytes]] = {}
 
     def create(self, dtype: np.dtype | type, count: int, *, times: bool = False) -> Column:
         column = Column(f"c{len(self.columns)}.npy", np.dtype(dtype), count, times)
@@ -141,7 +141,7 @@ class Columns:
             handle.close()
         self._open.clear()
 
-    def _file(self, column: Column, mode: str) -> BinaryIO:
+    def _file(self, column: Column, mode: str) -> IO[bytes]:
         handle = self._open.get(column.name)
         if handle is None:
             if len(self._open) >= self.MAX_OPEN:

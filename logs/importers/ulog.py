@@ -24,7 +24,7 @@ from logs.importers.ulog_reader import (
     read_ulog,
     stream_ulog,
 )
-from logs.series import LogData, Series, join
+from logs.series import Kind, LogData, Series, join
 from logs.units import ulog_unit
 
 if TYPE_CHECKING:
@@ -39,7 +39,7 @@ LOG_LEVELS = {
 
 # Reader hints for the dedicated views: (topic, field) of instance 0 -> special key. PX4
 # logs both the raw GPS and the estimator's fused position; the fused one is the track.
-SPECIAL = {
+SPECIAL: dict[tuple[str, str], str | tuple[str, ...]] = {
     ("vehicle_global_position", "lat"): "gps.lat",
     ("vehicle_global_position", "lon"): "gps.lon",
     ("vehicle_global_position", "alt"): ("gps.alt", "altitude"),
@@ -147,7 +147,7 @@ def _add_topic(log: LogData, layer: str, topic: _Topic) -> None:
                 time_source="board",
                 kind=_kind(values),
                 special=special,
-            )  # type: ignore[arg-type]
+            )
         )
     # PX4 logs attitude only as a quaternion (w, x, y, z; body FRD to NED); the 3D view and
     # the trajectory want yaw, pitch, roll in that order (z, then y, then x).
@@ -271,7 +271,7 @@ def _stamp_type(dtype: np.dtype) -> None:
         raise ValueError(f"a timestamp field of type {dtype} is not PX4's uint64")
 
 
-def _kind(values: np.ndarray) -> str:
+def _kind(values: np.ndarray) -> Kind:
     return "double" if values.dtype.kind == "f" else "int"
 
 

@@ -37,8 +37,9 @@ import struct
 from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from io import BufferedReader
 from pathlib import Path
-from typing import BinaryIO, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -207,7 +208,7 @@ def _text(raw: bytes) -> str:
 
 class _Reader:
     def __init__(
-        self, handle: BinaryIO, sink: RecordSink, progress: Callable[[float], None]
+        self, handle: BufferedReader, sink: RecordSink, progress: Callable[[float], None]
     ) -> None:
         self.file = handle
         self.sink = sink
@@ -532,7 +533,9 @@ class _Arrays:
 
     def datasets(self) -> list[Dataset]:
         return [
-            Dataset(t.name, t.multi_id, t.msg_id, {n: records[n] for n in records.dtype.names})
+            Dataset(
+                t.name, t.multi_id, t.msg_id, {n: records[n] for n in records.dtype.names or ()}
+            )
             for t, records in self.arrays.items()
         ]
 
