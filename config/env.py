@@ -59,6 +59,13 @@ def database_from_url(url: str) -> dict:
             f"DATABASE_URL must be postgresql://…, got {url.split(':')[0]!r}"
         )
     options = config.get("OPTIONS", {})
+    if env.bool("DB_PREPARED_STATEMENTS", True):
+        # Lets the statements that ask for it (fleet.compiled: the queries on every
+        # command's path) be prepared once per connection; Django's own cursors send
+        # their values inside the SQL and are never prepared. Off behind a pooler that
+        # cannot keep a connection's prepared statements (PgBouncer in transaction mode
+        # before 1.21).
+        options = {"prepare_threshold": 5, **options}
     return {
         **config,
         "NAME": config["NAME"] or "skyhive",

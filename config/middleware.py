@@ -26,7 +26,9 @@ from django.conf import settings
 from django.contrib.auth.middleware import AuthenticationMiddleware as _Authentication
 from django.contrib.messages.middleware import MessageMiddleware as _Messages
 from django.contrib.sessions.middleware import SessionMiddleware as _Sessions
+from django.core import signals
 from django.core.handlers.asgi import ASGIHandler
+from django.db import close_old_connections, reset_queries
 from django.http import HttpRequest, HttpResponse
 from django.middleware.clickjacking import XFrameOptionsMiddleware as _XFrameOptions
 from django.middleware.common import CommonMiddleware as _Common
@@ -147,19 +149,35 @@ EVENT_LOOP_VARIANTS = {
 }
 
 
+# Django's own `request_started` receivers, which look after the request thread's database
+# connection: Django sends them to that thread on a trip of their own before the
+# middleware runs. Here they run at the start of the request's first synchronous call, in
+# the same thread, and a request that never needs the thread (nor its connection) skips
+# them; `request_finished` is unchanged.
+THREAD_RECEIVERS = (reset_queries, close_old_connections)
+
+
+def _request_started_in_thread() -> None:
+    for receiver in THREAD_RECEIVERS:
+        receiver()
+
+
 class EventLoopASGIHandler(ASGIHandler):
     """Django's ASGI handler with the event-loop variant of each of Django's middleware,
     and each request's synchronous work on a thread kept from an earlier request
-    (config.request_threads) rather than on a new one."""
+    (config.request_threads) rather than on a new one, its `request_started` database
+    receivers run there at its first call (THREAD_RECEIVERS)."""
 
     def __init__(self) -> None:
         super().__init__()
         self.threads = RequestThreads()
+        for receiver in THREAD_RECEIVERS:
+            signals.request_started.disconnect(receiver)
 
     async def __call__(self, scope: dict, receive: Any, send: Any) -> None:
         if scope["type"] != "http":
             raise ValueError(f"Django can only handle ASGI/HTTP connections, not {scope['type']}.")
-        async with self.threads.context():
+        async with self.threads.context(before_first_call=_request_started_in_thread):
             await self.handle(scope, receive, send)
 
     def load_middleware(self, is_async: bool = False) -> None:

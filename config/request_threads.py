@@ -31,8 +31,12 @@ class RequestThread(ThreadPoolExecutor):
         super().__init__(max_workers=1, thread_name_prefix="request")
         self._lock = threading.Lock()
         self.pending = 0
+        self.before_first_call: Callable[[], None] | None = None
 
     def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
+        first, self.before_first_call = self.before_first_call, None
+        if first is not None:
+            fn = _preceded(first, fn)
         future = super().submit(fn, *args, **kwargs)
         with self._lock:
             self.pending += 1
@@ -58,9 +62,13 @@ class RequestThreads:
         self._lock = threading.Lock()
 
     @asynccontextmanager
-    async def context(self) -> AsyncIterator[RequestThread]:
-        """Thread-sensitive sync calls inside run on one borrowed thread."""
+    async def context(
+        self, before_first_call: Callable[[], None] | None = None
+    ) -> AsyncIterator[RequestThread]:
+        """Thread-sensitive sync calls inside run on one borrowed thread; the first of them
+        runs `before_first_call` first, in that thread."""
         thread = self._borrow()
+        thread.before_first_call = before_first_call
         try:
             async with ThreadSensitiveContext(executor=thread):
                 yield thread
@@ -74,6 +82,7 @@ class RequestThreads:
         return RequestThread()
 
     def _give_back(self, thread: RequestThread) -> None:
+        thread.before_first_call = None
         with self._lock:
             if thread.idle and len(self._idle) < self.keep_idle:
                 self._idle.append(thread)
@@ -84,3 +93,11 @@ class RequestThreads:
     def idle_count(self) -> int:
         with self._lock:
             return len(self._idle)
+
+
+def _preceded(first: Callable[[], None], fn: Callable[..., Any]) -> Callable[..., Any]:
+    def both(*args: Any, **kwargs: Any) -> Any:
+        first()
+        return fn(*args, **kwargs)
+
+    return both

@@ -91,3 +91,38 @@ async def test_the_asgi_handler_runs_sync_views_on_a_kept_thread():
         seen.add(response["body"])
     assert len(seen) == 1
     assert int(seen.pop()) != threading.get_ident()
+
+
+@pytest.mark.urls(__name__)
+async def test_djangos_request_started_receivers_run_in_the_views_thread_without_a_trip_of_their_own(
+    monkeypatch,
+):
+    """The connection receivers run once, in the thread the sync view then runs in, and
+    the request makes no other trip to a thread before its view."""
+    from django.core import signals
+
+    import config.middleware as middleware
+
+    ran = []
+    monkeypatch.setattr(
+        middleware, "THREAD_RECEIVERS", (lambda: ran.append(threading.get_ident()),)
+    )
+    handler = EventLoopASGIHandler()
+    assert not any(
+        receiver in signals.request_started._live_receivers(None)[0]
+        for receiver in middleware.THREAD_RECEIVERS
+    )
+    communicator = HttpCommunicator(handler, "GET", "/where/", headers=[(b"host", b"testserver")])
+    response = await communicator.get_response(timeout=10)
+    assert response["status"] == 200
+    assert ran == [int(response["body"])]
+
+
+async def test_a_thread_given_back_forgets_what_was_to_run_before_its_first_call():
+    threads = RequestThreads()
+    ran = []
+    async with threads.context(before_first_call=lambda: ran.append("started")):
+        pass  # no synchronous call: nothing runs
+    async with threads.context():
+        await sync_to_async(_ident)()
+    assert ran == []
