@@ -122,6 +122,49 @@ def _close_stray_database_sessions(request):  # type: ignore[no-untyped-def]
         )
 
 
+# A flush that loses a deadlock is tried again this many times.
+FLUSH_ATTEMPTS = 5
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _flush_tried_again_after_a_deadlock():  # type: ignore[no-untyped-def]
+    """A transactional test's flush TRUNCATEs every table, taking their locks one by one.
+    Ground processes that outlive a test (a module's Celery worker and gateway) may be in
+    a transaction that holds one of those tables and waits for another: PostgreSQL then
+    ends one side with a deadlock error and asks for it to be tried again. When that side
+    is the flush, it is tried again (its transaction was rolled back whole), rather than
+    leaving the next test a database that was never emptied."""
+    try:
+        from django.db.backends.base.operations import BaseDatabaseOperations
+    except ImportError:  # a run without Django
+        yield
+        return
+    original = BaseDatabaseOperations.execute_sql_flush
+
+    def execute_sql_flush(self, sql_list):  # type: ignore[no-untyped-def]
+        for attempt in range(1, FLUSH_ATTEMPTS + 1):
+            try:
+                return original(self, sql_list)
+            except Exception as exc:
+                if attempt == FLUSH_ATTEMPTS or not _deadlock(exc):
+                    raise
+
+    patch = pytest.MonkeyPatch()
+    patch.setattr(BaseDatabaseOperations, "execute_sql_flush", execute_sql_flush)
+    yield
+    patch.undo()
+
+
+def _deadlock(exc: BaseException) -> bool:
+    import psycopg
+
+    while exc is not None:
+        if isinstance(exc, psycopg.errors.DeadlockDetected):
+            return True
+        exc = exc.__cause__  # type: ignore[assignment]
+    return False
+
+
 @pytest.fixture(scope="session")
 def live_asgi(request):  # type: ignore[no-untyped-def]
     """The real ASGI app under uvicorn, reading the test database (commit your data with
