@@ -15,6 +15,7 @@ from logs import LogFormatError, import_log
 from logs.importers import ulog_reader
 from logs.store import import_to_store, open_store, write_store
 from logs.synth import synthetic_ulog, write_ulog
+from tests.logs.test_corrupt_input import damaged_copies
 from tests.support.paths import REAL_ULOGS
 
 REAL_LOGS = sorted(REAL_ULOGS.glob("*.ulg"))
@@ -167,15 +168,9 @@ def test_damaged_ulogs_are_stored_or_refused_alike_streamed_and_whole(tmp_path):
     original = _synthetic(tmp_path, 2).read_bytes()
     rng = np.random.default_rng(11)
     outcomes = {"stored": 0, "refused": 0}
-    for trial in range(24):
-        data = bytearray(original)
-        if trial % 2:
-            data = data[: int(rng.integers(1, len(data)))]
-        else:
-            for at in rng.integers(0, len(data), size=int(rng.integers(1, 20))):
-                data[at] = int(rng.integers(0, 256))
+    for trial, data in enumerate(damaged_copies(original, rng)):
         path = tmp_path / f"bad{trial}.ulg"
-        path.write_bytes(bytes(data))
+        path.write_bytes(data)
         streamed, whole = tmp_path / f"streamed{trial}", tmp_path / f"whole{trial}"
         try:
             log = import_log(path)
