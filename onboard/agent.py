@@ -383,6 +383,8 @@ class Agent:
         archive = self.logger.on_state(armed) if self.logger is not None else None
         if armed and self._armed_at is None:
             self._armed_at = time.time()
+            if self.collector is not None:
+                self.collector.flight_started()
         elif not armed and self._armed_at is not None:
             started, self._armed_at = self._armed_at, None
             if self.collector is not None:

@@ -243,6 +243,10 @@ class Collector:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._retry = RETRY_S[0]
+        # A flight during which collection was off at any moment stays on the drone, even
+        # when collection is back on by the time the landing is seen.
+        self._in_flight = False
+        self._off_in_flight = False
 
     # -- the queue ------------------------------------------------------------------------
 
@@ -254,6 +258,14 @@ class Collector:
         if self.ground_mode.set(mode):
             log.info("log collection: %s (from the ground)", mode)
             self._wake.set()
+        if self._in_flight and not self.policy().queue:
+            self._off_in_flight = True
+
+    def flight_started(self) -> None:
+        """An arming: the flight's logs are collected only if collection stays on until
+        its landing."""
+        self._in_flight = True
+        self._off_in_flight = not self.policy().queue
 
     def add(self, path: Path, kind: str, flight_start: float, flight_end: float) -> bool:
         """Queue a finished log; False when the operator turned collection off."""
@@ -274,6 +286,10 @@ class Collector:
         """A landing: job files for the onboard recording and for the flight controller's
         log, so a restart still sends them. Called from the agent's supervisor, which
         must not wait: the uploader's thread hashes and queues them (`_landed`)."""
+        off_in_flight, self._in_flight = self._off_in_flight, False
+        if off_in_flight or not self.policy().queue:
+            log.info("log collection was off during the flight: its logs stay on the drone")
+            return
         stem = self.folder / f"flight_{round(flight_start * 1000)}"
         if archive is not None:
             job = [str(archive), flight_start, flight_end]

@@ -86,3 +86,21 @@ def test_a_message_without_the_mode_or_with_an_unknown_one_keeps_the_envelope():
     unknown = {**MESSAGE, "envelope": {"max_height": 50}, "log_collection": "metered"}
     update = protocol.parse_envelope_update(unknown)
     assert update.log_collection is None and update.envelope["max_height"] == 50
+
+
+def test_a_flight_with_collection_off_at_any_moment_stays_on_the_drone(tmp_path, gear):
+    """The mode back on before the landing is seen does not send the flight flown off."""
+    (gear / "collect.json").write_text(json.dumps({"collect": "always"}))
+    drone = collector(tmp_path, gear)
+    recording = tmp_path / "flight.dfi"
+    recording.write_bytes(b"\x00" * 64)
+    for before, during in (("off", "always"), ("always", "off")):
+        drone.set_mode(before)
+        drone.flight_started()
+        drone.set_mode(during)
+        drone.set_mode("always")
+        drone.flight_ended(recording, 1.0, 2.0)
+        assert list(drone.folder.glob("*.landed")) == []
+    drone.flight_started()
+    drone.flight_ended(recording, 3.0, 4.0)
+    assert len(list(drone.folder.glob("*.landed"))) == 1
