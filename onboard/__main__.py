@@ -9,7 +9,7 @@ import argparse
 import logging
 import signal
 import sys
-import threading
+import time
 import tomllib
 from collections.abc import Sequence
 from pathlib import Path
@@ -385,10 +385,12 @@ def main(argv: list[str] | None = None) -> int:
     except (ArmingError, SensorConfigError, ValueError, OSError) as exc:
         print(f"onboard: {exc}", file=sys.stderr)
         return 2
-    stopping = threading.Event()
+    # A plain flag: a threading.Event set from a signal handler deadlocks when the signal
+    # arrives while the main thread is inside that event's own wait.
+    stopping: list[int] = []
 
     def _stop(signum: int, frame: object) -> None:
-        stopping.set()
+        stopping.append(signum)
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
@@ -397,8 +399,8 @@ def main(argv: list[str] | None = None) -> int:
         "agent %s running (link %s, broker %s)", config.drone_id, args.link, agent.mqtt.broker.host
     )
     print(f"agent: {config.drone_id}", flush=True)
-    while not stopping.wait(1.0):
-        pass
+    while not stopping:
+        time.sleep(0.2)
     log.info("stopping")
     agent.stop()
     return 0

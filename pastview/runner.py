@@ -31,6 +31,7 @@ from django.db import close_old_connections
 from pastview.models import ViewSettings
 from pastview.selection import PastViewSettings
 from pastview.service import PastViewService, group_name
+from runtime.stopsignal import StopSignal
 from workers import broker, outbox
 from workers.broker.client import Listener
 from workers.counters import Heartbeat, start_heartbeat
@@ -251,7 +252,7 @@ class PastViewProcess:
                 self.heartbeat.counters.incr(name, delta)
                 self._reported[name] = value
 
-    def run(self, stopping: threading.Event) -> None:
+    def run(self, stopping: threading.Event | StopSignal) -> None:
         self.heartbeat = start_heartbeat("pastview")
         self.start()
         period = min(0.02, 0.5 / settings.PASTVIEW_PUSH_HZ)

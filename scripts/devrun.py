@@ -25,17 +25,16 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from runtime.processes import Supervised  # noqa: E402
+from runtime.stopsignal import StopSignal  # noqa: E402
 from scripts.reaper import GRACE_S  # noqa: E402
 from scripts.runlog import LOG_DIR, ProcessOutput  # noqa: E402
 from workers.ground import (  # noqa: E402
@@ -191,12 +190,11 @@ def main() -> int:
     args = parser.parse_args()
     started_services, env = prepare(args.web_port, args.profile)
     run = Foreground(env, args.data_dir / "logs")
-    signal.signal(signal.SIGINT, lambda *_: run.stopping.set())
-    signal.signal(signal.SIGTERM, lambda *_: run.stopping.set())
+    stop = StopSignal().install()
     start_platform(run, args.web_port, args.drones, args.data_dir)
     try:
-        while not run.stopping.is_set():
-            time.sleep(0.2)
+        while not (stop.wait(0.2) or run.stopping.is_set()):
+            pass
     finally:
         print("stopping…", flush=True)
         run.stop()

@@ -41,7 +41,6 @@ import math
 import os
 import shlex
 import shutil
-import signal
 import subprocess
 import sys
 import threading
@@ -57,6 +56,7 @@ from onboard import protocol
 from onboard.mqtt import parse_broker_urls
 from onboard.navigation import ned_to_lla
 from runtime.processes import Supervised, python_env
+from runtime.stopsignal import StopSignal
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 GEAR_EXAMPLE = Path(onboard.__file__).resolve().parent / "gear_example"
@@ -463,15 +463,12 @@ def _fleet_from(args: argparse.Namespace) -> Fleet:
     )
 
 
-def _stop_on_signals() -> threading.Event:
-    """An event SIGTERM and SIGINT set (from now on, so a signal while starting counts)."""
-    stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-    return stop
+def _stop_on_signals() -> StopSignal:
+    """A stop SIGTERM and SIGINT make (from now on, so a signal while starting counts)."""
+    return StopSignal().install()
 
 
-def _run_until(fleet: Fleet, stop: threading.Event) -> None:
+def _run_until(fleet: Fleet, stop: StopSignal) -> None:
     """Print each drone, keep the fleet alive until `stop` is set, then stop it."""
     for drone in fleet.drones:
         print(

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import signal
-import threading
-
 from django.conf import settings
 from django.core.management.base import BaseCommand
 
 from pastview.runner import PastViewProcess
+from runtime.stopsignal import StopSignal
 
 
 class Command(BaseCommand):
@@ -21,9 +19,7 @@ class Command(BaseCommand):
         parser.add_argument("--client-id", default=None)
 
     def handle(self, *args, **options) -> None:  # type: ignore[no-untyped-def]
-        stopping = threading.Event()
-        for signum in (signal.SIGTERM, signal.SIGINT):
-            signal.signal(signum, lambda *_: stopping.set())
+        stopping = StopSignal().install()
         process = PastViewProcess(options["broker"], client_id=options["client_id"])
         self.stdout.write(f"pastview: {process.address}")
         self.stdout.flush()

@@ -9,11 +9,11 @@ import logging
 import signal
 import subprocess
 import sys
-import time
 
 from django.conf import settings
 from django.core.management.base import BaseCommand
 
+from runtime.stopsignal import StopSignal
 from telemetry.ingest import (
     SHARE_GROUP,
     DroneMap,
@@ -73,11 +73,7 @@ class Command(BaseCommand):
             counters=Counters("ingest"),
             live=None if options["no_live"] else ChannelsLivePublisher(),
         )
-        # A plain flag, not an Event: Event.set() takes a lock, and a signal handler that
-        # runs while the main thread holds that same lock would deadlock.
-        stopping: list[int] = []
-        for sig in (signal.SIGTERM, signal.SIGINT):
-            signal.signal(sig, lambda signum, frame: stopping.append(signum))
+        stopping = StopSignal().install()
         ingestor.start()
         source = (
             f"AMQP queue skyhive.{SHARE_GROUP}"
@@ -86,8 +82,8 @@ class Command(BaseCommand):
         )
         self.stdout.write(f"ingest_telemetry: reading {source}")
         self.stdout.flush()
-        while not stopping:
-            time.sleep(0.2)
+        while not stopping.wait(0.2):
+            pass
         drained = ingestor.stop(drain_timeout=options["drain_timeout"])
         self.stdout.write(
             f"ingest_telemetry: stopped, {ingestor.stored} objects stored"

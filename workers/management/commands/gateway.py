@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import os
-import signal
 import socket
-import threading
 
 from django.conf import settings
 from django.core.management.base import BaseCommand
 
+from runtime.stopsignal import StopSignal
 from workers.gateway import Gateway
 
 
@@ -36,9 +35,7 @@ class Command(BaseCommand):
         )
 
     def handle(self, *args, **options) -> None:  # type: ignore[no-untyped-def]
-        stopping = threading.Event()
-        for signum in (signal.SIGTERM, signal.SIGINT):
-            signal.signal(signum, lambda *_: stopping.set())
+        stopping = StopSignal().install()
         client_id = options["client_id"] or f"gateway-{socket.gethostname()}-{options['instance']}"
         gateway = Gateway(options["broker"], client_id=client_id, persistent=True)
         gateway.start()
