@@ -41,6 +41,19 @@ def how_separated(part: Assignment) -> tuple[float, float]:
     return wait, float(takeoff.params["altitude"])
 
 
+def timeline(parts: dict[str, Assignment]) -> dict[str, list[tuple[str, str | None]]]:
+    """Each part's steps with the time each began: what a failure needs to be read."""
+    out = {}
+    for drone_id, part in parts.items():
+        steps = {s.index: s for s in part.mission.steps.all()}
+        indexes = [*part.preparation, *part.step_indexes]
+        out[drone_id] = [
+            (steps[i].command, steps[i].started_at and steps[i].started_at.strftime("%T.%f"))
+            for i in indexes
+        ]
+    return out
+
+
 def test_the_platforms_split_is_flown_never_within_the_minima(world_tx, sky):
     SeparationMinima.objects.create(
         organisation=world_tx.org, horizontal_m=HORIZONTAL_M, vertical_m=VERTICAL_M
@@ -96,7 +109,12 @@ def test_the_platforms_split_is_flown_never_within_the_minima(world_tx, sky):
     wait, height = how_separated(parts[JOINING])
 
     both = [s for s in track.samples if len(s) == 2]
-    assert both, "the two drones were never seen in the air together"
+    assert both, (
+        "the two drones were never seen in the air together",
+        wait,
+        height,
+        timeline(parts),
+    )
     for sample in both:
         a, b = sample[ALARMING], sample[JOINING]
         apart_h, apart_v = metres(a[:2], b[:2]), abs(a[2] - b[2])
