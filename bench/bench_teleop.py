@@ -147,7 +147,6 @@ def _start_drones(bench: Bench) -> None:
                 home,
                 time_scale=SCALE,
                 agent_args=AGENT_ARGS,
-                startup_timeout=60,  # ten drones starting at once on a busy machine
             )
         )
 

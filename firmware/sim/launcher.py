@@ -83,7 +83,8 @@ def start_simulator(
     firmware: str | None = None,
     log_file: str | os.PathLike[str] | None = None,
     extra_args: list[str] | None = None,
-    startup_timeout: float = 10.0,
+    # Seconds for it to start; starting takes about a second of CPU, many on a busy machine.
+    startup_timeout: float = 60.0,
 ) -> SimulatorProcess:
     """Run `python -m firmware.sim` and return once it has printed where it listens."""
     args = [
@@ -126,8 +127,10 @@ def start_simulator(
         host, _, port = line[5:].rpartition(":")
         sim.tcp_address = (host, int(port))
     else:
+        code = process.poll()
         sim.kill()
-        raise SimulatorError(f"simulator did not announce its link (got {line!r})")
+        why = f"exited with {code}" if code is not None else f"nothing in {startup_timeout:g} s"
+        raise SimulatorError(f"simulator did not announce its link ({why}; got {line!r})")
     return sim
 
 

@@ -52,7 +52,10 @@ HANDSHAKE_RETRY_S = 0.5
 KEEPALIVE_S = 2.0  # well under the 6 s USB keep-alive (docs/uavtalk.md, Connection)
 SILENCE_TIMEOUT_S = 8.0  # nothing heard for this long: start the handshake again
 IAP_STEPS = (1122, 2233, 3344)
-IAP_GAP_S = 0.6  # board seconds between reset steps (the firmware accepts 0.5 to 5 s)
+# Board seconds between reset steps. The firmware takes gaps of 0.5 to 5 s as the board
+# measures them, from when it reads each step: three times the least, so a step the board
+# reads late, or one it reads early after a late one, still lands inside the window.
+IAP_GAP_S = 1.5
 NAV_MODE = "PathPlanner"
 STATE_OBJECTS = ("FlightStatus", "HomeLocation", "GPSPosition", "PositionActual")
 # A board answers an object it knows at once; one it does not know is NACKed or ignored.

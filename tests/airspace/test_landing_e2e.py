@@ -102,13 +102,7 @@ def test_ten_drones_sent_home_at_once_land_one_at_a_time_separated(world_tx, sky
     for i, drone_id in enumerate(ids):
         # Homes on a circle of 3 m around the origin: one landing site.
         angle = 2 * math.pi * i / COUNT
-        # Ten simulators start on a busy machine: each is given longer to announce its link.
-        sky.add_drone(
-            drone_id,
-            north=3 * math.cos(angle),
-            east=3 * math.sin(angle),
-            startup_timeout=60.0,
-        )
+        sky.add_drone(drone_id, north=3 * math.cos(angle), east=3 * math.sin(angle))
     sky.wait_online()
     take_off_on_layers(world_tx, sky, ids, settings)
 
