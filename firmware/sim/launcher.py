@@ -120,18 +120,26 @@ def start_simulator(
             args, stdout=subprocess.PIPE, stderr=stderr, cwd=REPO_ROOT, env=env
         )
     sim = SimulatorProcess(process, args=args)
-    line = _read_line(process, startup_timeout)
+    _take_announcement(sim, _read_line(process, startup_timeout), startup_timeout)
+    return sim
+
+
+def _take_announcement(sim: SimulatorProcess, line: str, waited_s: float) -> None:
+    """Where the simulator listens, from the first line it printed; SimulatorError (and
+    the process killed) when it printed none."""
     if line.startswith("pty: "):
         sim.pty_path = line[5:]
     elif line.startswith("tcp: "):
         host, _, port = line[5:].rpartition(":")
         sim.tcp_address = (host, int(port))
     else:
-        code = process.poll()
+        try:  # a closed output is most often a process on its way out
+            code: int | None = sim.process.wait(timeout=1.0)
+        except subprocess.TimeoutExpired:
+            code = None
         sim.kill()
-        why = f"exited with {code}" if code is not None else f"nothing in {startup_timeout:g} s"
+        why = f"exited with {code}" if code is not None else f"nothing in {waited_s:g} s"
         raise SimulatorError(f"simulator did not announce its link ({why}; got {line!r})")
-    return sim
 
 
 def _read_line(process: subprocess.Popen, timeout: float) -> str:
