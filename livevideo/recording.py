@@ -39,13 +39,34 @@ class Recorded:
     truncated: bool
 
 
+# A wall-clock reading is paired with a monotonic one only when the two were read within
+# this long of each other: a thread preempted between the reads (tens of ms on a busy
+# machine) would shift every frame's place on the wall clock by the pause.
+PAIR_SPREAD_S = 0.001
+PAIR_TRIES = 10
+
+
+def clock_pair() -> tuple[datetime, float]:
+    """The wall clock and the monotonic clock at one moment: the tightest of a few
+    readings of the monotonic clock on either side of the wall clock's."""
+    best: tuple[float, datetime, float] | None = None
+    for _ in range(PAIR_TRIES):
+        before = time.monotonic()
+        wall = datetime.now(UTC)
+        after = time.monotonic()
+        if best is None or after - before < best[0]:
+            best = (after - before, wall, (before + after) / 2)
+        if after - before <= PAIR_SPREAD_S:
+            break
+    return best[1], best[2]
+
+
 class Recorder:
     def __init__(self, path: Path, max_bytes: int) -> None:
         self.path = path
         self.max_bytes = max_bytes
-        self.started_at = datetime.now(UTC)
         self._queue: queue.Queue = queue.Queue(maxsize=QUEUE_FRAMES)
-        self._start = time.monotonic()
+        self.started_at, self._start = clock_pair()
         self.frames = self.dropped = self.width = self.height = 0
         self.truncated = False
         self._thread = threading.Thread(target=self._write, name=f"record {path.name}", daemon=True)

@@ -82,3 +82,19 @@ def test_a_damaged_strip_reads_as_no_time():
     luma[0:8, 70:80] = 255 - luma[0:8, 70:80]  # one cell flipped
     assert framecode.read(luma) is None
     assert framecode.read(np.zeros((240, 320), np.uint8)) is None
+
+
+def test_a_recordings_start_pairs_the_clocks_read_together(monkeypatch):
+    """A pause between the wall clock's reading and the monotonic clock's (a preempted
+    thread) is not taken into the pairing: the tightest reading is kept."""
+    from datetime import UTC, datetime
+
+    from livevideo import recording
+
+    readings = iter([10.0, 10.050, 20.0, 20.0004])  # a 50 ms pause, then a tight pair
+    walls = iter([datetime(2026, 1, 1, tzinfo=UTC), datetime(2026, 1, 2, tzinfo=UTC)])
+    monkeypatch.setattr(recording.time, "monotonic", lambda: next(readings))
+    monkeypatch.setattr(recording, "datetime", type("D", (), {"now": lambda tz: next(walls)}))
+    wall, monotonic = recording.clock_pair()
+    assert wall == datetime(2026, 1, 2, tzinfo=UTC)
+    assert monotonic == pytest.approx(20.0002)
