@@ -101,6 +101,19 @@ def test_a_gateway_killed_mid_mission_leaves_the_other_to_finish_it_and_answer_c
 
 REPLACEMENT_RECEIVED = r"Task missions\.replace_drone\[([0-9a-f-]+)\] received"
 REPLACEMENT_DONE = r"Task missions\.replace_drone\[([0-9a-f-]+)\] succeeded"
+# A try that ended: a retry (the alarm's transaction not yet committed) hands the task
+# back to the queue, where either worker may take it again under the same id.
+REPLACEMENT_ENDED = r"Task missions\.replace_drone\[[0-9a-f-]+\] (?:succeeded|retry|raised)"
+
+
+def holding_replacement(workers):  # type: ignore[no-untyped-def]
+    """The workers that have taken the replacement task and not ended their try."""
+    return [
+        w
+        for w in workers
+        if len(re.findall(REPLACEMENT_RECEIVED, w.output()))
+        > len(re.findall(REPLACEMENT_ENDED, w.output()))
+    ]
 
 
 def waiting_on_locks() -> int:
@@ -136,10 +149,12 @@ def kill_mid_replacement(failing_drone: str, workers, kill) -> str:  # type: ign
     holder.start()
     assert holding.wait(10)
     try:
-        taken = wait_for(lambda: [w for w in workers if "replace_drone[" in w.output()], 60)
-        assert taken, "no worker took the replacement task"
-        # Received is not yet running: kill only once the task waits on our lock.
+        assert wait_for(lambda: holding_replacement(workers), 60), "no worker took the task"
+        # Received is not yet running: kill only once the task waits on our lock, in the
+        # worker whose try is still open (an earlier try may have been retried).
         assert wait_for(lambda: waiting_on_locks() > 0, 30), "the task never reached the lock"
+        taken = wait_for(lambda: holding_replacement(workers), 5) or []
+        assert len(taken) == 1, [w.output()[-2000:] for w in workers]
         kill(taken[0])
         return taken[0].name
     finally:
