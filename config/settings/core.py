@@ -102,6 +102,8 @@ CACHES = {
     "default": {
         "BACKEND": "django.core.cache.backends.redis.RedisCache",
         "LOCATION": REDIS_URL,
+        # One pool of kept connections per process, not one per request (config/cache.py).
+        "OPTIONS": {"pool_class": "config.cache.ProcessConnectionPool"},
     }
 }
 
