@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from runtime.processes import stop_process
-from tests.support.celery_worker import start_worker, worker_env
+from tests.support.celery_worker import start_worker, wait_until_consuming, worker_env
 
 QUEUE = f"logs-test-{uuid.uuid4().hex[:8]}"
 
@@ -40,6 +40,7 @@ class Worker:
         self.process = start_worker(
             f"{QUEUE}@%h", env, output=self.log_file, queue=QUEUE, loglevel="info", chatter=False
         )
+        wait_until_consuming(self.process, Path(self.log_file.name))
 
     @property
     def alive(self) -> bool:

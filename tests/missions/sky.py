@@ -19,7 +19,7 @@ from django.conf import settings
 
 from firmware.sim.fleet import Drone, start_drone
 from runtime.processes import stop_process, wait_for
-from tests.support.celery_worker import start_worker, worker_env
+from tests.support.celery_worker import start_worker, wait_until_consuming, worker_env
 from workers.mosquitto import Broker, start_broker
 
 from .conftest import AVEIRO, OUTBOX_DB, point_at, redis_url_with_db
@@ -59,6 +59,7 @@ class Worker:
             loglevel="info",
             chatter=False,
         )
+        wait_until_consuming(self.process, Path(self.log.name))
 
     def stop(self) -> None:
         from config.celery import app

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import os
 import subprocess
+import time
+from pathlib import Path
 from typing import IO
 
 from workers.ground import worker_argv
@@ -44,3 +46,19 @@ def start_worker(
         stdout=output,
         stderr=None if output is None else subprocess.STDOUT,
     )
+
+
+# Celery's line, at log level info, once the worker consumes from its queues.
+READY_TEXT = " ready."
+
+
+def wait_until_consuming(process: subprocess.Popen, log_path: Path, timeout: float = 60.0) -> None:
+    """Return once the worker writing its info-level log to `log_path` consumes from its
+    queues, so that a test's time bound never includes the worker's own start (seconds of
+    imports, more on a loaded machine); raise with the log's tail if it exits or is late."""
+    deadline = time.monotonic() + timeout
+    while READY_TEXT not in log_path.read_text(errors="replace"):
+        if process.poll() is not None or time.monotonic() > deadline:
+            state = "exited" if process.poll() is not None else f"not ready in {timeout:g} s"
+            raise RuntimeError(f"worker {state}:\n{log_path.read_text(errors='replace')[-3000:]}")
+        time.sleep(0.1)
