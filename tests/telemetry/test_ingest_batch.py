@@ -57,6 +57,7 @@ def test_a_pause_in_the_input_ends_the_batch_before_the_interval():
     assert buffer.put_many([_chunk(3)] * 3, wait=0) == 3  # 9 rows, then nothing more
     thread.join(10)
     assert took and took[0][1] == 9, "the last rows of a burst waited for rows never coming"
+    # Measured 0.10 s, quiet and with four busy processes on two cores; the wait is 30 s.
     assert took[0][0] < 10, "they waited out the flush interval"
 
 
@@ -67,6 +68,7 @@ def test_a_putter_waiting_for_room_goes_on_when_rows_are_released():
     threading.Timer(0.1, buffer.release, args=(4,)).start()
     began = time.monotonic()
     assert buffer.put_many([_chunk(2), _chunk(2)], wait=3) == 2
+    # Measured 0.10-0.11 s (the release comes at 0.1 s), quiet and under load.
     assert time.monotonic() - began < 2
 
 

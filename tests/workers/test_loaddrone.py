@@ -249,6 +249,7 @@ def test_a_mission_reports_every_step_fast_forwarded(
         ]
 
     ground.wait_for(lambda: "completed" in statuses(), timeout=15)
+    # Measured 0.52 s quiet and 0.53 s with four busy processes on two cores.
     assert time.monotonic() - began < 5, "fast-forwarded at time scale 50"
     assert statuses() == ["accepted", "completed"]
     progress = [m for m in ground.on("LOAD_1/mission/out") if isinstance(m, protocol.StepProgress)]

