@@ -8,6 +8,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
 from fleet import envelopes
 from missions.models import Mission
@@ -55,7 +56,14 @@ def open_planner(page, live_asgi, world) -> None:  # type: ignore[no-untyped-def
 
 def sent(page) -> None:  # type: ignore[no-untyped-def]
     """The mission was created (no drone is online to start it)."""
-    page.wait_for_function("document.querySelector('#planner-error').textContent.includes('draft')")
+    try:
+        page.wait_for_function(
+            "document.querySelector('#planner-error').textContent.includes('draft')"
+        )
+    except PlaywrightTimeout:
+        # What the page said instead, for the failure's report.
+        said = page.locator("#planner-error").inner_text()
+        raise AssertionError(f"no draft saved; the page says {said!r}") from None
     assert Mission.objects.count() == 1
 
 
