@@ -13,8 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from runtime.processes import stop_process
-from tests.support.celery_worker import start_worker, wait_until_consuming, worker_env
+from tests.support.celery_worker import consuming_worker, worker_env
 
 QUEUE = f"logs-test-{uuid.uuid4().hex[:8]}"
 
@@ -31,37 +30,19 @@ def logs_settings(settings, logs_dir):  # type: ignore[no-untyped-def]
     settings.LOGS_IMPORT_QUEUE = QUEUE
 
 
-class Worker:
-    def __init__(self, database_name: str, logs_dir: Path) -> None:
-        self.log_file = open(logs_dir / f"worker-{QUEUE}.log", "w")  # noqa: SIM115
-        env = worker_env(
-            database_name, LOGS_DIR=str(logs_dir), LOGS_IMPORT_QUEUE=QUEUE, PYTHONUNBUFFERED="1"
-        )
-        self.process = start_worker(
-            f"{QUEUE}@%h", env, output=self.log_file, queue=QUEUE, loglevel="info", chatter=False
-        )
-        wait_until_consuming(self.process, Path(self.log_file.name))
-
-    @property
-    def alive(self) -> bool:
-        return self.process.poll() is None
-
-    def output(self) -> str:
-        self.log_file.flush()
-        return Path(self.log_file.name).read_text()
-
-    def stop(self) -> None:
-        stop_process(self.process)
-        self.log_file.close()
-
-
 @pytest.fixture(scope="session")
 def worker(request, logs_dir):  # type: ignore[no-untyped-def]
     """One `celery worker --pool solo` for the folder, reading the test database."""
     request.getfixturevalue("django_db_setup")
     from django.db import connection
 
-    started = Worker(connection.settings_dict["NAME"], logs_dir)
+    env = worker_env(
+        connection.settings_dict["NAME"],
+        LOGS_DIR=str(logs_dir),
+        LOGS_IMPORT_QUEUE=QUEUE,
+        PYTHONUNBUFFERED="1",
+    )
+    started = consuming_worker(QUEUE, env, logs_dir / f"worker-{QUEUE}.log", queue=QUEUE)
     yield started
     started.stop()
 

@@ -23,8 +23,7 @@ from logs.models import FlightLog, LogStatus
 from logs.uploads import StoredUpload
 from runtime.processes import Supervised, wait_for
 from tests.missions.conftest import online_drone, outbox, point_at  # noqa: F401 - a fixture
-from tests.support.celery_worker import worker_env
-from workers.ground import worker_argv
+from tests.support.celery_worker import consuming_worker, worker_env
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -45,10 +44,10 @@ def _upload(org, logs_dir: Path, name: str = "flight.ulg") -> FlightLog:  # type
 
 
 def _start_worker(name: str, queue: str, directory: Path, env: dict[str, str]) -> Supervised:
-    argv = worker_argv(f"{name}@%h", queue=queue, loglevel="info", pool="prefork",
-                       concurrency=1, chatter=False)  # fmt: skip
-    worker = Supervised(name, argv, env, directory / f"{name}.log", ready_text=(" ready.",))
-    return worker.start().wait_ready(90)
+    log_path = directory / f"{name}.log"
+    return consuming_worker(
+        name, env, log_path, queue=queue, timeout=90, pool="prefork", concurrency=1
+    )
 
 
 @pytest.fixture

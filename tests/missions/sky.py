@@ -18,8 +18,8 @@ from typing import Any
 from django.conf import settings
 
 from firmware.sim.fleet import Drone, start_drone
-from runtime.processes import stop_process, wait_for
-from tests.support.celery_worker import start_worker, wait_until_consuming, worker_env
+from runtime.processes import wait_for
+from tests.support.celery_worker import consuming_worker, worker_env
 from workers.mosquitto import Broker, start_broker
 
 from .conftest import AVEIRO, OUTBOX_DB, point_at, redis_url_with_db
@@ -50,22 +50,13 @@ class Worker:
             PYTHONUNBUFFERED="1",
         )
         env.pop("DJANGO_ALLOW_ASYNC_UNSAFE", None)
-        self.log = open(log_dir / f"worker-{self.queue}.log", "w")  # noqa: SIM115
-        self.process = start_worker(
-            f"{self.queue}@%h",
-            env,
-            output=self.log,
-            queue=self.queue,
-            loglevel="info",
-            chatter=False,
-        )
-        wait_until_consuming(self.process, Path(self.log.name))
+        log_path = log_dir / f"worker-{self.queue}.log"
+        self.process = consuming_worker(self.queue, env, log_path, queue=self.queue)
 
     def stop(self) -> None:
         from config.celery import app
 
-        stop_process(self.process)
-        self.log.close()
+        self.process.stop()
         app.conf.task_default_queue = self._previous_queue
 
 

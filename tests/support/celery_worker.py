@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import os
 import subprocess
-import time
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
+from runtime.processes import Supervised
 from workers.ground import worker_argv
 
 from .paths import ROOT
@@ -52,13 +52,24 @@ def start_worker(
 READY_TEXT = " ready."
 
 
-def wait_until_consuming(process: subprocess.Popen, log_path: Path, timeout: float = 60.0) -> None:
-    """Return once the worker writing its info-level log to `log_path` consumes from its
-    queues, so that a test's time bound never includes the worker's own start (seconds of
-    imports, more on a loaded machine); raise with the log's tail if it exits or is late."""
-    deadline = time.monotonic() + timeout
-    while READY_TEXT not in log_path.read_text(errors="replace"):
-        if process.poll() is not None or time.monotonic() > deadline:
-            state = "exited" if process.poll() is not None else f"not ready in {timeout:g} s"
-            raise RuntimeError(f"worker {state}:\n{log_path.read_text(errors='replace')[-3000:]}")
-        time.sleep(0.1)
+def consuming_worker(
+    name: str,
+    env: dict[str, str],
+    log_path: Path,
+    *,
+    queue: str,
+    timeout: float = 60.0,
+    **argv: Any,
+) -> Supervised:
+    """A worker (`worker_argv`'s options in `argv`, info-level log at `log_path`) that
+    consumes from `queue` before this returns, so that a test's time bound never includes
+    the worker's own start (seconds of imports, more on a loaded machine). It runs in a
+    process group of its own: `stop()` leaves none of its pool behind."""
+    worker = Supervised(
+        name,
+        worker_argv(f"{name}@%h", queue=queue, loglevel="info", chatter=False, **argv),
+        env,
+        log_path,
+        ready_text=(READY_TEXT,),
+    )
+    return worker.start().wait_ready(timeout)

@@ -21,6 +21,7 @@ import psycopg
 
 from config.queues import all_queues
 from runtime.processes import REPO_ROOT, Supervised, free_port, python_env
+from tests.support.celery_worker import READY_TEXT
 from tests.telemetry.private_postgres import PrivatePostgres, start_private_postgres
 from workers.ground import gateway_argv, worker_argv
 from workers.mosquitto import Broker, start_broker
@@ -136,7 +137,7 @@ class OutageGround:
             worker_argv("outage@%h", queue=celery_queues(), loglevel="info", chatter=False),
             env=self.env,
             log_path=self.directory / "worker.log",
-            ready_text=(" ready.",),
+            ready_text=(READY_TEXT,),
         )
         self.gateway.start().wait_ready(60)
         self.worker.start().wait_ready(60)
