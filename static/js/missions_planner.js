@@ -32,12 +32,21 @@
   let vertices = [];
   let area = null;
   let steps = [];
-  // The operator's confirmation of steps beyond the defaults, and the draft already
-  // created for this plan (a start refused is retried on it, not on a new mission).
-  let confirmedBeyond = false;
-  // Legs whose terrain clearance could not be checked were shown, and Send pressed again.
-  let terrainSeen = false;
-  let draftId = null;
+  // What the operator agreed to holds for the plan as it was then (its steps and the
+  // coverage request they came from): a changed plan is a new mission, whose agreements
+  // and draft do not carry over, while the same plan computed again keeps them.
+  // CONFIRM typed for steps beyond the envelope's defaults:
+  let confirmedFor = null;
+  // Legs whose terrain clearance could not be checked were shown, and Send pressed again:
+  let terrainSeenFor = null;
+  // The mission already created for the plan, { id, plan } (a refused start is retried on it):
+  let draft = null;
+  // Each coverage request is numbered; only the newest one's answer is applied.
+  let coverageAsked = 0;
+
+  function planKey() {
+    return JSON.stringify({ steps, request: (area && area.request) || null });
+  }
 
   function showError(message) {
     const box = $("planner-error");
@@ -128,9 +137,6 @@
   }
 
   function renderSteps() {
-    confirmedBeyond = false;
-    terrainSeen = false;
-    draftId = null;
     summarise();
     document.dispatchEvent(new CustomEvent("skyhive:steps-changed"));
     const list = $("step-list");
@@ -218,24 +224,29 @@
 
   async function requestCoverage() {
     if (vertices.length !== 3) return;
+    const asked = ++coverageAsked;
     showError("");
+    let answer = null;
+    let failure = null;
     try {
-      area = await areaFor(vertices);
-      buildSteps();
+      answer = await areaFor(vertices);
     } catch (error) {
-      area = null;
-      showError(error.message);
+      failure = error;
     }
+    if (asked !== coverageAsked) return; // a newer request (or a new area) answers instead
+    area = answer;
+    if (failure) showError(failure.message);
+    else buildSteps();
     drawArea();
   }
 
   map.on("click", (event) => {
-    if (vertices.length === 3) { vertices = []; area = null; }
+    if (vertices.length === 3) { vertices = []; area = null; coverageAsked++; }
     vertices.push([event.latlng.lat, event.latlng.lng]);
     drawArea();
     requestCoverage();
   });
-  $("clear-area").addEventListener("click", () => { vertices = []; area = null; steps = []; renderSteps(); drawArea(); });
+  $("clear-area").addEventListener("click", () => { vertices = []; area = null; steps = []; coverageAsked++; renderSteps(); drawArea(); });
   $("step-distance").addEventListener("change", requestCoverage);
   document.addEventListener("skyhive:survey-change", requestCoverage);
   $("altitude").addEventListener("change", () => (area && area.followed ? requestCoverage() : area ? buildSteps() : null));
@@ -328,7 +339,7 @@
       showError("Not sent: type CONFIRM to fly beyond the envelope's defaults.");
       return;
     }
-    confirmedBeyond = true;
+    confirmedFor = planKey();
     $("beyond-defaults").hidden = true;
     $("planner-form").requestSubmit();
   });
@@ -337,9 +348,9 @@
     showError("Not sent.");
   });
 
-  async function createAndStart(drone) {
-    const confirm = confirmedBeyond ? { confirm_beyond_defaults: true } : {};
-    if (!draftId) {
+  async function createAndStart(drone, plan) {
+    const confirm = confirmedFor === plan ? { confirm_beyond_defaults: true } : {};
+    if (!draft || draft.plan !== plan) {
       const body = { name: $("mission-name").value, altitude: Number($("altitude").value), steps, ...confirm };
       if (area && area.followed) {
         // The ground builds a terrain-following mission itself, from the same request.
@@ -352,16 +363,16 @@
         body.extensibility = { vertices, vectors: area.vectors, step_distance: area.step_distance,
                                intermediate_action: intermediateAction() };
       }
-      draftId = (await M.api("POST", config.createUrl, body)).id;
+      draft = { id: (await M.api("POST", config.createUrl, body)).id, plan };
     }
     try {
-      await M.api("POST", config.startUrl.replace(config.placeholder, draftId), { drone, ...confirm });
+      await M.api("POST", config.startUrl.replace(config.placeholder, draft.id), { drone, ...confirm });
     } catch (error) {
       if (error.code === "confirmation_required") { askBeyondDefaults(error.message); return; }
       showError(`Saved as a draft, not started: ${error.message}`);
       return;
     }
-    location.href = config.missionUrl.replace(config.placeholder, draftId);
+    location.href = config.missionUrl.replace(config.placeholder, draft.id);
   }
 
   $("planner-form").addEventListener("submit", async (event) => {
@@ -369,6 +380,7 @@
     showError("");
     if (!steps.length) { showError("Click three corners or add steps first."); return; }
     const drone = $("drone-choice").value || null;
+    const plan = planKey();
     let checked;
     try {
       checked = await checkEnvelope(drone);
@@ -376,20 +388,24 @@
       showError(error.message);
       return;
     }
+    if (planKey() !== plan) {
+      showError("The plan changed while it was being checked: press Send again to check and send it as it is now.");
+      return;
+    }
     if (!checked.inside) return;
-    if (checked.unchecked && !terrainSeen) {
-      terrainSeen = true;
+    if (checked.unchecked && terrainSeenFor !== plan) {
+      terrainSeenFor = plan;
       showError("The terrain clearance of some legs cannot be checked (listed below); press Send again to fly them under the envelope's other limits.");
       return;
     }
-    if (checked.beyond.length && !confirmedBeyond) {
+    if (checked.beyond.length && confirmedFor !== plan) {
       const first = checked.beyond[0];
       askBeyondDefaults(`${checked.beyond.length} step(s) go beyond the envelope's defaults (marked). Step ${first.index}: ${first.message}`);
       return;
     }
     $("send-mission").disabled = true;
     try {
-      await createAndStart(drone);
+      await createAndStart(drone, plan);
     } catch (error) {
       if (error.code === "confirmation_required") askBeyondDefaults(error.message);
       else showError(error.message);
@@ -397,8 +413,6 @@
     $("send-mission").disabled = false;
   });
 
-  // A changed plan is a new mission: its confirmation and draft do not carry over.
-  $("step-list").addEventListener("change", () => { confirmedBeyond = false; terrainSeen = false; draftId = null; });
 
   // For tests and the console.
   window.skyhivePlanner = { map, get steps() { return steps; }, get area() { return area; }, get vertices() { return vertices; } };

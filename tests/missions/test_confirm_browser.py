@@ -194,3 +194,75 @@ def test_the_fleet_table_resends_with_the_confirmation_once_the_id_is_typed(
     page.wait_for_selector(f'{row} .control-result[data-status="ok"]')
     assert sent[-1] == {"command": "return", "params": {}, "confirm_beyond_defaults": True}
     assert all("Type ACME_1" in message for message in typed)
+
+
+# The page's own fetch, with the next envelope check held until the test lets it go, and
+# a count of the step lists the planner has drawn.
+HOLD_NEXT_CHECK = """() => {
+  const real = window.fetch;
+  window.heldCheck = null;
+  window.holdNextCheck = true;
+  window.stepsDrawn = 0;
+  document.addEventListener("skyhive:steps-changed", () => { window.stepsDrawn += 1; });
+  window.fetch = async (url, options) => {
+    if (String(url).includes("/check-envelope/") && window.holdNextCheck) {
+      window.holdNextCheck = false;
+      await new Promise((resume) => { window.heldCheck = resume; });
+    }
+    return real(url, options);
+  };
+}"""
+
+
+def confirm_while_the_area_is_computed_again(page, step_distance: str) -> None:  # type: ignore[no-untyped-def]
+    """A coverage 1.5 km long (beyond the default distance), sent and confirmed; while the
+    confirmed plan's check is on its way, the area is computed again with `step_distance`
+    (as when a field the operator left loses focus), then the check answers."""
+    page.wait_for_function("window.skyhivePlanner && window.skyhivePlanner.map")
+    page.fill("#step-distance", "300")
+    page.press("#step-distance", "Tab")
+    corners = [point_at(100, 0), point_at(1500, 0), point_at(1500, 20)]
+    page.evaluate(
+        "(pts) => pts.forEach((p) => window.skyhivePlanner.map.fire('click', {latlng: L.latLng(p[0], p[1])}))",
+        corners,
+    )
+    page.wait_for_function("window.skyhivePlanner.steps.length > 0")
+    page.click("#send-mission")
+    page.wait_for_selector("#beyond-defaults:not([hidden])")
+    page.evaluate(HOLD_NEXT_CHECK)
+    page.fill("#beyond-defaults-typed", "CONFIRM")
+    page.click("#beyond-defaults-send")
+    page.wait_for_function("window.heldCheck !== null")
+    page.fill("#step-distance", step_distance)
+    page.evaluate("document.dispatchEvent(new CustomEvent('skyhive:survey-change'))")
+    page.wait_for_function("window.stepsDrawn > 0")
+    page.evaluate("window.heldCheck()")
+
+
+def test_the_same_area_computed_again_during_the_confirmed_send_keeps_its_confirmation(
+    page, live_asgi, world_tx
+):
+    Organisation.objects.filter(pk=world_tx.org.pk).update(envelope=RAISED)
+    online_drone(world_tx.org, "ACME_1")
+    login(page, live_asgi, "operator")
+    page.goto(f"{live_asgi.url}/missions/plan/")
+    confirm_while_the_area_is_computed_again(page, "300")
+    page.wait_for_url("**/missions/*-*/")
+    assert Mission.objects.get().status == MissionStatus.RUNNING
+
+
+def test_an_area_changed_during_the_confirmed_send_is_not_sent_on_the_old_confirmation(
+    page, live_asgi, world_tx
+):
+    Organisation.objects.filter(pk=world_tx.org.pk).update(envelope=RAISED)
+    online_drone(world_tx.org, "ACME_1")
+    login(page, live_asgi, "operator")
+    page.goto(f"{live_asgi.url}/missions/plan/")
+    confirm_while_the_area_is_computed_again(page, "200")
+    page.wait_for_function(
+        "document.querySelector('#planner-error').textContent.includes('plan changed')"
+    )
+    assert not Mission.objects.exists()
+    page.click("#send-mission")  # the new plan goes beyond the defaults too: asked again
+    page.wait_for_selector("#beyond-defaults:not([hidden])")
+    assert not Mission.objects.exists()
