@@ -239,25 +239,26 @@ def confirm_while_the_area_is_computed_again(page, step_distance: str) -> None: 
     page.evaluate("window.heldCheck()")
 
 
-def test_the_same_area_computed_again_during_the_confirmed_send_keeps_its_confirmation(
-    page, live_asgi, world_tx
-):
+@pytest.fixture
+def raised_planner(page, live_asgi, world_tx) -> None:  # type: ignore[no-untyped-def]
+    """The planner, for an operator whose envelope is raised and whose drone is online."""
     Organisation.objects.filter(pk=world_tx.org.pk).update(envelope=RAISED)
     online_drone(world_tx.org, "ACME_1")
     login(page, live_asgi, "operator")
     page.goto(f"{live_asgi.url}/missions/plan/")
+
+
+def test_the_same_area_computed_again_during_the_confirmed_send_keeps_its_confirmation(
+    page, raised_planner
+):
     confirm_while_the_area_is_computed_again(page, "300")
     page.wait_for_url("**/missions/*-*/")
     assert Mission.objects.get().status == MissionStatus.RUNNING
 
 
 def test_an_area_changed_during_the_confirmed_send_is_not_sent_on_the_old_confirmation(
-    page, live_asgi, world_tx
+    page, raised_planner
 ):
-    Organisation.objects.filter(pk=world_tx.org.pk).update(envelope=RAISED)
-    online_drone(world_tx.org, "ACME_1")
-    login(page, live_asgi, "operator")
-    page.goto(f"{live_asgi.url}/missions/plan/")
     confirm_while_the_area_is_computed_again(page, "200")
     page.wait_for_function(
         "document.querySelector('#planner-error').textContent.includes('plan changed')"
