@@ -60,3 +60,38 @@ def test_the_health_report_leads_the_page_and_its_links_open_the_finding(
     expect(card).to_have_attribute("data-loaded", "true", timeout=15_000)
     if shots := __import__("os").environ.get("LOGS_SCREENSHOTS"):
         page.screenshot(path=f"{shots}/health.png", full_page=True)
+
+
+# A machine ten times slower, as far as the page can tell: every timer waits ten times its
+# delay and the plots' data comes 5 s late, so the operator acts long before the viewer
+# has finished loading.
+SLOW_MACHINE = """
+const realTimeout = window.setTimeout;
+window.setTimeout = (fn, ms, ...rest) => realTimeout(fn, (ms || 0) * 10, ...rest);
+const realFetch = window.fetch;
+window.fetch = async (url, options) => {
+  if (String(url).includes("/series/")) await new Promise((done) => realTimeout(done, 5000));
+  return realFetch(url, options);
+};
+"""
+
+
+def test_the_address_follows_what_the_operator_opens_before_the_viewer_has_loaded(
+    world_tx, worker, live_logs, page, tmp_path
+):
+    client = client_for(world_tx.operator)
+    created = upload(client, px4_ulog(tmp_path / "sagging.ulg", {"battery"})).json()
+    assert wait_until_processed(client, created["id"])["status"] == "ready"
+    page.add_init_script(SLOW_MACHINE)
+    login(page, live_logs, "viewer")
+    page.goto(f"{live_logs.url}/logs/{created['id']}/")
+
+    viewer = page.locator("[data-log-viewer]")
+    health = viewer.locator('[data-part="health"]')
+    expect(health).to_have_attribute("data-loaded", "true", timeout=15_000)
+    health.locator("[data-check-link]").first.click()
+    expect(viewer.locator('[data-part="clock"]')).to_have_text("t = 00:45.000")
+    viewer.locator('[data-action="spectrum"]').click()
+    assert viewer.get_attribute("data-loaded") is None  # still loading: the premise
+    # The address is written 300 ms (here 3 s) after the last change.
+    expect(page).to_have_url(re.compile(r"t=45&.*plot=battery_status.*&spec=1"), timeout=15_000)

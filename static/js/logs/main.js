@@ -10,7 +10,7 @@ for (const viewer of viewers) viewer.start();
 
 // One log's page: the address (and the share box) carries the view, to open it again.
 if (viewers.length === 1) {
-  viewers[0].addEventListener("loaded", () => {
+  viewers[0].addEventListener("interactive", () => {
     applyHash(viewers[0]);
     followView(viewers[0], document.getElementById("share-url"));
   });

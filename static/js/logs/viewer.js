@@ -93,6 +93,9 @@ export class LogViewer extends EventTarget {
     this.buildQuickPlots();
     this.buildMultiPlot();
     this.timeline = new Timeline(this.part("timeline-canvas"), this);
+    // From here the operator can act (the toolbar, the plots, the health report's links):
+    // whatever follows the view, such as the page's address, starts now, not once loaded.
+    this.dispatchEvent(new Event("interactive"));
     // The plots' series go first; the heavier requests (every value, the track, the
     // attitude and three.js) follow once a plot is drawn, or shortly after in any case.
     await Promise.race([plotted, new Promise((resolve) => setTimeout(resolve, 400))]);
