@@ -225,8 +225,18 @@ def page(browser, request):  # type: ignore[no-untyped-def]
     # tests/config/test_csp_browser.py and test_offline_browser.py, whose contexts keep it.
     context = browser.new_context(viewport={"width": 1280, "height": 800}, bypass_csp=True)
     page = context.new_page()
+    # What the page's scripts threw or logged as errors: printed at teardown, so that a
+    # failing test's report shows it (pytest shows a test's captured output when it fails).
+    said: list[str] = []
+    page.on("pageerror", lambda error: said.append(f"uncaught: {error}"))
+    page.on(
+        "console",
+        lambda m: said.append(f"console.{m.type}: {m.text}") if m.type == "error" else None,
+    )
     yield page
     context.close()
+    if said:
+        print("The page said:\n" + "\n".join(said[-20:]))
 
 
 def login(page, live_asgi, username: str, password: str = "correct horse battery staple"):  # type: ignore[no-untyped-def]
