@@ -98,7 +98,13 @@ def test_markers_and_rows_show_each_state_and_follow_a_heartbeat(page, live_asgi
 
 def test_the_table_collapses_into_cards_on_a_phone(browser, live_asgi, world_tx):
     make_fleet(world_tx.org)
-    context = browser.new_context(viewport={"width": 390, "height": 844}, is_mobile=True)
+    context = browser.new_context(
+        viewport={"width": 390, "height": 844},
+        is_mobile=True,
+        # wait_for_function polls with eval in the page once its first try finds the
+        # markers not yet drawn, which the policy refuses (tests/conftest.py)
+        bypass_csp=True,
+    )
     page = context.new_page()
     try:
         open_fleet(page, live_asgi, 6)
