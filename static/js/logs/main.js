@@ -27,7 +27,7 @@ const link = document.getElementById("link-cursors");
 if (link) {
   let relaying = false;
   for (const viewer of viewers) {
-    viewer.addEventListener("loaded", () => {
+    viewer.addEventListener("interactive", () => {
       viewer.state.on("cursor", ({ t, source }) => {
         if (!link.checked || relaying || source === "link") return;
         relaying = true;
