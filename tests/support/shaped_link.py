@@ -178,7 +178,10 @@ class MediaRelay:
             except OSError:
                 return
             if self.drone is not None:
-                self.drone_side.sendto(data, self.drone)
+                try:
+                    self.drone_side.sendto(data, self.drone)
+                except OSError:  # closed meanwhile: the relay ends with the link
+                    return
 
     def close(self) -> None:
         for sock in (self.drone_side, self.ground_side):
