@@ -196,18 +196,19 @@ def test_the_fleet_table_resends_with_the_confirmation_once_the_id_is_typed(
     assert all("Type ACME_1" in message for message in typed)
 
 
-# The page's own fetch, with the next envelope check held until the test lets it go, and
-# a count of the step lists the planner has drawn.
-HOLD_NEXT_CHECK = """() => {
+# The page's own fetch, with every envelope check held from now until the test lets them
+# go (the planner's own check of the confirmed plan, and any the plan's drawing asks for
+# meanwhile: they go to the same address), and a count of the step lists drawn.
+HOLD_CHECKS = """() => {
   const real = window.fetch;
-  window.heldCheck = null;
-  window.holdNextCheck = true;
+  window.held = [];
+  window.holding = true;
   window.stepsDrawn = 0;
+  window.releaseChecks = () => { window.holding = false; window.held.forEach((go) => go()); };
   document.addEventListener("skyhive:steps-changed", () => { window.stepsDrawn += 1; });
   window.fetch = async (url, options) => {
-    if (String(url).includes("/check-envelope/") && window.holdNextCheck) {
-      window.holdNextCheck = false;
-      await new Promise((resume) => { window.heldCheck = resume; });
+    if (String(url).includes("/check-envelope/") && window.holding) {
+      await new Promise((go) => window.held.push(go));
     }
     return real(url, options);
   };
@@ -229,14 +230,14 @@ def confirm_while_the_area_is_computed_again(page, step_distance: str) -> None: 
     page.wait_for_function("window.skyhivePlanner.steps.length > 0")
     page.click("#send-mission")
     page.wait_for_selector("#beyond-defaults:not([hidden])")
-    page.evaluate(HOLD_NEXT_CHECK)
+    page.evaluate(HOLD_CHECKS)
     page.fill("#beyond-defaults-typed", "CONFIRM")
-    page.click("#beyond-defaults-send")
-    page.wait_for_function("window.heldCheck !== null")
+    page.click("#beyond-defaults-send")  # the confirmed plan's check starts, and is held
+    page.wait_for_function("window.held.length > 0")
     page.fill("#step-distance", step_distance)
     page.evaluate("document.dispatchEvent(new CustomEvent('skyhive:survey-change'))")
     page.wait_for_function("window.stepsDrawn > 0")
-    page.evaluate("window.heldCheck()")
+    page.evaluate("window.releaseChecks()")
 
 
 @pytest.fixture
