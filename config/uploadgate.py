@@ -167,10 +167,15 @@ def _no_response(request: HttpRequest) -> None:
     return None
 
 
+def slot_key(path: str, user_id: int, index: int) -> str:
+    """The cache key of one of a user's upload slots at `path`."""
+    return f"upload-slot:{path}:{user_id}:{index}"
+
+
 def take_slot(path: str, user_id: int) -> str | None:
     """One of the user's UPLOAD_MAX_CONCURRENT slots at `path` (a cache key), or None."""
     for index in range(int(settings.UPLOAD_MAX_CONCURRENT)):
-        key = f"upload-slot:{path}:{user_id}:{index}"
+        key = slot_key(path, user_id, index)
         if cache.add(key, 1, SLOT_TTL_S):  # SET NX: two requests cannot take one slot
             return key
     return None

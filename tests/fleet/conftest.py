@@ -92,6 +92,30 @@ def mqtt_client(url: str, client_id: str | None = None):  # type: ignore[no-unty
     return client
 
 
+def subscribe_acked(client, topics: str | list[tuple[str, int]], timeout: float = 10.0) -> None:  # type: ignore[no-untyped-def]
+    """Subscribe (QoS 1 for a single topic) and return once the broker has acknowledged it:
+    a message published before then is not delivered to this client. Mosquitto answers in
+    well under a millisecond here; 10 s is for a loaded machine."""
+    import threading
+
+    acked: dict[int, list] = {}
+    arrived = threading.Condition()
+
+    def on_subscribe(c, userdata, mid, reason_codes, properties):  # type: ignore[no-untyped-def]
+        with arrived:
+            acked[mid] = reason_codes
+            arrived.notify_all()
+
+    client.on_subscribe = on_subscribe
+    _, mid = (
+        client.subscribe(topics, qos=1) if isinstance(topics, str) else client.subscribe(topics)
+    )
+    with arrived:
+        assert arrived.wait_for(lambda: mid in acked, timeout), f"no SUBACK for {topics}"
+    refused = [code for code in acked[mid] if code.is_failure]
+    assert not refused, f"subscription to {topics} refused: {refused}"
+
+
 def heartbeat(drone_id: str, **overrides: object) -> dict:
     import time
 
@@ -149,8 +173,7 @@ class Responder:
                 client.publish(*answer, qos=1)
 
         self.client.on_message = on_message
-        self.client.subscribe([(f"{drone_id}/control/in", 1), (f"{drone_id}/mission/in", 1)])
-        time.sleep(0.1)
+        subscribe_acked(self.client, [(f"{drone_id}/control/in", 1), (f"{drone_id}/mission/in", 1)])
 
     def stop(self) -> None:
         self.client.disconnect()

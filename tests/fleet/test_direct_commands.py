@@ -22,7 +22,14 @@ from onboard import protocol
 from runtime.processes import wait_for
 from workers import direct, outbox
 
-from .conftest import GROUND_PASSWORD, Responder, client_for, drone_url, mqtt_client
+from .conftest import (
+    GROUND_PASSWORD,
+    Responder,
+    client_for,
+    drone_url,
+    mqtt_client,
+    subscribe_acked,
+)
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -163,8 +170,7 @@ def test_a_reply_from_another_drone_is_not_taken(world_tx, broker, fresh_redis, 
         other.publish("GLOBEX_1/control/out", json.dumps(body), qos=1)
 
     asked.on_message = impostor
-    asked.subscribe("ACME_1/control/in", qos=1)
-    time.sleep(0.2)
+    subscribe_acked(asked, "ACME_1/control/in")
     try:
         reply = async_to_sync(direct.arequest)("ACME_1", "control", request, timeout=1.0)
     finally:
@@ -189,8 +195,7 @@ def test_a_reply_arriving_after_the_connection_is_lost_comes_through_redis(
         client.publish("ACME_1/control/out", json.dumps(body), qos=1)
 
     drone.on_message = answer_late
-    drone.subscribe("ACME_1/control/in", qos=1)
-    time.sleep(0.2)
+    subscribe_acked(drone, "ACME_1/control/in")
 
     async def scenario() -> dict | None:
         pending = asyncio.ensure_future(direct.arequest("ACME_1", "control", _request(), timeout=5))

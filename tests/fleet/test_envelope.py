@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import re
-import time
 
 import pytest
 
@@ -13,7 +12,7 @@ from fleet.models import CommandLog, Drone, Organisation
 from onboard import envelope as env
 from runtime.processes import wait_for
 
-from .conftest import Responder, client_for, mqtt_client
+from .conftest import Responder, client_for, mqtt_client, subscribe_acked
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -230,8 +229,7 @@ def test_a_new_envelope_is_sent_to_the_drones(world_tx, broker, gateway):
         received.append(json.loads(message.payload))
 
     client.on_message = on_message
-    client.subscribe("ACME_1/envelope/in", qos=1)
-    time.sleep(0.1)  # the subscription settles, as the Responder's does
+    subscribe_acked(client, "ACME_1/envelope/in")
     Drone.objects.filter(drone_id="ACME_1").update(max_distance=300.0)
     response = client_for(world_tx.owner).put(
         URL, {"max_height": 60}, content_type="application/json"

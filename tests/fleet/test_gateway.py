@@ -19,7 +19,7 @@ from runtime.processes import wait_for
 from workers.counters import Counters, snapshot
 from workers.gateway import Gateway
 
-from .conftest import client_for, heartbeat, mqtt_client
+from .conftest import client_for, heartbeat, mqtt_client, subscribe_acked
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -260,8 +260,7 @@ def test_outbox_messages_that_expired_are_not_sent(world_tx, broker, gateway):
     received = []
     drone = _drone_client(broker, "ACME_1")
     drone.on_message = lambda c, u, m: received.append(json.loads(m.payload))
-    drone.subscribe("ACME_1/control/in", qos=1)
-    time.sleep(0.2)
+    subscribe_acked(drone, "ACME_1/control/in")
     outbox.send_to_drone("ACME_1", "control", {"stale": True}, ttl=-1)
     outbox.send_to_drone("ACME_1", "control", {"fresh": True}, ttl=10)
     assert wait_for(lambda: received)
@@ -283,8 +282,7 @@ def test_what_a_dead_gateway_had_taken_from_the_outbox_is_published_by_another(
     received = []
     drone = _drone_client(broker, "ACME_1")
     drone.on_message = lambda c, u, m: received.append(json.loads(m.payload))
-    drone.subscribe("ACME_1/control/in", qos=1)
-    time.sleep(0.2)
+    subscribe_acked(drone, "ACME_1/control/in")
     client = outbox.sync_redis()
 
     def item(body: dict) -> bytes:

@@ -253,6 +253,15 @@ def _open_upload(url: str, headers: dict[str, str]) -> socket.socket:
     return sock
 
 
+def _slots_held(path: str, user_id: int) -> int:
+    from django.core.cache import cache
+
+    from config.uploadgate import slot_key
+
+    keys = [slot_key(path, user_id, index) for index in range(2)]
+    return sum(cache.get(key) is not None for key in keys)
+
+
 def test_a_third_concurrent_upload_of_one_user_gets_429_and_another_user_is_unaffected(
     live_asgi, world_tx, settings
 ):
@@ -262,7 +271,9 @@ def test_a_third_concurrent_upload_of_one_user_gets_429_and_another_user_is_unaf
     operator = {**MULTIPART, **_token(world_tx.operator)}
     held = [_open_upload(live_asgi.url, operator) for _ in range(2)]
     try:
-        time.sleep(0.5)  # both are admitted and reading their bodies
+        # Both are admitted (each holds a slot) and reading their bodies: a few ms here,
+        # 10 s for a loaded machine.
+        assert wait_for(lambda: _slots_held(LOG_PATH, world_tx.operator.pk) == 2, timeout=10)
         third = stream_upload(live_asgi.url, LOG_PATH, operator, chunked=True)
         assert third.status == 429 and third.body["code"] == "too_many_uploads", third
         assert third.taken < MB

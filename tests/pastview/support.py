@@ -77,16 +77,24 @@ class DronePublisher:
         self.client.loop_stop()
 
 
+# The service reads the pages' watch marks every 0.25 s (pastview.runner's tick); this bound
+# is forty reads, for a machine too loaded to tick on time.
+WATCHED_WITHIN_S = 10.0
+
+
 class GroupListener:
     """Receives what the service pushes to one drone's group."""
 
-    def __init__(self, drone_id: str) -> None:
+    def __init__(self, drone_id: str, service: ServiceThread | None) -> None:
+        """`service`: the one in this process, waited on until it has seen the mark; None
+        for another process's, whose caller sends until something comes through."""
         from channels.layers import get_channel_layer
 
         from pastview.service import group_name
 
         self.layer = get_channel_layer()
         self.drone_id = drone_id
+        self.service = service
         self.group = group_name(drone_id)
         self.channel: str | None = None
 
@@ -96,10 +104,12 @@ class GroupListener:
 
         self.channel = await self.layer.new_channel()
         await self.layer.group_add(self.group, self.channel)
-        # As a page's consumer does: the service pushes only for watched drones, and looks
-        # four times a second.
+        # As a page's consumer does: the service pushes only for drones it has seen marked.
         await amark_watched(outbox.async_redis(), self.drone_id)
-        await asyncio.sleep(0.3)
+        deadline = time.monotonic() + WATCHED_WITHIN_S
+        while self.service is not None and not self.service.watches(self.drone_id):
+            assert time.monotonic() < deadline, "the past-view service never saw the watch mark"
+            await asyncio.sleep(0.02)
         return self
 
     async def __aexit__(self, *exc: object) -> None:
@@ -135,6 +145,18 @@ class ServiceThread:
     @property
     def service(self):  # type: ignore[no-untyped-def]
         return self.process.service
+
+    def watches(self, drone_id: str) -> bool:
+        """Whether the service now pushes the drone's updates (None: it pushes for all)."""
+        watched = self.process.service.watched
+        return watched is None or drone_id in watched
+
+    def wait_until_watched(self, drone_id: str) -> None:
+        """Until the service has read a page's watch mark: what it sends before is not pushed."""
+        deadline = time.monotonic() + WATCHED_WITHIN_S
+        while not self.watches(drone_id):
+            assert time.monotonic() < deadline, "the past-view service never saw the watch mark"
+            time.sleep(0.02)
 
     def stop(self) -> None:
         self.stopping.set()

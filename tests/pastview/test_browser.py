@@ -87,7 +87,7 @@ def test_the_view_draws_the_drone_over_the_chosen_frame_and_warns_when_tracking_
         login(page, live_asgi, "operator")
         page.goto(f"{live_asgi.url}/pastview/{DRONE}/")
         page.wait_for_function("window.pastview.socket && window.pastview.socket.readyState === 1")
-        page.wait_for_timeout(300)  # the consumer joins the group right after accepting
+        service.wait_until_watched(DRONE)
         assert page.locator("#pv-warning").inner_text() == "No frame yet"
         assert canvas_colours(page)["drawn"] == 0
 
@@ -137,7 +137,7 @@ def test_an_operator_flies_by_keyboard_and_edits_the_evaluation_function(
         login(page, live_asgi, "operator")
         page.goto(f"{live_asgi.url}/pastview/{DRONE}/")
         page.wait_for_function("window.pastview.socket && window.pastview.socket.readyState === 1")
-        page.wait_for_timeout(300)
+        service.wait_until_watched(DRONE)
         t0 = time.time()
         drone.frame(t0, [0.0, 0.0, -10.0], level(90.0))
         drone.poses((t0 + 0.1, [0.0, 2.5, -10.0], level(90.0)))
@@ -157,10 +157,8 @@ def test_an_operator_flies_by_keyboard_and_edits_the_evaluation_function(
             "document.getElementById('pv-teleop-message').textContent.includes('offline')"
         )
         page.keyboard.up("KeyW")
-        page.wait_for_timeout(300)
-        moves = [json.loads(p) for p in sent]
+        moves = sent_until(page, sent, lambda moves: moves[-1] == {"type": "stop"})
         assert {"type": "teleop", "forward": 1, "right": 0, "up": 0} in moves
-        assert moves[-1] == {"type": "stop"}
 
         page.select_option("#pv-function", "murata")
         page.fill("#pv-params input[name=coeff_tilt]", "3")
@@ -193,7 +191,7 @@ def test_a_gamepad_stick_flies_and_letting_go_or_leaving_the_page_stops(
     login(page, live_asgi, "operator")
     page.goto(f"{live_asgi.url}/pastview/{DRONE}/")
     page.wait_for_function("window.pastview.socket && window.pastview.socket.readyState === 1")
-    page.wait_for_timeout(300)  # the consumer joins the group right after accepting
+    service.wait_until_watched(DRONE)
     drone = DronePublisher(broker.port, DRONE, "dpw")
     stream = Streaming(drone)
     try:
@@ -203,27 +201,33 @@ def test_a_gamepad_stick_flies_and_letting_go_or_leaving_the_page_stops(
         drone.close()
 
 
+def sent_until(page, sent: list, holds, timeout: float = 10.0) -> list[dict]:  # type: ignore[no-untyped-def]
+    """The frames the page sent, once `holds(them)`. The page reads the stick four times a
+    second (PASTVIEW_TELEOP_HZ); 10 s is forty reads, for a loaded machine."""
+    deadline = time.monotonic() + timeout
+    while True:
+        moves = [json.loads(p) for p in sent]
+        if moves and holds(moves):
+            return moves
+        assert time.monotonic() < deadline, f"the page never sent that: {moves[-5:]}"
+        page.wait_for_timeout(50)  # lets Playwright deliver the socket's frames
+
+
 def fly_by_gamepad(page, sent: list) -> None:  # type: ignore[no-untyped-def]
     page.wait_for_function("!document.getElementById('pv-control').disabled")
     page.click("#pv-control")
     page.evaluate("window.stick[0] = 0.5; window.stick[1] = -1.0")  # half right, full forward
-    page.wait_for_function("window.pastview.socket.bufferedAmount === 0")
-    page.wait_for_timeout(600)
+    sent_until(page, sent, lambda m: {"type": "teleop", "forward": 1, "right": 0.5, "up": 0} in m)
     page.evaluate("window.stick[0] = 0.05; window.stick[1] = 0.1")  # inside the dead zone
-    page.wait_for_timeout(600)
-    moves = [json.loads(p) for p in sent]
-    assert {"type": "teleop", "forward": 1, "right": 0.5, "up": 0} in moves
-    assert moves[-1] == {"type": "stop"}
+    sent_until(page, sent, lambda m: m[-1] == {"type": "stop"})
     # Back on the stick, then the window loses focus with the stick still held: one stop,
     # and nothing after it until the page has the focus again.
     page.evaluate("window.stick[1] = -1.0")
-    page.wait_for_timeout(400)
-    assert json.loads(sent[-1])["type"] == "teleop"
+    sent_until(page, sent, lambda m: m[-1]["type"] == "teleop")
     page.evaluate("window.dispatchEvent(new Event('blur'))")
-    page.wait_for_timeout(100)
+    sent_until(page, sent, lambda m: m[-1] == {"type": "stop"})
     count = len(sent)
-    page.wait_for_timeout(700)
+    page.wait_for_timeout(700)  # nearly three reads of the stick, still held
     assert json.loads(sent[-1]) == {"type": "stop"} and len(sent) == count
     page.evaluate("window.dispatchEvent(new Event('focus'))")
-    page.wait_for_timeout(400)
-    assert json.loads(sent[-1])["type"] == "teleop"
+    sent_until(page, sent, lambda m: m[-1]["type"] == "teleop")

@@ -53,7 +53,7 @@ async def test_a_pose_after_a_frame_reaches_the_page_with_the_frame_and_the_rela
     service, drone
 ):
     t0 = time.time()
-    async with GroupListener(DRONE) as pages:
+    async with GroupListener(DRONE, service) as pages:
         drone.frame(t0, [0.0, 0.0, -10.0], level(0.0))
         live = await pages.next(lambda m: m["type"] == "live")
         assert live["ts"] == t0 and live["jpeg"]
@@ -71,7 +71,7 @@ async def test_a_pose_after_a_frame_reaches_the_page_with_the_frame_and_the_rela
 @in_own_loop
 async def test_the_frame_image_is_sent_only_when_the_choice_changes(service, drone):
     t0 = time.time()
-    async with GroupListener(DRONE) as pages:
+    async with GroupListener(DRONE, service) as pages:
         drone.frame(t0, [0.0, 0.0, -10.0], level(0.0))
         await pages.next(lambda m: m["type"] == "live")
         drone.poses((t0 + 0.1, [2.5, 0.0, -10.0], level(0.0)))
@@ -95,7 +95,7 @@ async def test_the_frame_image_is_sent_only_when_the_choice_changes(service, dro
 async def test_tracking_lost_and_found_are_pushed_when_they_happen(service, drone):
     t0 = time.time()
     still = [1.0, 2.0, -10.0]
-    async with GroupListener(DRONE) as pages:
+    async with GroupListener(DRONE, service) as pages:
         drone.frame(t0, [0.0, 0.0, -10.0], level(0.0))
         drone.poses((t0 + 0.1, still, level(10.0)), (t0 + 0.2, still, level(10.0)))
         lost = await pages.next(lambda m: m.get("event") == "lost")
@@ -134,7 +134,7 @@ async def test_bad_input_is_counted_and_the_view_keeps_running(service, drone):
     assert status["frames_stored"] == 1
     counters = service.service.counters
     assert counters["dropped.malformed"] == 3  # not JSON, no jpeg, objects not a list
-    async with GroupListener(DRONE) as pages:
+    async with GroupListener(DRONE, service) as pages:
         drone.poses((t0 + 0.8, [7.5, 0.0, -10.0], level(0.0)))
         update = await pages.next(lambda m: m["type"] == "update")
     assert close(update["relative"]["position"], [2.5, 0.0, 0.0])
@@ -149,7 +149,7 @@ async def test_settings_edited_in_the_database_switch_the_evaluation_function(
     from pastview.models import ViewSettings
 
     t0 = time.time()
-    async with GroupListener(DRONE) as pages:
+    async with GroupListener(DRONE, service) as pages:
         drone.frame(t0, [0.0, 0.0, -10.0], level(0.0))
         drone.poses((t0 + 0.1, [2.5, 0.0, -10.0], level(0.0)))
         before = await pages.next(lambda m: m["type"] == "update")
@@ -172,7 +172,10 @@ async def test_settings_edited_in_the_database_switch_the_evaluation_function(
 async def test_one_drones_frames_never_reach_another_drones_page(service, broker, drone):
     other = DronePublisher(broker.port, "GLOBEX_1", "gpw")
     try:
-        async with GroupListener("GLOBEX_1") as theirs, GroupListener(DRONE) as mine:
+        async with (
+            GroupListener("GLOBEX_1", service) as theirs,
+            GroupListener(DRONE, service) as mine,
+        ):
             drone.frame(time.time(), [0.0, 0.0, -10.0], level(0.0))
             await mine.next(lambda m: m["type"] == "live")
             with pytest.raises(AssertionError):
@@ -213,11 +216,12 @@ def command_process(broker, world_tx, tmp_path: Path):
 
 @in_own_loop
 async def test_the_management_command_serves_pages_and_stops_on_sigterm(command_process, drone):
-    async with GroupListener(DRONE) as pages:
-        t0 = time.time()
+    async with GroupListener(DRONE, None) as pages:
         deadline = time.monotonic() + 10
-        # The command subscribes shortly after it starts: send until a frame gets through.
+        # The command subscribes, and reads the page's watch mark, shortly after it starts:
+        # send until a frame gets through, each a new one (the page is sent a frame once).
         while True:
+            t0 = time.time()
             drone.frame(t0, [0.0, 0.0, -10.0], level(0.0))
             try:
                 await pages.next(lambda m: m["type"] == "live", timeout=0.5)
@@ -288,7 +292,7 @@ async def test_without_a_pose_stream_the_flight_controllers_attitude_and_positio
     t0 = time.time()
     yaw90 = level(90.0)  # (qx, qy, qz, qw); dRonin sends q1 = qw first
     attitude = {"q1": yaw90[3], "q2": yaw90[0], "q3": yaw90[1], "q4": yaw90[2]}
-    async with GroupListener(DRONE) as pages:
+    async with GroupListener(DRONE, service) as pages:
         drone.frame(t0, [0.0, 0.0, -10.0], level(90.0))
         drone.raw(
             "telemetry",

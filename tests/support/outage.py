@@ -21,9 +21,9 @@ import psycopg
 
 from config.queues import all_queues
 from runtime.processes import REPO_ROOT, Supervised, free_port, python_env
-from tests.support.celery_worker import READY_TEXT
+from tests.support.celery_worker import consuming_worker
 from tests.telemetry.private_postgres import PrivatePostgres, start_private_postgres
-from workers.ground import gateway_argv, worker_argv
+from workers.ground import gateway_argv
 from workers.mosquitto import Broker, start_broker
 
 REDIS_SERVER = shutil.which("redis-server") or "/usr/bin/redis-server"
@@ -132,15 +132,11 @@ class OutageGround:
             log_path=self.directory / "gateway.log",
             ready_text=("connected to",),
         )
-        self.worker = Supervised(
-            "worker",
-            worker_argv("outage@%h", queue=celery_queues(), loglevel="info", chatter=False),
-            env=self.env,
-            log_path=self.directory / "worker.log",
-            ready_text=(READY_TEXT,),
+        self.gateway.start()
+        self.worker = consuming_worker(
+            "outage", self.env, self.directory / "worker.log", queue=celery_queues()
         )
-        self.gateway.start().wait_ready(60)
-        self.worker.start().wait_ready(60)
+        self.gateway.wait_ready(60)
 
     def drone_url(self, drone_id: str) -> str:
         assert self.broker is not None

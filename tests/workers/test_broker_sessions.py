@@ -89,10 +89,19 @@ def mosquitto(tmp_path: Path) -> Iterator[Profile]:
         drones = [(drone_id, stored_hash(pw)) for drone_id, pw in DRONES.items()]
         directory = profile.data / "mosquitto"
         assert MosquittoBackend(directory, lambda: drones).sync(drones).reloaded
-        time.sleep(0.3)  # SIGHUP handled
+        # The reload is a signal: Mosquitto reads the new password file a moment later.
+        assert wait_for(lambda: _accepted(profile.drone_url("GLOBEX_1")), 10)
         yield profile
     finally:
         _services(profile, "mosquitto-stop")
+
+
+def _accepted(url: str) -> bool:
+    try:
+        Peer(url, f"probe-{uuid.uuid4().hex[:6]}").stop()
+    except ConnectionRefusedError:
+        return False
+    return True
 
 
 def _gone(peer: Peer) -> bool:
