@@ -37,7 +37,10 @@ def _fly(drone: Drone, north: float) -> None:
     Drone.objects.filter(pk=drone.pk).update(lat=lat, lon=lon, alt=20.0, airborne=True)
 
 
-def test_the_drone_without_a_reservation_is_held_with_a_critical_alert(world, outbox):
+def test_the_drone_without_a_reservation_is_held_with_a_critical_alert(world, outbox, settings):
+    # The velocities come from two looks about 0.5 s apart (5 m each: closing at 20 m/s);
+    # a minute's horizon still predicts the loss if a loaded machine makes that 7 s.
+    settings.AIRSPACE_LIVE_HORIZON_S = 60.0
     first = online_drone(world.org, "ACME_A")
     second = online_drone(world.org, "ACME_B")
     for drone_id in ("ACME_A", "ACME_B"):
