@@ -204,6 +204,7 @@
 
   // With a camera survey switched on, the spacings and the height come from the camera.
   async function areaFor(points) {
+    await envelopeLoaded;
     const survey = window.skyhiveSurvey;
     const body = { vertices: points, step_distance: Number($("step-distance").value), altitude: Number($("altitude").value) };
     if (survey && survey.active()) {
@@ -278,7 +279,8 @@
     (fence.polygons || []).forEach((p) => L.polygon(p.polygon, style(p.inclusion !== false)).addTo(fenceLayer));
     (fence.circles || []).forEach((c) => L.circle(c.circle.center, { radius: c.circle.radius, ...style(c.inclusion !== false) }).addTo(fenceLayer));
   }
-  M.api("GET", config.envelopeUrl).then((envelope) => {
+  // Terrain heights are asked for only once it is known whether the envelope has a home.
+  const envelopeLoaded = M.api("GET", config.envelopeUrl).then((envelope) => {
     envelopeHome = envelope.home || null;
     drawFence(envelope.geoFence);
   }).catch(() => null);

@@ -3,6 +3,7 @@ drawn, and legs whose clearance cannot be checked are listed before anything is 
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -106,6 +107,17 @@ def test_a_terrain_following_survey_is_planned_drawn_and_sent(page, live_asgi, w
     with terrain_on_the_server(tmp_path, hill_tile()):
         envelopes.set_envelope(world_tx.org, {"home": list(HOME), "max_height": 400, "max_distance": 2000})  # fmt: skip
         login(page, live_asgi, "operator")
+        # The envelope (and its home) answers only after the corners are clicked: the
+        # heights are still placed above its home, not the first corner's ground.
+        held = []
+
+        def hold(route) -> None:  # type: ignore[no-untyped-def]
+            if held:
+                route.continue_()
+            else:
+                held.append(route)
+
+        page.route("**/api/v1/organisations/*/envelope/", hold)
         page.goto(f"{live_asgi.url}/missions/plan/")
         page.wait_for_function("window.skyhivePlanner && window.skyhiveAirspace")
         page.check("#follow-terrain")
@@ -115,6 +127,13 @@ def test_a_terrain_following_survey_is_planned_drawn_and_sent(page, live_asgi, w
             "(pts) => pts.forEach((p) => window.skyhivePlanner.map.fire('click', {latlng: L.latLng(p[0], p[1])}))",
             STRIP,
         )
+        # The page asks for the envelope as it loads; its request reaches `hold` as soon
+        # as Playwright dispatches events (bound 10 s; the page loads here within 1 s).
+        deadline = time.monotonic() + 10.0
+        while not held and time.monotonic() < deadline:
+            page.wait_for_timeout(20)
+        assert len(held) == 1 and page.locator("#height-profile").is_hidden()
+        held[0].continue_()
         page.wait_for_selector("#height-profile:not([hidden])")
         summary = page.locator("#height-profile-summary").inner_text()
         assert "above the terrain" in summary, summary
