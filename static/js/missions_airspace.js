@@ -45,8 +45,23 @@
     if (!config.dronesUrl) return;
     const answer = await M.api("GET", config.dronesUrl);
     for (const d of Array.isArray(answer) ? answer : answer.results || []) {
-      if (d.position) positions[d.drone_id] = [d.position.lat, d.position.lon];
+      positions[d.drone_id] = d.position ? [d.position.lat, d.position.lon] : null;
     }
+  }
+
+  /* A drone's last known position: from the list loaded with the page once it is in,
+     else (a drone beyond its first page) asked for on its own; null when it has none. */
+  async function dronePosition(id) {
+    await dronesLoaded;
+    if (!(id in positions) && config.dronesUrl) {
+      try {
+        const d = await M.api("GET", `${config.dronesUrl}${encodeURIComponent(id)}/`);
+        positions[id] = d.position ? [d.position.lat, d.position.lon] : null;
+      } catch (error) {
+        return null;
+      }
+    }
+    return positions[id] || null;
   }
 
   function showConflicts(conflicts) {
@@ -178,25 +193,32 @@
     showConflicts(answer.conflicts || []);
   }
 
-  // A changed plan is checked again shortly after the last change.
+  // A changed plan is checked again shortly after the last change. Only the newest
+  // answer is drawn (Send's own check counts as one), so an older one never hides it.
   let timer = null;
+  let checksAsked = 0;
   document.addEventListener("skyhive:steps-changed", () => {
     clearTimeout(timer);
     timer = setTimeout(async () => {
+      const asked = ++checksAsked;
       const steps = planner.steps;
       if (!steps.length) { drawProfile(null); showConflicts([]); return; }
+      let answer = null;
       try {
-        show(await M.api("POST", config.checkUrl, { steps, drone: $("drone-choice").value || null }));
+        answer = await M.api("POST", config.checkUrl, { steps, drone: $("drone-choice").value || null });
       } catch (error) {
-        drawProfile(null);
+        answer = null;
       }
+      if (asked !== checksAsked) return;
+      if (answer) show(answer);
+      else drawProfile(null);
     }, CHECK_AFTER_MS);
   });
-  document.addEventListener("skyhive:plan-checked", (event) => show(event.detail));
+  document.addEventListener("skyhive:plan-checked", (event) => { checksAsked++; show(event.detail); });
   $("drone-choice").addEventListener("change", () => document.dispatchEvent(new CustomEvent("skyhive:steps-changed")));
 
-  window.skyhiveAirspace = { dronePosition: (id) => positions[id] || null, reload: loadReservations };
-  loadDrones().catch(() => null);
+  const dronesLoaded = loadDrones().catch(() => null);
+  window.skyhiveAirspace = { dronePosition, reload: loadReservations };
   loadReservations();
   setInterval(loadReservations, RESERVATIONS_EVERY_MS);
 })();

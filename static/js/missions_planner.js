@@ -43,6 +43,10 @@
   let draft = null;
   // Each coverage request is numbered; only the newest one's answer is applied.
   let coverageAsked = 0;
+  // The newest coverage request, awaited by Send (a field left by clicking Send asks again).
+  let coverage = Promise.resolve();
+  // One send at a time: a second press while one is checked would create a second mission.
+  let sending = false;
 
   function planKey() {
     return JSON.stringify({ steps, request: (area && area.request) || null });
@@ -195,42 +199,59 @@
   // Terrain following: heights are placed above the ground at the envelope's home,
   // else the chosen drone's position, else the first corner.
   let envelopeHome = null;
-  function followSpec() {
+  async function followSpec() {
     if (!$("follow-terrain").checked) return null;
+    await envelopeLoaded;
     const airspace = window.skyhiveAirspace;
-    const drone = airspace && airspace.dronePosition($("drone-choice").value);
+    const chosen = $("drone-choice").value;
+    const drone = !envelopeHome && chosen && airspace ? await airspace.dronePosition(chosen) : null;
     return { home: envelopeHome || drone || vertices[0], tolerance_m: Number($("follow-tolerance").value) };
   }
 
   // With a camera survey switched on, the spacings and the height come from the camera.
-  async function areaFor(points) {
-    await envelopeLoaded;
+  async function areaFor(points, asked) {
     const survey = window.skyhiveSurvey;
     const body = { vertices: points, step_distance: Number($("step-distance").value), altitude: Number($("altitude").value) };
     if (survey && survey.active()) {
       const planned = await survey.plan(points, $("drone-choice").value || null);
+      if (asked !== coverageAsked) return null; // an older survey does not rewrite the form
       $("altitude").value = planned.geometry.height_m.toFixed(1);
       $("step-distance").value = planned.coverage.step_distance.toFixed(1);
       $("intermediate-action").value = "takepic";
-      if (!followSpec()) return planned.coverage;
+      if (!$("follow-terrain").checked) return planned.coverage;
       Object.assign(body, { step_distance: planned.coverage.step_distance, line_spacing: planned.line_spacing,
                             altitude: planned.geometry.height_m });
     }
-    const following = followSpec();
+    const following = await followSpec();
     if (following) body.terrain_following = following;
     const answer = await M.api("POST", config.coverageUrl, body);
     if (following) answer.request = body;
     return answer;
   }
 
-  async function requestCoverage() {
+  function requestCoverage() {
+    coverage = computeCoverage();
+    return coverage;
+  }
+
+  /* Send works on the plan as the form shows it: it waits for the coverage asked for last,
+     and for any asked for meanwhile. */
+  async function coverageSettled() {
+    let awaited;
+    do {
+      awaited = coverage;
+      await awaited;
+    } while (awaited !== coverage);
+  }
+
+  async function computeCoverage() {
     if (vertices.length !== 3) return;
     const asked = ++coverageAsked;
     showError("");
     let answer = null;
     let failure = null;
     try {
-      answer = await areaFor(vertices);
+      answer = await areaFor(vertices, asked);
     } catch (error) {
       failure = error;
     }
@@ -251,6 +272,8 @@
   $("step-distance").addEventListener("change", requestCoverage);
   document.addEventListener("skyhive:survey-change", requestCoverage);
   $("altitude").addEventListener("change", () => (area && area.followed ? requestCoverage() : area ? buildSteps() : null));
+  // Without a home in the envelope, terrain heights are placed above the chosen drone.
+  $("drone-choice").addEventListener("change", () => (area && area.followed && !envelopeHome ? requestCoverage() : null));
   for (const id of ["follow-terrain", "follow-tolerance"]) {
     $(id).addEventListener("change", () => {
       $("follow-tolerance-label").hidden = !$("follow-terrain").checked;
@@ -379,6 +402,20 @@
 
   $("planner-form").addEventListener("submit", async (event) => {
     event.preventDefault();
+    if (sending) return;
+    sending = true;
+    $("send-mission").disabled = true;
+    try {
+      await coverageSettled();
+      if (vertices.length === 3 && !area) return; // the area's coverage failed: its error is shown
+      await send();
+    } finally {
+      sending = false;
+      $("send-mission").disabled = false;
+    }
+  });
+
+  async function send() {
     showError("");
     if (!steps.length) { showError("Click three corners or add steps first."); return; }
     const drone = $("drone-choice").value || null;
@@ -405,15 +442,13 @@
       askBeyondDefaults(`${checked.beyond.length} step(s) go beyond the envelope's defaults (marked). Step ${first.index}: ${first.message}`);
       return;
     }
-    $("send-mission").disabled = true;
     try {
       await createAndStart(drone, plan);
     } catch (error) {
       if (error.code === "confirmation_required") askBeyondDefaults(error.message);
       else showError(error.message);
     }
-    $("send-mission").disabled = false;
-  });
+  }
 
 
   // For tests and the console.

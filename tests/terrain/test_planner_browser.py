@@ -12,6 +12,7 @@ import pytest
 from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
 from fleet import envelopes
+from fleet.models import Drone
 from missions.models import Mission
 from onboard.envelope import ned_to_latlon
 from terrain.importer import delete_tiles, import_path
@@ -150,3 +151,46 @@ def test_a_terrain_following_survey_is_planned_drawn_and_sent(page, live_asgi, w
         mission = Mission.objects.get()
         assert mission.extensibility["terrain_following"]["height_agl_m"] == 50
         assert mission.plan_home == list(HOME)
+
+
+def test_without_a_home_in_the_envelope_the_heights_stand_on_the_chosen_drone(
+    page, live_asgi, world_tx, tmp_path
+):
+    from .test_following import STRIP
+
+    Drone.objects.filter(drone_id="ACME_1").update(lat=HOME[0], lon=HOME[1])
+    with terrain_on_the_server(tmp_path, hill_tile()):
+        envelopes.set_envelope(world_tx.org, {"max_height": 400, "max_distance": 2000})
+        login(page, live_asgi, "operator")
+        # The drones' positions answer only after the corners are clicked.
+        held = []
+
+        def hold(route) -> None:  # type: ignore[no-untyped-def]
+            held.append(route)
+
+        page.route("**/api/v1/drones/", hold)
+        page.goto(f"{live_asgi.url}/missions/plan/")
+        page.wait_for_function("window.skyhivePlanner && window.skyhiveAirspace")
+        page.select_option("#drone-choice", "ACME_1")
+        page.check("#follow-terrain")
+        page.fill("#altitude", "50")
+        page.fill("#step-distance", "300")
+        page.press("#step-distance", "Tab")
+        page.evaluate(
+            "(pts) => pts.forEach((p) => window.skyhivePlanner.map.fire('click', {latlng: L.latLng(p[0], p[1])}))",
+            STRIP,
+        )
+        deadline = time.monotonic() + 10.0  # asked for as the page loads (within 1 s here)
+        while not held and time.monotonic() < deadline:
+            page.wait_for_timeout(20)
+        assert held and page.locator("#height-profile").is_hidden()
+        for route in held:
+            route.continue_()
+        page.unroute("**/api/v1/drones/", hold)
+        page.wait_for_selector("#height-profile:not([hidden])")
+        page.click("#send-mission")
+        page.wait_for_selector("#beyond-defaults:not([hidden])")
+        page.fill("#beyond-defaults-typed", "CONFIRM")
+        page.click("#beyond-defaults-send")
+        sent(page)
+        assert Mission.objects.get().plan_home == list(HOME)
