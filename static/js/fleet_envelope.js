@@ -92,11 +92,20 @@
       status.textContent = `geoFence: ${error.message}`;
     }
   });
-  if (!config.editable) {
-    Array.from(form.elements).forEach((element) => { element.disabled = true; });
-    status.textContent = "Only organisation admins change the envelope.";
-  }
+  /* The form is closed until the stored envelope is in it: what an admin typed or
+     imported before then would be overwritten by it, and Save would store the old one. */
+  const fields = Array.from(form.elements);
+  fields.forEach((element) => { element.disabled = true; });
+  status.textContent = "Loading the envelope…";
   fetch(config.apiUrl, { credentials: "same-origin", headers: { Accept: "application/json" } })
-    .then((response) => response.json())
-    .then(show);
+    .then((response) => {
+      if (!response.ok) throw new Error(`the server answered ${response.status}`);
+      return response.json();
+    })
+    .then((envelope) => {
+      show(envelope);
+      if (config.editable) fields.forEach((element) => { element.disabled = false; });
+      status.textContent = config.editable ? "" : "Only organisation admins change the envelope.";
+    })
+    .catch((error) => { status.textContent = `The envelope could not be loaded (${error.message}): reload the page.`; });
 })();
