@@ -209,9 +209,14 @@
     }
   }
 
+  // Reads answer out of order under load: only the newest one asked for is drawn.
+  let refreshes = 0;
   async function refresh() {
     pending = null;
-    try { render(await M.api("GET", config.logApi)); } catch (error) { /* next push retries */ }
+    const asked = ++refreshes;
+    let log;
+    try { log = await M.api("GET", config.logApi); } catch (error) { return; /* next push retries */ }
+    if (asked === refreshes) render(log);
   }
 
   async function refreshPictures() {
@@ -274,9 +279,14 @@
   function anyHeld(mission) {
     return mission.held || (mission.assignments || []).some((a) => a.held && ["sent", "accepted"].includes(a.status));
   }
+  // As for the log: the newest answer (a read, or a pause's or resume's own) decides.
+  let heldAsked = 0;
   async function syncHeld() {
     if (!pause && !resume) return;
-    try { showHeld(anyHeld(await M.api("GET", config.missionApi))); } catch (error) { /* next push retries */ }
+    const asked = ++heldAsked;
+    let mission;
+    try { mission = await M.api("GET", config.missionApi); } catch (error) { return; /* next push retries */ }
+    if (asked === heldAsked) showHeld(anyHeld(mission));
   }
   for (const button of [pause, resume]) {
     if (!button) continue;
@@ -284,8 +294,9 @@
       const box = document.getElementById("mission-error");
       button.disabled = true;
       try {
+        const asked = ++heldAsked;
         const mission = await M.api("POST", `${config.missionApi}${button.dataset.action}/`);
-        showHeld(anyHeld(mission));
+        if (asked === heldAsked) showHeld(anyHeld(mission));
         box.hidden = true;
       } catch (error) { box.textContent = error.message; box.hidden = false; }
       button.disabled = false;
