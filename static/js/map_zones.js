@@ -35,6 +35,11 @@
     return lines.join("<br>");
   }
 
+  // A zone as the server gave it: one that differs in anything is drawn anew.
+  function keyOf(feature) {
+    return JSON.stringify([feature.id, feature.geometry, feature.properties]);
+  }
+
   function boxOf(map) {
     const b = map.getBounds().pad(0.5);
     return [b.getWest(), b.getSouth(), b.getEast(), b.getNorth()].map((v) => v.toFixed(6)).join(",");
@@ -52,19 +57,35 @@
       onEachFeature: (f, l) => {
         l.bindPopup(popup(f.properties));
         l.options.zoneId = f.id;
+        l.options.zoneKey = keyOf(f);
       },
     }).addTo(map);
     let pending = null;
     let asked = 0;
+    /* Only what changed is redrawn: a zone drawn already stays as it is, with its popup
+       open if it was (opening one near the edge pans the map, which asks again). */
+    function draw(features) {
+      const wanted = new Map();
+      for (const f of features) {
+        const key = keyOf(f);
+        wanted.set(key, (wanted.get(key) || []).concat([f]));
+      }
+      layer.eachLayer((l) => {
+        const same = wanted.get(l.options.zoneKey);
+        if (same && same.length) same.pop();
+        else layer.removeLayer(l);
+      });
+      layer.addData({ type: "FeatureCollection", features: Array.from(wanted.values()).flat() });
+    }
     function load() {
       const ask = ++asked;
       fetch(`${API}?bbox=${boxOf(map)}`, { credentials: "same-origin", headers: { Accept: "application/json" } })
         .then((r) => (r.ok ? r.json() : null))
         .then((body) => {
           if (!body || ask !== asked) return;
-          layer.clearLayers();
-          layer.addData(body);
+          draw(body.features);
           map.getContainer().dataset.zones = String(body.features.length);
+          map.getContainer().dataset.zonesDrawn = String(ask);
         })
         .catch(() => {});
     }
