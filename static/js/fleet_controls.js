@@ -20,13 +20,22 @@
     return [response, await response.json().catch(() => ({}))];
   }
 
+  /* The drone's answer goes to its row as the table is then: the table redraws its rows
+     every few seconds, so the row clicked may be gone by the time the drone answers. */
+  function show(droneId, text, status) {
+    const row = Array.from(table.querySelectorAll("tr[data-drone]")).find((r) => r.dataset.drone === droneId);
+    const out = row && row.querySelector(".control-result");
+    if (!out) return;
+    out.textContent = text;
+    if (status) out.dataset.status = status;
+    else delete out.dataset.status;
+  }
+
   async function send(button) {
-    const row = button.closest("tr[data-drone]");
-    const droneId = row.dataset.drone;
+    const droneId = button.closest("tr[data-drone]").dataset.drone;
     const command = button.dataset.command;
-    const out = row.querySelector(".control-result");
     button.disabled = true;
-    out.textContent = `${command}…`;
+    show(droneId, `${command}…`, null);
     try {
       let [response, body] = await post(droneId, command, false);
       if (response.status === 409 && body.code === "confirmation_required") {
@@ -34,11 +43,9 @@
         if ((typed || "").trim() === droneId) [response, body] = await post(droneId, command, true);
       }
       const ok = response.ok && body.ok;
-      out.textContent = ok ? `${command}: ok` : `${command}: ${body.error || response.status}`;
-      out.dataset.status = ok ? "ok" : "error";
+      show(droneId, ok ? `${command}: ok` : `${command}: ${body.error || response.status}`, ok ? "ok" : "error");
     } catch (error) {
-      out.textContent = `${command}: ${error}`;
-      out.dataset.status = "error";
+      show(droneId, `${command}: ${error}`, "error");
     } finally {
       button.disabled = false;
     }

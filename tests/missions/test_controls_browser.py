@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import threading
+import time
 
 import pytest
 
@@ -94,6 +95,33 @@ def test_the_fleet_table_holds_a_drone_in_one_click(page, live_asgi, world_tx):
     page.click(f'{row} button[data-command="hold"]')
     page.wait_for_selector(f'{row} .control-result[data-status="ok"]')
     assert sent == [{"command": "hold", "params": {}}]
+
+
+def test_the_answer_reaches_the_row_when_the_table_is_drawn_again_meanwhile(
+    page, live_asgi, world_tx
+):
+    online_drone(world_tx.org, "ACME_1")
+    held = []
+
+    def hold(route) -> None:  # type: ignore[no-untyped-def]
+        held.append(route)
+
+    page.route("**/api/v1/drones/ACME_1/commands/", hold)
+    login(page, live_asgi, "operator")
+    page.goto(f"{live_asgi.url}/")
+    row = 'tr[data-drone="ACME_1"]'
+    page.wait_for_selector(row)
+    page.evaluate("document.querySelector('tr[data-drone=\"ACME_1\"]').dataset.old = 'yes'")
+    page.click(f'{row} button[data-command="hold"]')
+    deadline = time.monotonic() + 10.0  # the click posts at once
+    while not held and time.monotonic() < deadline:
+        page.wait_for_timeout(20)
+    assert len(held) == 1
+    # A search draws the table's rows anew (as its refresh every 15 s does).
+    page.fill("#fleet-search", "ACME")
+    page.wait_for_selector(f"{row}:not([data-old])")
+    held[0].fulfill(json={"ok": True, "result": {"mode": "hold"}, "request_id": "0" * 32})
+    page.wait_for_selector(f'{row} .control-result[data-status="ok"]')
 
 
 def test_resume_on_the_drone_page_resumes_the_mission_it_flies(page, live_asgi, world_tx):
