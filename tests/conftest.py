@@ -62,6 +62,9 @@ REAL_TIME = (
     "tests/workers/test_loaddrone.py::test_two_hundred_load_drones",
     # Needs more commands in one second than the limit allows: a core to spare.
     "tests/fleet/test_command_rate.py::test_a_thousand_commands_in_a_second",
+    # Live video encoded at its frame rate through a shaped link: command round trips and
+    # telemetry ages are judged against the link's 2 s buffer, with 1 s for everything else.
+    "tests/livevideo/test_throttled_link.py",
 )
 # Markers of the tests that take seconds to minutes each (pyproject.toml).
 LONG_MARKS = ("e2e", "browser", "slow")

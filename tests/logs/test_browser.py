@@ -121,6 +121,10 @@ def test_zoom_requeries_series_by_range_and_replay_plays_only_the_selection(
     page.goto(f"{live_logs.url}/logs/{created['id']}/")
     viewer = page.locator("[data-log-viewer]")
     expect(viewer).to_have_attribute("data-loaded", "true", timeout=15_000)
+    # The health report above the timeline is read on its own: once it is in, the
+    # timeline stays where it is for the pointer's absolute positions below.
+    health = viewer.locator('[data-part="health"]')
+    expect(health).to_have_attribute("data-loaded", "true", timeout=15_000)
     canvas = viewer.locator('[data-part="timeline-canvas"]')
     box = canvas.bounding_box()
 

@@ -59,7 +59,13 @@ def test_the_planner_turns_three_clicks_into_45_waypoints_and_sends_the_mission(
     page.click("#step-details summary")
     commands = page.locator("#step-list .step select.command")
     steps = page.locator("#step-list .step")
-    steps.nth(1).locator(".handle").drag_to(steps.nth(0).locator(".handle"))
+    # Each change of the list is checked again (the profile above it is redrawn): the
+    # second drag starts once that answer is drawn.
+    with page.expect_response(lambda r: "/check-envelope/" in r.url):
+        steps.nth(1).locator(".handle").drag_to(steps.nth(0).locator(".handle"))
+    page.evaluate(
+        "() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done)))"
+    )
     assert [commands.nth(i).input_value() for i in range(2)] == ["takeoff", "arm"]
     steps.nth(1).locator(".handle").drag_to(steps.nth(0).locator(".handle"))
     assert [commands.nth(i).input_value() for i in range(2)] == ["arm", "takeoff"]
