@@ -10,6 +10,8 @@
   const KEY = "skyhive-dismissed-alerts";
   const seen = new Set();
   let retry = 1000;
+  // The socket's first message (the alerts still open) has come.
+  let recentSeen = false;
 
   function dismissed() {
     try { return new Set(JSON.parse(localStorage.getItem(KEY) || "[]")); } catch (e) { return new Set(); }
@@ -55,7 +57,10 @@
     socket.addEventListener("open", () => { retry = 1000; });
     socket.addEventListener("message", (event) => {
       const message = JSON.parse(event.data);
-      if (message.type === "recent") message.alerts.slice().reverse().forEach((a) => show(a, false));
+      if (message.type === "recent") {
+        message.alerts.slice().reverse().forEach((a) => show(a, false));
+        recentSeen = true;
+      }
       else if (message.type === "alert") show(message.alert, true);
     });
     socket.addEventListener("close", (event) => {
@@ -71,6 +76,7 @@
       Notification.requestPermission().then(() => { notifyButton.hidden = true; });
     });
   }
-  window.skyhiveAlerts = { get shown() { return Array.from(seen); } };
+  // For tests and the console: what is shown, and whether the socket has said what is open.
+  window.skyhiveAlerts = { get shown() { return Array.from(seen); }, get recentSeen() { return recentSeen; } };
   connect();
 })();

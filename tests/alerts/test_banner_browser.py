@@ -17,8 +17,8 @@ pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 def test_a_critical_alarm_shows_on_the_open_page_and_stays_dismissed(page, live_asgi, world_tx):
     login(page, live_asgi, "operator")
     page.goto(f"{live_asgi.url}/missions/")
-    page.wait_for_function("window.skyhiveAlerts !== undefined")
-    page.wait_for_timeout(500)  # the socket is open
+    # The socket has joined the organisation's group: it says what is open once it has.
+    page.wait_for_function("window.skyhiveAlerts && window.skyhiveAlerts.recentSeen")
 
     def alarm() -> None:
         critical_alarm(world_tx.org, world_tx.drone, "battery critical")
@@ -35,6 +35,7 @@ def test_a_critical_alarm_shows_on_the_open_page_and_stays_dismissed(page, live_
     page.click(".alert-dismiss")
     assert page.locator("#alert-banner").is_hidden()
     page.goto(f"{live_asgi.url}/")
-    page.wait_for_function("window.skyhiveAlerts !== undefined")
-    page.wait_for_timeout(800)
+    # The open alert came again with the socket's first message, and stays dismissed.
+    page.wait_for_function("window.skyhiveAlerts && window.skyhiveAlerts.recentSeen")
+    assert page.evaluate("window.skyhiveAlerts.shown") == []
     assert page.locator("#alert-banner").is_hidden()
