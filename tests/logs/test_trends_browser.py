@@ -39,6 +39,28 @@ def test_overlay_of_two_logs_and_their_parameters(world_tx, live_logs, page, tmp
     page.locator("#overlay-offset").dispatch_event("change")
     expect(plot.locator(".u-legend")).to_contain_text("s since start")
 
+    # Two plots asked for one after the other, the first one's answers coming last:
+    # the newest is what stays drawn.
+    held = []
+
+    def hold_first_two(route) -> None:  # type: ignore[no-untyped-def]
+        if len(held) < 2:
+            held.append(route)
+        else:
+            route.continue_()
+
+    page.route("**/series/?*", hold_first_two)
+    page.locator("#overlay-align").select_option("takeoff")
+    page.locator("#overlay-align").select_option("start")
+    expect(plot.locator(".u-legend")).to_contain_text("s since start")
+    drawn_from = plot.get_attribute("data-from")  # the plot's first time, since the start
+    assert len(held) == 2
+    for route in held:
+        route.continue_()
+    page.unroute("**/series/?*", hold_first_two)
+    page.wait_for_timeout(500)  # the late answers arrive and would be drawn (well within)
+    assert plot.get_attribute("data-from") == drawn_from
+
     page.get_by_role("button", name="A against B").click()
     rows = page.locator("#param-diff tbody tr")
     expect(rows).to_have_count(3)

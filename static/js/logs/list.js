@@ -95,11 +95,16 @@ if (zone) {
   }
 }
 
-/** Replace the table with the server's current one, so finished uploads appear in it. */
+/** Replace the table with the server's current one, so finished uploads appear in it.
+    Several uploads finish together: only the newest table asked for replaces it. */
+let listsAsked = 0;
 async function refreshList() {
+  const asked = ++listsAsked;
   const response = await fetch(location.href, { credentials: "same-origin" });
   if (!response.ok) return;
-  const fresh = new DOMParser().parseFromString(await response.text(), "text/html").getElementById("log-list");
+  const text = await response.text();
+  if (asked !== listsAsked) return;
+  const fresh = new DOMParser().parseFromString(text, "text/html").getElementById("log-list");
   const current = document.getElementById("log-list");
   if (fresh && current) {
     current.replaceWith(fresh);

@@ -46,14 +46,21 @@ function merge(a, b) {
   return [points.map((p) => p[0]), points.map((p) => (p[1] === undefined ? null : p[1])), points.map((p) => (p[2] === undefined ? null : p[2]))];
 }
 
+// Reads answer out of order under load: only the newest plot, and the newest parameters,
+// asked for are drawn.
+let drawsAsked = 0;
+let parametersAsked = 0;
+
 async function draw(event) {
   event?.preventDefault();
   const path = els.path.value.trim();
   if (!path) return;
+  const asked = ++drawsAsked;
   showError("");
   try {
     const [za, zb] = zeros();
     const bodies = await Promise.all(ids.map((id) => getJSON(`${api}${id}/series/`, { path, points: 2000 })));
+    if (asked !== drawsAsked) return;
     const shifted = bodies.map((body, i) => ({ t: body.t.map((t) => t - [za, zb][i]), v: body.v }));
     const columns = merge(shifted[0], shifted[1]);
     chart?.destroy();
@@ -74,8 +81,9 @@ async function draw(event) {
     );
     els.plot.dataset.series = String(chart.series.length - 1);
     els.plot.dataset.points = bodies.map((b) => b.t.length).join(",");
+    els.plot.dataset.from = String(columns[0][0] ?? "");
   } catch (err) {
-    showError(err.message);
+    if (asked === drawsAsked) showError(err.message);
   }
 }
 
@@ -114,10 +122,12 @@ function cell(value) {
 }
 
 async function parameters(against) {
+  const asked = ++parametersAsked;
   table.hidden = true;
   summary.textContent = "Reading the parameters…";
   try {
     const body = await getJSON(`${api}${ids[0]}/parameters/`, { against });
+    if (asked !== parametersAsked) return;
     document.getElementById("param-b").textContent = body.b.kind === "reference" ? `Reference (${body.b.name || "saved"})` : "B";
     table.tBodies[0].innerHTML = body.differences
       .map((d) => `<tr data-change="${d.change}"><th scope="row">${escapeHtml(d.name)}</th>${cell(d.a)}${cell(d.b)}</tr>`)
@@ -125,7 +135,7 @@ async function parameters(against) {
     summary.textContent = `${body.differences.length} differ, ${body.same} the same (${body.a.source} against ${body.b.source}).`;
     table.hidden = !body.differences.length;
   } catch (err) {
-    summary.textContent = err.message;
+    if (asked === parametersAsked) summary.textContent = err.message;
   }
 }
 
