@@ -228,13 +228,21 @@ def test_a_stream_is_recorded_and_found_by_the_flight_it_belongs_to(media, world
         stream.stop()
     wait_until(lambda: VideoRecording.objects.filter(drone=drone).exists(), 20)
     finished = datetime.now(UTC)
-    row = VideoRecording.objects.get(drone=drone)
-    assert (row.width, row.height) == (320, 240) and not row.truncated
-    # The file is WebM that decodes, each frame still carrying its capture time.
-    with av.open(row.file.path) as container:
-        assert container.format.name.startswith("matroska") or "webm" in container.format.name
-        times = [framecode.read(f.to_ndarray(format="gray")) for f in container.decode(video=0)]
-    assert len(times) == row.frames >= 10 and None not in times
+    # One recording per session: a publisher whose connection fails on a loaded host
+    # publishes again, and its stream goes on in a second recording.
+    rows = list(VideoRecording.objects.filter(drone=drone).order_by("started_at"))
+    times: list[int | None] = []
+    for row in rows:
+        assert (row.width, row.height) == (320, 240) and not row.truncated
+        # The file is WebM that decodes, each frame still carrying its capture time.
+        with av.open(row.file.path) as container:
+            assert container.format.name.startswith("matroska") or "webm" in container.format.name
+            decoded = [
+                framecode.read(f.to_ndarray(format="gray")) for f in container.decode(video=0)
+            ]
+        assert len(decoded) == row.frames
+        times += decoded
+    assert len(times) >= 10 and None not in times
     assert times == sorted(times)
     assert begun.timestamp() * 1000 - 1000 < times[0] and times[-1] < finished.timestamp() * 1000
 
@@ -249,7 +257,7 @@ def test_a_stream_is_recorded_and_found_by_the_flight_it_belongs_to(media, world
     client = Client()
     client.force_login(world_tx.viewer)
     found = client.get(f"/api/v1/flights/{during.pk}/video/").json()["recordings"]
-    assert [r["id"] for r in found] == [row.pk]
+    assert sorted(r["id"] for r in found) == sorted(row.pk for row in rows)
     assert 59 < found[0]["offset_s"] < 61 + (finished - begun).total_seconds()
     assert client.get(f"/api/v1/flights/{earlier.pk}/video/").json()["recordings"] == []
     download = client.get(found[0]["file"])
