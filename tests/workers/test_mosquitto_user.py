@@ -49,7 +49,10 @@ def test_the_harness_broker_drops_root_and_reads_files_provisioning_rewrites(tmp
 
 
 def test_the_shared_broker_of_the_services_script_drops_root(tmp_path):
-    env = dict(os.environ, DATA_DIR=str(tmp_path / "data"), TEST_MQTT_PORT=str(free_port()))
+    # Both listeners on ports free now (the drones' would otherwise be the ground's + 1000,
+    # which another process may hold).
+    env = dict(os.environ, DATA_DIR=str(tmp_path / "data"), TEST_MQTT_PORT=str(free_port()),
+               TEST_MQTT_DRONE_PORT=str(free_port()))  # fmt: skip
     subprocess.run([SERVICES, "mosquitto-start", "test"], env=env, check=True, timeout=60)
     directory = tmp_path / "data" / "mosquitto"
     try:

@@ -103,9 +103,9 @@ def test_a_client_that_does_not_trust_the_certificate_is_refused(tmp_path):
 
 
 def test_the_services_script_adds_the_tls_listener_when_asked(tmp_path, trusted):
-    plain, tls_port = free_port(), free_port()
+    plain, drones, tls_port = free_port(), free_port(), free_port()
     env = dict(os.environ, DATA_DIR=str(tmp_path / "data"), TEST_MQTT_PORT=str(plain),
-               MQTT_TLS_PORT=str(tls_port), MQTT_TLS_CERT=str(trusted[0]),
+               TEST_MQTT_DRONE_PORT=str(drones), MQTT_TLS_PORT=str(tls_port), MQTT_TLS_CERT=str(trusted[0]),
                MQTT_TLS_KEY=str(trusted[1]))  # fmt: skip
     subprocess.run([SERVICES, "mosquitto-start", "test"], env=env, check=True, timeout=60)
     try:
