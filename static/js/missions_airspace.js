@@ -206,9 +206,7 @@
       let answer = null;
       try {
         answer = await M.api("POST", config.checkUrl, { steps, drone: $("drone-choice").value || null });
-      } catch (error) {
-        answer = null;
-      }
+      } catch (error) { /* no profile is drawn */ }
       if (asked !== checksAsked) return;
       if (answer) show(answer);
       else drawProfile(null);
