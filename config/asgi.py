@@ -21,6 +21,7 @@ from channels.security.websocket import AllowedHostsOriginValidator  # noqa: E40
 from config.bodylimits import BodyLimitASGI  # noqa: E402
 from config.lifespan import InstanceLifespan  # noqa: E402
 from config.routing import websocket_urlpatterns  # noqa: E402
+from config.urlchars import NulInUrlASGI  # noqa: E402
 from logs.asgi import UploadLimitMiddleware  # noqa: E402
 from tiles.admin import TILE_UPLOAD_PATH, tile_upload_limit  # noqa: E402
 
@@ -37,8 +38,9 @@ application = InstanceLifespan(
                     limit=tile_upload_limit,
                 )
             ),
+            # A handshake whose address holds NUL is refused (config/urlchars.py).
             "websocket": AllowedHostsOriginValidator(
-                AuthMiddlewareStack(URLRouter(websocket_urlpatterns))
+                AuthMiddlewareStack(NulInUrlASGI(URLRouter(websocket_urlpatterns)))
             ),
         }
     )

@@ -113,8 +113,9 @@ def table_page(organisation_id: int, query: TableQuery) -> dict:
     drones = matching(Drone.objects.filter(organisation_id=organisation_id), query)
     count = drones.count()
     start = (query.page - 1) * query.page_size
+    # A page past the last is empty, asked of nobody (an offset past bigint would fail).
     rows = drones.order_by("drone_id").values(*_FIELDS)[start : start + query.page_size]
-    results = [row(values) for values in rows]
+    results = [row(values) for values in rows] if start < count else []
     ready = readiness(organisation_id, [r["drone_id"] for r in results])
     return {
         "count": count,

@@ -34,6 +34,7 @@ import time
 from datetime import datetime
 
 from django.conf import settings
+from django.core.exceptions import ValidationError
 from django.db.models import Model, QuerySet
 from django.http import FileResponse, HttpResponse
 from drf_spectacular.types import OpenApiTypes
@@ -254,7 +255,12 @@ class FlightVideoView(APIView):
 
 
 def _visible(model: type, request: Request, pk: str, what: str):  # type: ignore[no-untyped-def]
-    """The row of `model` with this pk in the user's organisations, or 404."""
+    """The row of `model` with this pk in the user's organisations, or 404 (also for a
+    pk that is not one: the address admits some that are not UUIDs)."""
+    try:
+        pk = model._meta.pk.to_python(pk)
+    except ValidationError:
+        raise exceptions.NotFound(f"Unknown {what}.") from None
     row = model.objects.for_user(request.user).filter(pk=pk).first()
     if row is None:
         raise exceptions.NotFound(f"Unknown {what}.")

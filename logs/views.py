@@ -24,8 +24,7 @@ def log_list(request: HttpRequest) -> HttpResponse:
     if organisation is None:
         raise Http404("You are not a member of any organisation.")
     logs = FlightLog.objects.filter(organisation=organisation).select_related("owner")
-    # PostgreSQL text holds no NUL, so no log's text has one: it is dropped, not a 500.
-    query = request.GET.get("q", "").replace("\x00", "").strip()
+    query = request.GET.get("q", "").strip()
     logs = logs.search(query)
     wanted = request.GET.get("status", "")
     if wanted in LogStatus.values:

@@ -48,11 +48,10 @@ def mission_list(request: HttpRequest) -> HttpResponse:
     status = request.GET.get("status", "")
     if status in MissionStatus.values:
         missions = missions.filter(status=status)
-    # PostgreSQL text holds no NUL, so no name or id has one: it is dropped, not a 500.
-    query = request.GET.get("q", "").replace("\x00", "").strip()
+    query = request.GET.get("q", "").strip()
     if query:
         missions = missions.filter(name__icontains=query)
-    drone = request.GET.get("drone", "").replace("\x00", "").strip()
+    drone = request.GET.get("drone", "").strip()
     if drone:
         missions = missions.filter(assignments__drone__drone_id=drone).distinct()
     return render(

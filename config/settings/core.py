@@ -53,6 +53,8 @@ MIDDLEWARE = [
     "config.outage.outage_middleware",
     "django.middleware.security.SecurityMiddleware",
     "config.csp.ContentSecurityPolicyMiddleware",
+    # No view meets a NUL character in its address or query (config/urlchars.py).
+    "config.urlchars.NulInUrlMiddleware",
     "config.bodylimits.BodyLimitMiddleware",
     "config.staticfiles.StaticFilesMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",

@@ -17,19 +17,8 @@ from django.urls import URLPattern, URLResolver, get_resolver, resolve
 from django.urls.exceptions import Resolver404
 
 ROOT = Path(__file__).resolve().parents[2]
-APPS = (
-    "accounts",
-    "alerts",
-    "config",
-    "fleet",
-    "logs",
-    "missions",
-    "pastview",
-    "records",
-    "telemetry",
-    "tiles",
-    "workers",
-)
+# Every app of the project, and the project's own package.
+APPS = ("config", *sorted(p.parent.name for p in ROOT.glob("*/apps.py")))
 READ = re.compile(r"""(?:GET|query_params)\.(?:get|getlist)\(\s*["']([A-Za-z_]+)["']""")
 # Read through serializers or helpers rather than `.get("…")` in a view.
 ALSO_READ = (

@@ -116,6 +116,15 @@ def test_the_table_api_refuses_what_it_does_not_know(world, params: dict) -> Non
     assert response.status_code == 400 and response.json()["error"]
 
 
+@pytest.mark.parametrize("page", ["5", "99999999999999999999999999"])
+def test_a_page_past_the_last_is_empty(world, page: str) -> None:
+    client = Client()
+    client.force_login(world.viewer)
+    table = _table(client, page=page, page_size="2")
+    assert (table["count"], table["pages"], table["results"]) == (1, 1, [])
+    assert table["page"] == int(page)
+
+
 def test_the_table_api_is_for_members_only(world) -> None:
     assert Client().get("/fleet/table/").status_code == 302  # to the login page
     client = Client()
