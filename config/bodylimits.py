@@ -82,16 +82,22 @@ class BodyLimitMiddleware(EventLoopHooks, MiddlewareMixin):
         return None
 
     def process_exception(self, request: HttpRequest, exception: Exception) -> HttpResponse | None:
-        if isinstance(exception, RequestDataTooBig):
-            return JsonResponse(refusal(int(settings.DATA_UPLOAD_MAX_MEMORY_SIZE)), status=413)
-        if isinstance(exception, TooManyFieldsSent):
-            body = refusal(0)
-            body["error"] = (
-                f"The request has more than {settings.DATA_UPLOAD_MAX_NUMBER_FIELDS} fields; "
-                "nothing was stored."
-            )
-            return JsonResponse(body, status=413)
-        return None
+        return too_big(exception)
+
+
+def too_big(exception: Exception) -> HttpResponse | None:
+    """The 413 for Django's own refusal of a form (too big, too many fields); None for
+    any other exception."""
+    if isinstance(exception, RequestDataTooBig):
+        return JsonResponse(refusal(int(settings.DATA_UPLOAD_MAX_MEMORY_SIZE)), status=413)
+    if isinstance(exception, TooManyFieldsSent):
+        body = refusal(0)
+        body["error"] = (
+            f"The request has more than {settings.DATA_UPLOAD_MAX_NUMBER_FIELDS} fields; "
+            "nothing was stored."
+        )
+        return JsonResponse(body, status=413)
+    return None
 
 
 class BodyLimitASGI:

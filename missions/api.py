@@ -20,7 +20,6 @@ from drf_spectacular.utils import (
 )
 from rest_framework import exceptions, serializers, status, viewsets
 from rest_framework.decorators import action
-from rest_framework.parsers import FormParser, JSONParser, MultiPartParser
 from rest_framework.request import Request
 from rest_framework.response import Response
 
@@ -290,7 +289,6 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     """Missions of the user's organisations: plan, create, start, stop, follow, export."""
 
     permission_classes = [OrganisationRole]
-    parser_classes = [JSONParser, FormParser, MultiPartParser]
 
     def get_queryset(self):  # type: ignore[no-untyped-def]
         queryset = Mission.objects.for_user(self.request.user).select_related("organisation")

@@ -53,8 +53,8 @@ MIDDLEWARE = [
     "config.outage.outage_middleware",
     "django.middleware.security.SecurityMiddleware",
     "config.csp.ContentSecurityPolicyMiddleware",
-    # No view meets a NUL character in its address or query (config/urlchars.py).
-    "config.urlchars.NulInUrlMiddleware",
+    # No view meets a NUL character in its address, query or form (config/urlchars.py).
+    "config.urlchars.NulCharacterMiddleware",
     "config.bodylimits.BodyLimitMiddleware",
     "config.staticfiles.StaticFilesMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",
@@ -135,10 +135,11 @@ REST_FRAMEWORK = {
         "accounts.authentication.SessionAuthentication",
     ],
     "DEFAULT_PERMISSION_CLASSES": ["rest_framework.permissions.IsAuthenticated"],
+    # DRF's own, refusing a body that holds NUL (config/parsers.py).
     "DEFAULT_PARSER_CLASSES": [
-        "rest_framework.parsers.JSONParser",
-        "rest_framework.parsers.FormParser",
-        "rest_framework.parsers.MultiPartParser",
+        "config.parsers.JSONParser",
+        "config.parsers.FormParser",
+        "config.parsers.MultiPartParser",
     ],
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
     "EXCEPTION_HANDLER": "config.api.exception_handler",
