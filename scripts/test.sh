@@ -12,8 +12,10 @@ PY=.venv/bin/python
 # never share a database, a queue or a drone id. Most end-to-end tests wait on simulated
 # drones rather than compute, so more workers than cores pays, even on 2 cores. The
 # real-time tests (simulated flights against time bounds) would miss their bounds while
-# other workers hold the CPU: they run afterwards, alone. TEST_WORKERS=1 runs the whole
-# suite serially on .data/test.
+# other workers hold the CPU: they run in a pytest of their own on .data/test's services,
+# beside the workers but at ten times their CPU weight (scripts/cpu_weights.sh), or
+# afterwards, alone, where weights cannot be set. TEST_WORKERS=1 runs the whole suite
+# serially on .data/test.
 WORKERS=${TEST_WORKERS:-4}
 REDIS_BASE=${TEST_REDIS_PORT:-63791}; MQTT_BASE=${TEST_MQTT_PORT:-18831}
 workers=(); [ "$WORKERS" -gt 1 ] && for k in $(seq 0 $((WORKERS - 1))); do workers+=("$k"); done
@@ -30,14 +32,10 @@ worker_services() { # worker_services K ACTION...: scripts/services.sh ACTIONs f
 
 # Stop at the end only what this run started: services that were up already (a
 # developer's own `make test-services-up`) are left running.
+# The real-time tests run on .data/test's own services, beside the workers'.
 status=$(scripts/services.sh status test)
-if [ ${#workers[@]} -eq 0 ]; then
-  base_started=""; grep -q "down" <<<"$status" && base_started=yes
-  scripts/services.sh start test || exit 1
-else
-  base_started=""; grep -q "PostgreSQL down" <<<"$status" && base_started=yes
-  scripts/services.sh pg-start test || exit 1
-fi
+base_started=""; grep -q "down" <<<"$status" && base_started=yes
+scripts/services.sh start test || exit 1
 [ -n "$base_started" ] || echo "[test] reusing the running test services"
 started=()
 for k in "${workers[@]}"; do
@@ -54,10 +52,10 @@ cleanup() {
   RABBIT_PORT_BASE=${RABBIT_PORT_BASE:-18900} scripts/rabbitmq.sh stop "${RABBIT_PROFILE:-test-rabbitmq}" 2>/dev/null || true
   for k in "${started[@]}"; do worker_services "$k" mosquitto-stop redis-stop & done
   wait
-  if [ -n "$base_started" ]; then
-    if [ ${#workers[@]} -eq 0 ]; then scripts/services.sh stop test; else scripts/services.sh pg-stop test; fi
-  fi
+  [ -z "$weights" ] || scripts/cpu_weights.sh remove "$weights"
+  [ -z "$base_started" ] || scripts/services.sh stop test
 }
+weights=""
 trap cleanup EXIT
 [ -z "$failed" ] || exit 1
 
@@ -66,9 +64,7 @@ export DJANGO_SETTINGS_MODULE=config.settings.test
 echo "[test] ruff"
 $PY -m ruff check .
 echo "[test] migrations are up to date"
-# Against the first worker's database when the serial profile's services are not started.
-first_profile=(); [ ${#workers[@]} -gt 0 ] && first_profile=(env PYTEST_XDIST_WORKER=gw0)
-"${first_profile[@]}" $PY manage.py makemigrations --check --dry-run >/dev/null
+$PY manage.py makemigrations --check --dry-run >/dev/null
 if [ -f firmware/arming_switch/Makefile ]; then
   echo "[test] arming-switch firmware host tests"
   make -s --no-print-directory -C firmware/arming_switch test
@@ -89,9 +85,28 @@ if [ ${#workers[@]} -eq 0 ]; then
 elif [ -n "$own_marks" ]; then  # the caller chose the tests by marker: one parallel run
   pytest_run -n "$WORKERS" --dist loadgroup "$@"
   rc=$?
+elif weights=$(scripts/cpu_weights.sh make); then
+  # The real-time tests (marker `realtime`) in a pytest of their own, on .data/test's
+  # services and database, beside everything else in parallel: their processes weigh ten
+  # times the workers' on the CPU, so the workers take only what they leave idle. Their
+  # report is printed once both are done.
+  realtime_log=$BASETEMP-realtime.log
+  echo "[test] real-time tests beside the others, at ten times their CPU weight ($realtime_log)"
+  (scripts/cpu_weights.sh join "$weights" realtime && exec env -u PYTEST_XDIST_WORKER \
+    $PY -m pytest --durations=25 --basetemp "$BASETEMP-realtime" -m realtime "$@" \
+    >"$realtime_log" 2>&1) &
+  realtime_pid=$!
+  (scripts/cpu_weights.sh join "$weights" others && \
+    exec $PY -m pytest --durations=25 --basetemp "$BASETEMP" -n "$WORKERS" --dist loadgroup -m "not realtime" "$@")
+  rc_parallel=$?
+  wait "$realtime_pid"
+  rc_alone=$?
+  echo "[test] real-time tests"
+  cat "$realtime_log"
+  rc=$(( rc_parallel == 5 ? rc_alone : rc_alone == 5 ? rc_parallel : rc_parallel | rc_alone ))
 else
-  # Everything else in parallel, then the real-time tests (marker `realtime`) in one
-  # worker (gw0's services) with the machine to themselves.
+  # Where CPU weights cannot be set: everything else in parallel, then the real-time tests
+  # in one worker (gw0's services) with the machine to themselves.
   pytest_run -n "$WORKERS" --dist loadgroup -m "not realtime" "$@"
   rc_parallel=$?
   echo "[test] real-time tests, alone"

@@ -44,7 +44,8 @@ def build_world() -> World:
 
 # Tests whose assertions hold only with a core to spare (simulated flights in real time,
 # frame rates, a deadline after a kill, ticks on time): marked `realtime`, which a
-# parallel run (scripts/test.sh) runs in one worker once every other test has finished.
+# parallel run (scripts/test.sh) runs in a pytest of its own whose processes weigh ten
+# times the workers' on the CPU (or after them, alone, where weights cannot be set).
 REAL_TIME = (
     "tests/missions/test_experiments.py",
     "tests/airspace/test_e2e.py",
