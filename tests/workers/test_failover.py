@@ -105,14 +105,19 @@ def test_a_killed_node_moves_the_gateway_ingest_and_drone_links_to_the_other_los
     assert wait_for(lambda: len(SEEN) >= 50 and stored(world_tx.drone.pk)[0] >= 50, 10)
     time.sleep(0.2)  # acknowledgements are batched: let them reach the node
 
-    # Hold the agent away long enough for the ground's messages to wait in its session.
-    agent.client.reconnect_delay_set(min_delay=2, max_delay=2)
+    # Hold the agent away until the ground's messages wait in its session: its network
+    # thread stops once it has seen the node go (a reconnect delay of a minute, which the
+    # stop cuts short, keeps it from coming back first) and starts again after the queueing,
+    # however long a loaded machine takes over it.
+    agent.client.reconnect_delay_set(min_delay=60, max_delay=60)
     cluster.kill_node(2)
     assert wait_for(lambda: not agent.connected, 5)
+    agent.client.loop_stop()
     fly(50, 50)  # while the ground is still failing over: queued on node 1's mirror
     for n in range(10):
         to_agent(f"while away {n}")
-    assert not agent.connected, "the agent came back before the test could queue for it"
+    agent.client.reconnect_delay_set(min_delay=0.1, max_delay=1)
+    agent.client.loop_start()
 
     assert wait_for(lambda: gateway.consumer.sessions == 2 and ingest.subscriber.sessions == 2)
     assert wait_for(lambda: gateway.connected.is_set() and gateway.port == cluster.mqtt_port(1))
