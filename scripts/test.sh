@@ -12,13 +12,16 @@ PY=.venv/bin/python
 # never share a database, a queue or a drone id. Most end-to-end tests wait on simulated
 # drones rather than compute, so more workers than cores pays, even on 2 cores. The
 # real-time tests (simulated flights against time bounds) would miss their bounds while
-# other workers hold the CPU: they run in a pytest of their own on .data/test's services,
-# beside the workers but at ten times their CPU weight (scripts/cpu_weights.sh), or
-# afterwards, alone, where weights cannot be set. TEST_WORKERS=1 runs the whole suite
-# serially on .data/test.
+# other workers hold the CPU: they run beside the workers in a pytest of their own, with
+# services of their own (.data/test-realtime, on the test ports plus 9), all of it at ten
+# times the workers' CPU weight (scripts/cpu_weights.sh); where weights cannot be set,
+# after the workers, alone. TEST_WORKERS=1 runs the whole suite serially on .data/test.
 WORKERS=${TEST_WORKERS:-4}
-REDIS_BASE=${TEST_REDIS_PORT:-63791}; MQTT_BASE=${TEST_MQTT_PORT:-18831}
+PG_BASE=${TEST_PG_PORT:-54331}; REDIS_BASE=${TEST_REDIS_PORT:-63791}; MQTT_BASE=${TEST_MQTT_PORT:-18831}
+REALTIME_OFFSET=9
 workers=(); [ "$WORKERS" -gt 1 ] && for k in $(seq 0 $((WORKERS - 1))); do workers+=("$k"); done
+own_marks=""
+for arg in "$@"; do case "$arg" in -m*) own_marks=yes ;; esac; done
 worker_services() { # worker_services K ACTION...: scripts/services.sh ACTIONs for worker K
   local k=$1 dir="$ROOT/.data/test-gw$1" action; shift
   mkdir -p "$dir"
@@ -29,13 +32,22 @@ worker_services() { # worker_services K ACTION...: scripts/services.sh ACTIONs f
       scripts/services.sh "$action" test >/dev/null || return 1
   done
 }
+realtime_services() { # realtime_services ACTION: scripts/services.sh ACTION for the real-time run
+  DATA_DIR="$ROOT/.data/test-realtime" TEST_PG_PORT=$((PG_BASE + REALTIME_OFFSET)) \
+    TEST_REDIS_PORT=$((REDIS_BASE + REALTIME_OFFSET)) TEST_MQTT_PORT=$((MQTT_BASE + REALTIME_OFFSET)) \
+    scripts/services.sh "$1" test >/dev/null
+}
 
 # Stop at the end only what this run started: services that were up already (a
 # developer's own `make test-services-up`) are left running.
-# The real-time tests run on .data/test's own services, beside the workers'.
 status=$(scripts/services.sh status test)
-base_started=""; grep -q "down" <<<"$status" && base_started=yes
-scripts/services.sh start test || exit 1
+if [ ${#workers[@]} -eq 0 ]; then
+  base_started=""; grep -q "down" <<<"$status" && base_started=yes
+  scripts/services.sh start test || exit 1
+else
+  base_started=""; grep -q "PostgreSQL down" <<<"$status" && base_started=yes
+  scripts/services.sh pg-start test || exit 1
+fi
 [ -n "$base_started" ] || echo "[test] reusing the running test services"
 started=()
 for k in "${workers[@]}"; do
@@ -45,17 +57,24 @@ for k in "${workers[@]}"; do
 done
 pids=()
 for k in "${workers[@]}"; do worker_services "$k" redis-start mosquitto-start env & pids+=($!); done
+# The real-time run's services start in its group, so they share its CPU weight.
+weights=""
+if [ ${#workers[@]} -gt 0 ] && [ -z "$own_marks" ] && weights=$(scripts/cpu_weights.sh make); then
+  (scripts/cpu_weights.sh join "$weights" realtime && realtime_services start) & pids+=($!)
+fi
 failed=""
 for pid in "${pids[@]}"; do wait "$pid" || failed=yes; done
 cleanup() {
   # The scale tests' RabbitMQ cluster stops itself; this catches an interrupted run.
   RABBIT_PORT_BASE=${RABBIT_PORT_BASE:-18900} scripts/rabbitmq.sh stop "${RABBIT_PROFILE:-test-rabbitmq}" 2>/dev/null || true
   for k in "${started[@]}"; do worker_services "$k" mosquitto-stop redis-stop & done
+  [ -z "$weights" ] || realtime_services stop &
   wait
   [ -z "$weights" ] || scripts/cpu_weights.sh remove "$weights"
-  [ -z "$base_started" ] || scripts/services.sh stop test
+  if [ -n "$base_started" ]; then
+    if [ ${#workers[@]} -eq 0 ]; then scripts/services.sh stop test; else scripts/services.sh pg-stop test; fi
+  fi
 }
-weights=""
 trap cleanup EXIT
 [ -z "$failed" ] || exit 1
 
@@ -64,7 +83,9 @@ export DJANGO_SETTINGS_MODULE=config.settings.test
 echo "[test] ruff"
 $PY -m ruff check .
 echo "[test] migrations are up to date"
-$PY manage.py makemigrations --check --dry-run >/dev/null
+# Against the first worker's database when the serial profile's services are not started.
+first_profile=(); [ ${#workers[@]} -gt 0 ] && first_profile=(env PYTEST_XDIST_WORKER=gw0)
+"${first_profile[@]}" $PY manage.py makemigrations --check --dry-run >/dev/null
 if [ -f firmware/arming_switch/Makefile ]; then
   echo "[test] arming-switch firmware host tests"
   make -s --no-print-directory -C firmware/arming_switch test
@@ -77,43 +98,40 @@ echo "[test] pytest"
 BASETEMP=${TMPDIR:-/tmp}/skyhive-test-$(id -u)-$(printf %s "$ROOT" | md5sum | cut -c1-8)
 # The slowest tests are listed at the end: where the suite's time goes.
 pytest_run() { $PY -m pytest --durations=25 --basetemp "$BASETEMP" "$@"; }
-own_marks=""
-for arg in "$@"; do case "$arg" in -m*) own_marks=yes ;; esac; done
+# Exit 5 is "no test selected": fine for one of two parts, not for both.
+either() { echo $(( $1 == 5 ? $2 : $2 == 5 ? $1 : $1 | $2 )); }
 if [ ${#workers[@]} -eq 0 ]; then
   pytest_run "$@"
   rc=$?
 elif [ -n "$own_marks" ]; then  # the caller chose the tests by marker: one parallel run
   pytest_run -n "$WORKERS" --dist loadgroup "$@"
   rc=$?
-elif weights=$(scripts/cpu_weights.sh make); then
-  # The real-time tests (marker `realtime`) in a pytest of their own, on .data/test's
-  # services and database, beside everything else in parallel: their processes weigh ten
-  # times the workers' on the CPU, so the workers take only what they leave idle. Their
-  # report is printed once both are done.
+elif [ -n "$weights" ]; then
+  # The real-time tests (marker `realtime`) in their group, on their services (the test
+  # settings read .data/test-<name>/env for the worker PYTEST_XDIST_WORKER names), beside
+  # everything else in parallel in the other group. Their report follows the workers'.
   realtime_log=$BASETEMP-realtime.log
-  echo "[test] real-time tests beside the others, at ten times their CPU weight ($realtime_log)"
-  (scripts/cpu_weights.sh join "$weights" realtime && exec env -u PYTEST_XDIST_WORKER \
-    $PY -m pytest --durations=25 --basetemp "$BASETEMP-realtime" -m realtime "$@" \
+  echo "[test] the real-time tests run beside the others, at ten times their CPU weight"
+  (scripts/cpu_weights.sh join "$weights" realtime && PYTEST_XDIST_WORKER=realtime \
+    exec $PY -m pytest --durations=25 --basetemp "$BASETEMP-realtime" -m realtime "$@" \
     >"$realtime_log" 2>&1) &
   realtime_pid=$!
   (scripts/cpu_weights.sh join "$weights" others && \
     exec $PY -m pytest --durations=25 --basetemp "$BASETEMP" -n "$WORKERS" --dist loadgroup -m "not realtime" "$@")
   rc_parallel=$?
   wait "$realtime_pid"
-  rc_alone=$?
-  echo "[test] real-time tests"
+  rc_realtime=$?
+  echo "[test] the real-time tests"
   cat "$realtime_log"
-  rc=$(( rc_parallel == 5 ? rc_alone : rc_alone == 5 ? rc_parallel : rc_parallel | rc_alone ))
+  rc=$(either $rc_parallel $rc_realtime)
 else
-  # Where CPU weights cannot be set: everything else in parallel, then the real-time tests
-  # in one worker (gw0's services) with the machine to themselves.
+  # Everything else in parallel, then the real-time tests in one worker (gw0's services)
+  # with the machine to themselves.
   pytest_run -n "$WORKERS" --dist loadgroup -m "not realtime" "$@"
   rc_parallel=$?
   echo "[test] real-time tests, alone"
   pytest_run -n 1 -m realtime "$@"
-  rc_alone=$?
-  # Exit 5 is "no test selected": fine for one part, not for both.
-  rc=$(( rc_parallel == 5 ? rc_alone : rc_alone == 5 ? rc_parallel : rc_parallel | rc_alone ))
+  rc=$(either $rc_parallel $?)
 fi
 echo "[test] the whole run took $(( $(date +%s) - STARTED_AT )) s"
 # pytest exit 5 means no tests ran: that is a failure for us.

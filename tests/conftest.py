@@ -69,6 +69,23 @@ REAL_TIME = (
 )
 # Markers of the tests that take seconds to minutes each (pyproject.toml).
 LONG_MARKS = ("e2e", "browser", "slow")
+# The tests outside the RabbitMQ worker that take about a minute or more each (setup, call
+# and teardown in a lone run of `make test`, the real-time tests beside them): started
+# before the other long ones, since one of them started last would hold the run's end.
+LONGEST = (
+    "tests/workers/test_outage.py",  # two outages of a minute: 78 and 89 s
+    "tests/config/test_offline_browser.py",  # every page, at two sizes: 67-110 s each
+    "tests/config/test_csp_browser.py",  # every page under the policy: 72 and 89 s
+    "tests/airspace/test_landing_e2e.py::test_ten_drones_sent_home",  # 100 s
+    "tests/batteries/test_uavtalk_flight.py",  # 57 s
+)
+
+
+def _start_rank(item: pytest.Item) -> int:
+    """0 for the longest tests, 1 for the other long ones, 2 for the rest."""
+    if item.nodeid.startswith(LONGEST):
+        return 0
+    return 1 if any(item.get_closest_marker(m) for m in LONG_MARKS) else 2
 
 
 def _rabbitmq_user(item: pytest.Item) -> bool:
@@ -82,7 +99,18 @@ def _rabbitmq_user(item: pytest.Item) -> bool:
     )
 
 
-@pytest.hookimpl(tryfirst=True)
+# What a test that reads or writes the worker's test database asks for (every test's
+# fixtures include pytest-django's `django_db_blocker`, which alone gives no access).
+DATABASE_FIXTURES = frozenset(("db", "transactional_db", "django_db_setup", "live_server"))
+
+
+def _needs_test_database(item: pytest.Item) -> bool:
+    return item.get_closest_marker("django_db") is not None or not DATABASE_FIXTURES.isdisjoint(
+        getattr(item, "fixturenames", ())
+    )
+
+
+@pytest.hookimpl(wrapper=True)
 def pytest_collection_modifyitems(config, items):  # type: ignore[no-untyped-def]
     """Under pytest-xdist (--dist loadgroup) every RabbitMQ test runs in one worker: the
     session's two-node cluster then starts once, on the one port base of this run
@@ -97,10 +125,18 @@ def pytest_collection_modifyitems(config, items):  # type: ignore[no-untyped-def
         elif item.nodeid.startswith("tests/firmware/test_arming_switch.py"):
             # They build and run one firmware binary in the checkout: one worker at a time.
             item.add_marker(pytest.mark.xdist_group("firmware-build"))
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        # The long tests first (a stable sort: modules stay together), so that none of them
-        # starts last while the other workers have run out of work.
-        items.sort(key=lambda item: not any(item.get_closest_marker(m) for m in LONG_MARKS))
+    parallel = bool(os.environ.get("PYTEST_XDIST_WORKER"))
+    if parallel:
+        # The long tests first, the longest before them (a stable sort: modules stay
+        # together), so that none of them starts last while the other workers have run out
+        # of work. pytest-django then puts the tests that use the database in its order
+        # (in a transaction, committed, none), which this sort survives within each.
+        items.sort(key=_start_rank)
+    result = yield
+    if parallel:
+        # Where the test database's order does not matter, the long tests go before all.
+        items.sort(key=lambda item: _needs_test_database(item) or _start_rank(item) == 2)
+    return result
 
 
 @pytest.fixture

@@ -69,8 +69,11 @@ def beat_argv(schedule: Path) -> list[str]:
 
 def ready_text(kind: str, amqp: bool) -> tuple[str, ...]:
     """What a process of `kind` logs once it is serving. On RabbitMQ the gateway's MQTT
-    connection only publishes and both consume AMQP queues (workers.broker)."""
+    connection only publishes and both consume AMQP queues (workers.broker). A web server
+    says it is running only once it holds its port: its port taking connections alone
+    could be another process's."""
     return {
+        "web": ("Uvicorn running on",),
         "gateway": ("connected to", "consuming") if amqp else ("connected to",),
         "ingest": ("consuming",) if amqp else ("subscribed",),
         "worker": (" ready.",),
@@ -124,8 +127,16 @@ class GroundProcesses:
         return process
 
     def add_web(self) -> Supervised:
-        port = free_port()
+        port = self._free_port()
         return self._add("web", lambda _: web_argv(port), port)
+
+    def _free_port(self) -> int:
+        """A free port none of these processes was given: the OS may hand the same free
+        port out twice while neither is bound yet."""
+        given = {process.port for process in self.processes.values()}
+        while (port := free_port()) in given:
+            pass
+        return port
 
     def add_gateway(self) -> Supervised:
         return self._add("gateway", lambda name: gateway_argv(f"{self.client_prefix}-{name}"))
@@ -184,7 +195,7 @@ class GroundProcesses:
                 last = attempt == WEB_PORT_TRIES - 1
                 if last or process.alive or not taken or not process.name.startswith("web"):
                     raise
-            process.port = free_port()
+            process.port = self._free_port()
             process.argv = web_argv(process.port)
             process.start()
 
