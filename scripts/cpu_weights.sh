@@ -5,8 +5,9 @@
 # group whatever the other leaves idle; a process's children stay in its group, whatever
 # session or process group they make for themselves.
 #
-#   scripts/cpu_weights.sh make            prints a handle, or fails where groups cannot be
-#                                          made (no write access to the controller)
+#   scripts/cpu_weights.sh make PID        prints a handle for groups that live as long as
+#                                          process PID (the run), or fails where groups
+#                                          cannot be made (no write access to the controller)
 #   scripts/cpu_weights.sh join H GROUP    moves the calling shell into GROUP (realtime|others)
 #   scripts/cpu_weights.sh remove H        moves what is left to the root group, removes both
 set -uo pipefail
@@ -24,7 +25,7 @@ root_of() { # root_of HANDLE: the hierarchy the handle's groups live in
 
 make_groups() {
   local name version root group
-  name=skyhive-test-$$-$(date +%s%N)
+  name=skyhive-test-$1-$(date +%s%N)
   if [ -w "$V1" ] && [ -f "$V1/cpu.shares" ]; then
     version=v1 root=$V1
   elif [ -w "$V2" ] && grep -qw cpu "$V2/cgroup.subtree_control" 2>/dev/null; then
@@ -32,6 +33,7 @@ make_groups() {
   else
     return 1
   fi
+  sweep "$root"
   for group in realtime others; do
     mkdir "$root/$name-$group" 2>/dev/null || { remove_groups "$version:$name"; return 1; }
     if [ $version = v1 ]; then
@@ -41,6 +43,15 @@ make_groups() {
     fi || { remove_groups "$version:$name"; return 1; }
   done
   echo "$version:$name"
+}
+
+sweep() { # sweep ROOT: the empty groups of runs that are gone (their PID is in the name)
+  local group pid
+  for group in "$1"/skyhive-test-*-*-realtime "$1"/skyhive-test-*-*-others; do
+    [ -d "$group" ] || continue
+    pid=${group##*/skyhive-test-}; pid=${pid%%-*}
+    kill -0 "$pid" 2>/dev/null || rmdir "$group" 2>/dev/null || true
+  done
 }
 
 join_group() { # join_group HANDLE GROUP: the caller's shell is our parent
@@ -59,8 +70,8 @@ remove_groups() {
 }
 
 case "${1:-}" in
-  make) make_groups ;;
+  make) make_groups "$2" ;;
   join) join_group "$2" "$3" ;;
   remove) remove_groups "$2" ;;
-  *) echo "usage: $0 make | join HANDLE GROUP | remove HANDLE" >&2; exit 2 ;;
+  *) echo "usage: $0 make PID | join HANDLE GROUP | remove HANDLE" >&2; exit 2 ;;
 esac

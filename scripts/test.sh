@@ -59,7 +59,7 @@ pids=()
 for k in "${workers[@]}"; do worker_services "$k" redis-start mosquitto-start env & pids+=($!); done
 # The real-time run's services start in its group, so they share its CPU weight.
 weights=""
-if [ ${#workers[@]} -gt 0 ] && [ -z "$own_marks" ] && weights=$(scripts/cpu_weights.sh make); then
+if [ ${#workers[@]} -gt 0 ] && [ -z "$own_marks" ] && weights=$(scripts/cpu_weights.sh make $$); then
   (scripts/cpu_weights.sh join "$weights" realtime && realtime_services start) & pids+=($!)
 fi
 failed=""
