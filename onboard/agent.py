@@ -546,11 +546,9 @@ class Agent:
             self.send("mission", protocol.mission_reply(request, "rejected", error=stale))
             return
         if isinstance(request, protocol.MissionStart):
-            self.failsafe.ground_took_over()
+            self.failsafe.mission_requested()
         elif isinstance(request, protocol.MissionStop):
-            # Not a takeover: a late stop for a mission the fail-safe already ended must
-            # not leave a returning drone hovering.
-            self.failsafe.after_stop = follow_up
+            self.failsafe.stop_requested(follow_up)
         self.worker.submit(request)
 
     def _stale(self, obj: Any, limit: float) -> str | None:

@@ -153,8 +153,11 @@ class FailSafe:
         # What the fail-safe is doing with the drone: "return", "land", "hold" or None.
         self.recovery: str | None = None
         self.drain = DrainMeter()
-        # What a mission stopped by the ground leaves the drone doing (the stop's `then`).
-        self.after_stop = "hold"
+        # What a mission stopped by the ground leaves the drone doing (the stop's `then`);
+        # None once a command received after the stop has overtaken it.
+        self.after_stop: str | None = "hold"
+        # A stop has been received and its mission has not wound down yet.
+        self._stop_pending = False
         self._lock = threading.Lock()
         # Held while the fail-safe decides and sends a take-over's commands (the mission
         # thread at a mission's end, the supervisor's tick): a decision made on another
@@ -232,12 +235,29 @@ class FailSafe:
         return True
 
     def ground_took_over(self) -> None:
-        """The ground sent a command or a mission: the operator decides from now on."""
+        """The ground sent a command or a mission: the operator decides from now on.
+        A command received after a stop overtakes the stop's follow-up: the stopped
+        mission may wind down after the command has flown (they run on different
+        threads), and a hold then would undo the operator's landing."""
         with self._lock:
             if self._critical is not None:
                 self._critical.taken_over = True
             self.recovery = None
-            self.after_stop = "hold"
+            self.after_stop = None if self._stop_pending else "hold"
+
+    def mission_requested(self) -> None:
+        """A new mission from the ground: no earlier stop is pending any more."""
+        with self._lock:
+            self._stop_pending = False
+        self.ground_took_over()
+
+    def stop_requested(self, follow_up: str) -> None:
+        """The ground stopped the mission; `follow_up` is what the drone does once it
+        has wound down, unless a command overtakes it. Not a take-over: a late stop for
+        a mission the fail-safe already ended must not leave a returning drone hovering."""
+        with self._lock:
+            self.after_stop = follow_up
+            self._stop_pending = True
 
     # -- sensor bounds --------------------------------------------------------------------
 
@@ -394,6 +414,7 @@ class FailSafe:
     def mission_ended(self, status: str) -> None:
         """A completed mission ends on the ground, disarmed; a stopped one holds in place."""
         state = self.fc.state
+        follow_up = self._take_follow_up() if status == "stopped" else None
         if self.recovery is not None or not state.armed:
             return
         if status == "completed" and state.airborne and not self._landing():
@@ -401,11 +422,19 @@ class FailSafe:
         elif status == "completed" and not state.airborne:
             self._disarm("the mission is complete")
         elif status == "stopped" and state.airborne:
-            self._after_stop()
+            self._after_stop(follow_up)
 
-    def _after_stop(self) -> None:
-        follow_up, self.after_stop = self.after_stop, "hold"
-        if follow_up == "return":
+    def _take_follow_up(self) -> str | None:
+        """The stop's follow-up, once: the next mission's stop says its own."""
+        with self._lock:
+            follow_up, self.after_stop = self.after_stop, "hold"
+            self._stop_pending = False
+        return follow_up
+
+    def _after_stop(self, follow_up: str | None) -> None:
+        if follow_up is None:
+            log.info("mission stopped: the command sent after the stop stands")
+        elif follow_up == "return":
             self.return_home("the mission was stopped with a return")
         elif follow_up == "land":
             self.land_here("the mission was stopped with a landing")

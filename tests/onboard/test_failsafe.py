@@ -319,3 +319,37 @@ def test_request_age_holds_up_to_a_drone_clock_an_hour_ahead() -> None:
     assert clock.offset == pytest.approx(3600.0)  # the quickest delivery seen
     drone.advance(601)  # old samples leave the window; a fresh one is the reference
     assert clock.age(ground_now + 666) == pytest.approx(0.0, abs=0.3)
+
+
+def test_a_command_sent_after_a_stop_is_not_undone_when_the_mission_winds_down() -> None:
+    # The ground stops a mission and then asks for a landing on the control channel; the
+    # landing can fly before the mission thread has wound the mission down.
+    fc = airborne(north=20, altitude=10)
+    failsafe, _, _ = failsafe_for(fc)
+    failsafe.mission_requested()
+    failsafe.stop_requested("hold")
+    failsafe.ground_took_over()  # the landing arrives
+    fc.land()
+    failsafe.mission_ended("stopped")
+    assert fc.calls[-1] == ("land",) and failsafe.recovery is None
+
+
+def test_a_stop_received_after_a_command_still_holds() -> None:
+    fc = airborne(north=20, altitude=10)
+    failsafe, _, _ = failsafe_for(fc)
+    failsafe.mission_requested()
+    failsafe.ground_took_over()  # an operator command during the mission
+    failsafe.stop_requested("hold")
+    failsafe.mission_ended("stopped")
+    assert failsafe.recovery == "hold" and fc.calls[-1] == ("goto", 20.0, 0.0, -10.0)
+
+
+def test_a_mission_stopped_by_a_failed_step_holds_whatever_came_before() -> None:
+    # A stop for a mission that was not running leaves nothing pending for the next one.
+    fc = airborne(north=20, altitude=10)
+    failsafe, _, _ = failsafe_for(fc)
+    failsafe.stop_requested("return")
+    failsafe.mission_requested()
+    failsafe.ground_took_over()
+    failsafe.mission_ended("stopped")
+    assert failsafe.recovery == "hold" and fc.calls[-1] == ("goto", 20.0, 0.0, -10.0)
