@@ -12,10 +12,11 @@ PY=.venv/bin/python
 # never share a database, a queue or a drone id. Most end-to-end tests wait on simulated
 # drones rather than compute, so more workers than cores pays, even on 2 cores. The
 # real-time tests (simulated flights against time bounds) would miss their bounds while
-# other workers hold the CPU: they run after the workers, alone. With TEST_REALTIME_BESIDE=1
-# they run beside the workers in a pytest of their own, with services of their own
-# (.data/test-realtime, on the test ports plus 9), all of it at ten times the workers' CPU
-# weight (scripts/cpu_weights.sh), where weights can be set. TEST_WORKERS=1 runs the whole suite serially on .data/test.
+# other workers hold the CPU: they run beside the workers in a pytest of their own, with
+# services of their own (.data/test-realtime, on the test ports plus 9), all of it at ten
+# times the workers' CPU weight (scripts/cpu_weights.sh). Where weights cannot be set, or
+# with TEST_REALTIME_BESIDE=0, they run after the workers instead, alone. The tests marked
+# `alone` run last, in one worker. TEST_WORKERS=1 runs the whole suite serially on .data/test.
 WORKERS=${TEST_WORKERS:-4}
 PG_BASE=${TEST_PG_PORT:-54331}; REDIS_BASE=${TEST_REDIS_PORT:-63791}; MQTT_BASE=${TEST_MQTT_PORT:-18831}
 REALTIME_OFFSET=9
@@ -59,9 +60,7 @@ pids=()
 for k in "${workers[@]}"; do worker_services "$k" redis-start mosquitto-start env & pids+=($!); done
 # The real-time run's services start in its group, so they share its CPU weight.
 weights=""
-# Opt-in (TEST_REALTIME_BESIDE=1): a lone run of the command-rate flood still fell short
-# beside the workers (17 commands in its second where it needs over 30).
-if [ "${TEST_REALTIME_BESIDE:-}" = 1 ] && [ ${#workers[@]} -gt 0 ] && [ -z "$own_marks" ] \
+if [ "${TEST_REALTIME_BESIDE:-1}" = 1 ] && [ ${#workers[@]} -gt 0 ] && [ -z "$own_marks" ] \
   && weights=$(scripts/cpu_weights.sh make $$); then
   (scripts/cpu_weights.sh join "$weights" realtime && realtime_services start) & pids+=($!)
 fi
@@ -120,20 +119,23 @@ elif [ -n "$weights" ]; then
     pytest_run --basetemp "$BASETEMP-realtime" -m realtime "$@" >"$realtime_log" 2>&1) &
   realtime_pid=$!
   (scripts/cpu_weights.sh join "$weights" others && \
-    pytest_run -n "$WORKERS" --dist loadgroup -m "not realtime" "$@")
+    pytest_run -n "$WORKERS" --dist loadgroup -m "not realtime and not alone" "$@")
   rc_parallel=$?
   wait "$realtime_pid"
   rc_realtime=$?
   echo "[test] the real-time tests"
   cat "$realtime_log"
-  rc=$(either $rc_parallel $rc_realtime)
+  # What needs the machine to itself, in one worker (gw0's services), once both are done.
+  echo "[test] the tests that run alone"
+  pytest_run -n 1 -m alone "$@"
+  rc=$(either "$(either $rc_parallel $rc_realtime)" $?)
 else
-  # Everything else in parallel, then the real-time tests in one worker (gw0's services)
-  # with the machine to themselves.
-  pytest_run -n "$WORKERS" --dist loadgroup -m "not realtime" "$@"
+  # Everything else in parallel, then the real-time tests and those that run alone in one
+  # worker (gw0's services) with the machine to themselves.
+  pytest_run -n "$WORKERS" --dist loadgroup -m "not realtime and not alone" "$@"
   rc_parallel=$?
   echo "[test] real-time tests, alone"
-  pytest_run -n 1 -m realtime "$@"
+  pytest_run -n 1 -m "realtime or alone" "$@"
   rc=$(either $rc_parallel $?)
 fi
 echo "[test] the whole run took $(( $(date +%s) - STARTED_AT )) s"

@@ -40,6 +40,18 @@ def flood(client, most: int = 1000) -> list:  # type: ignore[no-untyped-def]
     return answers
 
 
+def full_flood(client, limit: int, tries: int = 5) -> list:  # type: ignore[no-untyped-def]
+    """A flood with more commands in its second than the limit: a second in which this
+    machine sent fewer tells nothing, so it is tried again once the throttle's window has
+    emptied (a busy moment of a shared machine is not a fault of the throttle)."""
+    for _ in range(tries):
+        answers = flood(client)
+        if len(answers) > limit:
+            return answers
+        time.sleep(1.1)  # the one-second window empties of the try's commands
+    raise AssertionError(f"this machine sent at most {limit} commands in a second, {tries} times")
+
+
 def token_client(user):  # type: ignore[no-untyped-def]
     client = client_for()
     client.defaults["HTTP_AUTHORIZATION"] = f"Token {tokens.issue(user, name='flood').key}"
@@ -56,9 +68,8 @@ def test_a_thousand_commands_in_a_second_from_one_token_are_refused_past_the_lim
     # The process's first request loads the whole API; made by another user, it is not
     # part of the flood's second.
     command(token_client(colleague), {"command": "warp"})
-    answers = flood(token_client(world_tx.operator))
+    answers = full_flood(token_client(world_tx.operator), limit)
     statuses = [answer.status_code for answer in answers]
-    assert len(statuses) > limit, "this machine sent too few commands in a second to tell"
     assert statuses[:limit] == [400] * limit
     assert statuses[limit:] == [429] * (len(statuses) - limit)
     assert 0 < float(answers[-1]["Retry-After"]) <= 1
