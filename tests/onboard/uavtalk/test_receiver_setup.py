@@ -39,9 +39,10 @@ OLD_RECEIVER = """<xml>
 """
 
 
-def _driver(url: str, **options) -> UAVTalkFlightController:  # type: ignore[no-untyped-def]
+def _driver(url: str, real_time: bool = False, **options) -> UAVTalkFlightController:  # type: ignore[no-untyped-def]
     switch = UAVTalkReceiverSwitch()
-    fc = UAVTalkFlightController(url, arming_switch=switch, time_scale=SCALE, **options)
+    scale = 1.0 if real_time else SCALE
+    fc = UAVTalkFlightController(url, arming_switch=switch, time_scale=scale, **options)
     fc.start()
     assert fc.wait_connected(5)
     return fc
@@ -251,17 +252,32 @@ def _hold(fc: UAVTalkFlightController, channels: list[int], seconds: float) -> N
         time.sleep(0.04)
 
 
+def _hold_until(fc: UAVTalkFlightController, channels: list[int], seen, seconds: float) -> bool:  # type: ignore[no-untyped-def]
+    """Stream `channels` until `seen()`, as a transmitter does: the board counts values
+    older than half a second as gone, so one write read by a board that stalled for that
+    long would count as a safe frame."""
+    until = time.monotonic() + seconds
+    while time.monotonic() < until:
+        fc.write_object("UAVTalkReceiver", {"Channel": channels, "RSSI": 65535}, acked=False)
+        if seen():
+            return True
+        time.sleep(0.04)
+    return seen()
+
+
 def test_after_a_cancelled_attempt_the_switch_must_go_low_and_the_agent_does_so():
-    sim = start_simulator(home=HOME, time_scale=SCALE, extra_args=_switch_args())
-    fc = _driver(sim.url)
+    # In real time: the attempt must be seen and cancelled within ArmTime (1 s, the
+    # default), which at the other tests' time scale is 50 ms of the wall's, too short
+    # for a loaded machine.
+    sim = start_simulator(home=HOME, time_scale=1.0, extra_args=_switch_args())
+    fc = _driver(sim.url, real_time=True)
     try:
         assert wait_for(lambda: fc.arming_switch.settings is not None, 5)
         arm = fc.arming_switch.channels("arm")
-        _hold(fc, arm, 0.02)
-        assert wait_for(lambda: fc.state.arming, 2)
-        _hold(fc, [9000, *arm[1:]], 0.2)  # throttle up: the attempt is cancelled
-        assert wait_for(lambda: not fc.state.arming, 2)
-        _hold(fc, arm, 0.5)  # ten times ArmTime, switch never low: no arming
+        assert _hold_until(fc, arm, lambda: fc.state.arming, 2)
+        # Throttle up: the attempt is cancelled.
+        assert _hold_until(fc, [9000, *arm[1:]], lambda: not fc.state.arming, 2)
+        _hold(fc, arm, 1.5)  # longer than ArmTime, the switch never low: no arming
         assert not fc.state.armed and not fc.state.arming
         fc.arm(timeout=5)  # the agent drops the switch first, then arms
         assert fc.state.armed
