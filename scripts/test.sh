@@ -12,11 +12,13 @@ PY=.venv/bin/python
 # never share a database, a queue or a drone id. Most end-to-end tests wait on simulated
 # drones rather than compute, so more workers than cores pays, even on 2 cores. The
 # real-time tests (simulated flights against time bounds) would miss their bounds while
-# other workers hold the CPU: they run beside the workers in a pytest of their own, with
-# services of their own (.data/test-realtime, on the test ports plus 9), all of it at ten
-# times the workers' CPU weight (scripts/cpu_weights.sh). Where weights cannot be set, or
-# with TEST_REALTIME_BESIDE=0, they run after the workers instead, alone. The tests marked
-# `alone` run last, in one worker. TEST_WORKERS=1 runs the whole suite serially on .data/test.
+# other workers hold the CPU: they run after the workers, alone, with the tests marked
+# `alone`. With TEST_REALTIME_BESIDE=1 they run beside the workers in a pytest of their
+# own, with services of their own (.data/test-realtime, on the test ports plus 9), all of
+# it at ten times the workers' CPU weight (scripts/cpu_weights.sh), where weights can be
+# set, and the `alone` tests last; about a fifth faster, but the workers' timing-sensitive
+# tests then meet stalls they do not meet otherwise (docs/performance.md).
+# TEST_WORKERS=1 runs the whole suite serially on .data/test.
 WORKERS=${TEST_WORKERS:-4}
 PG_BASE=${TEST_PG_PORT:-54331}; REDIS_BASE=${TEST_REDIS_PORT:-63791}; MQTT_BASE=${TEST_MQTT_PORT:-18831}
 REALTIME_OFFSET=9
@@ -60,7 +62,7 @@ pids=()
 for k in "${workers[@]}"; do worker_services "$k" redis-start mosquitto-start env & pids+=($!); done
 # The real-time run's services start in its group, so they share its CPU weight.
 weights=""
-if [ "${TEST_REALTIME_BESIDE:-1}" = 1 ] && [ ${#workers[@]} -gt 0 ] && [ -z "$own_marks" ] \
+if [ "${TEST_REALTIME_BESIDE:-}" = 1 ] && [ ${#workers[@]} -gt 0 ] && [ -z "$own_marks" ] \
   && weights=$(scripts/cpu_weights.sh make $$); then
   (scripts/cpu_weights.sh join "$weights" realtime && realtime_services start) & pids+=($!)
 fi
