@@ -44,8 +44,8 @@ def build_world() -> World:
 
 # Tests whose assertions hold only with a core to spare (simulated flights in real time,
 # frame rates, a deadline after a kill, ticks on time): marked `realtime`, which a
-# parallel run (scripts/test.sh) runs in a pytest of its own whose processes weigh ten
-# times the workers' on the CPU (or after them, alone, where weights cannot be set).
+# parallel run (scripts/test.sh) runs after the workers, alone (with TEST_REALTIME_BESIDE=1,
+# beside them in a pytest of its own at ten times their CPU weight).
 REAL_TIME = (
     "tests/missions/test_experiments.py",
     "tests/airspace/test_e2e.py",
@@ -66,7 +66,8 @@ REAL_TIME = (
     "tests/livevideo/test_throttled_link.py",
 )
 # Tests that need the machine to themselves for a moment: marked `alone`, which a parallel
-# run runs last, in one worker, after the real-time tests and the others have finished.
+# run runs in one worker once the workers have finished (and the real-time tests too,
+# when those run beside the workers).
 ALONE = (
     # More commands in one second than the limit allows, one at a time: beside the
     # real-time tests, even at ten times the workers' weight, it sent 17 where it needs 31.

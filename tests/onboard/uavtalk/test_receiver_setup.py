@@ -39,10 +39,9 @@ OLD_RECEIVER = """<xml>
 """
 
 
-def _driver(url: str, real_time: bool = False, **options) -> UAVTalkFlightController:  # type: ignore[no-untyped-def]
+def _driver(url: str, time_scale: float = SCALE, **options) -> UAVTalkFlightController:  # type: ignore[no-untyped-def]
     switch = UAVTalkReceiverSwitch()
-    scale = 1.0 if real_time else SCALE
-    fc = UAVTalkFlightController(url, arming_switch=switch, time_scale=scale, **options)
+    fc = UAVTalkFlightController(url, arming_switch=switch, time_scale=time_scale, **options)
     fc.start()
     assert fc.wait_connected(5)
     return fc
@@ -245,13 +244,6 @@ def test_a_board_with_an_arming_switch_in_dronins_scale_is_armed_and_disarmed():
         sim.stop()
 
 
-def _hold(fc: UAVTalkFlightController, channels: list[int], seconds: float) -> None:
-    until = time.monotonic() + seconds
-    while time.monotonic() < until:
-        fc.write_object("UAVTalkReceiver", {"Channel": channels, "RSSI": 65535}, acked=False)
-        time.sleep(0.04)
-
-
 def _hold_until(fc: UAVTalkFlightController, channels: list[int], seen, seconds: float) -> bool:  # type: ignore[no-untyped-def]
     """Stream `channels` until `seen()`, as a transmitter does: the board counts values
     older than half a second as gone, so one write read by a board that stalled for that
@@ -265,12 +257,16 @@ def _hold_until(fc: UAVTalkFlightController, channels: list[int], seen, seconds:
     return seen()
 
 
+def _hold(fc: UAVTalkFlightController, channels: list[int], seconds: float) -> None:
+    _hold_until(fc, channels, lambda: False, seconds)
+
+
 def test_after_a_cancelled_attempt_the_switch_must_go_low_and_the_agent_does_so():
     # In real time: the attempt must be seen and cancelled within ArmTime (1 s, the
     # default), which at the other tests' time scale is 50 ms of the wall's, too short
     # for a loaded machine.
     sim = start_simulator(home=HOME, time_scale=1.0, extra_args=_switch_args())
-    fc = _driver(sim.url, real_time=True)
+    fc = _driver(sim.url, time_scale=1.0)
     try:
         assert wait_for(lambda: fc.arming_switch.settings is not None, 5)
         arm = fc.arming_switch.channels("arm")
