@@ -19,6 +19,8 @@ env = environ.Env()
 env.escape_proxy = True
 
 POSTGRESQL = "django.db.backends.postgresql"
+# Django's PostgreSQL backend with the pool's connection check of config/postgresql.
+BACKEND = "config.postgresql"
 # Each process's connection pool (DB_POOL): kept open, at most this many, and how long a
 # request waits for one.
 POOL = {"min_size": 1, "max_size": 16, "timeout": 10}
@@ -68,6 +70,7 @@ def database_from_url(url: str) -> dict:
         options = {"prepare_threshold": 5, **options}
     return {
         **config,
+        "ENGINE": BACKEND,
         "NAME": config["NAME"] or "skyhive",
         "HOST": config["HOST"] or "127.0.0.1",
         "PORT": str(config["PORT"] or 5432),
@@ -76,8 +79,8 @@ def database_from_url(url: str) -> dict:
         "OPTIONS": ({"pool": dict(POOL), **options} if env.bool("DB_POOL", True) else options),
         "CONN_MAX_AGE": 0,
         # A connection is checked before its first use in a request (or a task, or a
-        # process's unit of work) and replaced if dead: with the pool, Django passes the
-        # pool ConnectionPool.check_connection, so the first request after a PostgreSQL
-        # restart does not meet a stale connection.
+        # process's unit of work) and replaced if dead: with the pool, by the pool before
+        # it lends one (config/postgresql/pool_check.py), so the first request after a
+        # PostgreSQL restart does not meet a stale connection.
         "CONN_HEALTH_CHECKS": True,
     }

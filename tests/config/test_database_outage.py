@@ -12,6 +12,7 @@ the test's own, restarted at will.
 from __future__ import annotations
 
 import json
+import time
 import urllib.error
 import urllib.request
 from email.message import Message
@@ -62,14 +63,28 @@ def _json(body: bytes) -> dict:
 
 
 def _end_every_backend_of_this_database() -> int:
-    """What a restart does to the web process's connections."""
+    """What a restart does to the web process's connections: they are ended, and gone
+    (pg_terminate_backend only signals them) before the next request."""
     with connection.cursor() as cursor:
         cursor.execute(
             "SELECT count(pg_terminate_backend(pid)) FROM pg_stat_activity "
             "WHERE datname = current_database() AND application_name = %s",
             [APP_NAME],
         )
-        return cursor.fetchone()[0]
+        ended = cursor.fetchone()[0]
+        deadline = time.monotonic() + 10
+        while _backends(cursor) and time.monotonic() < deadline:
+            time.sleep(0.05)
+    return ended
+
+
+def _backends(cursor) -> int:  # type: ignore[no-untyped-def]
+    cursor.execute(
+        "SELECT count(*) FROM pg_stat_activity "
+        "WHERE datname = current_database() AND application_name = %s",
+        [APP_NAME],
+    )
+    return cursor.fetchone()[0]
 
 
 def test_the_first_request_after_the_database_ended_its_connections_is_answered(tmp_path):
