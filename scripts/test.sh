@@ -12,14 +12,17 @@ PY=.venv/bin/python
 # never share a database, a queue or a drone id. Most end-to-end tests wait on simulated
 # drones rather than compute, so more workers than cores pays, even on 2 cores. The
 # real-time tests (simulated flights against time bounds) would miss their bounds while
-# other workers hold the CPU: they run after the workers, alone, with the tests marked
-# `alone`. With TEST_REALTIME_BESIDE=1 they run beside the workers in a pytest of their
+# other workers hold the CPU: they run after the workers, two at a time, then the tests
+# marked `alone`. With TEST_REALTIME_BESIDE=1 they run beside the workers in a pytest of their
 # own, with services of their own (.data/test-realtime, on the test ports plus 9), all of
 # it at ten times the workers' CPU weight (scripts/cpu_weights.sh), where weights can be
 # set, and the `alone` tests last; about a fifth faster, but the workers' timing-sensitive
 # tests then meet stalls they do not meet otherwise (docs/performance.md).
 # TEST_WORKERS=1 runs the whole suite serially on .data/test.
 WORKERS=${TEST_WORKERS:-4}
+# The real-time tests wait on simulated flights more than they compute: with nothing else
+# running, two at a time hold their bounds (docs/performance.md, the suite's schedule).
+REALTIME_WORKERS=${TEST_REALTIME_WORKERS:-2}; [ "$REALTIME_WORKERS" -le "$WORKERS" ] || REALTIME_WORKERS=$WORKERS
 PG_BASE=${TEST_PG_PORT:-54331}; REDIS_BASE=${TEST_REDIS_PORT:-63791}; MQTT_BASE=${TEST_MQTT_PORT:-18831}
 REALTIME_OFFSET=9
 workers=(); [ "$WORKERS" -gt 1 ] && for k in $(seq 0 $((WORKERS - 1))); do workers+=("$k"); done
@@ -132,13 +135,17 @@ elif [ -n "$weights" ]; then
   pytest_run -n 1 -m alone "$@"
   rc=$(either "$(either $rc_parallel $rc_realtime)" $?)
 else
-  # Everything else in parallel, then the real-time tests and those that run alone in one
-  # worker (gw0's services) with the machine to themselves.
+  # Everything else in parallel; then the real-time tests with the machine to themselves,
+  # REALTIME_WORKERS at a time (gw0's and gw1's services: a core each); then those that
+  # run alone, in one worker.
   pytest_run -n "$WORKERS" --dist loadgroup -m "not realtime and not alone" "$@"
   rc_parallel=$?
-  echo "[test] real-time tests, alone"
-  pytest_run -n 1 -m "realtime or alone" "$@"
-  rc=$(either $rc_parallel $?)
+  echo "[test] real-time tests, $REALTIME_WORKERS at a time"
+  TEST_REALTIME_SPREAD=1 pytest_run -n "$REALTIME_WORKERS" --dist loadgroup -m realtime "$@"
+  rc_realtime=$?
+  echo "[test] the tests that run alone"
+  pytest_run -n 1 -m alone "$@"
+  rc=$(either "$(either $rc_parallel $rc_realtime)" $?)
 fi
 echo "[test] the whole run took $(( $(date +%s) - STARTED_AT )) s"
 # pytest exit 5 means no tests ran: that is a failure for us.

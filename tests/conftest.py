@@ -121,7 +121,8 @@ def pytest_collection_modifyitems(config, items):  # type: ignore[no-untyped-def
     """Under pytest-xdist (--dist loadgroup) every RabbitMQ test runs in one worker: the
     session's two-node cluster then starts once, on the one port base of this run
     (RABBIT_PORT_BASE), and two clusters never compete for the cores. The real-time tests
-    share another (and are marked `realtime`). Every worker collects the same order, as xdist requires."""
+    share another (and are marked `realtime`), except in a run of their own. Every worker
+    collects the same order, as xdist requires."""
     for item in items:
         if _rabbitmq_user(item):
             item.add_marker(pytest.mark.xdist_group("rabbitmq"))
@@ -129,7 +130,10 @@ def pytest_collection_modifyitems(config, items):  # type: ignore[no-untyped-def
             item.add_marker(pytest.mark.alone)
         elif item.nodeid.startswith(REAL_TIME):
             item.add_marker(pytest.mark.realtime)
-            item.add_marker(pytest.mark.xdist_group("real-time"))
+            # One at a time beside other tests; a run of them alone (TEST_REALTIME_SPREAD,
+            # scripts/test.sh) spreads them over its workers, a core each.
+            if not os.environ.get("TEST_REALTIME_SPREAD"):
+                item.add_marker(pytest.mark.xdist_group("real-time"))
         elif item.nodeid.startswith("tests/firmware/test_arming_switch.py"):
             # They build and run one firmware binary in the checkout: one worker at a time.
             item.add_marker(pytest.mark.xdist_group("firmware-build"))
