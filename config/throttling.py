@@ -24,6 +24,7 @@ import redis
 from django.conf import settings
 from django.core.cache import cache
 from django.http import HttpRequest
+from redis.commands.core import Script
 from rest_framework.throttling import BaseThrottle, SimpleRateThrottle
 
 PERIODS_S = {"s": 1, "m": 60, "h": 3600, "d": 86400}
@@ -131,29 +132,25 @@ for i, key in ipairs(KEYS) do
 end
 return answers
 """
-_windows = None
 
 
 @functools.cache
-def _redis(pool: redis.ConnectionPool) -> redis.Redis:
-    """A client of the cache's pool kept for the process: Django's cache builds a new one
-    for every call, a tenth of a millisecond of the web process's CPU each."""
-    return redis.Redis(connection_pool=pool)
+def _windows(pool: redis.ConnectionPool) -> Script:
+    """The script, on a client of the cache's pool kept for the process: Django's cache
+    builds a new client for every call, a tenth of a millisecond of CPU each."""
+    return redis.Redis(connection_pool=pool).register_script(_WINDOWS_SCRIPT)
 
 
 def count_in_windows(throttles: list[tuple[ActionRateThrottle, str]]) -> list[bool]:
     """Whether each throttle lets the request through, all decided in one Redis round
     trip; each throttle keeps its count and oldest request for its `wait`."""
-    global _windows
-    client = _redis(cache._cache._get_connection_pool(True))  # type: ignore[attr-defined]
-    if _windows is None:
-        _windows = client.register_script(_WINDOWS_SCRIPT)
+    script = _windows(cache._cache._get_connection_pool(True))  # type: ignore[attr-defined]
     now = time.time()
     args: list[Any] = [repr(now), f"{now!r}:{os.urandom(6).hex()}"]
     for throttle, _ in throttles:
         args += [throttle.num_requests, throttle.duration]
     keys = [cache.make_key(key) for _, key in throttles]
-    answers = _windows(keys=keys, args=args, client=client)
+    answers = script(keys=keys, args=args)
     for (throttle, _), (_, count, oldest) in zip(throttles, answers, strict=True):
         throttle.now, throttle.count = now, int(count)
         throttle.oldest = float(oldest) if oldest else None
