@@ -7,7 +7,7 @@ class AccountsConfig(AppConfig):
     default_auto_field = "django.db.models.BigAutoField"
 
     def ready(self) -> None:
-        from . import receivers, schema  # noqa: F401 - the schema extension registers itself
+        from . import receivers
 
         receivers.connect()
 

@@ -11,6 +11,7 @@ from drf_spectacular.views import (
 from rest_framework.routers import DefaultRouter
 
 from accounts import api as accounts_api
+from accounts import schema as _schema  # noqa: F401 - registers the session scheme
 from accounts.signin import LoginView
 from airspace import api as airspace_api
 from alerts import api as alerts_api

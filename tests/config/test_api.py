@@ -77,6 +77,8 @@ def test_the_openapi_schema_and_docs_are_served(world):
     body = schema.json()
     assert body["openapi"].startswith("3.")
     assert "/api/v1/drones/" in body["paths"]
+    # The session scheme (accounts/schema.py) registered by the URL conf that serves this.
+    assert {"cookieAuth", "tokenAuth"} <= set(body["components"]["securitySchemes"])
     client.force_login(world.owner)
     assert client.get("/api/docs/").status_code == 200
 
