@@ -80,7 +80,7 @@ LONG_MARKS = ("e2e", "browser", "slow")
 # before the other long ones, since one of them started last would hold the run's end.
 LONGEST = (
     "tests/workers/test_outage.py",  # two outages of a minute: 78 and 89 s
-    "tests/config/test_offline_browser.py",  # every page, at two sizes: 67-110 s each
+    "tests/config/test_offline_browser.py",  # every page, once per size: 67-110 s each
     "tests/config/test_csp_browser.py",  # every page under the policy: 72 and 89 s
     "tests/airspace/test_landing_e2e.py::test_ten_drones_sent_home",  # 100 s
     "tests/batteries/test_uavtalk_flight.py",  # 57 s
@@ -95,13 +95,12 @@ def _start_rank(item: pytest.Item) -> int:
 
 
 def _rabbitmq_user(item: pytest.Item) -> bool:
-    """Whether the test runs RabbitMQ nodes: the session's cluster, or a node of its own."""
+    """Whether the test runs on the session's RabbitMQ cluster."""
     callspec = getattr(item, "callspec", None)
     params = callspec.params if callspec else {}
     return (
         "rabbit_cluster" in getattr(item, "fixturenames", ())
         or params.get("broker_kind") == "rabbitmq"
-        or item.path.name == "test_rabbitmq_loopback.py"
     )
 
 

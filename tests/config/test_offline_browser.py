@@ -1,6 +1,7 @@
 """Offline first, in a real browser: every page of the portal, on a laptop and on a phone,
-asks nothing of any other host and logs no console error; maps without tiles still draw
-their scale and grid, and with imported tiles they take them from the portal itself."""
+asks nothing of any other host and logs no console error; maps draw their scale and grid
+without tiles (the laptop's visit), and with imported tiles take them from the portal
+itself (the phone's)."""
 
 from __future__ import annotations
 
@@ -216,16 +217,21 @@ def visit_every_page(browser, server, ids: dict[str, str], width: int, height: i
     return {"pages": seen, "tiles": watch.tiles}
 
 
-@pytest.mark.parametrize("width, height", [(1280, 800), (390, 844)])
-def test_no_page_asks_another_host_or_logs_an_error(browser, live_offline, portal, width, height):
-    visited = visit_every_page(browser, live_offline, portal, width, height)["pages"]
+def assert_offline(visited: dict[str, dict], ids: dict[str, str], width: int) -> None:
+    """Every page was opened, none asked another host or logged an error, and each
+    geographic map has its scale and grid."""
     problems = {url: v for url, v in visited.items() if v["outside"] or v["errors"]}
     assert problems == {}, problems
-    # No tiles anywhere: each geographic map still has its scale and grid.
-    for url in map_pages(portal, width):
+    for url in map_pages(ids, width):
         page = visited[url]
         assert page["maps"] >= 1 and page["scales"] >= 1 and page["grid"] >= 2, url
     assert len(visited) == len([u for u in ROUTES.values() if u])
+
+
+def test_no_page_asks_another_host_or_logs_an_error(browser, live_offline, portal):
+    # On a laptop, with no tiles imported: the maps still draw their scale and grid.
+    visited = visit_every_page(browser, live_offline, portal, 1280, 800)["pages"]
+    assert_offline(visited, portal, 1280)
 
 
 def lisbon_pyramid(zooms: range, west: float, south: float, east: float, north: float) -> dict:
@@ -242,7 +248,10 @@ def lisbon_pyramid(zooms: range, west: float, south: float, east: float, north: 
     return area
 
 
-def test_imported_tiles_come_from_the_portal(browser, live_offline, portal, offline_dirs, tmp_path):
+def test_on_a_phone_imported_tiles_come_from_the_portal(
+    browser, live_offline, portal, offline_dirs, tmp_path
+):
+    # Last in this module: the tiles stay imported in the module's tiles folder.
     from tiles.importer import import_path
 
     box = (-9.20, 38.70, -9.08, 38.78)
@@ -250,8 +259,7 @@ def test_imported_tiles_come_from_the_portal(browser, live_offline, portal, offl
     bounds = ",".join(str(v) for v in box)
     write_mbtiles(tmp_path / "lisbon.mbtiles", area, {"bounds": bounds, "minzoom": "11"})
     import_path(tmp_path / "lisbon.mbtiles")
-    visited = visit_every_page(browser, live_offline, portal, 1280, 800)
-    problems = {url: v for url, v in visited["pages"].items() if v["outside"] or v["errors"]}
-    assert problems == {}, problems
+    visited = visit_every_page(browser, live_offline, portal, 390, 844)
+    assert_offline(visited["pages"], portal, 390)
     statuses = {status for status, _ in visited["tiles"]}
     assert visited["tiles"] and statuses <= {200, 304}, visited["tiles"][:5]

@@ -234,12 +234,14 @@ def rabbitmq_ground(
     env: dict[str, str] | None = None,
     beat: bool = True,
     time_scale: float = TIME_SCALE,
+    first_node: int = 1,
     **counts: int,
 ) -> Iterator[ReplicatedGround]:
-    """The same on a RabbitCluster: drones get every node's URL (they fail over in turn),
-    the gateways and ingests consume the shared AMQP queues."""
+    """The same on a RabbitCluster: drones get every node's URL (they fail over in turn,
+    from `first_node` on, as every ground process does), the gateways and ingests consume
+    the shared AMQP queues."""
     redis_url = redis_url or redis_url_with_db(settings.REDIS_URL, REDIS_DB)
-    broker_env = cluster.settings_env()
+    broker_env = cluster.settings_env(first_node)
     _point_test_process_at(
         settings,
         {
@@ -255,9 +257,9 @@ def rabbitmq_ground(
     processes = ground_processes(Path(directory) / "ground", _database_name(), process_env)
 
     def drone_url(drone_id: str, password: str) -> str:
+        nodes = cluster.node_order(list(range(1, cluster.nodes + 1)), first_node)
         return ",".join(
-            f"mqtt://{drone_id}:{password}@127.0.0.1:{cluster.mqtt_port(i)}"
-            for i in range(1, cluster.nodes + 1)
+            f"mqtt://{drone_id}:{password}@127.0.0.1:{cluster.mqtt_port(i)}" for i in nodes
         )
 
     ground = ReplicatedGround(

@@ -100,10 +100,18 @@ class RabbitCluster:
     def api_urls(self) -> list[str]:
         return self.env["RABBITMQ_API_URLS"].split(",")
 
-    def settings_env(self) -> dict[str, str]:
-        """What a ground process needs in its environment to use this cluster."""
-        keys = ("MQTT_BROKER", "MQTT_URL", "MQTT_URLS", "AMQP_URLS", "RABBITMQ_API_URLS")
-        return {k: self.env[k] for k in keys}
+    def settings_env(self, first: int = 1) -> dict[str, str]:
+        """What a ground process needs in its environment to use this cluster, trying node
+        `first` before the others."""
+        env = {"MQTT_BROKER": self.env["MQTT_BROKER"]}
+        for key in ("MQTT_URLS", "AMQP_URLS", "RABBITMQ_API_URLS"):
+            env[key] = ",".join(self.node_order(self.env[key].split(","), first))
+        env["MQTT_URL"] = env["MQTT_URLS"].split(",")[0]
+        return env
+
+    def node_order(self, per_node: list[str], first: int = 1) -> list[str]:
+        """`per_node` (one entry per node, node 1's first) from node `first` on, in turn."""
+        return per_node[first - 1 :] + per_node[: first - 1]
 
     # -- management API ---------------------------------------------------------------------
 

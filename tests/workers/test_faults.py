@@ -290,20 +290,24 @@ def test_a_redis_restart_is_survived_by_the_outbox_counters_channel_layer_and_ce
 def test_a_broker_node_killed_mid_mission_moves_drones_and_ground_to_the_other_node(
     world_tx, tmp_path, settings, rabbit_cluster
 ):
+    # Node 2 is the one killed. Node 1 formed the cluster and leads the MQTT plugin's
+    # client-id Raft group; a group of two that loses its leader has no majority, and the
+    # leader started again serves MQTT only after the plugin's 100 s start timeout
+    # (RabbitMQ 3.10's mqtt_node), where a follower is back in about 5 s.
     try:
         with rabbitmq_ground(
-            tmp_path, settings, rabbit_cluster, env=FAST_COMMANDS, **TWO_OF_EACH
+            tmp_path, settings, rabbit_cluster, env=FAST_COMMANDS, first_node=2, **TWO_OF_EACH
         ) as ground:
             api = Api(world_tx.operator, ground.processes.web_urls)
-            # Drones try node 1 first, as do the gateways and ingests: killing node 1 moves
-            # every connection to node 2, whose mirrors of the queues take over.
+            # Drones try node 2 first, as do the gateways and ingests: killing node 2 moves
+            # every connection to node 1, whose mirrors of the queues take over.
             run = fly_replacement_mission(
                 ground,
                 world_tx.org.slug,
                 api,
                 world_tx.operator,
                 prefix="ACME_NK",
-                during=lambda: rabbit_cluster.kill_node(1),
+                during=lambda: rabbit_cluster.kill_node(2),
             )
             try:
                 run.assert_exactly_once()
@@ -313,4 +317,4 @@ def test_a_broker_node_killed_mid_mission_moves_drones_and_ground_to_the_other_n
             assert all("next node" in p.output() for p in ground.processes.of_kind("gateway"))
     finally:
         # The cluster is the session's: whole again for the tests after this one.
-        rabbit_cluster.start_node(1)
+        rabbit_cluster.start_node(2)

@@ -1,6 +1,6 @@
 """A local RabbitMQ profile (scripts/rabbitmq.sh) listens on loopback only, epmd and the
 Erlang distribution port included, and forwards no MQTT message larger than Mosquitto
-does (16 MiB). Slow: a real node starts (about a minute)."""
+does (16 MiB)."""
 
 from __future__ import annotations
 
@@ -44,13 +44,10 @@ def listening(pid: int | None = None) -> list[tuple[str, int]]:
     return found
 
 
-@pytest.fixture(scope="module")
-def node():  # type: ignore[no-untyped-def]
-    base = int(os.environ.get("RABBIT_PORT_BASE", "18900")) + 50
-    cluster = RabbitCluster(profile=f"test-rabbitmq-loopback-{base}", nodes=1, port_base=base)
-    cluster.start()
-    yield cluster
-    cluster.stop()
+@pytest.fixture
+def node(rabbit_cluster: RabbitCluster) -> RabbitCluster:
+    """The session's cluster, started by scripts/rabbitmq.sh as any local profile is."""
+    return rabbit_cluster
 
 
 def loopback(address: str) -> bool:
