@@ -7,6 +7,9 @@ from celery import Celery, bootsteps
 
 # Production unless told otherwise: `make run` and the tests name their settings module.
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings.production")
+# Workers start without Django's system checks, as the ground's services do
+# (config/service_command.py says where the checks run instead).
+os.environ.setdefault("CELERY_SKIP_CHECKS", "1")
 
 log = logging.getLogger(__name__)
 

@@ -7,8 +7,8 @@ import signal
 
 import uvicorn
 from django.conf import settings
-from django.core.management.base import BaseCommand
 
+from config.service_command import ServiceCommand
 from livevideo import access
 from livevideo.ports import confine_udp, parse_port_range
 from livevideo.relay import Relay
@@ -50,8 +50,7 @@ async def serve(port: int, drone_port: int, drone_bind: str) -> None:
         await relay.close()
 
 
-class Command(BaseCommand):
-    requires_system_checks: list[str] = []
+class Command(ServiceCommand):
     help = "Run the live-video media server (drones publish, viewers watch through the portal)."
 
     def add_arguments(self, parser) -> None:  # type: ignore[no-untyped-def]

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 from django.conf import settings
-from django.core.management.base import BaseCommand
 
+from config.service_command import ServiceCommand
 from pastview.runner import PastViewProcess
 from runtime.stopsignal import StopSignal
 
 
-class Command(BaseCommand):
+class Command(ServiceCommand):
     help = "Select past camera frames for every drone pose and push them to the past-view pages."
 
     def add_arguments(self, parser) -> None:  # type: ignore[no-untyped-def]

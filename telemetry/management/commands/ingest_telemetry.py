@@ -11,8 +11,8 @@ import subprocess
 import sys
 
 from django.conf import settings
-from django.core.management.base import BaseCommand
 
+from config.service_command import ServiceCommand
 from runtime.stopsignal import StopSignal
 from telemetry.ingest import (
     SHARE_GROUP,
@@ -30,7 +30,7 @@ from workers.counters import Counters
 log = logging.getLogger(__name__)
 
 
-class Command(BaseCommand):
+class Command(ServiceCommand):
     help = "Store every drone's telemetry from the broker into PostgreSQL (COPY batches)."
 
     def add_arguments(self, parser) -> None:  # type: ignore[no-untyped-def]

@@ -6,13 +6,13 @@ import os
 import socket
 
 from django.conf import settings
-from django.core.management.base import BaseCommand
 
+from config.service_command import ServiceCommand
 from runtime.stopsignal import StopSignal
 from workers.gateway import Gateway
 
 
-class Command(BaseCommand):
+class Command(ServiceCommand):
     help = "Bridge the drones' MQTT topics and the ground (Drone Identifier, Drone Manager)."
 
     def add_arguments(self, parser) -> None:  # type: ignore[no-untyped-def]
