@@ -115,6 +115,12 @@ def _needs_test_database(item: pytest.Item) -> bool:
     )
 
 
+def _uses_a_module_fixture(item: pytest.Item) -> bool:
+    info = getattr(item, "_fixtureinfo", None)
+    definitions = info.name2fixturedefs.values() if info is not None else ()
+    return any(defs and defs[-1].scope == "module" for defs in definitions)
+
+
 @pytest.hookimpl(wrapper=True)
 def pytest_collection_modifyitems(config, items):  # type: ignore[no-untyped-def]
     """Under pytest-xdist (--dist loadgroup) every RabbitMQ test runs in one worker: the
@@ -136,6 +142,10 @@ def pytest_collection_modifyitems(config, items):  # type: ignore[no-untyped-def
         elif item.nodeid.startswith("tests/firmware/test_arming_switch.py"):
             # They build and run one firmware binary in the checkout: one worker at a time.
             item.add_marker(pytest.mark.xdist_group("firmware-build"))
+        elif _uses_a_module_fixture(item):
+            # In one worker, a module's browser, server, virtualenv or outage stack is
+            # built once for all its tests, not once in each worker a test lands in.
+            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))
     parallel = bool(os.environ.get("PYTEST_XDIST_WORKER"))
     if parallel:
         # The long tests first, the longest before them (a stable sort: modules stay
