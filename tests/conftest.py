@@ -190,47 +190,27 @@ def _close_stray_database_sessions(request):  # type: ignore[no-untyped-def]
         )
 
 
-# A flush that loses a deadlock is tried again this many times.
-FLUSH_ATTEMPTS = 5
-
-
 @pytest.fixture(scope="session", autouse=True)
-def _flush_tried_again_after_a_deadlock():  # type: ignore[no-untyped-def]
-    """A transactional test's flush TRUNCATEs every table, taking their locks one by one.
-    Ground processes that outlive a test (a module's Celery worker and gateway) may be in
-    a transaction that holds one of those tables and waits for another: PostgreSQL then
-    ends one side with a deadlock error and asks for it to be tried again. When that side
-    is the flush, it is tried again (its transaction was rolled back whole), rather than
-    leaving the next test a database that was never emptied."""
+def _transactional_tests_empty_what_they_wrote():  # type: ignore[no-untyped-def]
+    """A transactional test's teardown truncates the tables that hold rows and keeps what
+    `migrate` wrote, tried again if it loses a deadlock (tests/support/flush.py)."""
     try:
-        from django.db.backends.base.operations import BaseDatabaseOperations
+        from django.test import TransactionTestCase
     except ImportError:  # a run without Django
         yield
         return
-    original = BaseDatabaseOperations.execute_sql_flush
+    from functools import partial
 
-    def execute_sql_flush(self, sql_list):  # type: ignore[no-untyped-def]
-        for attempt in range(1, FLUSH_ATTEMPTS + 1):
-            try:
-                return original(self, sql_list)
-            except Exception as exc:
-                if attempt == FLUSH_ATTEMPTS or not _deadlock(exc):
-                    raise
+    from tests.support.flush import empty_database, tried_again_after_a_deadlock
+
+    def _fixture_teardown(self):  # type: ignore[no-untyped-def]
+        for alias in self._databases_names(include_mirrors=False):
+            tried_again_after_a_deadlock(partial(empty_database, alias))
 
     patch = pytest.MonkeyPatch()
-    patch.setattr(BaseDatabaseOperations, "execute_sql_flush", execute_sql_flush)
+    patch.setattr(TransactionTestCase, "_fixture_teardown", _fixture_teardown)
     yield
     patch.undo()
-
-
-def _deadlock(exc: BaseException) -> bool:
-    import psycopg
-
-    while exc is not None:
-        if isinstance(exc, psycopg.errors.DeadlockDetected):
-            return True
-        exc = exc.__cause__  # type: ignore[assignment]
-    return False
 
 
 @pytest.fixture(scope="session")
@@ -277,8 +257,8 @@ def browser():  # type: ignore[no-untyped-def]
 @pytest.fixture
 def page(browser, request):  # type: ignore[no-untyped-def]
     # The page closes before a transactional test's database is flushed: a page still
-    # polling the live server holds locks the flush's TRUNCATE waits for, while its
-    # request waits for a table the TRUNCATE holds (PostgreSQL ends one as a deadlock).
+    # polling the live server holds locks the flush waits for, while its
+    # request waits for a table the flush holds (PostgreSQL ends one as a deadlock).
     if "transactional_db" in request.fixturenames:
         request.getfixturevalue("transactional_db")
     # Playwright's wait_for_function compiles its predicate with eval inside the page,
