@@ -71,10 +71,13 @@ def test_a_flights_recording_plays_in_the_log_viewer_in_step_with_the_cursor(
     captured = record_stamped_video(world_tx.drone.drone_id)
     first, last = captured[0], captured[-1]
     recording = VideoRecording.objects.get(drone=world_tx.drone)
-    # The telemetry of the same flight, on the same (Unix) clock, from a second before.
+    # The telemetry of the same flight, on the same (Unix) clock, from a second before the
+    # first frame to a second after the last, at 10 Hz: the recording's span is what the
+    # machine made of FRAMES sleeps of 1/FPS, longer when it is busy.
+    samples = int((last - first + 2) * 10) + 1
     client = client_for(world_tx.operator)
     created = upload(
-        client, write_tlog(tmp_path / "flight.tlog", n=60, t0_us=int((first - 1) * 1e6))
+        client, write_tlog(tmp_path / "flight.tlog", n=samples, t0_us=int((first - 1) * 1e6))
     ).json()
     info = wait_until_processed(client, created["id"])
     assert info["status"] == "ready"
