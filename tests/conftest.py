@@ -192,7 +192,7 @@ def _close_stray_database_sessions(request):  # type: ignore[no-untyped-def]
 
 @pytest.fixture(scope="session", autouse=True)
 def _transactional_tests_empty_what_they_wrote():  # type: ignore[no-untyped-def]
-    """A transactional test's teardown truncates the tables that hold rows and keeps what
+    """A transactional test's teardown empties the tables that hold rows and keeps what
     `migrate` wrote, tried again if it loses a deadlock (tests/support/flush.py)."""
     try:
         from django.test import TransactionTestCase

@@ -1,7 +1,7 @@
 """Emptying the test database after a transactional test, at the cost of what it wrote.
 
 Django's own teardown truncates every table and then runs `post_migrate` again to write
-back the content types and permissions it just removed: about 165 ms of CPU (the test
+back the content types and permissions it just removed: about 290 ms of CPU (the test
 process's and PostgreSQL's) per test, most of it the re-created rows and a new file for
 every table and index, which every other session on the database then reads again. Here
 the rows `migrate` wrote stay, and only the tables that hold rows are emptied, all writes
