@@ -121,7 +121,9 @@ def test_a_drone_killed_mid_flight_goes_offline_within_three_heartbeats_and_come
     assert wait_for(offline, timeout=10, interval=0.1)
     last_seen = Drone.objects.get(drone_id=victim.drone_id).last_seen
     went_offline = ConnectionEvent.objects.get(drone__drone_id=victim.drone_id, kind="offline").at
-    # Three missed heartbeats after the last one, plus this loop's polling period.
+    # Three missed heartbeats after the last one, plus this loop's polling period and the
+    # sweep's own time: measured 1.59-1.60 s quiet and 1.52-1.61 s with four busy processes
+    # on two cores, against 1.8 s.
     assert (went_offline - last_seen).total_seconds() <= 3 * HEARTBEAT_S + 0.3
     assert Drone.objects.get(drone_id=IDS[0]).online, "the other drone is unaffected"
     status, body = control(client, command="land", droneID=victim.drone_id)

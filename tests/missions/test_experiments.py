@@ -179,6 +179,7 @@ def test_self_replacement_hands_the_remaining_waypoints_to_a_second_drone(world_
     # Landing may follow a flight home first (a relieved drone returns, then lands).
     assert wait_for(lambda: not Drone.objects.get(drone_id="ACME_R1").airborne, 60)
     decision = mission.events.get(data__decision="replacement")
+    # Measured 115-140 ms quiet and 202-436 ms with four busy processes on two cores.
     assert decision.data["since_alarm_ms"] < 5000
 
 

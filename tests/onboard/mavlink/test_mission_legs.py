@@ -18,6 +18,9 @@ from onboard.navigation import NavigationProcessor, ned_to_lla
 from .conftest import HOME, TIME_SCALE, wait_for
 from .test_native_mission import Outbox, start, steps, worker  # noqa: F401  (fixture)
 
+# Wall time a step's reported duration may gain on a loaded machine (see its use).
+SCHEDULING_WALL_S = 1.0
+
 
 def at(north: float, east: float) -> tuple[float, float]:
     lat, lon, _ = ned_to_lla(north, east, 0.0, HOME)
@@ -200,7 +203,12 @@ def test_a_native_leg_with_a_speed_uploads_a_change_speed_item_and_flies_at_it(
         for m in outbox
         if isinstance(m, protocol.StepProgress) and m.index == 5 and m.status == "completed"
     )
-    assert 60 / 3.0 * 0.9 <= paced_s <= 60 / 3.0 + 5, paced_s  # 60 m at 3 m/s, simulated s
+    # 60 m at 3 m/s, in simulated seconds: the step's wall time x TIME_SCALE, its native
+    # run's upload (a few round trips) included. Measured 20.2-20.3 s quiet, 20.3-20.7 s
+    # with four busy processes on two cores, and 25.5 s beside the whole suite's parallel
+    # tests (0.28 s of wall time over the 20). The bound leaves a second of wall time; the
+    # speed samples below hold the pace itself.
+    assert 60 / 3.0 * 0.9 <= paced_s <= 60 / 3.0 + SCHEDULING_WALL_S * TIME_SCALE, paced_s
     assert free > 8.0, free
     assert paced and max(paced) <= 3.0 * 1.05, paced
     assert min(paced) >= 3.0 * 0.8, paced
