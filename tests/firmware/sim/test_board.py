@@ -223,7 +223,9 @@ def test_writing_an_objects_metadata_changes_its_stream_rate(board):
     ground.frames.clear()
     ground.pump(1.0)  # ten simulated seconds
     count = sum(1 for f in ground.frames if f.name == "AttitudeActual")
-    assert 8 <= count <= 12  # once a simulated second instead of ten times
+    # Once a simulated second instead of ten times: measured 9, quiet and with four busy
+    # processes on two cores.
+    assert 8 <= count <= 12
     ground.send(CODEC.encode_request("AttitudeActual"))  # a plain request still answers
     assert ground.pump(2, lambda f: f.name == "AttitudeActual") is not None
     ground.close()

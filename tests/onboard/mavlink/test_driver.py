@@ -142,7 +142,8 @@ def test_stream_rates_follow_set_message_interval(fc, recorder):
     stopped_at = recorder.counts["ATTITUDE"]
     time.sleep(0.5)
     assert recorder.counts["ATTITUDE"] == stopped_at
-    # One per simulated second: TIME_SCALE a second on the wall clock.
+    # One per simulated second: TIME_SCALE a second on the wall clock. Measured 20 in the
+    # second, quiet and with four busy processes on two cores.
     fc.command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_ATTITUDE, 1e6)
     time.sleep(1.0)
     assert 0.5 * TIME_SCALE <= recorder.counts["ATTITUDE"] - stopped_at <= 1.5 * TIME_SCALE
