@@ -52,7 +52,7 @@ import urllib.error
 import urllib.parse
 import urllib.request
 from collections import Counter, deque
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
@@ -65,6 +65,12 @@ PASSWORD_ENV = "SKYHIVE_MEDIA_PASSWORD"
 CLOCK_RATE = 90_000  # RTP clock of video payloads (RFC 3551 section 5)
 PUBLISH_TIMEOUT_S = 10.0
 RETRY_S = 2.0
+# The niceness the publisher adds to its own (0-19), so that the agent's threads come
+# first on a busy companion computer. A machine whose busy processes are not the agent's
+# may set 0 in the agent's environment: at 10 beside nice-0 processes that keep a core
+# busy, the publisher gets about a tenth of their share (the kernel's CFS weights, 110
+# against 1024), too little to encode a frame.
+NICE_ENV = "SKYHIVE_LIVE_VIDEO_NICE"
 NICE = 10
 SENDER_REPORTS_KEPT = 64  # sender reports whose sending time is noted
 RESENT_KEPT = 4096  # the re-sent packets remembered (a sequence number wraps at 65536)
@@ -677,6 +683,16 @@ async def publish_forever(config: LiveVideoConfig, poses: LatestPose) -> None:
             pass
 
 
+def niceness(environ: Mapping[str, str]) -> int:
+    """The niceness to add, from the environment (NICE when unset); a clear error if bad."""
+    raw = environ.get(NICE_ENV, "").strip()
+    if not raw:
+        return NICE
+    if not raw.isdigit() or int(raw) > 19:
+        raise SystemExit(f"{NICE_ENV}={raw!r}: a whole number from 0 to 19 expected")
+    return int(raw)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Publish the camera to the media server.")
     parser.add_argument("--media-url", required=True)
@@ -694,7 +710,7 @@ def main(argv: list[str] | None = None) -> int:
     config = LiveVideoConfig(
         args.media_url, args.drone_id, os.environ.get(PASSWORD_ENV, ""), width, height, args.fps
     )
-    os.nice(NICE)  # the agent's own threads come first on a busy companion computer
+    os.nice(niceness(os.environ))
     poses = LatestPose()
     threading.Thread(target=poses.read_forever, args=(sys.stdin,), daemon=True).start()
     asyncio.run(publish_forever(config, poses))

@@ -98,3 +98,51 @@ def test_a_recordings_start_pairs_the_clocks_read_together(monkeypatch):
     wall, monotonic = recording.clock_pair()
     assert wall == datetime(2026, 1, 2, tzinfo=UTC)
     assert monotonic == pytest.approx(20.0002)
+
+
+@pytest.mark.parametrize(
+    ("environ", "expected"),
+    [({}, 10), ({"SKYHIVE_LIVE_VIDEO_NICE": ""}, 10), ({"SKYHIVE_LIVE_VIDEO_NICE": "0"}, 0),
+     ({"SKYHIVE_LIVE_VIDEO_NICE": " 19 "}, 19)],
+)  # fmt: skip
+def test_the_publisher_stands_aside_by_ten_unless_told(environ, expected):
+    from onboard.live_video import niceness
+
+    assert niceness(environ) == expected
+
+
+@pytest.mark.parametrize("bad", ["-1", "20", "ten", "1.5"])
+def test_a_bad_niceness_is_a_clear_error(bad):
+    from onboard.live_video import niceness
+
+    with pytest.raises(SystemExit, match="a whole number from 0 to 19"):
+        niceness({"SKYHIVE_LIVE_VIDEO_NICE": bad})
+
+
+@pytest.mark.parametrize(("setting", "added"), [(None, 10), ("3", 3)])
+def test_the_publisher_process_runs_at_its_niceness(setting, added):
+    """`python -m onboard.live_video` as the agent starts it, with nothing to publish to."""
+    import os
+    import subprocess
+    import time
+
+    from onboard.live_video import NICE_ENV, LiveVideoConfig
+    from runtime.processes import REPO_ROOT, free_port, python_env
+
+    env = python_env()
+    env.pop(NICE_ENV, None)
+    if setting is not None:
+        env[NICE_ENV] = setting
+    config = LiveVideoConfig(f"http://127.0.0.1:{free_port()}", "ACME_1", "pw", 160, 120, 5)
+    child = subprocess.Popen(config.argv(), stdin=subprocess.PIPE, env=env, cwd=str(REPO_ROOT),
+                             stderr=subprocess.DEVNULL)  # fmt: skip
+    try:
+        ours = os.getpriority(os.PRIO_PROCESS, 0)
+        deadline = time.monotonic() + 30
+        while os.getpriority(os.PRIO_PROCESS, child.pid) == ours and child.poll() is None:
+            assert time.monotonic() < deadline, "the publisher never changed its niceness"
+            time.sleep(0.05)
+        assert os.getpriority(os.PRIO_PROCESS, child.pid) == min(19, ours + added)
+    finally:
+        child.kill()
+        child.wait(10)
