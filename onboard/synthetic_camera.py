@@ -102,15 +102,19 @@ def _body_rays(width: int, height: int, fov_deg: float, pitch_down_deg: float) -
 
 
 def _blobs(n: np.ndarray, e: np.ndarray) -> np.ndarray:
-    """Smooth colour noise in 0..1: bilinear interpolation of random lattice colours."""
+    """Smooth colour noise in 0..1: bilinear interpolation of random lattice colours.
+
+    `n` and `e` broadcast together (a column of norths against a row of easts gives the
+    grid); the result has their shape and a last axis of 3.
+    """
     cells = int(TEXTURE_PERIOD_M * 10) // (BLOB_CELL_M * 10)
     lattice = np.random.default_rng(20160601).random((cells, cells, 3))
     gn, ge = n / BLOB_CELL_M, e / BLOB_CELL_M
     i0, j0 = np.floor(gn), np.floor(ge)
     # Smoothstep weights, so the blobs show no lattice creases.
     fn, fe = gn - i0, ge - j0
-    fn = (fn * fn * (3 - 2 * fn)).reshape(-1, 1)
-    fe = (fe * fe * (3 - 2 * fe)).reshape(-1, 1)
+    fn = (fn * fn * (3 - 2 * fn))[..., None]
+    fe = (fe * fe * (3 - 2 * fe))[..., None]
     i, j = i0.astype(np.int64) % cells, j0.astype(np.int64) % cells
     i1, j1 = (i + 1) % cells, (j + 1) % cells
     west = lattice[i, j] + (lattice[i1, j] - lattice[i, j]) * fn
@@ -119,16 +123,20 @@ def _blobs(n: np.ndarray, e: np.ndarray) -> np.ndarray:
 
 
 def ground_colour(n: np.ndarray, e: np.ndarray) -> np.ndarray:
-    """RGB (float 0..255, shape (N, 3)) of the ground pattern at NED points (n, e).
+    """RGB (float 0..255) of the ground pattern at NED points (n, e), away from home.
 
-    The exact pattern, away from home; rendering samples a precomputed tile of it.
+    `n` and `e` broadcast together, and the result has their shape and a last axis of 3:
+    a column of norths against a row of easts computes each row's and each column's terms
+    once, not once per point. Rendering samples a precomputed tile of it.
     """
-    n = np.asarray(n, dtype=float).ravel()
-    e = np.asarray(e, dtype=float).ravel()
-    checker = ((np.floor(n / CHECKER_M) + np.floor(e / CHECKER_M)) % 2).reshape(-1, 1)
+    n, e = np.asarray(n, dtype=float), np.asarray(e, dtype=float)
+    checker = ((np.floor(n / CHECKER_M) + np.floor(e / CHECKER_M)) % 2)[..., None]
     colour = (60.0 + 130.0 * _blobs(n, e)) * (0.75 + 0.25 * checker)
-    colour[np.abs(n - GRID_M * np.round(n / GRID_M)) < GRID_HALF_WIDTH_M] = NORTH_LINE
-    colour[np.abs(e - GRID_M * np.round(e / GRID_M)) < GRID_HALF_WIDTH_M] = EAST_LINE
+    points = colour.shape[:-1]
+    on_north_line = np.abs(n - GRID_M * np.round(n / GRID_M)) < GRID_HALF_WIDTH_M
+    colour[np.broadcast_to(on_north_line, points)] = NORTH_LINE
+    on_east_line = np.abs(e - GRID_M * np.round(e / GRID_M)) < GRID_HALF_WIDTH_M
+    colour[np.broadcast_to(on_east_line, points)] = EAST_LINE
     return colour
 
 
@@ -147,8 +155,8 @@ def _unpack(pixels: np.ndarray) -> np.ndarray:
 def _texture() -> np.ndarray:
     """One period of the ground pattern at texel centres, packed RGBX (SIZE*SIZE,)."""
     centres = (np.arange(TEXTURE_SIZE) + 0.5) / TEXELS_PER_M
-    n, e = np.meshgrid(centres, centres, indexing="ij")
-    table = _pack(ground_colour(n, e))
+    rows = ground_colour(centres[:, None], centres[None, :])  # north by row, east by column
+    table = _pack(rows.reshape(-1, 3))
     table.setflags(write=False)
     return table
 

@@ -88,3 +88,19 @@ def test_an_invalid_orientation_is_refused_with_a_clear_error(bad):
 def test_a_non_finite_position_is_refused_with_a_clear_error():
     with pytest.raises(ValueError, match="position"):
         render_view((float("inf"), 0.0, -5.0), LEVEL_NORTH)
+
+
+def test_the_ground_pattern_on_a_grid_is_the_pattern_at_each_of_its_points():
+    """The tile is computed by rows and columns; each texel must still be the colour of
+    the pattern at its own point (grid lines, their crossings, the checker, the blobs)."""
+    from onboard.synthetic_camera import ground_colour
+
+    norths = np.linspace(-12.0, 12.0, 97)  # crosses grid lines at multiples of 5 m
+    easts = np.linspace(-7.3, 19.1, 89)
+    grid = ground_colour(norths[:, None], easts[None, :])
+    n, e = np.meshgrid(norths, easts, indexing="ij")
+    points = ground_colour(n.ravel(), e.ravel())
+    assert grid.shape == (97, 89, 3)
+    assert np.array_equal(grid.reshape(-1, 3), points)
+    assert (points == [220.0, 40.0, 40.0]).all(axis=1).any()  # a north line is in view
+    assert (points == [40.0, 70.0, 220.0]).all(axis=1).any()  # and an east line
