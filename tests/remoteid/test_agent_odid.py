@@ -33,10 +33,26 @@ def send_identity(ground: Ground) -> None:
     ground.send("envelope", protocol.EnvelopeUpdate({}, remote_id=identity).to_dict())
 
 
-def received(tmp_path: Path, kind: str) -> dict | None:
-    """The last fields of `kind` the simulator's Remote ID module logged."""
-    found = re.findall(rf"Remote ID {kind}: (\{{.*\}})", (tmp_path / "sim.log").read_text())
-    return ast.literal_eval(found[-1]) if found else None
+# The agent sends the four messages one after another once a second (onboard/remote_id.py).
+# The module is good to arm on the first two, so the heartbeat saying so can come before
+# the simulator has logged the other two: up to ten rounds of sends are waited for.
+# Measured: all four already logged when the heartbeat said good, three times quiet and
+# three times beside four busy processes; once, beside the suite's parallel tests, the
+# third was not yet logged.
+LOGGED_WITHIN_S = 10.0
+
+
+def _logged(tmp_path: Path, kind: str) -> list[str]:
+    return re.findall(rf"Remote ID {kind}: (\{{.*\}})", (tmp_path / "sim.log").read_text())
+
+
+def received(tmp_path: Path, kind: str) -> dict:
+    """The last fields of `kind` the simulator's Remote ID module logged, once it has."""
+    deadline = time.monotonic() + LOGGED_WITHIN_S
+    while not (found := _logged(tmp_path, kind)):
+        assert time.monotonic() < deadline, f"the module logged no {kind}"
+        time.sleep(0.05)
+    return ast.literal_eval(found[-1])
 
 
 def test_the_module_gets_the_identity_and_reports_good_to_arm(fly, tmp_path):  # noqa: F811
