@@ -10,6 +10,13 @@ from dataclasses import dataclass
 
 import pytest
 
+from onboard.live_video import NICE_ENV
+
+# The live-video publisher stands aside for the agent's threads (niceness 10). Here the
+# busy processes beside it are the other tests', which a drone does not have: beside them
+# it once sent no frame in 30 s. The default itself is tested (tests/livevideo/test_units.py).
+os.environ.setdefault(NICE_ENV, "0")
+
 
 @dataclass
 class World:
@@ -46,11 +53,6 @@ def build_world() -> World:
 # frame rates, a deadline after a kill, ticks on time): marked `realtime`, which a
 # parallel run (scripts/test.sh) runs after the workers, alone (with TEST_REALTIME_BESIDE=1,
 # beside them in a pytest of its own at ten times their CPU weight).
-# The live-video publisher stands aside for the agent's threads (niceness 10). Here the
-# busy processes beside it are the other tests', which a drone does not have: beside them
-# it once sent no frame in 30 s. The default itself is tested (tests/livevideo/test_units.py).
-os.environ.setdefault("SKYHIVE_LIVE_VIDEO_NICE", "0")
-
 REAL_TIME = (
     "tests/missions/test_experiments.py",
     "tests/airspace/test_e2e.py",
