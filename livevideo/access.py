@@ -73,13 +73,15 @@ def start_recording(drone_id: str) -> Recorder:
     )
 
 
-def file_recording(drone_id: str, recorded: Recorded) -> None:
-    """Keep the finished recording with its drone (flights find it by time)."""
+def file_recording(drone_id: str, organisation_id: int, recorded: Recorded) -> bool:
+    """Keep the finished recording with the drone that published it (flights find it by
+    time). A drone removed meanwhile, or its id now another organisation's, keeps nothing:
+    the file is deleted and False returned."""
     close_old_connections()
-    drone = Drone.objects.filter(drone_id=drone_id).first()
+    drone = Drone.objects.filter(drone_id=drone_id, organisation_id=organisation_id).first()
     if drone is None:
         recorded.path.unlink(missing_ok=True)
-        return
+        return False
     VideoRecording.objects.create(
         drone=drone,
         started_at=recorded.started_at,
@@ -91,7 +93,8 @@ def file_recording(drone_id: str, recorded: Recorded) -> None:
         height=recorded.height,
         truncated=recorded.truncated,
     )
+    return True
 
 
-async def recorded(drone_id: str, done: Recorded) -> None:
-    await asyncio.to_thread(file_recording, drone_id, done)
+async def recorded(drone_id: str, organisation_id: int, done: Recorded) -> bool:
+    return await asyncio.to_thread(file_recording, drone_id, organisation_id, done)

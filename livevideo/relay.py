@@ -198,14 +198,17 @@ class Relay:
         *,
         clock: Callable[[], float] = time.time,
         recorder: Callable[[str], Any] | None = None,
-        on_recorded: Callable[[str, Any], Awaitable[None]] | None = None,
+        on_recorded: Callable[[str, int, Any], Awaitable[bool]] | None = None,
     ) -> None:
         """`recorder(drone_id)` starts a recording of a new stream (livevideo.recording),
-        `on_recorded(drone_id, recorded)` is told of each finished one."""
+        `on_recorded(drone_id, organisation_id, recorded)` files each finished one (False:
+        its drone is gone)."""
         self.limits = limits or Limits()
         self.recorder = recorder
         self.on_recorded = on_recorded
         self.streams: dict[str, Stream] = {}
+        # Ended streams whose recording is still being closed and filed.
+        self.finishing = 0
         self.counts: Counter[str] = Counter()
         self.clock = clock
 
@@ -373,18 +376,29 @@ class Relay:
         recorder, stream.recorder = stream.recorder, None
         if recorder is None:
             return
-        recorded = await asyncio.to_thread(recorder.close)
-        if recorded is None:
-            return
+        self.finishing += 1
+        try:
+            recorded = await asyncio.to_thread(recorder.close)
+            if recorded is not None:
+                await self._file(stream, recorded)
+        finally:
+            self.finishing -= 1
+
+    async def _file(self, stream: Stream, recorded: Any) -> None:
         self.counts["recordings"] += 1
         if recorded.dropped:
             self.counts["recording_frames_dropped"] += recorded.dropped
-        if self.on_recorded is not None:
-            try:
-                await self.on_recorded(stream.drone_id, recorded)
-            except Exception:  # noqa: BLE001 - the file stays; the stream is over anyway
-                self.counts["recordings_not_filed"] += 1
-                log.exception("recording of %s not filed", stream.drone_id)
+        if self.on_recorded is None:
+            return
+        try:
+            filed = await self.on_recorded(stream.drone_id, stream.organisation_id, recorded)
+        except Exception:  # noqa: BLE001 - the file stays; the stream is over anyway
+            self.counts["recordings_not_filed"] += 1
+            log.exception("recording of %s not filed", stream.drone_id)
+            return
+        if not filed:
+            self.counts["recordings_drone_gone"] += 1
+            log.warning("recording of %s deleted: its drone is gone", stream.drone_id)
 
     async def unpublish(self, drone_id: str, session: str) -> bool:
         stream = self.streams.get(drone_id)
@@ -478,6 +492,7 @@ class Relay:
             "ok": True,
             "streams": len(self.streams),
             "viewers": self.viewer_count(),
+            "recordings_finishing": self.finishing,
             "counts": dict(self.counts),
             "limits": self.limits.__dict__,
         }
@@ -485,6 +500,3 @@ class Relay:
     async def close(self) -> None:
         for stream in list(self.streams.values()):
             await self.end(stream, "server stopping")
-
-
-Authenticate = Callable[[str, str], Awaitable[int | None]]

@@ -39,8 +39,13 @@ def media(media_server, world_tx):  # type: ignore[no-untyped-def]
         drone.save(update_fields=["mqtt_password_hash"])
     media_server.before = Counter(media_server.get("/health")["counts"])
     yield media_server
-    # Publishers end their sessions when stopped: the next test starts from no stream.
-    wait_until(lambda: media_server.get("/health")["streams"] == 0, 15)
+    # Publishers end their sessions when stopped: the next test starts from no stream, and
+    # from no recording of this test's still being filed.
+    wait_until(lambda: settled(media_server.get("/health")), 15)
+
+
+def settled(health: dict) -> bool:
+    return health["streams"] == 0 and health["recordings_finishing"] == 0
 
 
 def counted(media: MediaServer) -> Counter:
