@@ -207,8 +207,8 @@ class Relay:
         self.recorder = recorder
         self.on_recorded = on_recorded
         self.streams: dict[str, Stream] = {}
-        # Ended streams whose recording is still being closed and filed.
-        self.finishing = 0
+        # Streams ended and still closing: their peers, viewers and recordings.
+        self.ending = 0
         self.counts: Counter[str] = Counter()
         self.clock = clock
 
@@ -360,6 +360,13 @@ class Relay:
         if stream.ended:
             return
         stream.ended = True
+        self.ending += 1
+        try:
+            await self._close(stream, reason)
+        finally:
+            self.ending -= 1
+
+    async def _close(self, stream: Stream, reason: str) -> None:
         if self.streams.get(stream.drone_id) is stream:
             del self.streams[stream.drone_id]
         for viewer in list(stream.viewers.values()):
@@ -376,13 +383,9 @@ class Relay:
         recorder, stream.recorder = stream.recorder, None
         if recorder is None:
             return
-        self.finishing += 1
-        try:
-            recorded = await asyncio.to_thread(recorder.close)
-            if recorded is not None:
-                await self._file(stream, recorded)
-        finally:
-            self.finishing -= 1
+        recorded = await asyncio.to_thread(recorder.close)
+        if recorded is not None:
+            await self._file(stream, recorded)
 
     async def _file(self, stream: Stream, recorded: Any) -> None:
         self.counts["recordings"] += 1
@@ -492,7 +495,7 @@ class Relay:
             "ok": True,
             "streams": len(self.streams),
             "viewers": self.viewer_count(),
-            "recordings_finishing": self.finishing,
+            "streams_ending": self.ending,
             "counts": dict(self.counts),
             "limits": self.limits.__dict__,
         }

@@ -49,16 +49,33 @@ def test_a_recording_whose_drone_now_belongs_elsewhere_is_deleted(world_tx, medi
     assert not gone.path.exists()
 
 
-def test_the_relay_counts_a_recording_its_drone_did_not_keep(media_root):  # type: ignore[no-untyped-def]
-    filed: list[tuple[str, int]] = []
+def test_an_ended_stream_counts_as_ending_until_its_recording_is_filed(media_root):  # type: ignore[no-untyped-def]
+    import av
+    import numpy as np
+    from aiortc import RTCPeerConnection
+
+    from livevideo.recording import Recorder
+
+    seen: list[tuple[str, int, int, dict]] = []
 
     async def drone_gone(drone_id: str, organisation_id: int, done: Recorded) -> bool:
-        filed.append((drone_id, organisation_id))
+        seen.append((drone_id, organisation_id, done.frames, relay.health()))
         return False
 
+    async def publish_and_end() -> None:
+        stream = Stream("ACME_1", 7, "session", RTCPeerConnection())
+        relay.streams["ACME_1"] = stream
+        stream.recorder = Recorder(access.recording_path("ACME_1", datetime.now(UTC)), 10**6)
+        for _ in range(3):
+            picture = np.zeros((240, 320, 3), np.uint8)
+            stream.recorder.offer(av.VideoFrame.from_ndarray(picture, format="rgb24"))
+        await relay.end(stream, "unpublished")
+
     relay = Relay(on_recorded=drone_gone)
-    stream = Stream("ACME_1", 7, "session", pc=None)
-    asyncio.run(relay._file(stream, finished("ACME_1", media_root)))
-    assert filed == [("ACME_1", 7)]
+    asyncio.run(publish_and_end())
+    # While it was being filed the stream was no longer live, but still ending.
+    [(drone_id, organisation_id, frames, health)] = seen
+    assert (drone_id, organisation_id, frames) == ("ACME_1", 7, 3)
+    assert health["streams"] == 0 and health["streams_ending"] == 1
     assert relay.counts["recordings_drone_gone"] == 1 and relay.counts["recordings"] == 1
-    assert relay.health()["recordings_finishing"] == 0
+    assert relay.health()["streams_ending"] == 0

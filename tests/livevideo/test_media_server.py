@@ -45,7 +45,7 @@ def media(media_server, world_tx):  # type: ignore[no-untyped-def]
 
 
 def settled(health: dict) -> bool:
-    return health["streams"] == 0 and health["recordings_finishing"] == 0
+    return health["streams"] == 0 and health["streams_ending"] == 0
 
 
 def counted(media: MediaServer) -> Counter:
@@ -234,7 +234,8 @@ def test_a_stream_is_recorded_and_found_by_the_flight_it_belongs_to(media, world
         time.sleep(4.0)
     finally:
         stream.stop()
-    wait_until(lambda: VideoRecording.objects.filter(drone=drone).exists(), 20)
+    # Every recording of the session closed and filed (a republished stream's too).
+    wait_until(lambda: settled(media.get("/health")), 20)
     finished = datetime.now(UTC)
     # One recording per session: a publisher whose connection fails on a loaded host
     # publishes again, and its stream goes on in a second recording.
