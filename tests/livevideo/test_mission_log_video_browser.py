@@ -62,7 +62,7 @@ def set_cursor(page, t: float) -> None:  # type: ignore[no-untyped-def]
 
 
 def test_the_mission_log_viewer_plays_its_flights_video_in_step(world_tx, live_asgi, page):  # type: ignore[no-untyped-def]
-    captured = record_stamped_video("ACME_1")
+    captured = record_stamped_video(world_tx.drone)
     first, last = captured[0], captured[-1]
     recording = VideoRecording.objects.get(drone=world_tx.drone)
     # The recording ends when its recorder closes it, which a loaded machine may do well

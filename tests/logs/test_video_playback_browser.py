@@ -32,10 +32,10 @@ FRAMES = 30
 LINK_DELAY_MS = 80  # frames reach the ground this long after their capture
 
 
-def record_stamped_video(drone_id: str, organisation_id: int) -> list[float]:
-    """Record FRAMES frames through the ground's recorder as they would arrive, each with
-    its capture time drawn in; their capture times (Unix seconds)."""
-    path = access.recording_path(drone_id, datetime.now(UTC))
+def record_stamped_video(drone) -> list[float]:  # type: ignore[no-untyped-def]
+    """Record FRAMES frames of `drone` through the ground's recorder as they would arrive,
+    each with its capture time drawn in; their capture times (Unix seconds)."""
+    path = access.recording_path(drone.drone_id, datetime.now(UTC))
     recorder = Recorder(path, settings.LIVE_VIDEO_RECORDING_MAX_BYTES)
     captured = []
     rgb = np.zeros((240, 320, 3), np.uint8)
@@ -48,7 +48,7 @@ def record_stamped_video(drone_id: str, organisation_id: int) -> list[float]:
         time.sleep(1 / FPS)
     done = recorder.close()
     assert done is not None and done.frames >= FRAMES - 2
-    assert access.file_recording(drone_id, organisation_id, done)
+    assert access.file_recording(drone.drone_id, drone.organisation_id, done)
     return captured
 
 
@@ -68,7 +68,7 @@ def file_shifts(path: str) -> dict[int, float]:
 def test_a_flights_recording_plays_in_the_log_viewer_in_step_with_the_cursor(
     world_tx, worker, live_logs, page, tmp_path
 ):
-    captured = record_stamped_video(world_tx.drone.drone_id, world_tx.drone.organisation_id)
+    captured = record_stamped_video(world_tx.drone)
     first, last = captured[0], captured[-1]
     recording = VideoRecording.objects.get(drone=world_tx.drone)
     # The telemetry of the same flight, on the same (Unix) clock, from a second before the
