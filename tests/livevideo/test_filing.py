@@ -18,7 +18,8 @@ from livevideo.relay import Relay, Stream
 pytestmark = pytest.mark.django_db(transaction=True)
 
 
-def finished(drone_id: str, media_root: Path) -> Recorded:
+def finished(drone_id: str) -> Recorded:
+    """A closed recording of `drone_id`, its file under MEDIA_ROOT."""
     path = access.recording_path(drone_id, datetime.now(UTC))
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(b"webm")
@@ -33,18 +34,18 @@ def media_root(settings, tmp_path: Path) -> Path:  # type: ignore[no-untyped-def
 
 
 def test_a_recording_is_filed_with_its_publishers_drone(world_tx, media_root):  # type: ignore[no-untyped-def]
-    done = finished(world_tx.drone.drone_id, media_root)
+    done = finished(world_tx.drone.drone_id)
     assert access.file_recording(world_tx.drone.drone_id, world_tx.org.pk, done)
     row = VideoRecording.objects.get()
     assert row.drone == world_tx.drone and row.frames == 40 and done.path.exists()
 
 
 def test_a_recording_whose_drone_now_belongs_elsewhere_is_deleted(world_tx, media_root):  # type: ignore[no-untyped-def]
-    done = finished(world_tx.drone.drone_id, media_root)
+    done = finished(world_tx.drone.drone_id)
     # Published by this id under the other organisation: the drone of that name is not it.
     assert not access.file_recording(world_tx.drone.drone_id, world_tx.other_org.pk, done)
     assert not VideoRecording.objects.exists() and not done.path.exists()
-    gone = finished("REMOVED_1", media_root)
+    gone = finished("REMOVED_1")
     assert not access.file_recording("REMOVED_1", world_tx.org.pk, gone)
     assert not gone.path.exists()
 
