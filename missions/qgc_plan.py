@@ -9,12 +9,14 @@ refused. It re-exports as those simple items.
 |---|---|
 | 22 NAV_TAKEOFF, 84 NAV_VTOL_TAKEOFF | arm, takeoff(altitude), wait_for_flight — QGC missions start disarmed on the ground; the autopilot completes the climb before the next item |
 | 16 NAV_WAYPOINT | navigate(lat, lon, altitude_delta), wait_for_flight(acceptance radius), sleep(hold) if hold > 0 |
+| the first altitude of a plan with no take-off | arm, takeoff(that altitude), wait_for_flight before its item, as PX4 climbs to the first waypoint's altitude when a mission needs no take-off item (`MIS_TAKEOFF_REQ`); under 0.5 m is refused |
 | 19 NAV_LOITER_TIME | navigate, wait_for_flight, sleep(time) |
 | 21 NAV_LAND, 85 NAV_VTOL_LAND | land, preceded by navigate + wait_for_flight when it is not where the drone already is |
 | 20 NAV_RETURN_TO_LAUNCH | navigate(home), wait_for_flight, land |
-| 178 DO_CHANGE_SPEED | `speed` on every following navigate (a speed of -1 or 0 keeps the current one) |
+| 178 DO_CHANGE_SPEED | `speed` on every following navigate (a speed of -1 or 0 keeps the current one); a climb or descent speed is refused |
 | 201 DO_SET_ROI (mode location), 195 DO_SET_ROI_LOCATION | `roi` [lat, lon] on every following navigate |
 | 197 DO_SET_ROI_NONE, 201 with mode none | following navigates carry no `roi` |
+| 201 DO_SET_ROI in an ArduPilot plan (firmwareType 3) | `roi` at params 5-6 whatever param 1, none when lat, lon and alt are all 0: ArduPilot reads it so, and QGroundControl leaves its param 1 at 0 |
 | 206 DO_SET_CAM_TRIGG_DIST | `photo_distance` on every following wait_for_flight (0 stops); "trigger once" is a takepic |
 | 2000 IMAGE_START_CAPTURE, 203 DO_DIGICAM_CONTROL | takepic |
 
@@ -75,6 +77,11 @@ DO_SET_CAM_TRIGG_DIST = 206
 IMAGE_START_CAPTURE = 2000
 MAV_ROI_NONE = 0
 MAV_ROI_LOCATION = 3
+# DO_CHANGE_SPEED param 1, the speed type: 0 airspeed, 1 ground speed (horizontal), 2 climb,
+# 3 descent (MAVLink common.xml).
+HORIZONTAL_SPEED_TYPES = (0, 1)
+# MAV_AUTOPILOT_ARDUPILOTMEGA, the plan's mission.firmwareType for ArduPilot.
+FIRMWARE_ARDUPILOT = 3
 
 FRAME_GLOBAL = 0  # altitude above mean sea level
 FRAME_MISSION = 2  # the item has no coordinate
@@ -198,9 +205,12 @@ class _Reader:
     """Turns mission items into steps, tracking the altitude, where the drone is and the
     settings (speed, region of interest, camera trigger distance) of the legs to come."""
 
-    def __init__(self, home: list[float] | None, terrain: Terrain | None = None) -> None:
+    def __init__(
+        self, home: list[float] | None, terrain: Terrain | None = None, firmware: int = 12
+    ) -> None:
         self.home = home
         self.terrain = terrain
+        self.firmware = firmware
         self.altitude: float | None = None
         self.position: tuple[float, float] | None = None
         self.armed = False
@@ -257,7 +267,8 @@ class _Reader:
                 where,
                 "its altitude is above terrain, no imported terrain covers it and home, and "
                 "the plan holds no AMSL altitude for it (AMSLAltAboveTerrain) — import the "
-                "terrain (manage.py import_terrain), let QGroundControl calculate it, or use "
+                "terrain (manage.py import_terrain), save the plan again in QGroundControl "
+                "with its terrain data loaded (it then writes AMSLAltAboveTerrain), or use "
                 "relative altitudes",
             )
         return self.amsl_to_relative(_num(amsl, f"{where}.AMSLAltAboveTerrain"), where)
@@ -271,6 +282,8 @@ class _Reader:
 
     def navigate(self, lat: float, lon: float, alt: float | None, hint: dict | None) -> None:
         params: dict = {"lat": lat, "lon": lon}
+        if alt is not None and self.altitude is None:
+            self.climb_to_first(alt)
         if alt is not None:
             if self.altitude is not None and alt != self.altitude:
                 params["altitude_delta"] = alt - self.altitude
@@ -283,6 +296,20 @@ class _Reader:
             params["qgc"] = hint
         self.add("navigate", params)
         self.position = (lat, lon)
+
+    def climb_to_first(self, alt: float) -> None:
+        """A plan with no take-off gives its first altitude above home, not a change from
+        where the drone is: arm and climb to it first, as PX4 does when a mission starts
+        with a waypoint (`MIS_TAKEOFF_REQ` 0, "Mission Mode (Multicopter)", docs.px4.io)."""
+        if alt < 0.5:
+            raise QgcPlanError(
+                f"{self.where}.params[6]",
+                f"the plan has no take-off, so it starts with a climb to its first altitude, "
+                f"{alt:g} m above home, which must be at least 0.5 m; add a take-off in "
+                "QGroundControl (a rover's or a submarine's plan is not for an aircraft)",
+            )
+        # Marked, so that the plan exports again without a take-off item of its own.
+        self.takeoff(list(_DEFAULT_P[NAV_TAKEOFF]), {"implied": True}, None, alt, self.where)
 
     def complex_item(self, item: Mapping, where: str, number: int | None) -> None:
         """A survey or corridor scan: QGroundControl saves the items it generated; fly those."""
@@ -342,9 +369,20 @@ class _Reader:
     def setting(self, command: int, p: list, where: str) -> None:
         """Speed, region of interest and distance camera: they apply to the legs after."""
         if command == DO_CHANGE_SPEED:
+            if p[0] is not None and p[0] not in HORIZONTAL_SPEED_TYPES:
+                raise QgcPlanError(
+                    f"{where}.params[0]",
+                    f"speed type {p[0]:g} (a climb or descent speed) is not supported; only "
+                    "an airspeed or ground speed (0 or 1)",
+                )
             speed = p[1]
             if speed is not None and speed > 0:
                 self.speed = speed
+        elif command == DO_SET_ROI and self.firmware == FIRMWARE_ARDUPILOT:
+            # ArduPilot ignores param 1 and clears the region of interest only when the
+            # location is all zero ("MAV_CMD_DO_SET_ROI", ArduPilot Copter documentation).
+            located = any(v not in (None, 0) for v in p[4:7])
+            self.roi = list(_latlon(p[4], p[5], where)) if located else None
         elif command == DO_SET_ROI_NONE or (command == DO_SET_ROI and p[0] == MAV_ROI_NONE):
             self.roi = None
         elif command == DO_SET_ROI and p[0] != MAV_ROI_LOCATION:
@@ -545,7 +583,8 @@ def import_plan(source: str | bytes | Mapping, terrain: Terrain | None = None) -
             *_latlon(home[0], home[1], "mission.plannedHomePosition"),
             _num(home[2], "mission.plannedHomePosition[2]"),
         ]
-    reader = _Reader(home, terrain)
+    firmware = int(_num(mission.get("firmwareType", 12), "mission.firmwareType"))
+    reader = _Reader(home, terrain, firmware)
     items = _list(mission.get("items"), "mission.items")
     for i, raw in enumerate(items):
         reader.item(_obj(raw, f"mission.items[{i}]"), f"mission.items[{i}]", number=i + 1)
@@ -566,7 +605,7 @@ def import_plan(source: str | bytes | Mapping, terrain: Terrain | None = None) -
         rally_points=_read_rally(plan.get("rallyPoints")),
         cruise_speed=_optional(mission.get("cruiseSpeed"), "mission.cruiseSpeed"),
         hover_speed=_optional(mission.get("hoverSpeed"), "mission.hoverSpeed"),
-        firmware_type=int(_num(mission.get("firmwareType", 12), "mission.firmwareType")),
+        firmware_type=firmware,
         vehicle_type=int(_num(mission.get("vehicleType", 2), "mission.vehicleType")),
     )
 
@@ -652,6 +691,8 @@ class _Writer:
             return i + 1
         if command == "takeoff":
             self.altitude = float(params.get("altitude", DEFAULT_ALTITUDE))
+            if hint.get("implied"):  # the climb to the first item's altitude, no item itself
+                return i + 1
             lat, lon = hint.get("coordinate") or self.home[:2]
             code = hint.get("command", NAV_TAKEOFF)
             p4 = hint.get("p", _DEFAULT_P[code])
