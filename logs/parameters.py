@@ -1,8 +1,8 @@
 """The flight controller's parameters recorded in a log, and their differences: between two
 logs, or between a log and its organisation's reference set for the drone's model.
 
-What each format records: a PX4 ULog its parameters at the start (the file's `P`
-messages, kept in the store's metadata), an ArduPilot DataFlash log `PARM` records, a
+What each format records: a PX4 ULog its parameters at the start and those changed in
+flight (the file's `P` messages, kept in the store's metadata), an ArduPilot DataFlash log `PARM` records, a
 MAVLink .tlog the `PARAM_VALUE` messages a ground station received, and a dRonin/OpenPilot
 recording (the agent's DFI) its UAVTalk *settings objects* — those flagged settings in the
 object definitions, or named `…Settings` as every dRonin settings object is — as

@@ -179,6 +179,16 @@ def scan(data: bytes | mmap.mmap, progress: Progress) -> Scan:
     return Scan(formats, offsets, skipped, truncated, bad_formats)
 
 
+def _no_formats(path: Path, bad_formats: list[str]) -> str:
+    """Why a log has no message type to read: no FMT record, or none usable (and why)."""
+    if not bad_formats:
+        return f"The file {path.name!r} has no FMT records: not a DataFlash log, or truncated."
+    more = f" (and {len(bad_formats) - 1} more)" if len(bad_formats) > 1 else ""
+    return (
+        f"The file {path.name!r} has no FMT record we can use: {bad_formats[0].rstrip('.')}{more}."
+    )
+
+
 class DataFlashImporter:
     name = "ArduPilot DataFlash"
     extensions = (".bin",)
@@ -192,9 +202,7 @@ class DataFlashImporter:
             found = scan(data, progress)
             formats, offsets = found.formats, found.offsets
             if not formats:
-                raise LogFormatError(
-                    f"The file {path.name!r} has no FMT records: not a DataFlash log, or truncated."
-                )
+                raise LogFormatError(_no_formats(path, found.bad_formats))
             buf = np.frombuffer(data, dtype=np.uint8)
             log = LogData(format="dataflash")
             if found.skipped:

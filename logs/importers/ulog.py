@@ -98,11 +98,19 @@ def _parse(path: Path, progress: Progress, sink: _ColumnSink | None = None) -> U
         ) from exc
 
 
+def _parameters(ulog: UlogFile) -> dict:
+    """The parameters at the start, each changed in flight at its last value: the rule
+    every format's parameters follow (logs/parameters.py)."""
+    values = dict(ulog.initial_parameters)
+    values.update(ulog.changed_parameters)
+    return values
+
+
 def _log_data(ulog: UlogFile, topics: list[_Topic]) -> LogData:
     log = LogData(format="ulog")
     log.metadata = {
         "info": {k: _plain(v) for k, v in ulog.msg_info_dict.items()},
-        "parameters": {k: _plain(v) for k, v in ulog.initial_parameters.items()},
+        "parameters": {k: _plain(v) for k, v in _parameters(ulog).items()},
         "start_timestamp_us": int(ulog.start_timestamp),
         # Data the logger could not write (the file's dropout messages), in ms.
         "dropouts_ms": int(ulog.dropouts_ms),

@@ -472,6 +472,12 @@ class _Reader:
         level, timestamp = struct.unpack_from("<BQ", payload)
         self.out.logged_messages.append(LoggedMessage(timestamp, level, _text(payload[9:])))
 
+    def _logging_tagged(self, payload: bytes) -> None:
+        # A tagged string (ULog File Format, message 'C'): level, the tag of the process
+        # that logged it, then as 'L'. One list, in the order the file logged them.
+        level, _tag, timestamp = struct.unpack_from("<BHQ", payload)
+        self.out.logged_messages.append(LoggedMessage(timestamp, level, _text(payload[11:])))
+
     def _dropout(self, payload: bytes) -> None:
         self.out.dropouts_ms += struct.unpack_from("<H", payload)[0]
 
@@ -547,6 +553,7 @@ _HANDLERS = {
     ord("A"): _Reader._subscribe,
     ord("R"): _Reader._unsubscribe,
     ord("L"): _Reader._logging,
+    ord("C"): _Reader._logging_tagged,
     ord("O"): _Reader._dropout,
 }
 

@@ -116,3 +116,15 @@ def test_dataflash_corrupt_fmt_loses_only_its_message_type(bin_log):
         "Ignored a corrupt FMT record: FMT of ATT: unsupported format character '?'" in w
         for w in log.warnings
     )
+
+
+def test_a_log_whose_only_format_is_corrupt_says_what_is_wrong_with_it(tmp_path):
+    """The FMT of FMT, then one FMT whose format string needs 9 bytes in a 6-byte record."""
+    fmt_of_fmt = bytes([0xA3, 0x95, 0x80, 0x80, 89]) + b"FMT\0" + b"BBnNZ".ljust(16, b"\0")
+    fmt_of_fmt += b"Type,Length,Name,Format,Columns".ljust(64, b"\0")
+    tst = bytes([0xA3, 0x95, 0x80, 0x81, 6]) + b"TST\0" + b"QB".ljust(16, b"\0")
+    tst += b"TimeUS,V".ljust(64, b"\0")
+    path = tmp_path / "one-bad-format.bin"
+    path.write_bytes(fmt_of_fmt + tst + bytes([0xA3, 0x95, 0x81, 1, 2, 3]))
+    with pytest.raises(LogFormatError, match="no FMT record we can use: FMT of TST: format 'QB'"):
+        import_log(path)

@@ -141,3 +141,51 @@ def test_yaw_pitch_roll_of_a_long_log_are_computed_block_by_block(tmp_path, monk
         values = log.series[f"vehicle_attitude/euler/{name}"].values
         assert values.dtype == np.float32  # the quaternion's own precision
         np.testing.assert_allclose(values, expected, atol=1e-5)
+
+
+def test_tagged_log_messages_join_the_others_in_file_order(tmp_path):
+    """PX4 logs a module's strings as tagged messages ('C': level, tag, time, text) beside
+    the plain ones ('L'); pyulog keeps them apart by tag, the viewer shows both."""
+    import struct
+
+    path = tmp_path / "tagged.ulg"
+    arr = np.zeros(2, dtype=[("timestamp", "<u8"), ("alt", "<f4")])
+    arr["timestamp"] = [1_000, 2_000_000]
+    write_ulog(path, {"altitude_probe": arr}, messages=[(1_500, 6, "plain one")])
+    text = b"tagged one"
+    payload = struct.pack("<BHQ", ord("4"), 7, 2_500_000) + text  # level as ULog writes it
+    with open(path, "ab") as f:
+        f.write(struct.pack("<HB", len(payload), ord("C")) + payload)
+    reference = ULog(str(path))
+    assert [m.message for m in reference.logged_messages_tagged[7]] == ["tagged one"]
+    log = import_log(path)
+    assert log.series["logging/message"].values.tolist() == ["plain one", "tagged one"]
+    assert log.series["logging/message"].times.tolist() == [1_500_000, 2_500_000_000]
+    level = log.series["logging/level"]
+    assert (
+        level.labels[int(level.values[1])]
+        == reference.logged_messages_tagged[7][0].log_level_str().lower()
+    )
+
+
+def test_a_parameter_changed_in_flight_is_kept_at_its_last_value(tmp_path):
+    """A `P` message in the data section is a change made in flight (pyulog's
+    changed_parameters); the log's parameters, like every format's, end at the last value."""
+    import struct
+
+    path = tmp_path / "tuned.ulg"
+    arr = np.zeros(2, dtype=[("timestamp", "<u8"), ("alt", "<f4")])
+    arr["timestamp"] = [1_000, 2_000_000]
+    write_ulog(path, {"altitude_probe": arr}, parameters={"MPC_XY_VEL_MAX": 12.0, "COM_RC_IN": 1})
+    with open(path, "ab") as f:
+        for value in (10.0, 8.0):
+            key = b"float MPC_XY_VEL_MAX"
+            payload = bytes([len(key)]) + key + struct.pack("<f", value)
+            f.write(struct.pack("<HB", len(payload), ord("P")) + payload)
+    reference = ULog(str(path))
+    assert [(name, value) for _, name, value in reference.changed_parameters] == [
+        ("MPC_XY_VEL_MAX", 10.0),
+        ("MPC_XY_VEL_MAX", 8.0),
+    ]
+    parameters = import_log(path).metadata["parameters"]
+    assert parameters == {"MPC_XY_VEL_MAX": 8.0, "COM_RC_IN": 1}
