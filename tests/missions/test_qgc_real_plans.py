@@ -9,6 +9,7 @@ import pytest
 
 from missions.qgc_plan import QgcPlanError, dumps, export_qgc_plan, import_plan
 from onboard.protocol import encode_mission_payload
+from tests.missions.qgc_format import plan_errors
 
 PLANS = Path(__file__).parents[1] / "data" / "qgc" / "qgroundcontrol"
 
@@ -60,6 +61,7 @@ def test_a_plan_without_a_takeoff_climbs_to_its_first_altitude_first():
     assert encode_mission_payload("m1", "a1", steps)
     # The climb is the plan's own first altitude, so it exports as no item of its own.
     exported = json.loads(dumps(export_qgc_plan(import_plan(plan, terrain=flat))))
+    assert plan_errors(exported) == []
     first = exported["mission"]["items"][0]
     assert (first["command"], first["params"][6]) == (16, 60)
     assert 22 not in [item["command"] for item in exported["mission"]["items"]]
