@@ -33,6 +33,8 @@ DEFAULT_BATTERY_RESERVE = 30.0
 # A "return" under the battery reserve is a move ending this close to home (horizontally).
 RETURN_RADIUS = 5.0
 MAX_FENCE_VERTICES = 1000
+# The least area a polygon encloses: a smaller one is a line or a point, not a place.
+MIN_POLYGON_AREA_M2 = 0.01
 MAX_FENCES = 100
 QGC_FENCE_VERSION = 2
 QGC_SHAPE_VERSION = 1
@@ -164,11 +166,20 @@ def _polygon(obj: Any, name: str) -> Polygon:
     points = tuple(parse_latlon(p, f"{name}.polygon[{i}]") for i, p in enumerate(raw))
     if len(points) >= 2 and points[0] == points[-1]:
         points = points[:-1]  # a closed ring repeats its first vertex
-    if len(points) < 3:
+    if len(set(points)) < 3:
         raise EnvelopeError(f"{name}.polygon", "needs at least 3 distinct points")
-    if _self_intersects(_to_local(points, points[0])):
+    local = _to_local(points, points[0])
+    if _self_intersects(local):
         raise EnvelopeError(f"{name}.polygon", "must not intersect itself")
+    if abs(_twice_area(local)) < MIN_POLYGON_AREA_M2 * 2:
+        # A ring drawn there and back (a wall in a KML export) has points but no inside.
+        raise EnvelopeError(f"{name}.polygon", "encloses no area: its points lie on one line")
     return Polygon(_inclusion(obj, name), points)
+
+
+def _twice_area(ring: list[tuple[float, float]]) -> float:
+    """Twice the signed area of a ring (the shoelace formula), in square metres."""
+    return sum(a[0] * b[1] - b[0] * a[1] for a, b in zip(ring, ring[1:] + ring[:1], strict=True))
 
 
 def _circle(obj: Any, name: str) -> Circle:

@@ -6,7 +6,9 @@ organisation, or site-wide); other zones stay. A refused file changes nothing.
 
 from __future__ import annotations
 
+import io
 import json
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -16,11 +18,13 @@ from django.db import transaction
 
 from onboard.envelope import ned_to_latlon
 
-from .formats import ed269, geojson, kml
+from .formats import ed269, ed318, geojson, kml
 from .formats.common import Budget, ParsedZone, ZoneFileError
 from .models import Zone
 
-FORMATS = ("geojson", "ed269", "kml")
+FORMATS = ("geojson", "ed269", "ed318", "kml")
+UTF8_BOM = b"\xef\xbb\xbf"
+ZIP_MAGIC = b"PK\x03\x04"
 
 
 @dataclass(frozen=True)
@@ -35,12 +39,34 @@ def budget() -> Budget:
 
 
 def detect(name: str, data: bytes) -> str:
-    """The format of a file: KML by its name or its first character, else JSON: a
-    FeatureCollection is GeoJSON, any other object with features ED-269."""
-    head = data.lstrip()[:1]
+    """The format of a file: KMZ (zipped KML) by its first bytes, KML by its name or its
+    first character, else JSON: a FeatureCollection is GeoJSON or ED-318, any other object
+    with features ED-269."""
+    if data.startswith(ZIP_MAGIC):
+        return "kmz"
+    head = data.removeprefix(UTF8_BOM).lstrip()[:1]
     if name.lower().endswith(".kml") or head == b"<":
         return "kml"
     return "json"
+
+
+def unzipped_kml(data: bytes) -> bytes:
+    """The KML inside a KMZ (Google Earth's usual export): its doc.kml, else its first .kml,
+    read no further than the file size limit, which the unzipped text is held to too."""
+    limit = settings.ZONES_MAX_FILE_BYTES
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as archive:
+            entries = [e for e in archive.infolist() if e.filename.lower().endswith(".kml")]
+            if not entries:
+                raise ZoneFileError("kmz", "holds no .kml file")
+            entry = next((e for e in entries if e.filename.lower() == "doc.kml"), entries[0])
+            with archive.open(entry) as inside:
+                text = inside.read(limit + 1)
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError) as exc:
+        raise ZoneFileError("kmz", f"not a readable KMZ (zip) file: {exc}") from None
+    if len(text) > limit:
+        raise ZoneFileError(f"kmz:{entry.filename}", f"larger than {limit} bytes unzipped")
+    return text
 
 
 def _json(data: bytes) -> Any:
@@ -54,10 +80,15 @@ def parse(name: str, data: bytes) -> tuple[str, list[ParsedZone]]:
     """(format, zones) of a file, or ZoneFileError; stores nothing."""
     if len(data) > settings.ZONES_MAX_FILE_BYTES:
         raise ZoneFileError("", f"larger than {settings.ZONES_MAX_FILE_BYTES} bytes")
-    if detect(name, data) == "kml":
-        return "kml", kml.read(data, budget())
+    found = detect(name, data)
+    if found == "kmz":
+        return "kml", kml.read(unzipped_kml(data), budget())
+    if found == "kml":
+        return "kml", kml.read(data.removeprefix(UTF8_BOM), budget())
     document = _json(data)
     if isinstance(document, dict) and document.get("type") == "FeatureCollection":
+        if ed318.is_ed318(document):
+            return "ed318", ed318.read(document, budget())
         return "geojson", geojson.read(document, budget())
     return "ed269", ed269.read(document, budget())
 

@@ -2,9 +2,12 @@
 
 The stored form (Zone.applicability) is [] for a permanent zone, else a list of periods
 {"start": ISO 8601 | None, "end": ISO 8601 | None, "schedule": [{"days": [...],
-"start": "HH:MM", "end": "HH:MM"}]}; a zone applies when any of its periods does. The
-periods follow ED-269's `applicability` (permanent, startDateTime, endDateTime, schedule
-of days and times) [EUROCAE ED-269].
+"start": "HH:MM[:SS]", "end": "HH:MM[:SS]" or "24:00"}]}; a zone applies when any of its
+periods does. The periods follow ED-269's `applicability` (permanent, startDateTime,
+endDateTime, schedule of days and times) [EUROCAE ED-269]. A daily window whose end is not
+after its start runs into the next day, on the days it starts (22:00-02:00 on SAT holds
+from Saturday 22:00 to Sunday 02:00; 00:00-00:00 is the whole day), and 24:00 ends a
+window at midnight, as aeronautical schedules write them [AIXM 5.1 Timesheet].
 """
 
 from __future__ import annotations
@@ -17,7 +20,9 @@ from typing import Any
 DAYS = ("MON", "TUE", "WED", "THU", "FRI", "SAT", "SUN")
 ANY_DAY = "ANY"
 MAX_PERIODS = 50
-_CLOCK = re.compile(r"^([01]\d|2[0-3]):([0-5]\d)(?::([0-5]\d))?Z?$")
+# HH:MM[:SS[.fraction]], in UTC: a "Z" or a zero offset, or none.
+_CLOCK = re.compile(r"^(\d\d):([0-5]\d)(?::([0-5]\d)(?:\.\d+)?)?(?:Z|[+-]00:?00)?$")
+END_OF_DAY = "24:00"
 
 
 class WindowError(ValueError):
@@ -41,11 +46,18 @@ def instant(value: object, field: str) -> str:
     return parsed.isoformat()
 
 
-def clock(value: object, field: str) -> str:
+def clock(value: object, field: str, *, end: bool = False) -> str:
+    """A UTC time of day as stored: HH:MM, with :SS when it has seconds (a fraction is
+    dropped); 24:00 only where a window ends."""
     match = _CLOCK.match(value) if isinstance(value, str) else None
-    if match is None:
-        raise WindowError(field, f"must be a UTC time HH:MM, got {value!r}")
-    return f"{match.group(1)}:{match.group(2)}"
+    hours, minutes, seconds = match.groups() if match else (None, None, None)
+    midnight = hours == "24" and minutes == "00" and int(seconds or 0) == 0
+    if match is None or (int(hours) > 23 and not (midnight and end)):  # type: ignore[arg-type]
+        allowed = "HH:MM[:SS] (00:00 to 24:00)" if end else "HH:MM[:SS] (00:00 to 23:59:59)"
+        raise WindowError(field, f"must be a UTC time {allowed}, got {value!r}")
+    if midnight:
+        return END_OF_DAY
+    return f"{hours}:{minutes}" + (f":{seconds}" if seconds and seconds != "00" else "")
 
 
 def schedule_entry(obj: object, field: str) -> dict:
@@ -59,7 +71,7 @@ def schedule_entry(obj: object, field: str) -> dict:
         if day not in (*DAYS, ANY_DAY):
             raise WindowError(f"{field}.day", f"unknown day {day!r}")
     start = clock(obj.get("startTime"), f"{field}.startTime")
-    end = clock(obj.get("endTime"), f"{field}.endTime")
+    end = clock(obj.get("endTime"), f"{field}.endTime", end=True)
     return {"days": list(days), "start": start, "end": end}
 
 
@@ -106,15 +118,23 @@ def _at(text: str) -> datetime:
     return datetime.fromisoformat(text)
 
 
+def _on(entry: Mapping, weekday: int) -> bool:
+    return ANY_DAY in entry["days"] or DAYS[weekday] in entry["days"]
+
+
 def _in_schedule(entry: Mapping, moment: datetime) -> bool:
-    day = DAYS[moment.weekday()]
-    if ANY_DAY not in entry["days"] and day not in entry["days"]:
-        return False
-    now = moment.time()
-    start, end = time.fromisoformat(entry["start"]), time.fromisoformat(entry["end"])
-    if start <= end:
-        return start <= now <= end
-    return now >= start or now <= end  # across midnight
+    """Within the daily window on one of its days; a window that runs past midnight
+    belongs to the day it starts."""
+    now = moment.time().replace(microsecond=0)
+    start, weekday = time.fromisoformat(entry["start"]), moment.weekday()
+    if entry["end"] == END_OF_DAY:
+        return now >= start and _on(entry, weekday)
+    end = time.fromisoformat(entry["end"])
+    if start < end:
+        return start <= now <= end and _on(entry, weekday)
+    if now >= start:  # the evening part, on its own day
+        return _on(entry, weekday)
+    return now <= end and _on(entry, (weekday - 1) % 7)  # the morning part, a day later
 
 
 def applies_at(periods: Sequence[Mapping], moment: datetime) -> bool:

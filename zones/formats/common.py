@@ -28,6 +28,8 @@ ED269_RESTRICTIONS = {
 }
 MAX_TEXT = 200
 MAX_MESSAGE = 2000
+# A zone's identifier is stored in a column this wide (zones.models.Zone.identifier).
+MAX_IDENTIFIER = 120
 
 
 class ZoneFileError(ValueError):

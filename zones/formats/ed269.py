@@ -20,6 +20,8 @@ from typing import Any
 from ..bands import BandError, to_metres
 from ..windows import WindowError, applicability
 from .common import (
+    MAX_IDENTIFIER,
+    MAX_MESSAGE,
     Budget,
     ParsedZone,
     ZoneFileError,
@@ -51,7 +53,9 @@ def _feature(feature: Any, where: str, budget: Budget) -> list[ParsedZone]:
     if not isinstance(feature, Mapping):
         raise ZoneFileError(where, "must be an object")
     kind = restriction(feature.get("restriction"), f"{where}.restriction")
-    identifier = text(feature.get("identifier"), f"{where}.identifier")
+    if kind is None:
+        return []  # NO_RESTRICTION restricts nothing: skipped before its volumes are read
+    identifier = text(feature.get("identifier"), f"{where}.identifier", limit=MAX_IDENTIFIER)
     name = text(feature.get("name") or identifier, f"{where}.name")
     volumes = feature.get("geometry")
     if not isinstance(volumes, list) or not volumes:
@@ -62,10 +66,8 @@ def _feature(feature: Any, where: str, budget: Budget) -> list[ParsedZone]:
         periods = applicability(feature.get("applicability"), f"{where}.applicability")
     except WindowError as exc:
         raise windows_error(exc) from None
-    message = text(feature.get("message"), f"{where}.message", required=False, limit=2000)
+    message = text(feature.get("message"), f"{where}.message", required=False, limit=MAX_MESSAGE)
     parts = [_volume(v, f"{where}.geometry[{j}]", budget) for j, v in enumerate(volumes)]
-    if kind is None:
-        return []
     return [
         ParsedZone(identifier, name, kind, [shape], limits, periods, message, part)
         for part, (shape, limits) in enumerate(parts)

@@ -17,6 +17,8 @@ from typing import Any
 
 from ..windows import WindowError, applicability
 from .common import (
+    MAX_IDENTIFIER,
+    MAX_MESSAGE,
     Budget,
     ParsedZone,
     ZoneFileError,
@@ -51,17 +53,20 @@ def _feature(feature: Any, where: str, budget: Budget) -> ParsedZone | None:
         return None
     identifier = props.get("identifier", feature.get("id"))
     return ParsedZone(
-        identifier=text(identifier, f"{where}.properties.identifier"),
+        identifier=text(identifier, f"{where}.properties.identifier", limit=MAX_IDENTIFIER),
         name=text(props.get("name"), f"{where}.properties.name"),
         restriction=kind,
-        shapes=_shapes(feature.get("geometry"), f"{where}.geometry", budget),
+        shapes=shapes(feature.get("geometry"), f"{where}.geometry", budget),
         band=band(props, f"{where}.properties"),
         applicability=_windows(props, f"{where}.properties"),
-        message=text(props.get("message"), f"{where}.properties.message", required=False),
+        message=text(
+            props.get("message"), f"{where}.properties.message", required=False, limit=MAX_MESSAGE
+        ),
     )
 
 
-def _shapes(geometry: Any, where: str, budget: Budget) -> list[dict]:
+def shapes(geometry: Any, where: str, budget: Budget) -> list[dict]:
+    """The exterior rings of a Polygon or MultiPolygon, each checked as a zone polygon."""
     if not isinstance(geometry, Mapping):
         raise ZoneFileError(where, "must be a Polygon or MultiPolygon geometry")
     kind, coordinates = geometry.get("type"), geometry.get("coordinates")

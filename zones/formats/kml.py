@@ -18,7 +18,18 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from xml.parsers import expat
 
-from .common import Budget, ParsedZone, ZoneFileError, band, distinct, lonlat, polygon, text
+from .common import (
+    MAX_IDENTIFIER,
+    MAX_MESSAGE,
+    Budget,
+    ParsedZone,
+    ZoneFileError,
+    band,
+    distinct,
+    lonlat,
+    polygon,
+    text,
+)
 from .common import restriction as restriction_of
 
 BAND_KEYS = (
@@ -106,12 +117,12 @@ def _placemark(placemark: ET.Element, where: str, budget: Budget) -> ParsedZone 
         return None
     identifier = values.get("identifier") or placemark.get("id") or name
     return ParsedZone(
-        identifier=text(identifier, f"{where}.identifier"),
+        identifier=text(identifier, f"{where}.identifier", limit=MAX_IDENTIFIER),
         name=text(name or identifier, f"{where}.name"),
         restriction=kind,
         shapes=shapes,
         band=limits,
-        message=text(values.get("message"), f"{where}.message", required=False, limit=2000),
+        message=text(values.get("message"), f"{where}.message", required=False, limit=MAX_MESSAGE),
     )
 
 
