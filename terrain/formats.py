@@ -13,8 +13,10 @@ and columns are the same samples as its neighbours'. A void is -32768.
 GeoTIFF (OGC GeoTIFF 1.1): one band of elevations in EPSG:4326 placed by
 ModelTiepointTag (33922) and ModelPixelScaleTag (33550); the GeoKeyDirectoryTag (34735)
 says the model is geographic WGS 84 (GTModelTypeGeoKey 1024 = 2, GeodeticCRSGeoKey 2048 =
-4326) and whether a pixel is an area or a point (GTRasterTypeGeoKey 1025). The value of
-GDAL's GDAL_NODATA tag (42113, ASCII) marks voids.
+4326) and whether a pixel is an area or a point (GTRasterTypeGeoKey 1025); a
+ModelTransformationTag (34264) without rotation places it as well. The value of GDAL's
+GDAL_NODATA tag (42113, ASCII) marks voids, and the band's scale and offset in GDAL's
+GDAL_METADATA tag (42112, XML) turn stored values into metres (value x scale + offset).
 """
 
 from __future__ import annotations
@@ -39,6 +41,12 @@ TAG_MODEL_TIEPOINT = 33922
 TAG_MODEL_TRANSFORMATION = 34264
 TAG_GEO_KEY_DIRECTORY = 34735
 TAG_GDAL_NODATA = 42113
+TAG_GDAL_METADATA = 42112
+# A band's scale or offset in GDAL_METADATA: <Item name="SCALE" sample="0" role="scale">.
+GDAL_ITEM = re.compile(
+    r"<Item\b(?P<attrs>[^>]*)>\s*(?P<value>[^<]*?)\s*</Item>", re.IGNORECASE | re.DOTALL
+)
+PREDICTOR_FLOATING_POINT = 3
 KEY_MODEL_TYPE = 1024
 KEY_RASTER_TYPE = 1025
 KEY_GEODETIC_CRS = 2048
@@ -203,30 +211,68 @@ def _nodata(tags: object) -> float | None:
         raise TerrainError(f"its GDAL_NODATA tag {text!r} is not a number") from None
 
 
-def _placement(tags: object, keys: dict[int, int], rows: int, cols: int) -> tuple[float, ...]:
-    """(north, west, dlat, dlon) of the sample centres from the tiepoint and pixel scale."""
-    if tags.get(TAG_MODEL_TRANSFORMATION) is not None:  # type: ignore[attr-defined]
-        raise TerrainError("a ModelTransformationTag (rotated grid) is not supported")
+def _scale_offset(tags: object) -> tuple[float, float]:
+    """The first band's (scale, offset) from GDAL_METADATA; (1, 0) when it gives none."""
+    tag = tags.get(TAG_GDAL_METADATA)  # type: ignore[attr-defined]
+    text = getattr(tag, "value", "") or ""
+    text = text.decode("utf-8", "replace") if isinstance(text, bytes) else str(text)
+    found = {"scale": 1.0, "offset": 0.0}
+    for item in GDAL_ITEM.finditer(text):
+        attrs = dict(re.findall(r'(\w+)\s*=\s*"([^"]*)"', item.group("attrs")))
+        role = attrs.get("role", "").lower()
+        if role in found and attrs.get("sample", "0") == "0":
+            try:
+                found[role] = float(item.group("value"))
+            except ValueError:
+                raise TerrainError(f"its GDAL_METADATA {role} is not a number") from None
+    if not all(math.isfinite(v) for v in found.values()) or found["scale"] == 0:
+        raise TerrainError(f"its GDAL_METADATA scale and offset {found} cannot give heights")
+    return found["scale"], found["offset"]
+
+
+def _tiepoint_and_scale(tags: object) -> tuple[list[float], list[float]]:
+    """(tiepoint i, j, k, x, y, z; pixel scale x, y) from their tags, or from a
+    ModelTransformationTag without rotation (a 4 x 4 matrix: x scale at [0], y scale at
+    [5], the origin at [3] and [7])."""
+    matrix_tag = tags.get(TAG_MODEL_TRANSFORMATION)  # type: ignore[attr-defined]
+    if matrix_tag is not None:
+        m = _numbers(matrix_tag, 16, "ModelTransformationTag")
+        if m[1] != 0 or m[4] != 0:
+            raise TerrainError(
+                "its ModelTransformationTag rotates the grid, which is not supported"
+            )
+        return [0.0, 0.0, 0.0, m[3], m[7], 0.0], [m[0], -m[5]]
     scale_tag = tags.get(TAG_MODEL_PIXEL_SCALE)  # type: ignore[attr-defined]
     tie_tag = tags.get(TAG_MODEL_TIEPOINT)  # type: ignore[attr-defined]
     if scale_tag is None or tie_tag is None:
         raise TerrainError("it has no ModelTiepointTag and ModelPixelScaleTag to place it")
-    dlon, dlat = _numbers(scale_tag, 3, "ModelPixelScaleTag")[:2]
-    i, j, _, x, y, _ = _numbers(tie_tag, 6, "ModelTiepointTag")[:6]
-    if dlon <= 0 or dlat <= 0:
+    return _numbers(tie_tag, 6, "ModelTiepointTag")[:6], _numbers(
+        scale_tag, 3, "ModelPixelScaleTag"
+    )[:2]
+
+
+def _placement(
+    tags: object, keys: dict[int, int], rows: int, cols: int
+) -> tuple[float, float, float, float, bool]:
+    """(north, west, dlat, dlon) of the sample centres from the tiepoint and pixel scale,
+    and whether the rows run from south to north (a negative y scale) and must be turned."""
+    (i, j, _, x, y, _), (dlon, dlat) = _tiepoint_and_scale(tags)
+    if dlon <= 0 or dlat == 0:
         raise TerrainError(f"its pixel scale ({dlon}, {dlat}) must be positive")
     # Pixel-is-area: raster coordinates name pixel corners, so a sample's centre is half a
     # pixel in (GeoTIFF 1.1, raster space); pixel-is-point: they name the samples.
     offset = 0.0 if keys.get(KEY_RASTER_TYPE) == RASTER_PIXEL_IS_POINT else 0.5
     west = x + (offset - i) * dlon
-    north = y - (offset - j) * dlat
+    first_row = y - (offset - j) * dlat
+    bottom_up, dlat = dlat < 0, abs(dlat)
+    north = first_row + (rows - 1) * dlat if bottom_up else first_row
     south, east = north - (rows - 1) * dlat, west + (cols - 1) * dlon
     slack = offset * max(dlat, dlon) + EDGE_SLACK
     if not (-90 - slack <= south and north <= 90 + slack):
         raise TerrainError(f"its rows span latitudes {south:.6f}..{north:.6f}, off the globe")
     if not (-180 - slack <= west and east <= 180 + slack):
         raise TerrainError(f"its columns span longitudes {west:.6f}..{east:.6f}, off the globe")
-    return north, west, dlat, dlon
+    return north, west, dlat, dlon, bottom_up
 
 
 def _check_page(page: object, max_samples: int) -> tuple[int, int]:
@@ -251,6 +297,12 @@ def _check_page(page: object, max_samples: int) -> tuple[int, int]:
             f"its compression (TIFF code {compression}) is not supported; save it "
             "uncompressed or with Deflate (gdal_translate -co COMPRESS=DEFLATE)"
         )
+    if int(page.predictor) == PREDICTOR_FLOATING_POINT:  # type: ignore[attr-defined]
+        raise TerrainError(
+            "its floating-point predictor (TIFF Predictor 3, as in Copernicus DEM tiles) "
+            "is not supported; save it with gdal_translate -co COMPRESS=DEFLATE "
+            "-co PREDICTOR=1"
+        )
     return rows, cols
 
 
@@ -267,14 +319,16 @@ def read_geotiff(name: str, data: bytes, max_samples: int) -> Grid:
                 raise TerrainError("it has no GeoKeyDirectoryTag: a TIFF but not a GeoTIFF")
             keys = _geo_keys(directory.value)
             _check_crs(keys)
-            north, west, dlat, dlon = _placement(page.tags, keys, rows, cols)
+            north, west, dlat, dlon, bottom_up = _placement(page.tags, keys, rows, cols)
             nodata = _nodata(page.tags)
-            samples = page.asarray()
+            scale, offset = _scale_offset(page.tags)
+            samples = page.asarray()[::-1] if bottom_up else page.asarray()
     except TerrainError as exc:
         raise TerrainError(f"{name}: {exc}") from None
     except Exception as exc:  # tifffile names what is wrong in its own exceptions
         raise TerrainError(f"{name} is not a readable TIFF ({exc})") from None
-    heights = samples.astype(np.float32)
+    heights = samples.astype(np.float64) * scale + offset if (scale, offset) != (1, 0) else samples
+    heights = heights.astype(np.float32)
     if nodata is not None:
-        heights[samples == nodata] = np.nan
+        heights[samples == nodata] = np.nan  # GDAL's nodata is a stored value, before scaling
     return Grid(name, "geotiff", heights, north, west, dlat, dlon)

@@ -105,7 +105,8 @@ def read_mbtiles(path: Path, limits: Limits | None = None) -> Source:
     metadata: dict[str, str] = {}
     if "metadata" in names:
         rows = con.execute("SELECT name, value FROM metadata LIMIT 1000")
-        metadata = {str(k)[:200]: str(v)[:2000] for k, v in rows}
+        # A NULL value is no value, not the text "None".
+        metadata = {str(k)[:200]: str(v)[:2000] for k, v in rows if v is not None}
     if metadata.get("format", "").lower() in ("pbf", "mvt"):
         con.close()
         raise TileError(f"{path.name} holds vector tiles; only raster tiles can be served")
@@ -146,7 +147,8 @@ def _mbtiles_rows(con: sqlite3.Connection, limits: Limits) -> Iterator[Tile]:
         for z, x, row, size, data in con.execute(query, (limits.tile_bytes,)):
             limits.check_tile(f"tile {z}/{x}/{row}", int(size or 0))
             if not isinstance(data, bytes):
-                raise TileError(f"tile {z}/{x}/{row} has no image data")
+                xyz_y = 2 ** int(z) - 1 - int(row)
+                raise TileError(f"tile {z}/{x}/{xyz_y} (TMS row {row}) has no image data")
             yield int(z), int(x), 2 ** int(z) - 1 - int(row), data
     except sqlite3.DatabaseError as exc:
         raise TileError(f"the MBTiles file cannot be read: {exc}") from exc
