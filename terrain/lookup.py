@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from django.db.models import F
 
 from onboard.envelope import EARTH_RADIUS
 from terrain import store
@@ -46,6 +47,18 @@ class _Tile:
             & (lats <= self.north + EDGE_EPSILON)
             & (lons >= self.west - EDGE_EPSILON)
             & (lons <= self.east + EDGE_EPSILON)
+        )
+
+    def reaches(self, lats: np.ndarray, lons: np.ndarray) -> np.ndarray:
+        """Within half a cell of the grid's outer samples: the outer half of its edge
+        pixels (a pixel-is-area grid's own extent), which also closes the one-cell strip
+        between two tiles that share no edge samples."""
+        half_lat, half_lon = self.dlat / 2, self.dlon / 2
+        return (
+            (lats >= self.south - half_lat)
+            & (lats <= self.north + half_lat)
+            & (lons >= self.west - half_lon)
+            & (lons <= self.east + half_lon)
         )
 
     def cell_metres(self, lat: float) -> float:
@@ -118,11 +131,12 @@ class Surface:
 
     @classmethod
     def covering(cls, west: float, south: float, east: float, north: float) -> Surface:
+        """The grids whose samples, or the outer half of their edge cells, reach the box."""
         rows = TerrainTile.objects.filter(
-            west__lte=east + EDGE_EPSILON,
-            east__gte=west - EDGE_EPSILON,
-            south__lte=north + EDGE_EPSILON,
-            north__gte=south - EDGE_EPSILON,
+            west__lte=east + EDGE_EPSILON + F("cell_lon"),
+            east__gte=west - EDGE_EPSILON - F("cell_lon"),
+            south__lte=north + EDGE_EPSILON + F("cell_lat"),
+            north__gte=south - EDGE_EPSILON - F("cell_lat"),
         ).order_by("-created_at", "-id")
         fields = ("pk", "north", "west", "south", "east", "cell_lat", "cell_lon")
         return cls([_Tile(*values) for values in rows.values_list(*fields)])
@@ -140,7 +154,28 @@ class Surface:
             wanted = inside & np.isnan(heights)
             if wanted.any():
                 heights[wanted] = _bilinear(grid, tile, lats[wanted], lons[wanted])
+        if not covered.all():
+            self._beside_edges(lats, lons, heights, covered)
         return heights, covered
+
+    def _beside_edges(
+        self, lats: np.ndarray, lons: np.ndarray, heights: np.ndarray, covered: np.ndarray
+    ) -> None:
+        """A point on no grid but within half a cell of one takes that grid's edge (the
+        interpolation held at its outer samples); near two, the higher ground, which can
+        only lower the clearance."""
+        outside = ~covered
+        edge = np.full(lats.shape, np.nan)
+        reached = np.zeros(lats.shape, dtype=bool)
+        for tile in self.tiles:
+            near = outside & tile.reaches(lats, lons)
+            grid = store.open_grid(tile.pk) if near.any() else None
+            if grid is None:
+                continue
+            reached |= near
+            edge[near] = np.fmax(edge[near], _bilinear(grid, tile, lats[near], lons[near]))
+        heights[reached] = edge[reached]
+        covered |= reached
 
     def elevation(self, lat: float, lon: float) -> float | None:
         heights, _ = self.sample(np.array([float(lat)]), np.array([float(lon)]))

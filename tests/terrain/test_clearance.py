@@ -106,10 +106,12 @@ def test_voids_and_missing_terrain_under_a_leg_are_reported(terrain_dir, tmp_pat
     assert gap.start_m < 300.0 < gap.end_m and gap.end_m - gap.start_m < 600
     # The clearance is still found where there is terrain.
     assert found.minimum == pytest.approx(300.0 - 210.0, abs=0.5)
-    # Off the tile's north edge (latitude 41) there is no terrain at all.
+    # Off the tile's north edge (latitude 41) and the outer half of its edge cells there
+    # is no terrain at all.
     off = terrain.clearance_along((40.99, -8.5, 300.0), (41.01, -8.5, 300.0))
     assert [g.reason for g in off.gaps] == ["no terrain"]
-    assert off.gaps[0].start_m == pytest.approx(1113, abs=off.spacing_m)
+    half_cell_m = hill.step / 2 * 111_195
+    assert off.gaps[0].start_m == pytest.approx(1113 + half_cell_m, abs=off.spacing_m)
 
 
 # -- enforcement through the API ---------------------------------------------------------------

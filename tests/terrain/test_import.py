@@ -228,3 +228,23 @@ def test_nothing_to_import_is_said(terrain_dir, tmp_path):
     with pytest.raises(TerrainError, match="no elevation file found"):
         import_path(tmp_path / "empty")
     assert stored_files(terrain_dir) == []
+
+
+def test_between_two_tiles_that_share_no_samples_the_ground_is_the_higher_edge(
+    terrain_dir, tmp_path, hill
+):
+    """Pixel-is-area tiles (as GeoTIFF DEMs are cut) end half a cell beyond their outer
+    samples and share none: the strip of one cell between two such tiles has ground."""
+    top_row, _ = hill.sample_at(*hill.hill_top())
+    import_path(write_geotiff(tmp_path / "north.tif", hill, (300, top_row + 1, 300, 500)))
+    import_path(write_geotiff(tmp_path / "south.tif", hill, (top_row + 1, 700, 300, 500)))
+    lat_n, lon = hill.latlon(top_row, 400)
+    lat_s, _ = hill.latlon(top_row + 1, 400)
+    between = (lat_n + lat_s) / 2  # between the north tile's last row and the south's first
+    expected = max(hill.bilinear(lat_n, lon), hill.bilinear(lat_s, lon))
+    assert terrain.elevation(between, lon) == pytest.approx(expected, abs=1e-4)
+    # Within half a cell beyond a tile's outer samples: its edge; further: nothing.
+    west_lat, west_lon = hill.latlon(350, 300)
+    edge = hill.bilinear(west_lat, west_lon)
+    assert terrain.elevation(west_lat, west_lon - 0.4 * hill.step) == pytest.approx(edge, abs=1e-4)
+    assert terrain.elevation(west_lat, west_lon - 0.6 * hill.step) is None
