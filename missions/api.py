@@ -639,8 +639,8 @@ class MissionViewSet(viewsets.ReadOnlyModelViewSet):
     )
     @action(detail=False, methods=["post"], url_path="import-plan")
     def import_plan(self, request: Request) -> Response:
-        """A draft mission from a QGroundControl `.plan` file (multipart `file`, or the
-        plan itself as the JSON body)."""
+        """A draft mission from a QGroundControl `.plan` file or a `QGC WPL 110` text mission
+        (multipart `file`), or the plan itself as the JSON body."""
         upload = request.FILES.get("file")
         organisation = _organisation_for_write(request, request.data.get("organisation"))
         if upload is not None:

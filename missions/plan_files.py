@@ -26,7 +26,7 @@ from missions.errors import MissionError
 from onboard.envelope import EnvelopeError
 from terrain import elevation
 
-from . import qgc_plan
+from . import qgc_plan, wpl
 from .models import Assignment, Mission
 from .planning import PlanningError
 
@@ -95,10 +95,11 @@ def import_document(
     fence_scope: str = "mission",
     confirmed: bool = False,
 ) -> Mission:
-    """A draft mission from a plan; PlanningError / MissionError say what is wrong."""
+    """A draft mission from a plan (a `.plan`, or a QGC WPL text file);
+    PlanningError / MissionError say what is wrong."""
     if fence_scope not in FENCE_SCOPES:
         raise MissionError("fence", f"must be one of {', '.join(FENCE_SCOPES)}")
-    plan = qgc_plan.import_plan(source, terrain=elevation)
+    plan = qgc_plan.import_plan(wpl.plan_document(source), terrain=elevation)
     has_fence = bool(plan.geofence["polygons"] or plan.geofence["circles"])
     with transaction.atomic():
         if has_fence and fence_scope == "organisation":
