@@ -217,6 +217,8 @@ class MavlinkSession:
             raise ValueError(f"unknown autopilot {self.autopilot!r}")
         self.codec = MavlinkCodec(SYSTEM_ID, COMPONENT_ID)
         self.decoder = self.codec  # the name serve()/__main__ log stats from
+        # The Remote ID module speaks as its own component on the vehicle's system.
+        self.module_codec = MavlinkCodec(SYSTEM_ID, mavlink.MAV_COMP_ID_ODID_TXRX_1)
         self.params = DEFAULT_PARAMS | AUTOPILOT_PARAMS[self.autopilot]
         self.mode = "STABILIZE"
         self.intervals: dict[str, float] = {}  # message → simulated seconds between sends
@@ -1154,6 +1156,20 @@ class MavlinkSession:
         else:
             autopilot, custom = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, COPTER_MODES[self.mode]
         self._send("heartbeat", mavlink.MAV_TYPE_QUADROTOR, autopilot, base, custom, status)
+        if self.remote_id is not None:
+            self._module_heartbeat()
+
+    def _module_heartbeat(self) -> None:
+        """A MAVLink Remote ID module beats once a second as ArduRemoteID does: type ODID,
+        autopilot ArduPilot, nothing armed; the flight controller forwards it."""
+        self._out += self.module_codec.encode(
+            "heartbeat",
+            mavlink.MAV_TYPE_ODID,
+            mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            0,
+            0,
+            mavlink.MAV_STATE_ACTIVE,
+        )
 
     def _stream(self, now: float) -> None:
         board = self.vehicle.time

@@ -165,6 +165,31 @@ class CodecStats:
         return dict(self.__dict__)
 
 
+# MAV_TYPEs of the components that share a vehicle's bus without flying it (MAVLink
+# common.xml MAV_TYPE): their HEARTBEATs say nothing of the vehicle's state.
+PERIPHERAL_TYPES = frozenset(
+    (
+        mavlink.MAV_TYPE_ANTENNA_TRACKER,
+        mavlink.MAV_TYPE_GCS,
+        mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+        mavlink.MAV_TYPE_GIMBAL,
+        mavlink.MAV_TYPE_ADSB,
+        mavlink.MAV_TYPE_CAMERA,
+        mavlink.MAV_TYPE_CHARGING_STATION,
+        mavlink.MAV_TYPE_FLARM,
+        mavlink.MAV_TYPE_SERVO,
+        mavlink.MAV_TYPE_ODID,
+        mavlink.MAV_TYPE_BATTERY,
+        mavlink.MAV_TYPE_PARACHUTE,
+        mavlink.MAV_TYPE_LOG,
+        mavlink.MAV_TYPE_OSD,
+        mavlink.MAV_TYPE_IMU,
+        mavlink.MAV_TYPE_GPS,
+        mavlink.MAV_TYPE_WINCH,
+    )
+)
+
+
 class MavlinkCodec:
     """MAVLink 2 framing (pymavlink's parser, no I/O): `feed(bytes)` → good messages.
 
@@ -426,7 +451,13 @@ class MavlinkFlightController(LinkDriver):
                 log.exception("MAVLink message handler failed on %s", kind)
 
     def _is_vehicle(self, msg: Any) -> bool:
-        return msg.type != mavlink.MAV_TYPE_GCS and msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID
+        """The flight controller's HEARTBEAT: an autopilot that is not a peripheral on its
+        bus (a Remote ID module, for one, beats as type ODID with autopilot ArduPilot and
+        nothing armed), and, once one is found, that same system and component."""
+        if msg.type in PERIPHERAL_TYPES or msg.autopilot == mavlink.MAV_AUTOPILOT_INVALID:
+            return False
+        found = (self.target_system, self.target_component)
+        return not self.target_system or (msg.get_srcSystem(), msg.get_srcComponent()) == found
 
     def _on_heartbeat(self, msg: Any, now: float) -> None:
         self._last_vehicle_heartbeat = now

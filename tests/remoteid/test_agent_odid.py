@@ -40,6 +40,8 @@ def send_identity(ground: Ground) -> None:
 # three times beside four busy processes; once, beside the suite's parallel tests, the
 # third was not yet logged.
 LOGGED_WITHIN_S = 10.0
+# Three of the module's beats, one a second.
+MODULE_BEATS_S = 3.5
 
 
 def _logged(tmp_path: Path, kind: str) -> list[str]:
@@ -80,6 +82,12 @@ def test_the_module_gets_the_identity_and_reports_good_to_arm(fly, tmp_path):  #
     )
     assert system["classification_type"] == 1  # EU: an EN 4709-002 operator number
     assert ground.command("arm")["ok"]
+    # The module beats as well, as ArduRemoteID does (type ODID, autopilot ArduPilot,
+    # nothing armed): the agent keeps to the flight controller's own heartbeat.
+    armed_at = time.time()
+    time.sleep(MODULE_BEATS_S)
+    beats = [m for m in ground.on("heartbeats") if m["ts"] > armed_at]
+    assert beats and all(m["armed"] for m in beats), beats
 
 
 def test_a_failing_module_is_reported_and_refuses_arming(fly):  # noqa: F811
