@@ -101,3 +101,20 @@ def test_a_polygon_drawn_there_and_back_encloses_nothing_and_is_refused():
     document["features"][0]["geometry"]["coordinates"] = [[a, c, b, a]]
     with pytest.raises(ZoneFileError, match="encloses no area"):
         parse("field.geojson", json.dumps(document).encode())
+
+
+@pytest.mark.django_db
+def test_an_ed318_file_imports_by_command_into_stored_zones(tmp_path):
+    from io import StringIO
+
+    from django.core.management import call_command
+
+    from zones.models import Zone
+
+    out = StringIO()
+    call_command("import_zones", str(ED318 / "Example_GeoZone_2_Layers.json"), stdout=out)
+    assert "imported 2 zones (ed318" in out.getvalue()
+    assert sorted(Zone.objects.values_list("identifier", "part", "upper_m")) == [
+        ("NFZ6547", 0, 150.0),
+        ("NFZ6547", 1, 50.0),
+    ]
