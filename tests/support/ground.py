@@ -380,7 +380,15 @@ class MissionRun:
             for s in mission.steps.order_by("index")
         ]
         events = [f"{e.kind}:{e.message}" for e in mission.events.order_by("at")]
-        return "steps " + ", ".join(steps) + "\nevents " + "; ".join(events)
+        lateness = [
+            round(e.data["received_at"] - e.data["ts"], 2)
+            for e in mission.events.filter(kind="alarm")
+            if e.data.get("received_at") and e.data.get("ts")
+        ]
+        return (
+            "steps " + ", ".join(steps) + "\nevents " + "; ".join(events)
+            + f"\nalarm received after (s) {lateness}"
+        )  # fmt: skip
 
     def assert_exactly_once(self, *, duplicate_alarms: int = 1) -> None:
         from missions.models import STEP_DONE, Assignment, Event, Mission, StepStatus
