@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from terrain import tiffcodecs
+
 SRTM_VOID = -32768
 # Elevations an SRTM tile can hold (the Dead Sea shore is -430 m, Everest 8849 m): a
 # sample beyond them means a file that is not big-endian SRTM data.
@@ -46,7 +48,6 @@ TAG_GDAL_METADATA = 42112
 GDAL_ITEM = re.compile(
     r"<Item\b(?P<attrs>[^>]*)>\s*(?P<value>[^<]*?)\s*</Item>", re.IGNORECASE | re.DOTALL
 )
-PREDICTOR_FLOATING_POINT = 3
 KEY_MODEL_TYPE = 1024
 KEY_RASTER_TYPE = 1025
 KEY_GEODETIC_CRS = 2048
@@ -54,8 +55,20 @@ KEY_PROJECTED_CRS = 3072
 MODEL_TYPE_GEOGRAPHIC = 2
 RASTER_PIXEL_IS_POINT = 2
 EPSG_WGS84 = 4326
-# Compressions tifffile decodes with the standard library alone (none, Deflate, LZMA).
-READABLE_COMPRESSIONS = {1: "none", 8: "Deflate", 32946: "Deflate", 34925: "LZMA"}
+# Compressions read without native codecs: tifffile decodes none, Deflate, LZMA and
+# PackBits with the standard library and numpy; LZW is ours (terrain.tiffcodecs).
+READABLE_COMPRESSIONS = {
+    1: "none",
+    5: "LZW",
+    8: "Deflate",
+    32773: "PackBits",
+    32946: "Deflate",
+    34925: "LZMA",
+}
+# Segments decoded by terrain.tiffcodecs rather than tifffile: LZW, or any compression
+# with the floating-point predictor (TIFF Predictor 3).
+OWN_COMPRESSIONS = {5}
+OWN_PREDICTORS = {tiffcodecs.PREDICTOR_FLOATING_POINT}
 # A grid must place its samples on the globe within this much of its edges (degrees):
 # a pixel-is-area model's outer edges lie half a pixel beyond its outer samples.
 EDGE_SLACK = 1e-6
@@ -297,13 +310,24 @@ def _check_page(page: object, max_samples: int) -> tuple[int, int]:
             f"its compression (TIFF code {compression}) is not supported; save it "
             "uncompressed or with Deflate (gdal_translate -co COMPRESS=DEFLATE)"
         )
-    if int(page.predictor) == PREDICTOR_FLOATING_POINT:  # type: ignore[attr-defined]
-        raise TerrainError(
-            "its floating-point predictor (TIFF Predictor 3, as in Copernicus DEM tiles) "
-            "is not supported; save it with gdal_translate -co COMPRESS=DEFLATE "
-            "-co PREDICTOR=1"
-        )
+    predictor = int(page.predictor)  # type: ignore[attr-defined]
+    if predictor not in tiffcodecs.PREDICTORS:
+        raise TerrainError(f"its predictor (TIFF code {predictor}) is not supported")
+    if predictor == tiffcodecs.PREDICTOR_HORIZONTAL and dtype.kind == "f":
+        raise TerrainError("it has the horizontal predictor on real numbers, which TIFF forbids")
     return rows, cols
+
+
+def _samples(page: object, data: bytes) -> np.ndarray:
+    """The page's samples, decoded by tifffile or, where it would need native codecs, by
+    terrain.tiffcodecs."""
+    compression = int(page.compression)  # type: ignore[attr-defined]
+    if compression in OWN_COMPRESSIONS or int(page.predictor) in OWN_PREDICTORS:  # type: ignore[attr-defined]
+        try:
+            return tiffcodecs.decode_page(page, data)
+        except tiffcodecs.CodecError as exc:
+            raise TerrainError(str(exc)) from None
+    return page.asarray()  # type: ignore[attr-defined]
 
 
 def read_geotiff(name: str, data: bytes, max_samples: int) -> Grid:
@@ -322,7 +346,8 @@ def read_geotiff(name: str, data: bytes, max_samples: int) -> Grid:
             north, west, dlat, dlon, bottom_up = _placement(page.tags, keys, rows, cols)
             nodata = _nodata(page.tags)
             scale, offset = _scale_offset(page.tags)
-            samples = page.asarray()[::-1] if bottom_up else page.asarray()
+            samples = _samples(page, data)
+            samples = samples[::-1] if bottom_up else samples
     except TerrainError as exc:
         raise TerrainError(f"{name}: {exc}") from None
     except Exception as exc:  # tifffile names what is wrong in its own exceptions

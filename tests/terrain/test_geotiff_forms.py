@@ -1,6 +1,6 @@
 """GeoTIFF forms real elevation models come in (GDAL's and PROJ's test grids showed each):
 a stored value with a scale and offset, a placement by ModelTransformationTag, rows from
-south to north, and a predictor we cannot undo."""
+south to north, and predictors that do not fit the samples."""
 
 from __future__ import annotations
 
@@ -68,12 +68,17 @@ def test_rows_from_south_to_north_are_turned_north_up():
     np.testing.assert_array_equal(bottom_up.heights, north_up.heights)
 
 
-def test_a_floating_point_predictor_is_refused_saying_how_to_save_the_file():
-    """Written with the horizontal predictor tifffile can encode, then marked floating-point
-    (the Predictor entry's value 2 becomes 3): refused before any sample is decoded."""
-    data = geotiff(RAW, *placed(), compression="zlib", predictor=True)
+def _marked(samples: np.ndarray, predictor: int) -> bytes:
+    """Written with the horizontal predictor tifffile can encode, then marked with another
+    (the Predictor entry's value 2 becomes `predictor`)."""
+    data = geotiff(samples, *placed(), compression="zlib", predictor=True)
     entry = struct.pack("<HHIH", 317, 3, 1, 2)
     assert data.count(entry) == 1
-    marked = data.replace(entry, struct.pack("<HHIH", 317, 3, 1, 3))
-    with pytest.raises(TerrainError, match="floating-point predictor.*PREDICTOR=1"):
-        read_dem("copernicus.tif", marked, 1_000_000)
+    return data.replace(entry, struct.pack("<HHIH", 317, 3, 1, predictor))
+
+
+def test_predictors_that_do_not_fit_the_samples_are_refused_before_decoding():
+    with pytest.raises(TerrainError, match="floating-point predictor on whole numbers"):
+        read_dem("marked.tif", _marked(RAW, 3), 1_000_000)
+    with pytest.raises(TerrainError, match=r"predictor \(TIFF code 4\) is not supported"):
+        read_dem("marked.tif", _marked(RAW, 4), 1_000_000)
