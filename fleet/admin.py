@@ -11,7 +11,15 @@ from onboard.envelope import EnvelopeError, parse_envelope, parse_latlon
 from workers.counters import snapshot
 
 from . import credentials, envelopes
-from .identity import IdentityError, parse_operator_id, parse_serial_number
+from .identity import (
+    EU_CATEGORIES,
+    EU_CLASSES,
+    UA_TYPES,
+    IdentityError,
+    check_eu_declaration,
+    parse_operator_id,
+    parse_serial_number,
+)
 from .models import CommandLog, ConnectionEvent, Drone, Membership, Organisation
 
 
@@ -65,7 +73,8 @@ class OrganisationAdmin(admin.ModelAdmin):
 
 
 def _send_drone_envelope(drone: Drone, changed: list[str]) -> None:
-    if {"max_height", "max_distance", "serial_number"} & set(changed):
+    identity = {"serial_number", "ua_type", "eu_category", "eu_class"}
+    if {"max_height", "max_distance", *identity} & set(changed):
         transaction.on_commit(lambda: envelopes.send_to_drones([drone]))
 
 
@@ -98,7 +107,18 @@ class DroneForm(forms.ModelForm):
             "max_distance",
             "serial_number",
             "remote_id_external",
+            "ua_type",
+            "eu_category",
+            "eu_class",
         ]
+        widgets = {
+            field: forms.Select(choices=[(n, name) for name, n in names.items()])
+            for field, names in (
+                ("ua_type", UA_TYPES),
+                ("eu_category", EU_CATEGORIES),
+                ("eu_class", EU_CLASSES),
+            )
+        }
 
     def clean_serial_number(self) -> str:
         try:
@@ -109,6 +129,7 @@ class DroneForm(forms.ModelForm):
     def clean(self) -> dict:
         """A drone's own height and distance limits may only lower its organisation's."""
         data = super().clean()
+        self._check_declared(data)
         organisation = data.get("organisation")
         if organisation is None:
             return data
@@ -121,6 +142,25 @@ class DroneForm(forms.ModelForm):
                     f"must be above 0 and at most the organisation's {getattr(limits, name):g} m",
                 )
         return data
+
+    def _check_declared(self, data: dict) -> None:
+        """The UA type, EU category and class are Open Drone ID numbers that fit together;
+        one the form left out keeps the drone's value."""
+        values = {}
+        for field, names in (
+            ("ua_type", UA_TYPES),
+            ("eu_category", EU_CATEGORIES),
+            ("eu_class", EU_CLASSES),
+        ):
+            value = data.get(field)
+            values[field] = getattr(self.instance, field) if value is None else value
+            if values[field] not in names.values():
+                self.add_error(field, "not a value the broadcast knows")
+                return
+        try:
+            check_eu_declaration(values["eu_category"], values["eu_class"])
+        except IdentityError as exc:
+            self.add_error(exc.field, exc.message)
 
 
 @admin.register(Drone)

@@ -40,6 +40,32 @@ EASA_STATES = frozenset(
     "PRT ROU SVK SVN ESP SWE ISL LIE NOR CHE".split()
 )
 MAX_INPUT = 64  # longer text is refused before any parsing
+# What the broadcast declares of the aircraft, by the API's names: the UA type
+# (MAV_ODID_UA_TYPE, ASTM F3411's list) and, in the EU, the operation's category and the
+# aircraft's class mark (MAV_ODID_CATEGORY_EU, MAV_ODID_CLASS_EU) [EU 2019/945].
+UA_TYPES = {
+    "none": 0,
+    "aeroplane": 1,
+    "helicopter_or_multirotor": 2,
+    "gyroplane": 3,
+    "hybrid_lift": 4,
+    "ornithopter": 5,
+    "glider": 6,
+    "kite": 7,
+    "free_balloon": 8,
+    "captive_balloon": 9,
+    "airship": 10,
+    "free_fall_parachute": 11,
+    "rocket": 12,
+    "tethered_powered_aircraft": 13,
+    "ground_obstacle": 14,
+    "other": 15,
+}
+EU_CATEGORIES = {"undeclared": 0, "open": 1, "specific": 2, "certified": 3}
+EU_CLASSES = {"undeclared": 0, **{f"C{n}": n + 1 for n in range(7)}}
+# Class marks C5 and C6 are for the standard scenarios of the specific category; the
+# certified category flies no class-marked aircraft [EU 2019/945, Parts 16 and 17].
+SPECIFIC_ONLY_CLASSES = {"C5", "C6"}
 
 
 class IdentityError(ValueError):
@@ -129,6 +155,27 @@ def parse_operator_id(value: object, field: str = "operator_id") -> str:
     return f"{country}{base}{check}"
 
 
+def parse_declared(value: object, field: str, names: dict[str, int]) -> int:
+    """One of `names` (the API's words for an Open Drone ID enum) → its number."""
+    if not isinstance(value, str) or value not in names:
+        raise IdentityError(field, "must be one of " + ", ".join(names))
+    return names[value]
+
+
+def declared_name(number: int, names: dict[str, int]) -> str:
+    return next(name for name, n in names.items() if n == number)
+
+
+def check_eu_declaration(category: int, class_mark: int) -> None:
+    """A class mark must fit the category it is flown in; IdentityError names eu_class."""
+    category_name = declared_name(category, EU_CATEGORIES)
+    class_name = declared_name(class_mark, EU_CLASSES)
+    if class_name in SPECIFIC_ONLY_CLASSES and category_name != "specific":
+        raise IdentityError("eu_class", f"{class_name} is flown in the specific category only")
+    if category_name == "certified" and class_name != "undeclared":
+        raise IdentityError("eu_class", "the certified category flies no class-marked aircraft")
+
+
 def identity_for(drone: Any) -> RemoteIdentity | None:
     """The optional `remote_id` block of a drone's envelope message: its serial number,
     its organisation's operator number and, as the operator's position, the
@@ -141,6 +188,9 @@ def identity_for(drone: Any) -> RemoteIdentity | None:
     return RemoteIdentity(
         serial_number=drone.serial_number,
         operator_id=organisation.operator_id,
+        ua_type=drone.ua_type,
         description=(drone.name or drone.drone_id)[:23],
         operator_location=location,
+        eu_category=drone.eu_category,
+        eu_class=drone.eu_class,
     )

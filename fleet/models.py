@@ -147,6 +147,12 @@ class Drone(models.Model):
     # controller speaks no Open Drone ID); who declared it and when is in the audit trail.
     serial_number = models.CharField(max_length=20, blank=True, default="", db_default="")
     remote_id_external = models.BooleanField(default=False, db_default=False)
+    # What the broadcast declares of the aircraft (fleet.identity: UA_TYPES, EU_CATEGORIES,
+    # EU_CLASSES, as Open Drone ID numbers them): a multirotor, EU category and class
+    # undeclared until an admin sets them; a form that leaves them out keeps them.
+    ua_type = models.PositiveSmallIntegerField(default=2, db_default=2, blank=True)
+    eu_category = models.PositiveSmallIntegerField(default=0, db_default=0, blank=True)
+    eu_class = models.PositiveSmallIntegerField(default=0, db_default=0, blank=True)
     # Whether the drone uploads its logs after landing, set by operators (logs/policy.py).
     log_collection = models.CharField(
         max_length=16,

@@ -12,11 +12,23 @@ from typing import Any
 from django.db import transaction
 
 from . import envelopes
-from .identity import IdentityError, parse_operator_id, parse_serial_number
+from .identity import (
+    EU_CATEGORIES,
+    EU_CLASSES,
+    UA_TYPES,
+    IdentityError,
+    check_eu_declaration,
+    declared_name,
+    parse_declared,
+    parse_operator_id,
+    parse_serial_number,
+)
 from .models import Drone, Organisation
 from .signals import identity_changed
 
-DRONE_FIELDS = ("serial_number", "remote_id_external")
+# The declared fields, by API name: their model field and the names of their values.
+DECLARED = {"ua_type": UA_TYPES, "eu_category": EU_CATEGORIES, "eu_class": EU_CLASSES}
+DRONE_FIELDS = ("serial_number", "remote_id_external", *DECLARED)
 ORGANISATION_FIELDS = ("operator_id", "require_remote_id")
 
 
@@ -25,6 +37,16 @@ def drone_identity(drone: Drone) -> dict:
         "drone_id": drone.drone_id,
         "serial_number": drone.serial_number,
         "remote_id_external": drone.remote_id_external,
+        **{field: declared_name(getattr(drone, field), names) for field, names in DECLARED.items()},
+    }
+
+
+def declared_labels(drone: Drone) -> dict[str, str]:
+    """What the drone's broadcast declares of it, as its page shows it."""
+    labels = {"ua_type": "UA type", "eu_category": "EU category", "eu_class": "EU class"}
+    return {
+        labels[field]: declared_name(getattr(drone, field), names).replace("_", " ")
+        for field, names in DECLARED.items()
     }
 
 
@@ -61,6 +83,12 @@ def _drone_changes(drone: Drone, data: Mapping) -> dict:
         changes["serial_number"] = serial
     if "remote_id_external" in data:
         changes["remote_id_external"] = _flag(data["remote_id_external"], "remote_id_external")
+    for field, names in DECLARED.items():
+        if field in data:
+            changes[field] = parse_declared(data[field], field, names)
+    check_eu_declaration(
+        changes.get("eu_category", drone.eu_category), changes.get("eu_class", drone.eu_class)
+    )
     return {key: value for key, value in changes.items() if getattr(drone, key) != value}
 
 
@@ -89,6 +117,14 @@ def set_organisation_remote_id(organisation: Organisation, data: Mapping, user: 
     return organisation_remote_id(organisation)
 
 
+def _named(changes: dict) -> dict:
+    """The changes as the audit trail shows them: declared numbers by their API names."""
+    return {
+        key: declared_name(value, DECLARED[key]) if key in DECLARED else value
+        for key, value in changes.items()
+    }
+
+
 def _store(
     target: Drone | Organisation,
     changes: dict,
@@ -109,7 +145,7 @@ def _store(
             user=user,
             action=action,
             target=name,
-            changed=changes,
+            changed=_named(changes),
         )
         drones = Drone.objects.filter(organisation_id=organisation_id)
         if isinstance(target, Drone):

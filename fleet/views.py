@@ -9,7 +9,7 @@ from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import reverse
 from django.views.decorators.http import require_POST
 
-from . import airworthiness, listing
+from . import airworthiness, listing, remote_id
 from .models import Drone, Membership, Role
 from .serializers import DroneDetailSerializer
 from .state import LABELS, describe
@@ -91,6 +91,7 @@ def drone_detail(request: HttpRequest, drone_id: str) -> HttpResponse:
             "fleet_config": config,
             "airworthiness": airworthiness.verdict(drone),
             "remote_id_health": airworthiness.remote_id_health(drone),
+            "declared": remote_id.declared_labels(drone),
         },
     )
 

@@ -1412,17 +1412,21 @@ OPERATOR_ID_RE = re.compile(r"^[0-9A-Za-z-]{1,20}$")
 @dataclass(frozen=True)
 class RemoteIdentity:
     """What the drone's Remote ID broadcasts: its serial number (ANSI/CTA-2063-A), the
-    operator's registration number, the UA type (MAV_ODID_UA_TYPE), a Self ID text and the
-    operator's position ([lat, lon]; None: the take-off point)."""
+    operator's registration number, the UA type (MAV_ODID_UA_TYPE), a Self ID text, the
+    operator's position ([lat, lon]; None: the take-off point) and, in the EU, the
+    operation's category (MAV_ODID_CATEGORY_EU) and the aircraft's class mark
+    (MAV_ODID_CLASS_EU); 0 is undeclared, and an undeclared one is left off the wire."""
 
     serial_number: str
     operator_id: str = ""
     ua_type: int = 2  # MAV_ODID_UA_TYPE_HELICOPTER_OR_MULTIROTOR
     description: str = ""
     operator_location: tuple[float, float] | None = None
+    eu_category: int = 0
+    eu_class: int = 0
 
     def to_dict(self) -> dict:
-        return {
+        out: dict[str, Any] = {
             "serial_number": self.serial_number,
             "operator_id": self.operator_id,
             "ua_type": self.ua_type,
@@ -1431,6 +1435,17 @@ class RemoteIdentity:
             if self.operator_location is None
             else list(self.operator_location),
         }
+        if self.eu_category:
+            out["eu_category"] = self.eu_category
+        if self.eu_class:
+            out["eu_class"] = self.eu_class
+        return out
+
+
+# MAV_ODID_CATEGORY_EU (undeclared, open, specific, certified) and MAV_ODID_CLASS_EU
+# (undeclared, then class marks C0 to C6).
+EU_CATEGORY_MAX = 3
+EU_CLASS_MAX = 7
 
 
 def parse_remote_identity(obj: Any, name: str = "remote_id") -> RemoteIdentity:
@@ -1444,6 +1459,12 @@ def parse_remote_identity(obj: Any, name: str = "remote_id") -> RemoteIdentity:
     ua_type = _integer(obj.get("ua_type", 2), f"{name}.ua_type", lo=0)
     if ua_type > 15:
         raise ProtocolError(f"{name}.ua_type", "must be a MAV_ODID_UA_TYPE (0 to 15)")
+    eu_category = _integer(obj.get("eu_category", 0), f"{name}.eu_category", lo=0)
+    if eu_category > EU_CATEGORY_MAX:
+        raise ProtocolError(f"{name}.eu_category", "must be a MAV_ODID_CATEGORY_EU (0 to 3)")
+    eu_class = _integer(obj.get("eu_class", 0), f"{name}.eu_class", lo=0)
+    if eu_class > EU_CLASS_MAX:
+        raise ProtocolError(f"{name}.eu_class", "must be a MAV_ODID_CLASS_EU (0 to 7)")
     # ASTM F3411's Self ID description is 23 characters.
     description = _string(
         obj.get("description") or "", f"{name}.description", empty=True, max_length=23
@@ -1456,7 +1477,7 @@ def parse_remote_identity(obj: Any, name: str = "remote_id") -> RemoteIdentity:
             latitude(location[0], f"{name}.operator_location[0]"),
             longitude(location[1], f"{name}.operator_location[1]"),
         )
-    return RemoteIdentity(serial, operator, ua_type, description, location)
+    return RemoteIdentity(serial, operator, ua_type, description, location, eu_category, eu_class)
 
 
 @dataclass(frozen=True)

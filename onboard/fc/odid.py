@@ -38,9 +38,12 @@ def messages(
     now: float,
 ) -> list[tuple[str, tuple[Any, ...]]]:
     """The four messages (encoder name, fields after target system and component)."""
+    # The category and class fields mean something only under the EU classification:
+    # an EN 4709-002 operator, or a category or class the ground declared.
+    eu = _eu_operator(identity) or bool(identity.eu_category or identity.eu_class)
     classification = (
         mavlink.MAV_ODID_CLASSIFICATION_TYPE_EU
-        if _eu_operator(identity)
+        if eu
         else mavlink.MAV_ODID_CLASSIFICATION_TYPE_UNDECLARED
     )
     lat, lon = operator_position if operator_position is not None else (0.0, 0.0)
@@ -74,8 +77,8 @@ def messages(
                 0,
                 UNKNOWN_ALTITUDE,
                 UNKNOWN_ALTITUDE,
-                mavlink.MAV_ODID_CATEGORY_EU_UNDECLARED,
-                mavlink.MAV_ODID_CLASS_EU_UNDECLARED,
+                identity.eu_category if eu else mavlink.MAV_ODID_CATEGORY_EU_UNDECLARED,
+                identity.eu_class if eu else mavlink.MAV_ODID_CLASS_EU_UNDECLARED,
                 UNKNOWN_ALTITUDE,
                 max(0, int(now - EPOCH_2019)),
             ),

@@ -29,6 +29,21 @@ def test_the_drone_form_refuses_a_bad_serial_and_keeps_a_good_one(world):
     assert good.cleaned_data["serial_number"] == "MFR1C123456789ABC"
 
 
+def test_the_drone_form_keeps_the_eu_class_to_its_category(world):
+    form_class = form_for(Drone, world.drone)
+    data = {"organisation": world.org.pk, "drone_id": "ACME_1", "ua_type": 2}
+    misfit = form_class(data={**data, "eu_category": 1, "eu_class": 6}, instance=world.drone)
+    assert not misfit.is_valid()
+    assert "specific category only" in misfit.errors["eu_class"][0]
+    unknown = form_class(data={**data, "ua_type": 16}, instance=world.drone)
+    assert not unknown.is_valid() and "ua_type" in unknown.errors
+    fits = form_class(data={**data, "eu_category": 2, "eu_class": 6}, instance=world.drone)
+    assert fits.is_valid(), fits.errors
+    fits.save()
+    world.drone.refresh_from_db()
+    assert (world.drone.eu_category, world.drone.eu_class) == (2, 6)
+
+
 def test_the_organisation_form_checks_the_eu_checksum_and_keeps_the_public_part(world):
     form_class = form_for(Organisation, world.org)
     data = {"name": "Acme", "slug": "acme", "envelope": "{}", "require_remote_id": "on"}

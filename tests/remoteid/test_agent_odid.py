@@ -29,6 +29,8 @@ def send_identity(ground: Ground) -> None:
         operator_id=OPERATOR,
         description="Survey north field",
         operator_location=STATION,
+        eu_category=1,  # open
+        eu_class=3,  # C2
     )
     ground.send("envelope", protocol.EnvelopeUpdate({}, remote_id=identity).to_dict())
 
@@ -81,6 +83,7 @@ def test_the_module_gets_the_identity_and_reports_good_to_arm(fly, tmp_path):  #
         round(STATION[1] * 1e7),
     )
     assert system["classification_type"] == 1  # EU: an EN 4709-002 operator number
+    assert (system["category_eu"], system["class_eu"]) == (1, 3)
     assert ground.command("arm")["ok"]
     # The module beats as well, as ArduRemoteID does (type ODID, autopilot ArduPilot,
     # nothing armed): the agent keeps to the flight controller's own heartbeat.

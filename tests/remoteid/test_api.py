@@ -171,3 +171,64 @@ def test_arming_a_drone_that_is_not_airworthy_answers_409_and_sends_nothing(acme
     assert body["code"] == "not_airworthy"
     assert "no serial number" in body["error"]
     assert CommandLog.objects.get().outcome == CommandLog.Outcome.REJECTED
+
+
+def test_an_admin_declares_the_aircraft_by_name_and_the_audit_trail_names_it(acme):
+    factories.drone(acme, "ACME_1")
+    admin = factories.person(acme, Role.ADMIN)
+    url = "/api/v1/drones/ACME_1/identity/"
+    before = client_for(admin).get(url).json()
+    assert (before["ua_type"], before["eu_category"], before["eu_class"]) == (
+        "helicopter_or_multirotor",
+        "undeclared",
+        "undeclared",
+    )
+    body = {"ua_type": "hybrid_lift", "eu_category": "specific", "eu_class": "C5"}
+    response = put(admin, url, body)
+    assert response.status_code == 200, response.content
+    assert {k: response.json()[k] for k in body} == body
+    drone = Drone.objects.get(drone_id="ACME_1")
+    assert (drone.ua_type, drone.eu_category, drone.eu_class) == (4, 2, 6)
+    audit = AuditEvent.objects.get(action="remote_id.drone")
+    assert "C5" in str(audit.__dict__) and "hybrid_lift" in str(audit.__dict__)
+
+
+@pytest.mark.parametrize(
+    ("body", "field"),
+    [
+        ({"ua_type": "drone"}, "ua_type"),
+        ({"ua_type": 2}, "ua_type"),
+        ({"eu_category": "OPEN"}, "eu_category"),
+        ({"eu_class": "C7"}, "eu_class"),
+        # C5 and C6 are for the specific category's standard scenarios.
+        ({"eu_category": "open", "eu_class": "C6"}, "eu_class"),
+        ({"eu_class": "C5"}, "eu_class"),
+        ({"eu_category": "certified", "eu_class": "C2"}, "eu_class"),
+    ],
+)
+def test_a_declaration_that_is_not_one_or_does_not_fit_is_refused_naming_it(acme, body, field):
+    factories.drone(acme, "ACME_1")
+    admin = factories.person(acme, Role.ADMIN)
+    response = put(admin, "/api/v1/drones/ACME_1/identity/", body)
+    assert response.status_code == 400
+    assert list(response.json()["fields"]) == [field]
+    drone = Drone.objects.get(drone_id="ACME_1")
+    assert (drone.ua_type, drone.eu_category, drone.eu_class) == (2, 0, 0)
+
+
+def test_the_declaration_goes_to_the_drone_with_its_identity(acme):
+    from fleet.identity import identity_for
+
+    drone = factories.drone(acme, "ACME_1", serial_number=SERIAL)
+    assert identity_for(drone).to_dict().keys() == {
+        "serial_number",
+        "operator_id",
+        "ua_type",
+        "description",
+        "operator_location",
+    }  # undeclared: nothing new on the wire
+    admin = factories.person(acme, Role.ADMIN)
+    body = {"ua_type": "aeroplane", "eu_category": "open", "eu_class": "C1"}
+    assert put(admin, "/api/v1/drones/ACME_1/identity/", body).status_code == 200
+    sent = identity_for(Drone.objects.get(drone_id="ACME_1")).to_dict()
+    assert (sent["ua_type"], sent["eu_category"], sent["eu_class"]) == (1, 1, 2)

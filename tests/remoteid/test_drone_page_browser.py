@@ -1,5 +1,6 @@
-"""The drone page's Remote ID card in a real browser: the serial number, what the module
-reports and the airworthiness verdict with its reasons."""
+"""The drone page's Remote ID card in a real browser: the serial number, what the
+broadcast declares of the aircraft, what the module reports and the airworthiness verdict
+with its reasons."""
 
 from __future__ import annotations
 
@@ -15,12 +16,18 @@ def test_the_drone_page_shows_why_a_drone_may_not_arm(page, live_asgi, world_tx)
     Organisation.objects.filter(pk=world_tx.org.pk).update(require_remote_id=True)
     Drone.objects.filter(drone_id="ACME_1").update(
         serial_number="MFR1C123456789ABC",
+        eu_category=1,
+        eu_class=3,
         fc={"protocol": "mavlink", "remote_id": {"ok": False, "error": "transmitter fault"}},
     )
     login(page, live_asgi, "operator")
     page.goto(f"{live_asgi.url}/drones/ACME_1/")
     card = page.locator("#remote-id")
     assert "MFR1C123456789ABC" in card.inner_text()
+    terms, details = card.locator("dt").all_inner_texts(), card.locator("dd").all_inner_texts()
+    declared = dict(zip(terms, details, strict=True))
+    assert declared["UA type"] == "helicopter or multirotor"
+    assert (declared["EU category"], declared["EU class"]) == ("open", "C2")
     assert "module failing: transmitter fault" in card.inner_text()
     assert card.locator("[data-airworthy]").get_attribute("data-airworthy") == "no"
     assert card.locator(".reasons li").all_inner_texts() == [

@@ -31,6 +31,29 @@ def test_an_envelope_message_carries_the_identity_both_ways():
     assert again["remote_id"] == IDENTITY
 
 
+def test_a_declared_eu_category_and_class_travel_and_undeclared_ones_stay_off_the_wire():
+    declared = {**IDENTITY, "eu_category": 2, "eu_class": 6}
+    update = protocol.parse_envelope_update(envelope_message(remote_id=declared))
+    assert (update.remote_id.eu_category, update.remote_id.eu_class) == (2, 6)
+    assert json.loads(json.dumps(update.to_dict()))["remote_id"] == declared
+    plain = protocol.parse_envelope_update(envelope_message(remote_id=IDENTITY))
+    assert (plain.remote_id.eu_category, plain.remote_id.eu_class) == (0, 0)
+
+
+def test_the_system_message_carries_the_eu_declaration_under_the_eu_classification():
+    from onboard.fc.odid import messages
+
+    def system(identity: protocol.RemoteIdentity) -> tuple:
+        fields = dict(messages(identity, None, location_type=0, now=1767225600.0))
+        sent = fields["open_drone_id_system"]
+        return sent[2], sent[9], sent[10]  # classification type, category, class
+
+    faa = protocol.RemoteIdentity("MFR1C123456789ABC", "FA3ABCDE12")
+    assert system(faa) == (0, 0, 0)  # undeclared: nothing said of the EU
+    eu = protocol.RemoteIdentity("MFR1C123456789ABC", "FIN87astrdge12k8", eu_category=1, eu_class=3)
+    assert system(eu) == (1, 1, 3)  # MAV_ODID_CLASSIFICATION_TYPE_EU, open, C2
+
+
 def test_an_envelope_message_without_identity_is_unchanged_on_the_wire():
     update = protocol.parse_envelope_update(envelope_message())
     assert update.remote_id is None
@@ -44,6 +67,9 @@ def test_an_envelope_message_without_identity_is_unchanged_on_the_wire():
         ({"serial_number": 5}, "remote_id.serial_number"),
         ({"operator_id": "FIN 87"}, "remote_id.operator_id"),
         ({"ua_type": 16}, "remote_id.ua_type"),
+        ({"eu_category": 4}, "remote_id.eu_category"),
+        ({"eu_class": 8}, "remote_id.eu_class"),
+        ({"eu_class": "C2"}, "remote_id.eu_class"),
         ({"description": "x" * 24}, "remote_id.description"),
         ({"operator_location": [95, 0]}, "remote_id.operator_location[0]"),
         ({"operator_location": [40.0]}, "remote_id.operator_location"),
