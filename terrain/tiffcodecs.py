@@ -32,6 +32,8 @@ PREDICTOR_NONE = 1
 PREDICTOR_HORIZONTAL = 2
 PREDICTOR_FLOATING_POINT = 3
 PREDICTORS = {PREDICTOR_NONE, PREDICTOR_HORIZONTAL, PREDICTOR_FLOATING_POINT}
+# A tile may overhang a small image (GDAL's default tile is 256 x 256), up to this size.
+MAX_SEGMENT_SAMPLES = 1024 * 1024
 
 
 class CodecError(ValueError):
@@ -127,6 +129,10 @@ def decode_page(page: Any, data: bytes) -> np.ndarray:
         raise CodecError("it has the floating-point predictor on whole numbers")
     rows, cols = page.shape
     seg_rows, seg_cols = _segment_shape(page)
+    if seg_rows * seg_cols > max(rows * cols, MAX_SEGMENT_SAMPLES):
+        # Each segment is decompressed up to its own size: one far larger than the image
+        # would let a small file unpack to gigabytes.
+        raise CodecError(f"its {seg_cols} x {seg_rows} tiles are larger than the image")
     across, down = -(-cols // seg_cols), -(-rows // seg_rows)
     segments = list(zip(page.dataoffsets, page.databytecounts, strict=True))
     if len(segments) != across * down:

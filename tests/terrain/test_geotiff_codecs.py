@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from terrain.formats import TerrainError, read_dem
-from terrain.tiffcodecs import CodecError, lzw_decode
+from terrain.tiffcodecs import CodecError, decode_page, lzw_decode
 
 GDAL = Path(__file__).resolve().parents[1] / "data" / "terrain" / "gdal"
 REAL = [
@@ -98,3 +98,26 @@ def test_lzw_round_trips_the_textbook_cases():
 def test_the_lzw_of_tiff_before_5_0_is_refused_with_a_way_out():
     with pytest.raises(CodecError, match="before 5.0; re-save it with GDAL"):
         lzw_decode(b"\x00\x01\x02\x03", 10)
+
+
+def test_tiles_far_larger_than_the_image_are_refused_before_any_is_decompressed():
+    from types import SimpleNamespace
+
+    tiny = SimpleNamespace(
+        compression=5,
+        predictor=1,
+        dtype=np.dtype("int16"),
+        parent=SimpleNamespace(byteorder="<"),
+        shape=(29, 37),
+        is_tiled=True,
+        tilelength=32768,
+        tilewidth=32768,
+        dataoffsets=(8,),
+        databytecounts=(10,),
+    )
+    with pytest.raises(CodecError, match="32768 x 32768 tiles are larger than the image"):
+        decode_page(tiny, b"\0" * 18)
+    # GDAL's 256 x 256 tile over a small grid is fine (refused later only for its data).
+    overhang = SimpleNamespace(**{**vars(tiny), "tilelength": 256, "tilewidth": 256})
+    with pytest.raises(CodecError, match="bytes where"):
+        decode_page(overhang, b"\0" * 18)
