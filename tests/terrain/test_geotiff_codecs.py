@@ -121,3 +121,23 @@ def test_tiles_far_larger_than_the_image_are_refused_before_any_is_decompressed(
     overhang = SimpleNamespace(**{**vars(tiny), "tilelength": 256, "tilewidth": 256})
     with pytest.raises(CodecError, match="bytes where"):
         decode_page(overhang, b"\0" * 18)
+
+
+@pytest.mark.django_db
+def test_an_lzw_and_a_copernicus_form_import_by_command_and_give_the_reference_ground(
+    terrain_dir,
+):
+    import io
+
+    from django.core.management import call_command
+
+    import terrain
+
+    reference = read("reference_float32.tif")
+    for name in ("lzw_fp_tiled.tif", "deflate_fp_strips.tif"):
+        out = io.StringIO()
+        call_command("import_terrain", str(GDAL / name), stdout=out)
+        assert f"imported {name}: 37 x 29 samples" in out.getvalue()
+    # A sample's centre: the stored ground is the reference's own value there.
+    lat, lon = reference.north - 3 * reference.dlat, reference.west + 4 * reference.dlon
+    assert terrain.elevation(lat, lon) == pytest.approx(float(reference.heights[3, 4]), abs=1e-3)
